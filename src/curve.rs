@@ -1,0 +1,283 @@
+//! Coupler curves: sampled positions and velocities of coupler points over a crank turn.
+
+use crate::linkage::{Circuit, CouplerPoint, FourBar};
+use crate::pose::{CrankAngle, Pose};
+
+/// Evenly spaced crank angles `θ_k = k·step` for `k = 0 .. n`, `n = ⌈360/step⌉` (all
+/// below 360°), with their sines and cosines. Shared by every linkage sampled at that step.
+///
+/// ```
+/// use coupler_atlas::CrankTable;
+/// let t = CrankTable::new(10.0).unwrap();
+/// assert_eq!(t.len(), 36);
+/// assert_eq!(t.angles()[35].degrees, 350.0);
+/// ```
+#[derive(Clone, Debug)]
+pub struct CrankTable {
+    step: f64,
+    angles: Vec<CrankAngle>,
+}
+
+impl CrankTable {
+    /// Angles `0, step, 2·step, …` below 360°. `None` unless `0 < step ≤ 360` and finite.
+    pub fn new(step_deg: f64) -> Option<CrankTable> {
+        if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
+            return None;
+        }
+        let n = (360.0 / step_deg).ceil() as usize;
+        let angles = (0..n)
+            .map(|k| k as f64 * step_deg)
+            .filter(|&t| t < 360.0)
+            .map(CrankAngle::from_degrees)
+            .collect();
+        Some(CrankTable {
+            step: step_deg,
+            angles,
+        })
+    }
+
+    /// The step in degrees.
+    pub fn step(&self) -> f64 {
+        self.step
+    }
+
+    /// Number of angles.
+    pub fn len(&self) -> usize {
+        self.angles.len()
+    }
+
+    /// True if there are no angles (never, for a valid step).
+    pub fn is_empty(&self) -> bool {
+        self.angles.is_empty()
+    }
+
+    /// The angles.
+    pub fn angles(&self) -> &[CrankAngle] {
+        &self.angles
+    }
+}
+
+/// The poses of one linkage and circuit at every angle of a [`CrankTable`], stored as
+/// columns (structure of arrays) so that tracing many coupler points streams through
+/// memory. A pose that cannot be assembled is marked invalid (its columns hold NaN).
+#[derive(Clone, Debug)]
+pub struct PoseTable {
+    /// Crank pin x.
+    pub pa_x: Vec<f64>,
+    /// Crank pin y.
+    pub pa_y: Vec<f64>,
+    /// Coupler direction e3, x.
+    pub e_x: Vec<f64>,
+    /// Coupler direction e3, y.
+    pub e_y: Vec<f64>,
+    /// Crank pin velocity x.
+    pub va_x: Vec<f64>,
+    /// Crank pin velocity y.
+    pub va_y: Vec<f64>,
+    /// Coupler angular velocity ω3.
+    pub omega: Vec<f64>,
+    /// Transmission angle (radians).
+    pub transmission: Vec<f64>,
+    /// Whether the linkage assembles at that angle.
+    pub valid: Vec<bool>,
+}
+
+impl PoseTable {
+    /// Solves [`Pose::solve`] once per angle.
+    pub fn new(linkage: &FourBar, circuit: Circuit, table: &CrankTable) -> PoseTable {
+        let n = table.len();
+        let mut t = PoseTable {
+            pa_x: Vec::with_capacity(n),
+            pa_y: Vec::with_capacity(n),
+            e_x: Vec::with_capacity(n),
+            e_y: Vec::with_capacity(n),
+            va_x: Vec::with_capacity(n),
+            va_y: Vec::with_capacity(n),
+            omega: Vec::with_capacity(n),
+            transmission: Vec::with_capacity(n),
+            valid: Vec::with_capacity(n),
+        };
+        for angle in table.angles() {
+            let pose = Pose::solve(linkage, circuit, angle);
+            let nan = f64::NAN;
+            t.pa_x.push(angle.cos);
+            t.pa_y.push(angle.sin);
+            t.va_x.push(-angle.sin);
+            t.va_y.push(angle.cos);
+            t.valid.push(pose.is_some());
+            match pose {
+                Some(p) => {
+                    t.e_x.push(p.coupler_dir.x);
+                    t.e_y.push(p.coupler_dir.y);
+                    t.omega.push(p.coupler_omega);
+                    t.transmission.push(p.transmission);
+                }
+                None => {
+                    t.e_x.push(nan);
+                    t.e_y.push(nan);
+                    t.omega.push(nan);
+                    t.transmission.push(nan);
+                }
+            }
+        }
+        t
+    }
+
+    /// Number of angles.
+    pub fn len(&self) -> usize {
+        self.valid.len()
+    }
+
+    /// True if empty.
+    pub fn is_empty(&self) -> bool {
+        self.valid.is_empty()
+    }
+
+    /// True when the linkage assembles at every angle.
+    pub fn all_valid(&self) -> bool {
+        self.valid.iter().all(|&v| v)
+    }
+
+    /// Traces one coupler point into `out` (resized to the table's length): positions and
+    /// velocities per angle. The inner loop is branch-free straight-line arithmetic that
+    /// the compiler vectorises. Invalid angles come out as NaN; see [`Curve::is_valid`].
+    pub fn trace_into(&self, p: CouplerPoint, out: &mut Curve) {
+        let n = self.len();
+        out.x.resize(n, 0.0);
+        out.y.resize(n, 0.0);
+        out.vx.resize(n, 0.0);
+        out.vy.resize(n, 0.0);
+        let (u, v) = (p.u, p.v);
+        let (pa_x, pa_y, e_x, e_y) = (&self.pa_x[..n], &self.pa_y[..n], &self.e_x[..n], &self.e_y[..n]);
+        let (va_x, va_y, om) = (&self.va_x[..n], &self.va_y[..n], &self.omega[..n]);
+        let (x, y) = (&mut out.x[..n], &mut out.y[..n]);
+        for k in 0..n {
+            x[k] = pa_x[k] + u * e_x[k] - v * e_y[k];
+            y[k] = pa_y[k] + u * e_y[k] + v * e_x[k];
+        }
+        let (vx, vy) = (&mut out.vx[..n], &mut out.vy[..n]);
+        for k in 0..n {
+            vx[k] = va_x[k] - om[k] * (u * e_y[k] + v * e_x[k]);
+            vy[k] = va_y[k] + om[k] * (u * e_x[k] - v * e_y[k]);
+        }
+    }
+
+    /// Traces one coupler point into a new [`Curve`].
+    pub fn trace(&self, p: CouplerPoint) -> Curve {
+        let mut c = Curve::default();
+        self.trace_into(p, &mut c);
+        c
+    }
+}
+
+/// One sampled coupler curve: position `(x, y)` and velocity `(vx, vy)` for unit crank
+/// speed at each angle of its [`CrankTable`]. NaN where the linkage does not assemble.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Curve {
+    /// x of M.
+    pub x: Vec<f64>,
+    /// y of M.
+    pub y: Vec<f64>,
+    /// dx/dθ.
+    pub vx: Vec<f64>,
+    /// dy/dθ.
+    pub vy: Vec<f64>,
+}
+
+impl Curve {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// True if there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Whether sample `k` is a real position (finite).
+    pub fn is_valid(&self, k: usize) -> bool {
+        self.x[k].is_finite() && self.y[k].is_finite()
+    }
+}
+
+/// Summary measures of a closed, fully assembled curve sampled evenly in θ.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurveSummary {
+    /// `[x_min, y_min, x_max, y_max]` of the samples.
+    pub bbox: [f64; 4],
+    /// Smallest and largest sampled speed |V| (unit crank speed).
+    pub speed: [f64; 2],
+    /// Arc length `∮|V| dθ` by the trapezoid rule, which for a smooth periodic integrand
+    /// converges geometrically fast (Trefethen & Weideman, SIAM Review 2014).
+    pub length: f64,
+}
+
+impl CurveSummary {
+    /// Measures a curve; `None` if any sample is invalid or the curve is empty.
+    pub fn of(curve: &Curve, step_deg: f64) -> Option<CurveSummary> {
+        if curve.is_empty() {
+            return None;
+        }
+        let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+        let mut speed = [f64::INFINITY, -f64::INFINITY];
+        let mut total = 0.0;
+        for k in 0..curve.len() {
+            let (x, y) = (curve.x[k], curve.y[k]);
+            let s = curve.vx[k].hypot(curve.vy[k]);
+            if !(x.is_finite() && y.is_finite() && s.is_finite()) {
+                return None;
+            }
+            bbox = [bbox[0].min(x), bbox[1].min(y), bbox[2].max(x), bbox[3].max(y)];
+            speed = [speed[0].min(s), speed[1].max(s)];
+            total += s;
+        }
+        Some(CurveSummary {
+            bbox,
+            speed,
+            length: total * step_deg.to_radians(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_matches_single_pose() {
+        let l = FourBar::new(3.0, 2.5, 3.5).unwrap();
+        let table = CrankTable::new(7.5).unwrap();
+        let poses = PoseTable::new(&l, Circuit::Crossed, &table);
+        let p = CouplerPoint::new(1.5, 2.0);
+        let c = poses.trace(p);
+        assert_eq!(c.len(), 48);
+        for (k, angle) in table.angles().iter().enumerate() {
+            let pose = Pose::solve(&l, Circuit::Crossed, angle).unwrap();
+            let m = pose.point(p);
+            let v = pose.velocity(p);
+            assert_eq!((c.x[k], c.y[k]), (m.x, m.y));
+            assert!((c.vx[k] - v.x).abs() < 1e-14 && (c.vy[k] - v.y).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn length_of_unit_circle_and_rocker_arc() {
+        let l = FourBar::new(3.0, 3.0, 3.0).unwrap();
+        let table = CrankTable::new(1.0).unwrap();
+        let poses = PoseTable::new(&l, Circuit::Open, &table);
+        let s = CurveSummary::of(&poses.trace(CouplerPoint::new(0.0, 0.0)), 1.0).unwrap();
+        assert!((s.length - std::f64::consts::TAU).abs() < 1e-12);
+        assert!((s.speed[0] - 1.0).abs() < 1e-15 && (s.speed[1] - 1.0).abs() < 1e-15);
+        assert!((s.bbox[0] + 1.0).abs() < 1e-15 && (s.bbox[3] - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn step_must_be_positive() {
+        assert!(CrankTable::new(0.0).is_none());
+        assert!(CrankTable::new(-1.0).is_none());
+        assert!(CrankTable::new(f64::NAN).is_none());
+        assert_eq!(CrankTable::new(360.0).unwrap().len(), 1);
+        assert_eq!(CrankTable::new(7.0).unwrap().len(), 52); // 0..357
+    }
+}

@@ -1,0 +1,24 @@
+//! # coupler-atlas
+//!
+//! A Hrones–Nelson style atlas of four-bar coupler curves: enumerate crank-rocker
+//! linkages and coupler points from an atlas spec, compute every coupler curve, render
+//! printable pages, index the curves with measured features, and search them.
+//!
+//! Conventions (a contract, see `docs/conventions.md`): crank = 1, coupler `A`, rocker
+//! `B`, ground `C`; O2 = (0, 0), O4 = (C, 0); θ counter-clockwise from +x; coupler point
+//! `M = Pa + u·e + v·J·e`.
+//!
+//! The pure core ([`FourBar`], [`Pose`], [`PoseTable`], [`Curve`]) does no I/O and holds
+//! no global state; orchestration ([`generate`]) and the command line sit on top.
+
+mod curve;
+mod exact;
+mod linkage;
+mod pose;
+
+pub mod reference;
+
+pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
+pub use exact::{Decimal, DecimalError};
+pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
+pub use pose::{CrankAngle, Pose, kahan_double_area, sincos_deg};

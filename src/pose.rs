@@ -1,0 +1,279 @@
+//! Closed-form position and velocity of the four-bar at one crank angle.
+
+use crate::linkage::{Circuit, CouplerPoint, FourBar};
+use nalgebra::{Point2, Vector2};
+
+/// A crank angle θ in degrees, with its sine and cosine (crank pin Pa = (cos θ, sin θ)).
+///
+/// The sine and cosine come from the pure-Rust `libm` after an exact reduction of the
+/// degrees to `[−45°, 45°]`, so they are the same bits on every platform, and exact at
+/// multiples of 90° (sin 180° = 0, not 1.2e-16).
+///
+/// ```
+/// use coupler_atlas::CrankAngle;
+/// let t = CrankAngle::from_degrees(180.0);
+/// assert_eq!((t.cos, t.sin), (-1.0, 0.0));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CrankAngle {
+    /// θ in degrees, as given.
+    pub degrees: f64,
+    /// cos θ.
+    pub cos: f64,
+    /// sin θ.
+    pub sin: f64,
+}
+
+impl CrankAngle {
+    /// The angle θ (degrees, any finite value).
+    pub fn from_degrees(degrees: f64) -> CrankAngle {
+        let (sin, cos) = sincos_deg(degrees);
+        CrankAngle { degrees, cos, sin }
+    }
+
+    /// The crank pin Pa = (cos θ, sin θ).
+    pub fn crank_pin(&self) -> Point2<f64> {
+        Point2::new(self.cos, self.sin)
+    }
+
+    /// The crank pin's velocity dPa/dθ = (−sin θ, cos θ) (unit crank speed).
+    pub fn crank_pin_velocity(&self) -> Vector2<f64> {
+        Vector2::new(-self.sin, self.cos)
+    }
+}
+
+/// `(sin, cos)` of an angle in degrees. The degrees are folded exactly (each subtraction
+/// is exact by Sterbenz's lemma) onto `[0°, 45°]` by the symmetries `θ ↔ −θ`,
+/// `θ ↔ 360° − θ`, `θ ↔ 180° − θ`, `θ ↔ 90° − θ`, then rounded once to radians. So the
+/// result is deterministic across platforms (libm), exact at multiples of 90°, and has the
+/// symmetries exactly (`sin(180° − θ) = sin θ` to the bit), which symmetric curves rely on.
+pub fn sincos_deg(degrees: f64) -> (f64, f64) {
+    let negative = degrees < 0.0;
+    let mut r = degrees.abs() % 360.0; // exact
+    let mut sin_sign = if negative { -1.0 } else { 1.0 };
+    let mut cos_sign = 1.0;
+    if r > 180.0 {
+        r = 360.0 - r;
+        sin_sign = -sin_sign;
+    }
+    if r > 90.0 {
+        r = 180.0 - r;
+        cos_sign = -1.0;
+    }
+    let swap = r > 45.0;
+    if swap {
+        r = 90.0 - r;
+    }
+    let x = r * (std::f64::consts::PI / 180.0);
+    let (s, c) = if r == 0.0 {
+        (0.0, 1.0)
+    } else {
+        (libm::sin(x), libm::cos(x))
+    };
+    let (s, c) = if swap { (c, s) } else { (s, c) };
+    // `+ 0.0` turns a −0 into +0 so that sin 180° prints as 0.
+    (sin_sign * s + 0.0, cos_sign * c + 0.0)
+}
+
+/// Twice the area of the triangle with sides `a`, `b`, `c` (times two: `2·Area`), by
+/// Kahan's formula for needle-like triangles ("Miscalculating Area and Angles of a
+/// Needle-like Triangle", 2014): sort `x ≥ y ≥ z`, then
+/// `4·Area = √((x+(y+z))(z−(x−y))(z+(x−y))(x+(y−z)))`, with the parentheses as written.
+/// Accurate to a few ulps even for triangles that are nearly flat, where Heron's formula
+/// or `√(A² − a²)` lose all their digits.
+///
+/// Returns `None` when the sides violate the triangle inequality (no triangle; the
+/// linkage cannot be assembled), and `Some(0.0)` for a flat triangle (a toggle).
+pub fn kahan_double_area(a: f64, b: f64, c: f64) -> Option<f64> {
+    let (mut x, mut y, mut z) = (a, b, c);
+    if x < y {
+        std::mem::swap(&mut x, &mut y);
+    }
+    if y < z {
+        std::mem::swap(&mut y, &mut z);
+    }
+    if x < y {
+        std::mem::swap(&mut x, &mut y);
+    }
+    let gap = z - (x - y);
+    if gap < 0.0 || gap.is_nan() {
+        return None;
+    }
+    let p = (x + (y + z)) * gap * (z + (x - y)) * (x + (y - z));
+    Some(0.5 * p.sqrt())
+}
+
+/// The linkage's pose at one crank angle: everything that depends only on (A, B, C, θ)
+/// and the circuit, shared by every coupler point (domain.md §3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pose {
+    /// Crank pin Pa.
+    pub crank_pin: Point2<f64>,
+    /// Rocker pin Pb.
+    pub rocker_pin: Point2<f64>,
+    /// Unit vector e3 along the coupler, Pa → Pb.
+    pub coupler_dir: Vector2<f64>,
+    /// Unit vector e4 along the rocker, O4 → Pb.
+    pub rocker_dir: Vector2<f64>,
+    /// Velocity of Pa for unit crank speed.
+    pub crank_pin_velocity: Vector2<f64>,
+    /// Coupler angular velocity ω3 = dφ3/dθ (infinite only at a toggle).
+    pub coupler_omega: f64,
+    /// Rocker angular velocity ω4 = dφ4/dθ.
+    pub rocker_omega: f64,
+    /// Transmission angle μ in radians, in [0, π].
+    pub transmission: f64,
+}
+
+impl Pose {
+    /// Solves the loop closure in closed form (domain.md §3):
+    /// `w = O4 − Pa`, `d = |w|`, foot `a = (A² − B² + d²)/(2d)`, half-chord `h = 2·Area/d`
+    /// with the area by [`kahan_double_area`], and
+    /// `Pb = Pa + (a/d)·w + σ·(h/d)·J·w` (σ = +1 open, −1 crossed).
+    ///
+    /// Velocities (unit crank speed) differentiate `Pa + A·e3 = O4 + B·e4`:
+    /// `ω3 = −(Va·e4) / (A·(e3 × e4))`, `ω4 = −(Va·e3) / (B·(e3 × e4))`, with
+    /// `e3 × e4 = σ·h·d/(A·B)` taken from the same area so it keeps its digits near a
+    /// toggle. Transmission angle `μ = atan2(2hd, A² + B² − d²)`.
+    ///
+    /// Degenerate cases, part of the contract: returns `None` where the linkage cannot be
+    /// assembled (the triangle A, B, d does not exist) or where Pa lies on O4 (d = 0). At
+    /// a toggle (h = 0, including a change point) both circuits meet; the pose is returned
+    /// with infinite `coupler_omega`/`rocker_omega` (velocities are infinite there).
+    ///
+    /// ```
+    /// use coupler_atlas::{FourBar, Circuit, CrankAngle, Pose};
+    /// let l = FourBar::new(3.0, 3.0, 3.0).unwrap();
+    /// let p = Pose::solve(&l, Circuit::Open, &CrankAngle::from_degrees(90.0)).unwrap();
+    /// assert!(p.rocker_pin.y > 0.0); // open puts Pb above the ground line here
+    /// assert!(((p.rocker_pin - p.crank_pin).norm() - 3.0).abs() < 1e-15);
+    /// ```
+    pub fn solve(linkage: &FourBar, circuit: Circuit, angle: &CrankAngle) -> Option<Pose> {
+        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
+        let pa = angle.crank_pin();
+        let w = Vector2::new(c_len - angle.cos, -angle.sin);
+        let d2 = w.x * w.x + w.y * w.y;
+        let d = d2.sqrt();
+        if d == 0.0 {
+            return None;
+        }
+        let area2 = kahan_double_area(a_len, b_len, d)?;
+        let h = area2 / d;
+        let foot = ((a_len - b_len) * (a_len + b_len) + d2) / (2.0 * d);
+        let sigma = circuit.sign();
+        let jw = Vector2::new(-w.y, w.x);
+        let chord = w * (foot / d) + jw * (sigma * h / d);
+        let pb = pa + chord;
+        let e3 = chord / a_len;
+        let o4 = Point2::new(c_len, 0.0);
+        let e4 = (pb - o4) / b_len;
+        let va = angle.crank_pin_velocity();
+        let cross34 = sigma * h * d / (a_len * b_len);
+        let coupler_omega = -va.dot(&e4) / (a_len * cross34);
+        let rocker_omega = -va.dot(&e3) / (b_len * cross34);
+        let transmission =
+            libm::atan2(2.0 * h * d, (a_len - b_len) * (a_len - b_len) + 2.0 * a_len * b_len - d2);
+        Some(Pose {
+            crank_pin: pa,
+            rocker_pin: pb,
+            coupler_dir: e3,
+            rocker_dir: e4,
+            crank_pin_velocity: va,
+            coupler_omega,
+            rocker_omega,
+            transmission,
+        })
+    }
+
+    /// The coupler point M = Pa + u·e3 + v·J·e3.
+    #[inline]
+    pub fn point(&self, p: CouplerPoint) -> Point2<f64> {
+        let e = self.coupler_dir;
+        Point2::new(
+            self.crank_pin.x + p.u * e.x - p.v * e.y,
+            self.crank_pin.y + p.u * e.y + p.v * e.x,
+        )
+    }
+
+    /// The coupler point's velocity for unit crank speed:
+    /// `V_M = V_Pa + ω3·J·(M − Pa) = V_Pa + ω3·(u·J·e3 − v·e3)`.
+    #[inline]
+    pub fn velocity(&self, p: CouplerPoint) -> Vector2<f64> {
+        let e = self.coupler_dir;
+        let w = self.coupler_omega;
+        Vector2::new(
+            self.crank_pin_velocity.x + w * (-p.u * e.y - p.v * e.x),
+            self.crank_pin_velocity.y + w * (p.u * e.x - p.v * e.y),
+        )
+    }
+
+    /// The loop-closure residual |Pa + A·e3 − O4 − B·e4| (should be a few ulps).
+    pub fn loop_residual(&self, linkage: &FourBar) -> f64 {
+        let o4 = Point2::new(linkage.ground, 0.0);
+        let lhs = self.crank_pin + self.coupler_dir * linkage.coupler;
+        let rhs = o4 + self.rocker_dir * linkage.rocker;
+        (lhs - rhs).norm()
+    }
+
+    /// True when every field is finite (false at a toggle, where velocities blow up).
+    pub fn is_finite(&self) -> bool {
+        self.rocker_pin.coords.iter().all(|x| x.is_finite())
+            && self.coupler_omega.is_finite()
+            && self.rocker_omega.is_finite()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sincos_exact_at_quadrants_and_symmetric() {
+        assert_eq!(sincos_deg(0.0), (0.0, 1.0));
+        assert_eq!(sincos_deg(90.0), (1.0, 0.0));
+        assert_eq!(sincos_deg(180.0), (0.0, -1.0));
+        assert_eq!(sincos_deg(270.0), (-1.0, 0.0));
+        assert_eq!(sincos_deg(360.0), (0.0, 1.0));
+        assert_eq!(sincos_deg(-90.0), (-1.0, 0.0));
+        for k in 0..720 {
+            let t = k as f64 * 0.5;
+            let (s, c) = sincos_deg(t);
+            let (s2, c2) = sincos_deg(-t);
+            assert_eq!((s, c), (-s2, c2), "odd/even at {t}");
+            let (s3, c3) = sincos_deg(360.0 - t);
+            assert_eq!((s, c), (-s3, c3), "reflection at {t}");
+            let (es, ec) = crate::reference::sincos_deg_dd(t);
+            let err = (s - es.to_f64()).abs().max((c - ec.to_f64()).abs());
+            assert!(err < 2e-16, "{t}: error {err:e} against double-double");
+        }
+    }
+
+    #[test]
+    fn kahan_area() {
+        assert_eq!(kahan_double_area(3.0, 4.0, 5.0), Some(12.0));
+        assert_eq!(kahan_double_area(1.0, 2.0, 3.0), Some(0.0));
+        assert_eq!(kahan_double_area(1.0, 2.0, 3.5), None);
+        assert_eq!(kahan_double_area(1.0, 2.0, f64::NAN), None);
+    }
+
+    #[test]
+    fn velocities_match_finite_differences() {
+        let l = FourBar::new(2.5, 3.0, 3.5).unwrap();
+        let p = CouplerPoint::new(1.2, -0.7);
+        for circuit in [Circuit::Open, Circuit::Crossed] {
+            for k in 0..36 {
+                let t = k as f64 * 10.0 + 3.0;
+                let hdeg = 1e-4;
+                let at = |deg: f64| Pose::solve(&l, circuit, &CrankAngle::from_degrees(deg)).unwrap();
+                let (m1, m2) = (at(t - hdeg).point(p), at(t + hdeg).point(p));
+                let fd = (m2 - m1) / (2.0 * hdeg.to_radians());
+                let v = at(t).velocity(p);
+                assert!((fd - v).norm() < 1e-6 * (1.0 + v.norm()), "{circuit} {t}: {fd} vs {v}");
+                let e4 = |deg: f64| at(deg).rocker_dir;
+                let phi = |e: Vector2<f64>| libm::atan2(e.y, e.x);
+                let fd4 = (phi(e4(t + hdeg)) - phi(e4(t - hdeg))) / (2.0 * hdeg.to_radians());
+                assert!((fd4 - at(t).rocker_omega).abs() < 1e-6, "ω4 {circuit} {t}");
+            }
+        }
+    }
+}
