@@ -15,6 +15,9 @@ mod curve;
 mod exact;
 mod linkage;
 mod pose;
+mod window;
+
+pub mod features;
 
 pub mod reference;
 
@@ -22,3 +25,7 @@ pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
 pub use exact::{Decimal, DecimalError};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use pose::{CrankAngle, Pose, kahan_double_area, sincos_deg};
+pub use window::{
+    CrankWindow, DEFAULT_WINDOW_STEP_DEG, LineDirection, LineMeasures, WindowError, WindowMeasures,
+    WindowSamples, arc_deviation_pct,
+};
