@@ -148,7 +148,12 @@ impl PoseTable {
         out.vx.resize(n, 0.0);
         out.vy.resize(n, 0.0);
         let (u, v) = (p.u, p.v);
-        let (pa_x, pa_y, e_x, e_y) = (&self.pa_x[..n], &self.pa_y[..n], &self.e_x[..n], &self.e_y[..n]);
+        let (pa_x, pa_y, e_x, e_y) = (
+            &self.pa_x[..n],
+            &self.pa_y[..n],
+            &self.e_x[..n],
+            &self.e_y[..n],
+        );
         let (va_x, va_y, om) = (&self.va_x[..n], &self.va_y[..n], &self.omega[..n]);
         let (x, y) = (&mut out.x[..n], &mut out.y[..n]);
         for k in 0..n {
@@ -228,7 +233,12 @@ impl CurveSummary {
             if !(x.is_finite() && y.is_finite() && s.is_finite()) {
                 return None;
             }
-            bbox = [bbox[0].min(x), bbox[1].min(y), bbox[2].max(x), bbox[3].max(y)];
+            bbox = [
+                bbox[0].min(x),
+                bbox[1].min(y),
+                bbox[2].max(x),
+                bbox[3].max(y),
+            ];
             speed = [speed[0].min(s), speed[1].max(s)];
             total += s;
         }

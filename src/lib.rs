@@ -15,6 +15,7 @@ mod curve;
 mod exact;
 mod linkage;
 mod pose;
+mod spec;
 
 pub mod reference;
 
@@ -22,3 +23,7 @@ pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
 pub use exact::{Decimal, DecimalError};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use pose::{CrankAngle, Pose, kahan_double_area, sincos_deg};
+pub use spec::{
+    DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges, PAGE_SIZES,
+    PageSettings, PointGrid, Sampling, Spec, SpecError,
+};

@@ -171,8 +171,10 @@ impl Pose {
         let cross34 = sigma * h * d / (a_len * b_len);
         let coupler_omega = -va.dot(&e4) / (a_len * cross34);
         let rocker_omega = -va.dot(&e3) / (b_len * cross34);
-        let transmission =
-            libm::atan2(2.0 * h * d, (a_len - b_len) * (a_len - b_len) + 2.0 * a_len * b_len - d2);
+        let transmission = libm::atan2(
+            2.0 * h * d,
+            (a_len - b_len) * (a_len - b_len) + 2.0 * a_len * b_len - d2,
+        );
         Some(Pose {
             crank_pin: pa,
             rocker_pin: pb,
@@ -264,11 +266,15 @@ mod tests {
             for k in 0..36 {
                 let t = k as f64 * 10.0 + 3.0;
                 let hdeg = 1e-4;
-                let at = |deg: f64| Pose::solve(&l, circuit, &CrankAngle::from_degrees(deg)).unwrap();
+                let at =
+                    |deg: f64| Pose::solve(&l, circuit, &CrankAngle::from_degrees(deg)).unwrap();
                 let (m1, m2) = (at(t - hdeg).point(p), at(t + hdeg).point(p));
                 let fd = (m2 - m1) / (2.0 * hdeg.to_radians());
                 let v = at(t).velocity(p);
-                assert!((fd - v).norm() < 1e-6 * (1.0 + v.norm()), "{circuit} {t}: {fd} vs {v}");
+                assert!(
+                    (fd - v).norm() < 1e-6 * (1.0 + v.norm()),
+                    "{circuit} {t}: {fd} vs {v}"
+                );
                 let e4 = |deg: f64| at(deg).rocker_dir;
                 let phi = |e: Vector2<f64>| libm::atan2(e.y, e.x);
                 let fd4 = (phi(e4(t + hdeg)) - phi(e4(t - hdeg))) / (2.0 * hdeg.to_radians());
