@@ -75,6 +75,10 @@ pub fn sincos_deg(degrees: f64) -> (f64, f64) {
     (sin_sign * s + 0.0, cos_sign * c + 0.0)
 }
 
+/// How far (in ulps of the longest side) the triangle inequality may fail by rounding
+/// and still count as a flat triangle (a toggle).
+pub const TOGGLE_ULPS: f64 = 4.0;
+
 /// Twice the area of the triangle with sides `a`, `b`, `c` (times two: `2·Area`), by
 /// Kahan's formula for needle-like triangles ("Miscalculating Area and Angles of a
 /// Needle-like Triangle", 2014): sort `x ≥ y ≥ z`, then
@@ -82,8 +86,11 @@ pub fn sincos_deg(degrees: f64) -> (f64, f64) {
 /// Accurate to a few ulps even for triangles that are nearly flat, where Heron's formula
 /// or `√(A² − a²)` lose all their digits.
 ///
-/// Returns `None` when the sides violate the triangle inequality (no triangle; the
-/// linkage cannot be assembled), and `Some(0.0)` for a flat triangle (a toggle).
+/// Returns `None` when the sides violate the triangle inequality by more than
+/// [`TOGGLE_ULPS`] ulps of the longest side (no triangle; the linkage cannot be
+/// assembled), and `Some(0.0)` for a triangle flat to within that (a toggle): the
+/// distance `d` carries a rounding error of about an ulp, so a linkage that just reaches
+/// a toggle must not be declared unassemblable by it.
 pub fn kahan_double_area(a: f64, b: f64, c: f64) -> Option<f64> {
     let (mut x, mut y, mut z) = (a, b, c);
     if x < y {
@@ -95,9 +102,18 @@ pub fn kahan_double_area(a: f64, b: f64, c: f64) -> Option<f64> {
     if x < y {
         std::mem::swap(&mut x, &mut y);
     }
-    let gap = z - (x - y);
-    if gap < 0.0 || gap.is_nan() {
+    let mut gap = z - (x - y);
+    if gap.is_nan() {
         return None;
+    }
+    if gap < 0.0 {
+        // Within rounding of flat (a few ulps of the longest side): a toggle, not a
+        // failure to assemble. Further out: no triangle.
+        if gap >= -TOGGLE_ULPS * f64::EPSILON * x {
+            gap = 0.0;
+        } else {
+            return None;
+        }
     }
     let p = (x + (y + z)) * gap * (z + (x - y)) * (x + (y - z));
     Some(0.5 * p.sqrt())
@@ -255,6 +271,11 @@ mod tests {
         assert_eq!(kahan_double_area(3.0, 4.0, 5.0), Some(12.0));
         assert_eq!(kahan_double_area(1.0, 2.0, 3.0), Some(0.0));
         assert_eq!(kahan_double_area(1.0, 2.0, 3.5), None);
+        assert_eq!(
+            kahan_double_area(1.0, 2.0, 3.0 + 2.0 * f64::EPSILON),
+            Some(0.0)
+        );
+        assert_eq!(kahan_double_area(1.0, 2.0, 3.0 + 1e-12), None);
         assert_eq!(kahan_double_area(1.0, 2.0, f64::NAN), None);
     }
 
