@@ -1,7 +1,7 @@
 //! Coupler curves: sampled positions and velocities of coupler points over a crank turn.
 
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use crate::pose::{CrankAngle, Pose};
+use crate::pose::{CrankAngle, Pose, ToggleGaps};
 
 /// Evenly spaced crank angles `θ_k = k·step` for `k = 0 .. n`, `n = ⌈360/step⌉` (all
 /// below 360°), with their sines and cosines. Shared by every linkage sampled at that step.
@@ -97,8 +97,9 @@ impl PoseTable {
             transmission: Vec::with_capacity(n),
             valid: Vec::with_capacity(n),
         };
+        let gaps = ToggleGaps::of(linkage);
         for angle in table.angles() {
-            let pose = Pose::solve(linkage, circuit, angle);
+            let pose = Pose::solve_with(linkage, &gaps, circuit, angle);
             let nan = f64::NAN;
             t.pa_x.push(angle.cos);
             t.pa_y.push(angle.sin);
