@@ -10,13 +10,13 @@ use std::process::ExitCode;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Coupler length A (crank = 1).
-    #[arg(long, value_parser = parse_length)]
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
     coupler: f64,
     /// Rocker length B.
-    #[arg(long, value_parser = parse_length)]
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
     rocker: f64,
     /// Ground length C.
-    #[arg(long, value_parser = parse_length)]
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
     ground: f64,
     /// Coupler point U,V in the coupler frame (crank units), e.g. `--point 1.5,-0.5`.
     #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
@@ -25,7 +25,7 @@ pub struct Args {
     #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
     circuit: String,
     /// Crank step in degrees; samples at 0, step, 2·step, … below 360.
-    #[arg(long, default_value = "1", value_parser = parse_number)]
+    #[arg(long, default_value = "1", value_parser = parse_number, allow_hyphen_values = true)]
     step: f64,
     /// Output format.
     #[arg(long, default_value = "json", value_parser = ["json", "csv", "table"])]

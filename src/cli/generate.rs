@@ -21,6 +21,9 @@ pub struct Args {
     /// Print the plan (linkages, curves, pages) and do no work.
     #[arg(long)]
     dry_run: bool,
+    /// Index only: do not render pages.
+    #[arg(long)]
+    no_pages: bool,
     /// Do not show a progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
