@@ -3,7 +3,7 @@
 //! deterministic: work is split into groups in atlas order and results are collected in
 //! that order, whatever the thread count.
 
-use crate::curve::{CrankTable, CurveSummary, PoseTable};
+use crate::curve::{CrankTable, CurveSummary, PoseTable, transmission_range};
 use crate::index::{IndexCurve, IndexSummary, LinkageLengths, write_index};
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
 use crate::spec::{Enumeration, Spec};
@@ -218,11 +218,10 @@ pub fn compute_group(table: &CrankTable, group: &Group) -> Result<Vec<IndexCurve
             circuit: group.circuit,
         });
     }
-    let (mut tmin, mut tmax) = (f64::INFINITY, -f64::INFINITY);
-    for &t in &poses.transmission {
-        tmin = tmin.min(t);
-        tmax = tmax.max(t);
-    }
+    let [tmin, tmax] = transmission_range(&group.linkage).ok_or(GenerateError::NotAssembled {
+        linkage: group.linkage,
+        circuit: group.circuit,
+    })?;
     let transmission_deg = [tmin.to_degrees(), tmax.to_degrees()];
     let mut curve = Default::default();
     let mut out = Vec::with_capacity(group.points.len());

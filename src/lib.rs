@@ -21,7 +21,7 @@ mod spec;
 
 pub mod reference;
 
-pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
+pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
 pub use exact::{Decimal, DecimalError};
 pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};

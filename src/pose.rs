@@ -181,6 +181,72 @@ fn flat_or_none(x: f64, scale: f64) -> Option<f64> {
     }
 }
 
+/// What every coupler point needs from a pose, and nothing more: the hot path of
+/// [`crate::PoseTable`]. Same equations as [`Pose::solve`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PoseCore {
+    /// Unit coupler direction e3.
+    pub e_x: f64,
+    pub e_y: f64,
+    /// Coupler angular velocity ω3.
+    pub omega: f64,
+    /// Rocker pin.
+    pub pb_x: f64,
+    pub pb_y: f64,
+    /// 4·Area of the triangle (A, B, d) = √(P·Q).
+    pub area4: f64,
+    /// d².
+    pub d2: f64,
+}
+
+impl PoseCore {
+    #[inline]
+    pub(crate) fn solve(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<PoseCore> {
+        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
+        let sh2 = angle.sin_half * angle.sin_half;
+        let ch2 = angle.cos_half * angle.cos_half;
+        let (wx, wy) = ((c_len - 1.0) + 2.0 * sh2, -angle.sin);
+        let d2 = (c_len - 1.0) * (c_len - 1.0) + 4.0 * c_len * sh2;
+        if d2 == 0.0 {
+            return None;
+        }
+        let p = flat_or_none(
+            gaps.outer + 4.0 * c_len * ch2,
+            gaps.outer_scale + 4.0 * c_len * ch2,
+        )?;
+        let q = flat_or_none(
+            gaps.inner + 4.0 * c_len * sh2,
+            gaps.inner_scale + 4.0 * c_len * sh2,
+        )?;
+        let area4 = (p * q).sqrt();
+        let inv_d2 = 1.0 / d2;
+        // Pb − Pa = (a/d)·w + σ(h/d)·J·w with a/d = (A² − B² + d²)/(2d²), h/d = area4/(2d²).
+        let along = 0.5 * ((a_len - b_len) * (a_len + b_len) + d2) * inv_d2;
+        let across = circuit.sign() * 0.5 * area4 * inv_d2;
+        let (cx, cy) = (wx * along - wy * across, wy * along + wx * across);
+        let pb_x = angle.cos + cx;
+        let pb_y = angle.sin + cy;
+        let inv_a = 1.0 / a_len;
+        // ω3 = −(Va·e4)/(A·(e3 × e4)) = −(Va·(Pb − O4)) / (σ·h·d) = −2·(Va·(Pb − O4)) / (σ·area4).
+        let va_dot = -angle.sin * (pb_x - c_len) + angle.cos * pb_y;
+        let omega = -2.0 * va_dot / (circuit.sign() * area4);
+        Some(PoseCore {
+            e_x: cx * inv_a,
+            e_y: cy * inv_a,
+            omega,
+            pb_x,
+            pb_y,
+            area4,
+            d2,
+        })
+    }
+}
+
 /// The linkage's pose at one crank angle: everything that depends only on (A, B, C, θ)
 /// and the circuit, shared by every coupler point (domain.md §3).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -222,7 +288,8 @@ impl Pose {
     /// Velocities (unit crank speed) differentiate `Pa + A·e3 = O4 + B·e4`:
     /// `ω3 = −(Va·e4) / (A·(e3 × e4))`, `ω4 = −(Va·e3) / (B·(e3 × e4))`, with
     /// `e3 × e4 = σ·h·d/(A·B)` from the same area. Transmission angle
-    /// `μ = atan2(√(P·Q)/2, A² + B² − d²)` (stable at 0° and 180°, unlike `acos`).
+    /// `μ = atan2(√(P·Q), A² + B² − d²)` (tan μ = 4·Area/(A² + B² − d²); stable at 0° and
+    /// 180°, unlike `acos`).
     ///
     /// Degenerate cases, part of the contract: returns `None` where the linkage cannot be
     /// assembled (`P` or `Q` negative beyond rounding, see [`TOGGLE_ULPS`]) or where Pa
@@ -247,45 +314,22 @@ impl Pose {
         circuit: Circuit,
         angle: &CrankAngle,
     ) -> Option<Pose> {
-        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
-        let pa = Point2::new(angle.cos, angle.sin);
-        let sh2 = angle.sin_half * angle.sin_half;
-        let ch2 = angle.cos_half * angle.cos_half;
-        let w = Vector2::new((c_len - 1.0) + 2.0 * sh2, -angle.sin);
-        let d2 = (c_len - 1.0) * (c_len - 1.0) + 4.0 * c_len * sh2;
-        let d = d2.sqrt();
-        if d == 0.0 {
-            return None;
-        }
-        let p = flat_or_none(
-            gaps.outer + 4.0 * c_len * ch2,
-            gaps.outer_scale + 4.0 * c_len * ch2,
-        )?;
-        let q = flat_or_none(
-            gaps.inner + 4.0 * c_len * sh2,
-            gaps.inner_scale + 4.0 * c_len * sh2,
-        )?;
-        let area4 = (p * q).sqrt(); // 4·Area
-        let h = 0.5 * area4 / d;
-        let foot = ((a_len - b_len) * (a_len + b_len) + d2) / (2.0 * d);
-        let sigma = circuit.sign();
-        let jw = Vector2::new(-w.y, w.x);
-        let chord = w * (foot / d) + jw * (sigma * h / d);
-        let pb = pa + chord;
-        let e3 = chord / a_len;
-        let e4 = Vector2::new(pb.x - c_len, pb.y) / b_len;
+        let core = PoseCore::solve(linkage, gaps, circuit, angle)?;
+        let (a_len, b_len) = (linkage.coupler, linkage.rocker);
+        let e4 = Vector2::new(core.pb_x - linkage.ground, core.pb_y) / b_len;
+        let e3 = Vector2::new(core.e_x, core.e_y);
         let va = Vector2::new(-angle.sin, angle.cos);
-        let cross34 = sigma * h * d / (a_len * b_len);
-        let coupler_omega = -va.dot(&e4) / (a_len * cross34);
+        // ω4 = −(Va·e3) / (B·(e3 × e4)) with e3 × e4 = σ·h·d/(A·B) = σ·area4/(2AB).
+        let cross34 = circuit.sign() * 0.5 * core.area4 / (a_len * b_len);
         let rocker_omega = -va.dot(&e3) / (b_len * cross34);
-        let transmission = libm::atan2(0.5 * area4, a_len * a_len + b_len * b_len - d2);
+        let transmission = libm::atan2(core.area4, a_len * a_len + b_len * b_len - core.d2);
         Some(Pose {
-            crank_pin: pa,
-            rocker_pin: pb,
+            crank_pin: Point2::new(angle.cos, angle.sin),
+            rocker_pin: Point2::new(core.pb_x, core.pb_y),
             coupler_dir: e3,
             rocker_dir: e4,
             crank_pin_velocity: va,
-            coupler_omega,
+            coupler_omega: core.omega,
             rocker_omega,
             transmission,
         })

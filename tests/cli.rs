@@ -16,7 +16,11 @@ fn text(b: &[u8]) -> String {
 }
 
 fn spec(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("atlas-spec").join(name).display().to_string()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("atlas-spec")
+        .join(name)
+        .display()
+        .to_string()
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -29,7 +33,16 @@ fn tmp(name: &str) -> PathBuf {
 fn generate_is_byte_identical_for_any_jobs() {
     let (a, b) = (tmp("j1"), tmp("j2"));
     for (dir, jobs) in [(&a, "1"), (&b, "2")] {
-        let out = run(&["generate", &spec("quick.toml"), "--out", dir.to_str().unwrap(), "--jobs", jobs, "--quiet", "--no-pages"]);
+        let out = run(&[
+            "generate",
+            &spec("quick.toml"),
+            "--out",
+            dir.to_str().unwrap(),
+            "--jobs",
+            jobs,
+            "--quiet",
+            "--no-pages",
+        ]);
         assert!(out.status.success(), "{}", text(&out.stderr));
     }
     let ia = std::fs::read(a.join("index.json")).unwrap();
@@ -54,15 +67,32 @@ fn generate_is_byte_identical_for_any_jobs() {
 #[test]
 fn generate_counts_skipped_linkages() {
     let dir = tmp("hd");
-    let out = run(&["generate", &spec("hartenberg-denavit.toml"), "--out", dir.to_str().unwrap(), "--quiet", "--no-pages"]);
+    let out = run(&[
+        "generate",
+        &spec("hartenberg-denavit.toml"),
+        "--out",
+        dir.to_str().unwrap(),
+        "--quiet",
+        "--no-pages",
+    ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
-    let index: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
     let s = &index["summary"];
     assert_eq!(s["combinations"], 36);
     assert_eq!(s["linkages"], 10);
-    let skipped: u64 = s["skipped"].as_object().unwrap().values().map(|v| v.as_u64().unwrap()).sum();
+    let skipped: u64 = s["skipped"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
     assert_eq!(skipped, 26);
-    assert!(text(&out.stderr).contains("26 skipped"), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("26 skipped"),
+        "{}",
+        text(&out.stderr)
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -84,24 +114,63 @@ fn bad_spec_is_refused_with_file_line_and_key() {
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.toml");
     let good = std::fs::read_to_string(spec("quick.toml")).unwrap();
-    std::fs::write(&bad, good.replace("rocker  = { start = 2.5, end = 3.0, step = 0.5 }", "rocker  = { start = 2.5, end = 3.0, step = -0.5 }")).unwrap();
-    let out = run(&["generate", bad.to_str().unwrap(), "--out", dir.join("out").to_str().unwrap()]);
+    std::fs::write(
+        &bad,
+        good.replace(
+            "rocker  = { start = 2.5, end = 3.0, step = 0.5 }",
+            "rocker  = { start = 2.5, end = 3.0, step = -0.5 }",
+        ),
+    )
+    .unwrap();
+    let out = run(&[
+        "generate",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(2));
     let e = text(&out.stderr);
-    assert!(e.contains("bad.toml:") && e.contains("linkages.rocker.step") && e.contains("step must be > 0"), "{e}");
-    assert!(!dir.join("out").exists(), "nothing is written for a bad spec");
+    assert!(
+        e.contains("bad.toml:")
+            && e.contains("linkages.rocker.step")
+            && e.contains("step must be > 0"),
+        "{e}"
+    );
+    assert!(
+        !dir.join("out").exists(),
+        "nothing is written for a bad spec"
+    );
     let missing = run(&["generate", dir.join("nope.toml").to_str().unwrap()]);
     assert_eq!(missing.status.code(), Some(2));
-    assert!(text(&missing.stderr).contains("nope.toml"), "{}", text(&missing.stderr));
+    assert!(
+        text(&missing.stderr).contains("nope.toml"),
+        "{}",
+        text(&missing.stderr)
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn curve_json_contract() {
-    let out = run(&["curve", "--coupler", "2.5", "--rocker", "2.5", "--ground", "2", "--point", "5,0", "--step", "10"]);
+    let out = run(&[
+        "curve",
+        "--coupler",
+        "2.5",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "2",
+        "--point",
+        "5,0",
+        "--step",
+        "10",
+    ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(v["linkage"], serde_json::json!({"coupler": 2.5, "rocker": 2.5, "ground": 2.0}));
+    assert_eq!(
+        v["linkage"],
+        serde_json::json!({"coupler": 2.5, "rocker": 2.5, "ground": 2.0})
+    );
     assert_eq!(v["point"], serde_json::json!({"u": 5.0, "v": 0.0}));
     assert_eq!(v["circuit"], "open");
     assert_eq!(v["class"], "GCRR");
@@ -112,7 +181,17 @@ fn curve_json_contract() {
     assert!(raw.starts_with("{\"linkage\":{\"coupler\":2.5,\"rocker\":2.5,\"ground\":2.0},\"point\":{\"u\":5.0,\"v\":0.0},\"circuit\":\"open\",\"class\":\"GCRR\",\"samples\":["), "{raw}");
     assert!(raw.contains("\n{\"theta_deg\":0.0,\"x\":"), "{raw}");
     let first = raw.lines().nth(1).unwrap();
-    let order: Vec<usize> = ["theta_deg", "\"x\"", "\"y\"", "\"vx\"", "\"vy\"", "transmission_deg"].iter().map(|k| first.find(k).unwrap()).collect();
+    let order: Vec<usize> = [
+        "theta_deg",
+        "\"x\"",
+        "\"y\"",
+        "\"vx\"",
+        "\"vy\"",
+        "transmission_deg",
+    ]
+    .iter()
+    .map(|k| first.find(k).unwrap())
+    .collect();
     assert!(order.windows(2).all(|w| w[0] < w[1]), "{first}");
     for (k, s) in samples.iter().enumerate() {
         assert_eq!(s["theta_deg"].as_f64().unwrap(), 10.0 * k as f64);
@@ -126,7 +205,19 @@ fn curve_json_contract() {
 #[test]
 fn curve_keeps_unassemblable_samples_as_nulls() {
     // Non-Grashof (RRR1): the crank cannot turn fully.
-    let out = run(&["curve", "--coupler", "1.2", "--rocker", "1.4", "--ground", "1.8", "--point", "1,-1", "--step", "5"]);
+    let out = run(&[
+        "curve",
+        "--coupler",
+        "1.2",
+        "--rocker",
+        "1.4",
+        "--ground",
+        "1.8",
+        "--point",
+        "1,-1",
+        "--step",
+        "5",
+    ]);
     assert!(out.status.success());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["class"], "RRR1");
@@ -140,7 +231,21 @@ fn curve_keeps_unassemblable_samples_as_nulls() {
         }
     }
     // Exact change point: positions everywhere, velocities null only at the fold (θ = 180°).
-    let out = run(&["curve", "--coupler", "3", "--rocker", "3", "--ground", "5", "--point", "1,0.5", "--step", "30", "--format", "csv"]);
+    let out = run(&[
+        "curve",
+        "--coupler",
+        "3",
+        "--rocker",
+        "3",
+        "--ground",
+        "5",
+        "--point",
+        "1,0.5",
+        "--step",
+        "30",
+        "--format",
+        "csv",
+    ]);
     assert!(out.status.success());
     let t = text(&out.stdout);
     let lines: Vec<&str> = t.lines().collect();
@@ -153,10 +258,60 @@ fn curve_keeps_unassemblable_samples_as_nulls() {
 #[test]
 fn curve_rejects_bad_numbers_clearly() {
     for (args, needle) in [
-        (vec!["--coupler", "nan", "--rocker", "1", "--ground", "1", "--point", "0,0"], "not a finite number"),
-        (vec!["--coupler", "-2", "--rocker", "1", "--ground", "1", "--point", "0,0"], "must be > 0"),
-        (vec!["--coupler", "2", "--rocker", "1", "--ground", "1", "--point", "0"], "expected U,V"),
-        (vec!["--coupler", "2", "--rocker", "1", "--ground", "1", "--point", "0,0", "--step", "0"], "--step"),
+        (
+            vec![
+                "--coupler",
+                "nan",
+                "--rocker",
+                "1",
+                "--ground",
+                "1",
+                "--point",
+                "0,0",
+            ],
+            "not a finite number",
+        ),
+        (
+            vec![
+                "--coupler",
+                "-2",
+                "--rocker",
+                "1",
+                "--ground",
+                "1",
+                "--point",
+                "0,0",
+            ],
+            "must be > 0",
+        ),
+        (
+            vec![
+                "--coupler",
+                "2",
+                "--rocker",
+                "1",
+                "--ground",
+                "1",
+                "--point",
+                "0",
+            ],
+            "expected U,V",
+        ),
+        (
+            vec![
+                "--coupler",
+                "2",
+                "--rocker",
+                "1",
+                "--ground",
+                "1",
+                "--point",
+                "0,0",
+                "--step",
+                "0",
+            ],
+            "--step",
+        ),
     ] {
         let out = run(&[vec!["curve"], args].concat());
         assert_eq!(out.status.code(), Some(2), "{needle}");

@@ -199,6 +199,32 @@ fn open_circuit_puts_rocker_pin_left_of_pa_to_o4() {
 }
 
 #[test]
+fn transmission_angle_matches_law_of_cosines() {
+    for l in default_atlas_linkages().into_iter().step_by(5) {
+        for k in 0..72 {
+            let angle = CrankAngle::from_degrees(k as f64 * 5.0 + 1.0);
+            let p = Pose::solve(&l, Circuit::Open, &angle).unwrap();
+            let d2 = (l.ground - angle.cos).powi(2) + angle.sin.powi(2);
+            let (a, b) = (l.coupler, l.rocker);
+            let mu = ((a * a + b * b - d2) / (2.0 * a * b)).acos();
+            // Also the angle between the coupler and rocker vectors at Pb.
+            let (to_pa, to_o4) = (
+                p.crank_pin - p.rocker_pin,
+                nalgebra::Point2::new(l.ground, 0.0) - p.rocker_pin,
+            );
+            let between = (to_pa.dot(&to_o4) / (to_pa.norm() * to_o4.norm())).acos();
+            assert!(
+                (p.transmission - mu).abs() < 1e-12,
+                "{l} θ={}: {} vs {mu}",
+                angle.degrees,
+                p.transmission
+            );
+            assert!((p.transmission - between).abs() < 1e-12);
+        }
+    }
+}
+
+#[test]
 fn exact_change_point_linkage_is_documented_not_a_failure() {
     // A = B = 3, C = 5: 1 + 5 = 3 + 3, class SCRR. At θ = 180° all four links are collinear:
     // both circuits meet there, positions are finite, velocities are infinite, and each
