@@ -56,11 +56,12 @@ pub struct RunReport {
 #[derive(Debug, thiserror::Error)]
 pub enum GenerateError {
     /// A file or folder could not be written.
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {}", path.display())]
     Io {
         /// The path.
         path: PathBuf,
         /// The OS error.
+        #[source]
         source: std::io::Error,
     },
     /// A crank-rocker that did not assemble at some angle: an internal invariant failed.

@@ -375,7 +375,7 @@ impl Spec {
         let raw: RawSpec = toml::from_str(text).map_err(|e| {
             let span = e.span().unwrap_or(0..0);
             let message = e.message().trim().to_string();
-            let key = unknown_key_path(text, &span);
+            let key = error_key_path(text, &span, &message);
             cx.error(span, key.as_deref(), message)
         })?;
 
@@ -569,27 +569,87 @@ pub struct Enumeration {
     pub skipped: BTreeMap<String, u64>,
 }
 
-/// For an "unknown field" error, the dotted path of the key (from the enclosing
-/// `[table]` header and the key at the span).
-fn unknown_key_path(text: &str, span: &Range<usize>) -> Option<String> {
+/// The dotted path of the key a TOML/serde error points at: the enclosing `[table]`,
+/// any inline tables open on the line before the error (`coupler = { start = …`), and the
+/// last key assigned before it; for a `missing field` error, the missing field is
+/// appended. Best effort: `None` when nothing key-like precedes the error.
+fn error_key_path(text: &str, span: &Range<usize>, message: &str) -> Option<String> {
     let at = span.start.min(text.len());
-    let key: String = text[at..]
-        .chars()
-        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_' || *c == '-')
-        .collect();
-    if key.is_empty() {
-        return None;
+    let line_start = text[..at].rfind('\n').map(|i| i + 1).unwrap_or(0);
+    let line = &text[line_start..];
+    let line = line.split('\n').next().unwrap_or("");
+    let mut path: Vec<String> = Vec::new();
+    let header = line.trim_start().starts_with('[');
+    // serde reports a missing top-level table with an empty span at 0, or the whole text.
+    let whole_document = span.start == 0 && (span.end == 0 || span.end >= text.trim_end().len());
+    if whole_document {
+        // An error about the document itself (e.g. a missing top-level table).
+    } else if header {
+        // The error is at a table header: the path is the header itself.
+        let name = line.trim().trim_matches(['[', ']']).trim();
+        if !name.is_empty() {
+            path.push(name.to_string());
+        }
+    } else {
+        if let Some(t) = text[..line_start]
+            .lines()
+            .rev()
+            .map(str::trim)
+            .find(|l| l.starts_with('[') && l.ends_with(']'))
+        {
+            path.push(t.trim_matches(['[', ']']).trim().to_string());
+        }
+        // Scan the line up to the error for `key =`, `{` and `}`.
+        let upto = &text[line_start..at];
+        let mut stack: Vec<String> = Vec::new();
+        let mut ident = String::new();
+        let mut last: Option<String> = None;
+        let mut in_string = false;
+        for ch in upto.chars() {
+            if in_string {
+                in_string = ch != '"';
+                continue;
+            }
+            match ch {
+                '"' => in_string = true,
+                c if c.is_ascii_alphanumeric() || c == '_' || c == '-' => ident.push(c),
+                '=' => {
+                    if !ident.is_empty() {
+                        last = Some(std::mem::take(&mut ident));
+                    }
+                }
+                '{' => {
+                    if let Some(k) = last.take() {
+                        stack.push(k);
+                    }
+                }
+                '}' => {
+                    stack.pop();
+                }
+                c if c.is_whitespace() => {}
+                _ => ident.clear(),
+            }
+        }
+        path.extend(stack);
+        if let Some(k) = last {
+            path.push(k);
+        } else {
+            // The error is at a key itself (e.g. an unknown field): take the word there.
+            let word: String = text[at..]
+                .chars()
+                .take_while(|c| c.is_ascii_alphanumeric() || *c == '_' || *c == '-')
+                .collect();
+            if !word.is_empty() {
+                path.push(word);
+            }
+        }
     }
-    let table = text[..at]
-        .lines()
-        .rev()
-        .map(str::trim)
-        .find(|l| l.starts_with('[') && l.ends_with(']'))
-        .map(|l| l.trim_matches(['[', ']']).trim().to_string());
-    Some(match table {
-        Some(t) => format!("{t}.{key}"),
-        None => key,
-    })
+    if let Some(rest) = message.strip_prefix("missing field `") {
+        if let Some(field) = rest.split('`').next() {
+            path.push(field.to_string());
+        }
+    }
+    (!path.is_empty()).then(|| path.join("."))
 }
 
 #[cfg(test)]
@@ -715,5 +775,18 @@ mod tests {
 
         let e = err("[atlas\nname = 1");
         assert_eq!(e.line, 1, "{e}");
+
+        let e = err(&GOOD.replace("coupler = { start = 2,", "coupler = { start = \"2\","));
+        assert_eq!(
+            (e.line, e.key.as_deref()),
+            (4, Some("linkages.coupler.start")),
+            "{e}"
+        );
+
+        let e = err(&GOOD.replace("ground = { start = 2, end = 3, step = 1 }\n", ""));
+        assert_eq!(e.key.as_deref(), Some("linkages.ground"), "{e}");
+
+        let e = err(&format!("{GOOD}[plots]\nx = 1\n"));
+        assert_eq!((e.line, e.key.as_deref()), (10, Some("plots")), "{e}");
     }
 }

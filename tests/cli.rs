@@ -318,3 +318,21 @@ fn curve_rejects_bad_numbers_clearly() {
         assert!(text(&out.stderr).contains(needle), "{}", text(&out.stderr));
     }
 }
+
+#[test]
+fn default_atlas_generates_completely() {
+    let dir = tmp("default");
+    let out = run(&[
+        "generate",
+        "--out",
+        dir.to_str().unwrap(),
+        "--quiet",
+        "--no-pages",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
+    assert_eq!(index["summary"]["curves"], 7000);
+    assert_eq!(index["curves"].as_array().unwrap().len(), 7000);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -8,6 +8,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+/// Over this many curves, `generate` asks for `--yes` (a typo in a step is the usual cause).
+const CONFIRM_OVER: u64 = 5_000_000;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Atlas spec (TOML). Default: the built-in atlas-spec/hrones-nelson.toml.
@@ -24,6 +27,9 @@ pub struct Args {
     /// Index only: do not render pages.
     #[arg(long)]
     no_pages: bool,
+    /// Run even if the spec enumerates more than 5,000,000 curves.
+    #[arg(long)]
+    yes: bool,
     /// Do not show a progress bar.
     #[arg(long, short = 'q')]
     quiet: bool,
@@ -49,10 +55,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .map(|n| n.get())
             .unwrap_or(1),
     };
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(UsageError(format!(
+            "--out {} exists and is not a folder",
+            args.out.display()
+        ))
+        .into());
+    }
     let job = generate::Job::new(spec, source, args.out.clone(), jobs);
     if args.dry_run {
         println!("{}", job.describe());
         return Ok(ExitCode::SUCCESS);
+    }
+    if job.curves() > CONFIRM_OVER && !args.yes {
+        return Err(UsageError(format!(
+            "{} enumerates {} curves ({} linkages × {} points × {} circuit(s)), more than {CONFIRM_OVER}; check the ranges with --dry-run, or pass --yes to run it",
+            job.source,
+            job.curves(),
+            job.enumeration.linkages.len(),
+            job.spec.points.len(),
+            job.spec.circuits.len()
+        ))
+        .into());
     }
     let bar = if args.quiet {
         ProgressBar::hidden()
