@@ -13,18 +13,26 @@
 
 mod curve;
 mod exact;
+pub mod generate;
+pub mod index;
 mod linkage;
 mod pose;
+mod spec;
 mod window;
 
 pub mod features;
 
 pub mod reference;
 
-pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
+pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
 pub use exact::{Decimal, DecimalError};
+pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use pose::{CrankAngle, Pose, kahan_double_area, sincos_deg};
+pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
+pub use spec::{
+    DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges, PAGE_SIZES,
+    PageSettings, PointGrid, Sampling, Spec, SpecError,
+};
 pub use window::{
     CrankWindow, DEFAULT_WINDOW_STEP_DEG, LineDirection, LineMeasures, WindowError, WindowMeasures,
     WindowSamples, arc_deviation_pct,
