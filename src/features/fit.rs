@@ -107,7 +107,8 @@ impl Circle {
 pub struct CircleFitOptions {
     /// Iteration cap of the Levenberg–Marquardt refinement.
     pub max_iterations: usize,
-    /// Stop when the step in (a, b, R) is below this times the radius.
+    /// Stop when the step in (a, b, R) is below this times the radius (or the cost stops
+    /// decreasing by more than 1e-12 of itself).
     pub relative_step: f64,
     /// Reject a circle whose radius exceeds this many times the points' spread (the points
     /// are then on a line, not an arc).
@@ -115,10 +116,10 @@ pub struct CircleFitOptions {
 }
 
 impl CircleFitOptions {
-    /// The default: 50 iterations, relative step 1e-14, radius at most 1e6 × spread.
+    /// The default: 50 iterations, relative step 1e-12, radius at most 1e6 × spread.
     pub const DEFAULT: CircleFitOptions = CircleFitOptions {
         max_iterations: 50,
-        relative_step: 1e-14,
+        relative_step: 1e-12,
         max_radius_ratio: 1e6,
     };
 }
@@ -219,7 +220,7 @@ pub fn fit_circle(
             jtr += j * r;
         }
         let mut accepted = false;
-        for _ in 0..20 {
+        for _ in 0..8 {
             let mut a = jtj;
             for i in 0..3 {
                 a[(i, i)] *= 1.0 + lambda;
@@ -234,12 +235,14 @@ pub fn fit_circle(
             };
             let ft = cost(&trial);
             if trial.radius > 0.0 && ft.is_finite() && ft <= f {
-                let small = step.norm() <= options.relative_step * trial.radius.max(spread);
+                // Converged: a tiny step, or no real decrease of the cost.
+                let done = step.norm() <= options.relative_step * trial.radius.max(spread)
+                    || f - ft <= 1e-12 * f;
                 c = trial;
                 f = ft;
                 lambda = (lambda * 0.1).max(1e-12);
                 accepted = true;
-                if small {
+                if done {
                     return finish(c, spread, options);
                 }
                 break;
