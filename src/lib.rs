@@ -11,6 +11,7 @@
 //! The pure core ([`FourBar`], [`Pose`], [`PoseTable`], [`Curve`]) does no I/O and holds
 //! no global state; orchestration ([`generate`]) and the command line sit on top.
 
+mod cognates;
 mod curve;
 mod exact;
 pub mod generate;
@@ -24,7 +25,11 @@ pub mod features;
 
 pub mod reference;
 
+pub use cognates::{Cognate, CognateError, cognates};
 pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
+pub use features::{
+    CurveFeatures, FeatureExtractor, FeatureTolerances, PseudoArc, Side, StraightSegment, Symmetry,
+};
 pub use exact::{Decimal, DecimalError};
 pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
