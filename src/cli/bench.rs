@@ -131,7 +131,12 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
                 std::env::temp_dir().join(format!("coupler-atlas-bench-{}", std::process::id()));
             let job = generate::Job::new(spec.clone(), "built-in", &dir, jobs);
             let t = Instant::now();
-            let report = generate::run(&job, &|_| {})?;
+            let report = generate::run(
+                &job,
+                &generate::NoPages,
+                &|_| {},
+                &std::sync::atomic::AtomicBool::new(false),
+            )?;
             times.push(t.elapsed().as_secs_f64());
             black_box(report);
             let _ = std::fs::remove_dir_all(&dir);
