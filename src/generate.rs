@@ -703,17 +703,11 @@ pub fn merge(
     check_out_dir(&job.out, job.force)?;
     let key = run_key(job, renderer);
     let total = job.groups().chunks(CHUNK_GROUPS).count();
-    let chunks_dir = job.out.join(STATE_DIR).join("chunks");
-    std::fs::create_dir_all(&chunks_dir).map_err(io_err(&chunks_dir))?;
-    let same = |a: &Path, b: &Path| {
-        a.canonicalize()
-            .ok()
-            .zip(b.canonicalize().ok())
-            .map(|(x, y)| x == y)
-            .unwrap_or(false)
-    };
+    // Find every chunk before writing anything.
+    let mut sources: Vec<Option<&PathBuf>> = Vec::with_capacity(total);
     for c in 0..total {
         if read_valid_chunk(&job.out, c, &key).is_some() {
+            sources.push(None);
             continue;
         }
         let Some(src) = shards
@@ -724,12 +718,21 @@ pub fn merge(
                 "chunk {c} of {total} is in none of the shard folders (complete and of this spec and settings); check that every shard finished and that all were run with the same spec and flags"
             )));
         };
-        if same(src, &job.out) {
-            continue;
-        }
-        let (header, _) = read_valid_chunk(src, c, &key).expect("checked above");
+        sources.push(Some(src));
+    }
+    let chunks_dir = job.out.join(STATE_DIR).join("chunks");
+    std::fs::create_dir_all(&chunks_dir).map_err(io_err(&chunks_dir))?;
+    for (c, src) in sources.into_iter().enumerate() {
+        let Some(src) = src else { continue };
+        let (header, _) = read_valid_chunk(src, c, &key).ok_or_else(|| {
+            GenerateError::Merge(format!(
+                "chunk {c} changed in {} while merging",
+                src.display()
+            ))
+        })?;
         for f in &header.files {
-            let bytes = std::fs::read(src.join(&f.name)).map_err(io_err(&src.join(&f.name)))?;
+            let from = src.join(&f.name);
+            let bytes = std::fs::read(&from).map_err(io_err(&from))?;
             write_artifact(
                 &job.out,
                 &Artifact {
