@@ -239,7 +239,7 @@ impl CurveSummary {
         let mut total = 0.0;
         for k in 0..curve.len() {
             let (x, y) = (curve.x[k], curve.y[k]);
-            let s = curve.vx[k].hypot(curve.vy[k]);
+            let s = (curve.vx[k] * curve.vx[k] + curve.vy[k] * curve.vy[k]).sqrt();
             if !(x.is_finite() && y.is_finite() && s.is_finite()) {
                 return None;
             }

@@ -439,13 +439,35 @@ impl FileEntry {
         }
     }
 
+    /// The entry of file `name` in `dir`, hashed in blocks (memory stays small whatever
+    /// the file's size).
+    pub fn of_file(dir: &Path, name: &str) -> std::io::Result<FileEntry> {
+        use std::io::Read;
+        let mut file = std::fs::File::open(dir.join(name))?;
+        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+        let mut buf = vec![0u8; 1 << 20];
+        let mut bytes = 0u64;
+        loop {
+            let n = file.read(&mut buf)?;
+            if n == 0 {
+                break;
+            }
+            hasher.update(&buf[..n]);
+            bytes += n as u64;
+        }
+        Ok(FileEntry {
+            name: name.to_string(),
+            bytes,
+            xxh3: format!("{:032x}", hasher.digest128()),
+        })
+    }
+
     /// Whether the file is in `dir` with this size and hash.
     pub fn verify(&self, dir: &Path) -> bool {
-        let path = dir.join(&self.name);
-        match std::fs::metadata(&path) {
-            Ok(m) if m.len() == self.bytes => std::fs::read(&path)
-                .map(|b| FileEntry::of(&self.name, &b) == *self)
-                .unwrap_or(false),
+        match std::fs::metadata(dir.join(&self.name)) {
+            Ok(m) if m.len() == self.bytes => {
+                FileEntry::of_file(dir, &self.name).is_ok_and(|e| e == *self)
+            }
             _ => false,
         }
     }
@@ -673,8 +695,7 @@ fn assemble(
         }
         write_index_footer(&mut *w)
     })?;
-    let index_bytes = std::fs::read(&index_path).map_err(io_err(&index_path))?;
-    files.push(FileEntry::of("index.json", &index_bytes));
+    files.push(FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?);
     files.sort_by(|a, b| a.name.cmp(&b.name));
     let manifest = job.out.join("manifest.json");
     write_atomically(&manifest, |w| {
