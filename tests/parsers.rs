@@ -11,32 +11,47 @@ const HD: &str = include_str!("../atlas-spec/hartenberg-denavit.toml");
 /// inserted — the kind of damage hand-written specs get.
 fn mutated_spec() -> impl Strategy<Value = String> {
     let base = prop_oneof![Just(QUICK.to_string()), Just(HD.to_string())];
-    (base, 0usize..4, any::<prop::sample::Index>(), "[ -~\n]{0,12}").prop_map(|(text, op, at, insert)| {
-        let lines: Vec<&str> = text.lines().collect();
-        match op {
-            0 => {
-                let mut b = text.clone().into_bytes();
-                let i = at.index(b.len());
-                b[i] = insert.bytes().next().unwrap_or(b'#');
-                String::from_utf8_lossy(&b).into_owned()
+    (
+        base,
+        0usize..4,
+        any::<prop::sample::Index>(),
+        "[ -~\n]{0,12}",
+    )
+        .prop_map(|(text, op, at, insert)| {
+            let lines: Vec<&str> = text.lines().collect();
+            match op {
+                0 => {
+                    let mut b = text.clone().into_bytes();
+                    let i = at.index(b.len());
+                    b[i] = insert.bytes().next().unwrap_or(b'#');
+                    String::from_utf8_lossy(&b).into_owned()
+                }
+                1 => {
+                    let i = at.index(lines.len());
+                    lines
+                        .iter()
+                        .enumerate()
+                        .filter(|&(k, _)| k != i)
+                        .map(|(_, l)| *l)
+                        .collect::<Vec<_>>()
+                        .join("\n")
+                }
+                2 => {
+                    let i = at.index(lines.len());
+                    let mut l = lines.clone();
+                    l.insert(i, lines[i]);
+                    l.join("\n")
+                }
+                _ => {
+                    let i = at.index(text.len());
+                    let i = (0..=i)
+                        .rev()
+                        .find(|&k| text.is_char_boundary(k))
+                        .unwrap_or(0);
+                    format!("{}{insert}{}", &text[..i], &text[i..])
+                }
             }
-            1 => {
-                let i = at.index(lines.len());
-                lines.iter().enumerate().filter(|&(k, _)| k != i).map(|(_, l)| *l).collect::<Vec<_>>().join("\n")
-            }
-            2 => {
-                let i = at.index(lines.len());
-                let mut l = lines.clone();
-                l.insert(i, lines[i]);
-                l.join("\n")
-            }
-            _ => {
-                let i = at.index(text.len());
-                let i = (0..=i).rev().find(|&k| text.is_char_boundary(k)).unwrap_or(0);
-                format!("{}{insert}{}", &text[..i], &text[i..])
-            }
-        }
-    })
+        })
 }
 
 proptest! {
@@ -93,12 +108,22 @@ fn small_index() -> Vec<u8> {
     INDEX
         .get_or_init(|| {
             let out = Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
-                .args(["generate", concat!(env!("CARGO_MANIFEST_DIR"), "/atlas-spec/quick.toml"), "--no-pages", "--quiet", "--out"])
-                .arg(std::env::temp_dir().join(format!("coupler-atlas-parsers-{}", std::process::id())))
+                .args([
+                    "generate",
+                    concat!(env!("CARGO_MANIFEST_DIR"), "/atlas-spec/quick.toml"),
+                    "--no-pages",
+                    "--quiet",
+                    "--out",
+                ])
+                .arg(
+                    std::env::temp_dir()
+                        .join(format!("coupler-atlas-parsers-{}", std::process::id())),
+                )
                 .output()
                 .unwrap();
             assert!(out.status.success());
-            let dir = std::env::temp_dir().join(format!("coupler-atlas-parsers-{}", std::process::id()));
+            let dir =
+                std::env::temp_dir().join(format!("coupler-atlas-parsers-{}", std::process::id()));
             let bytes = std::fs::read(dir.join("index.json")).unwrap();
             let _ = std::fs::remove_dir_all(&dir);
             assert!(Index::from_slice(&bytes).is_ok());
