@@ -13,6 +13,7 @@
 //! `c mod N = K − 1`; [`merge`] gathers shard folders and assembles exactly what one run
 //! writes.
 
+use crate::features::{FeatureExtractor, FeatureTolerances};
 use crate::curve::{CrankTable, CurveSummary, PoseTable, transmission_range};
 use crate::index::{
     IndexCurve, IndexSummary, LinkageLengths, curve_line, write_curve_line, write_index_footer,
@@ -293,8 +294,15 @@ impl Job {
     }
 }
 
-/// Computes the index records of one group (pure: no I/O).
-pub fn compute_group(table: &CrankTable, group: &Group) -> Result<Vec<IndexCurve>, GenerateError> {
+/// Computes the index records of one group (pure: no I/O), with each curve's features
+/// when `features` is given.
+pub fn compute_group(
+    table: &CrankTable,
+    group: &Group,
+    features: Option<&FeatureTolerances>,
+) -> Result<Vec<IndexCurve>, GenerateError> {
+    let mut extractor =
+        features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t));
     let poses = PoseTable::new(&group.linkage, group.circuit, table);
     if !poses.all_valid() {
         return Err(GenerateError::NotAssembled {
@@ -327,6 +335,7 @@ pub fn compute_group(table: &CrankTable, group: &Group) -> Result<Vec<IndexCurve
             speed: summary.speed,
             length: summary.length,
             page: None,
+            features: extractor.as_mut().map(|x| x.extract(point)),
         });
     }
     Ok(out)
@@ -596,7 +605,9 @@ pub fn run(
                             dir: job.out.clone(),
                         });
                     }
-                    let mut curves = compute_group(&table, g)?;
+                    let features =
+                        job.spec.features.enabled.then_some(&job.spec.features.tolerances);
+                    let mut curves = compute_group(&table, g, features)?;
                     let artifacts = renderer.render_group(job, g, &mut curves)?;
                     let mut files = Vec::with_capacity(artifacts.len());
                     for a in artifacts {
@@ -848,7 +859,7 @@ mod tests {
             first_id: 5,
             first_page: 1,
         };
-        let c = compute_group(&table, &g).unwrap();
+        let c = compute_group(&table, &g, None).unwrap();
         assert_eq!(c[0].id, 5);
         // Point (0, 0) is the crank pin: the unit circle.
         assert!((c[0].length - std::f64::consts::TAU).abs() < 1e-12);

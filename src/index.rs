@@ -64,6 +64,9 @@ pub struct IndexCurve {
     /// The page that draws it, when pages were rendered.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub page: Option<PageRef>,
+    /// Its features (`docs/features.md`), unless the spec turns them off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub features: Option<crate::features::CurveFeatures>,
 }
 
 /// Counts over the whole atlas.
@@ -210,6 +213,7 @@ mod tests {
             speed: [0.1, 2.0],
             length: 10.0,
             page: None,
+            features: None,
         }
     }
 

@@ -52,6 +52,8 @@ pub struct Spec {
     pub sampling: Sampling,
     /// Page settings (used when rendering pages).
     pub pages: PageSettings,
+    /// Feature extraction for the index (`[features]`, see `docs/features.md`).
+    pub features: crate::features::FeatureSettings,
 }
 
 /// `start..=end` by `step`, exact decimals.
@@ -187,6 +189,8 @@ struct RawSpec {
     sampling: Option<Spanned<RawSampling>>,
     #[serde(default)]
     pages: Option<Spanned<RawPages>>,
+    #[serde(default)]
+    features: Option<Spanned<toml::Table>>,
 }
 
 #[derive(Deserialize)]
@@ -506,6 +510,12 @@ impl Spec {
             }
         }
 
+        let features = match &raw.features {
+            None => crate::features::FeatureSettings::DEFAULT,
+            Some(t) => crate::features::FeatureSettings::from_table(t.get_ref())
+                .map_err(|m| cx.error(t.span(), Some("features"), m))?,
+        };
+
         Ok(Spec {
             name,
             title,
@@ -523,6 +533,7 @@ impl Spec {
             },
             sampling,
             pages,
+            features,
         })
     }
 
