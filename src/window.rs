@@ -286,6 +286,12 @@ pub fn arc_deviation_pct(c: &Circle, xs: &[f64], ys: &[f64]) -> f64 {
     c.max_deviation(xs, ys) / c.radius * 100.0
 }
 
+/// The angle of a vector in degrees, in (−180, 180] (so −0 and the −x axis give 180).
+pub(crate) fn angle_deg(d: [f64; 2]) -> f64 {
+    let a = libm::atan2(d[1], d[0]).to_degrees();
+    if a <= -180.0 { a + 360.0 } else { a }
+}
+
 /// The line measures of a set of samples (see [`WindowMeasures`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LineMeasures {
@@ -372,7 +378,7 @@ impl LineMeasures {
         LineMeasures {
             centroid: g,
             direction: d,
-            direction_deg: libm::atan2(d[1], d[0]).to_degrees(),
+            direction_deg: angle_deg(d),
             extent: cx1 - cx0,
             width: cy1 - cy0,
             cx_range: [cx0, cx1],

@@ -98,7 +98,7 @@ pub fn straight_segments(c: &Curve, tol: &FeatureTolerances) -> Vec<StraightSegm
                 length: w.extent,
                 straightness_pct: w.width / w.extent * 100.0,
                 velocity_variation_pct: w.vx_range / w.mean_vx * 100.0,
-                direction_deg: libm::atan2(w.d[1], w.d[0]).to_degrees(),
+                direction_deg: crate::window::angle_deg(w.d),
                 endpoints: [[c.x[a], c.y[a]], [c.x[b], c.y[b]]],
             };
             [

@@ -1,0 +1,124 @@
+//! The feature commands as a user runs them: `curve --window`, `search`, `cognates`, `dwell`.
+
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+}
+
+fn run_json(args: &[&str]) -> serde_json::Value {
+    let out = bin().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// Norton Table 3-1 (domain.md §8) through the command line, to the printed digits.
+#[test]
+fn curve_window_reproduces_norton() {
+    let rows = [
+        (
+            "2.975",
+            "3.9625",
+            "7.925",
+            "170:190",
+            "0.6013",
+            "0.0000104",
+            "0.3775",
+        ),
+        (
+            "2.625", "3.4375", "6.875", "120:240", "3.2380", "0.01031", "14.684",
+        ),
+        (
+            "1.825", "2.2375", "4.475", "120:240", "2.5999", "0.7521", "1.8845",
+        ),
+    ];
+    for (c, a, u, window, dx, es, ev) in rows {
+        let point = format!("{u},0");
+        let j = run_json(&[
+            "curve",
+            "--coupler",
+            a,
+            "--rocker",
+            a,
+            "--ground",
+            c,
+            "--point",
+            &point,
+            "--step",
+            "2",
+            "--window",
+            window,
+            "--window-line",
+            "ground",
+        ]);
+        let w = &j["window"];
+        let digits = |printed: &str| {
+            printed
+                .trim_start_matches(['0', '.'])
+                .chars()
+                .filter(char::is_ascii_digit)
+                .count() as i32
+        };
+        let round_sig = |x: f64, sig: i32| {
+            let p = 10f64.powi(sig - 1 - x.abs().log10().floor() as i32);
+            (x * p).round() / p
+        };
+        let extent = w["extent"].as_f64().unwrap();
+        assert_eq!(format!("{extent:.4}"), dx, "{c}");
+        let got = w["straightness_pct"].as_f64().unwrap();
+        assert_eq!(
+            round_sig(got, digits(es)),
+            es.parse::<f64>().unwrap(),
+            "{c}: {got}"
+        );
+        let got = w["velocity_variation_pct"].as_f64().unwrap();
+        assert_eq!(
+            round_sig(got, digits(ev)),
+            ev.parse::<f64>().unwrap(),
+            "{c}: {got}"
+        );
+    }
+}
+
+/// The rocker pin's window arc is the rocker circle; a bad window is a usage error.
+#[test]
+fn curve_window_arc_and_errors() {
+    let j = run_json(&[
+        "curve",
+        "--coupler",
+        "3",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "3.5",
+        "--point",
+        "3,0",
+        "--window",
+        "300:420",
+    ]);
+    let w = &j["window"];
+    assert!((w["arc_radius"].as_f64().unwrap() - 2.5).abs() < 1e-9);
+    assert!((w["arc_center"][0].as_f64().unwrap() - 3.5).abs() < 1e-9);
+    let out = bin()
+        .args([
+            "curve",
+            "--coupler",
+            "3",
+            "--rocker",
+            "2.5",
+            "--ground",
+            "3.5",
+            "--point",
+            "3,0",
+            "--window",
+            "90:10",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("START:END"));
+}
