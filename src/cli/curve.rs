@@ -2,7 +2,9 @@
 
 use super::{UsageError, parse_length, parse_number};
 use anyhow::Result;
-use coupler_atlas::{Circuit, CouplerPoint, CrankTable, FourBar, Pose};
+use coupler_atlas::{
+    Circuit, CouplerPoint, CrankTable, FourBar, LineDirection, Pose, WindowMeasures,
+};
 use serde::Serialize;
 use std::io::Write;
 use std::process::ExitCode;
@@ -30,6 +32,15 @@ pub struct Args {
     /// Output format.
     #[arg(long, default_value = "json", value_parser = ["json", "csv", "table"])]
     format: String,
+    /// Measure a crank window START:END in degrees (may pass 360, e.g. 300:420), sampled
+    /// every --step with both ends: adds a `"window"` object (straightness, velocity
+    /// variation, best circle) to the JSON. See docs/features.md.
+    #[arg(long, allow_hyphen_values = true)]
+    window: Option<String>,
+    /// The window's line: `fitted` (orthogonal least squares), `ground` (the +x axis, as
+    /// Norton's Table 3-1), or a direction in degrees.
+    #[arg(long, default_value = "fitted", allow_hyphen_values = true)]
+    window_line: String,
 }
 
 fn parse_point(s: &str) -> Result<CouplerPoint, String> {
@@ -76,6 +87,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
     })?;
     let p = args.point;
+    let window = match &args.window {
+        None => None,
+        Some(text) => {
+            let w = text
+                .parse::<coupler_atlas::CrankWindow>()
+                .and_then(|w| w.with_step(args.step))
+                .map_err(|e| UsageError(e.to_string()))?;
+            let line = match args.window_line.as_str() {
+                "fitted" => LineDirection::Fitted,
+                "ground" => LineDirection::Given(0.0),
+                d => LineDirection::Given(parse_number(d).map_err(|e| {
+                    UsageError(format!(
+                        "--window-line must be `fitted`, `ground` or degrees: {e}"
+                    ))
+                })?),
+            };
+            Some(
+                WindowMeasures::measure(&linkage, circuit, p, &w, line)
+                    .map_err(|e| UsageError(e.to_string()))?,
+            )
+        }
+    };
     let samples: Vec<Sample> = table
         .angles()
         .iter()
@@ -128,7 +161,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 w.write_all(if i == 0 { b"\n" } else { b",\n" })?;
                 serde_json::to_writer(&mut w, s)?;
             }
-            writeln!(w, "\n]}}")?;
+            write!(w, "\n]")?;
+            if let Some(m) = &window {
+                write!(w, ",\"window\":")?;
+                serde_json::to_writer(&mut w, m)?;
+            }
+            writeln!(w, "}}")?;
         }
         "csv" => {
             writeln!(w, "theta_deg,x,y,vx,vy,transmission_deg")?;
