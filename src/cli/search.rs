@@ -1,0 +1,220 @@
+//! `coupler-atlas search INDEX [filters] [--sort] [--limit] [--format table|json]`
+
+use super::UsageError;
+use anyhow::{Context, Result};
+use coupler_atlas::search::{DEFAULT_RADIUS_TOL_PCT, Query, SearchTable, SortKey, SpanFilter};
+use coupler_atlas::{Circuit, Class};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The index to search (index.json of a generated atlas).
+    index: PathBuf,
+    /// A straight segment of at least SPAN crank degrees, straightness ε_S at most TOL %.
+    #[arg(long, value_name = "SPAN[:TOL]")]
+    straight: Option<SpanFilter>,
+    /// A pseudo-arc of at least SPAN crank degrees, radial deviation at most TOL %.
+    #[arg(long, value_name = "SPAN[:TOL]")]
+    arc: Option<SpanFilter>,
+    /// Two straight segments, or two arcs of equal radius (--radius-tol) and the same
+    /// concave side (each passing --straight / --arc when given).
+    #[arg(long)]
+    double_dwell: bool,
+    /// Relative tolerance on the radii of a double dwell's two arcs, percent.
+    #[arg(long, default_value_t = DEFAULT_RADIUS_TOL_PCT)]
+    radius_tol: f64,
+    /// Transmission angle within [DEG, 180 − DEG] over the whole revolution.
+    #[arg(long, value_name = "DEG")]
+    min_transmission: Option<f64>,
+    /// Barker class, e.g. GCRR.
+    #[arg(long)]
+    class: Option<String>,
+    /// The linkage A,B,C (coupler, rocker, ground).
+    #[arg(long, value_name = "A,B,C")]
+    linkage: Option<String>,
+    /// Circuit: open or crossed.
+    #[arg(long, value_parser = ["open", "crossed"])]
+    circuit: Option<String>,
+    /// Symmetric curves only.
+    #[arg(long)]
+    symmetric: bool,
+    /// Order: id, straight, straightness, arc, deviation, transmission.
+    #[arg(long, default_value = "id")]
+    sort: SortKey,
+    /// At most N hits (0: all).
+    #[arg(long, default_value_t = 20)]
+    limit: usize,
+    /// Output format.
+    #[arg(long, default_value = "table", value_parser = ["table", "json"])]
+    format: String,
+    /// Do not read or write the search cache (INDEX.search).
+    #[arg(long)]
+    no_cache: bool,
+}
+
+fn cache_key(path: &Path) -> Result<[u64; 2]> {
+    let meta =
+        std::fs::metadata(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mtime = meta
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map(|d| d.as_nanos() as u64)
+        .unwrap_or(0);
+    Ok([meta.len(), mtime])
+}
+
+/// Loads the table from the cache if it matches the index, else parses the index (and
+/// writes the cache, best effort). Returns the table and how it was obtained.
+pub fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
+    let key = cache_key(index)?;
+    let mut cache = index.as_os_str().to_owned();
+    cache.push(".search");
+    let cache = PathBuf::from(cache);
+    if use_cache {
+        if let Ok(bytes) = std::fs::read(&cache) {
+            if let Ok(t) = SearchTable::from_bytes(&bytes, key) {
+                return Ok((t, "cache"));
+            }
+        }
+    }
+    let text = std::fs::read_to_string(index)
+        .with_context(|| format!("cannot read {}", index.display()))?;
+    let table = SearchTable::from_index_text(&text)
+        .map_err(|e| UsageError(format!("{}: {e}", index.display())))?;
+    if use_cache {
+        let tmp = cache.with_extension("search.tmp");
+        if std::fs::write(&tmp, table.to_bytes(key)).is_ok() {
+            let _ = std::fs::rename(&tmp, &cache);
+        }
+    }
+    Ok((table, "index"))
+}
+
+fn parse_linkage(s: &str) -> Result<[f64; 3], UsageError> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| super::parse_length(x.trim()))
+        .collect::<Result<_, _>>()
+        .map_err(|e| UsageError(format!("--linkage: {e}")))?;
+    <[f64; 3]>::try_from(v).map_err(|_| UsageError(format!("--linkage expects A,B,C, got `{s}`")))
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let class = match &args.class {
+        None => None,
+        Some(c) => Some(
+            Class::ALL
+                .iter()
+                .copied()
+                .find(|k| k.code().eq_ignore_ascii_case(c))
+                .ok_or_else(|| UsageError(format!("unknown class `{c}`")))?,
+        ),
+    };
+    let query = Query {
+        straight: args.straight,
+        arc: args.arc,
+        double_dwell: args.double_dwell,
+        radius_tol_pct: args.radius_tol,
+        min_transmission_deg: args.min_transmission,
+        class,
+        linkage: args.linkage.as_deref().map(parse_linkage).transpose()?,
+        circuit: args
+            .circuit
+            .as_deref()
+            .map(|c| c.parse::<Circuit>())
+            .transpose()
+            .map_err(UsageError)?,
+        symmetric: args.symmetric,
+        sort: args.sort,
+        limit: args.limit,
+    };
+    let t0 = Instant::now();
+    let (table, source) = load(&args.index, !args.no_cache)?;
+    let t1 = Instant::now();
+    let hits = table.search(&query);
+    let t2 = Instant::now();
+    let stdout = std::io::stdout();
+    let mut w = std::io::BufWriter::new(stdout.lock());
+    if args.format == "json" {
+        writeln!(w, "[")?;
+        for (n, h) in hits.iter().enumerate() {
+            let r = &table.rows[h.row];
+            let mut o = serde_json::json!({
+                "id": r.id,
+                "linkage": {"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]},
+                "point": {"u": r.point[0], "v": r.point[1]},
+                "circuit": r.circuit,
+                "class": r.class,
+                "transmission_deg": r.transmission_deg,
+                "straight_segments": h.straight.iter().map(|&k| table.segments[k]).collect::<Vec<_>>(),
+                "pseudo_arcs": h.arcs.iter().map(|&k| table.arcs[k]).collect::<Vec<_>>(),
+            });
+            if r.page != u32::MAX {
+                o["page"] = serde_json::json!({"file": table.pages[r.page as usize], "bbox_px": r.page_bbox});
+            }
+            let sep = if n + 1 < hits.len() { "," } else { "" };
+            writeln!(w, "{}{sep}", serde_json::to_string(&o)?)?;
+        }
+        writeln!(w, "]")?;
+    } else {
+        writeln!(
+            w,
+            "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9}  {}",
+            "id", "A", "B", "C", "u", "v", "circuit", "mu min", "matches / page"
+        )?;
+        for h in &hits {
+            let r = &table.rows[h.row];
+            let mut m: Vec<String> = h
+                .straight
+                .iter()
+                .map(|&k| {
+                    let s = &table.segments[k];
+                    format!(
+                        "line {}°+{}° ε_S {:.3}%",
+                        s.start_deg, s.span_deg, s.straightness_pct
+                    )
+                })
+                .collect();
+            m.extend(h.arcs.iter().map(|&k| {
+                let a = &table.arcs[k];
+                format!(
+                    "arc {}°+{}° R {:.3} dev {:.3}%",
+                    a.start_deg, a.span_deg, a.radius, a.deviation_pct
+                )
+            }));
+            if r.page != u32::MAX {
+                let b = r.page_bbox;
+                m.push(format!(
+                    "page {} at ({:.0},{:.0})-({:.0},{:.0}) px",
+                    table.pages[r.page as usize], b[0], b[1], b[2], b[3]
+                ));
+            }
+            writeln!(
+                w,
+                "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9.2}  {}",
+                r.id,
+                r.linkage[0],
+                r.linkage[1],
+                r.linkage[2],
+                r.point[0],
+                r.point[1],
+                r.circuit.name(),
+                r.transmission_deg[0],
+                m.join("; ")
+            )?;
+        }
+    }
+    w.flush()?;
+    eprintln!(
+        "{} hit(s) of {} curves; load {:.3} s (from {source}), search {:.3} s",
+        hits.len(),
+        table.rows.len(),
+        (t1 - t0).as_secs_f64(),
+        (t2 - t1).as_secs_f64()
+    );
+    Ok(ExitCode::SUCCESS)
+}

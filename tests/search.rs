@@ -1,0 +1,217 @@
+//! `search`: every result satisfies its filters according to the index itself, no curve
+//! that satisfies them is missed, and the Hoeken linkage is found by `--straight`.
+
+use coupler_atlas::search::{Query, SearchTable, SortKey, SpanFilter};
+use coupler_atlas::{Circuit, Class, IndexCurve};
+use proptest::prelude::*;
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::OnceLock;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+}
+
+/// A small atlas that holds the Hoeken linkage (A = B = 2.5, C = 2, u = 2A, v = 0).
+const SPEC: &str = r#"
+[atlas]
+name = "search-test"
+
+[linkages]
+coupler = { start = 2.5, end = 3.0, step = 0.5 }
+rocker  = { start = 2.5, end = 3.0, step = 0.5 }
+ground  = { start = 2.0, end = 3.0, step = 0.5 }
+circuits = ["open", "crossed"]
+
+[points]
+u = { start = -0.5, end = 2.0, step = 0.5, relative = true }
+v = { start = -0.5, end = 0.5, step = 0.5, relative = true }
+
+[sampling]
+crank_step_deg = 2.0
+"#;
+
+fn atlas() -> &'static (PathBuf, Vec<IndexCurve>, SearchTable) {
+    static ATLAS: OnceLock<(PathBuf, Vec<IndexCurve>, SearchTable)> = OnceLock::new();
+    ATLAS.get_or_init(|| {
+        let dir =
+            std::env::temp_dir().join(format!("coupler-atlas-search-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let spec = dir.join("spec.toml");
+        std::fs::write(&spec, SPEC).unwrap();
+        let out = dir.join("atlas");
+        let st = bin()
+            .args([
+                "generate",
+                spec.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--no-pages",
+                "-q",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        let index = out.join("index.json");
+        let text = std::fs::read_to_string(&index).unwrap();
+        let curves = coupler_atlas::Index::from_slice(text.as_bytes())
+            .unwrap()
+            .curves;
+        let table = SearchTable::from_index_text(&text).unwrap();
+        (index, curves, table)
+    })
+}
+
+/// Does curve `c` satisfy `q`, reading the index record directly?
+fn satisfies(c: &IndexCurve, q: &Query) -> bool {
+    let f = c.features.as_ref().unwrap();
+    let seg_ok = |s: &coupler_atlas::StraightSegment| {
+        q.straight
+            .is_none_or(|p| s.span_deg >= p.min_span_deg && s.straightness_pct <= p.max_error_pct)
+    };
+    let arc_ok = |a: &coupler_atlas::PseudoArc| {
+        q.arc
+            .is_none_or(|p| a.span_deg >= p.min_span_deg && a.deviation_pct <= p.max_error_pct)
+    };
+    let segs: Vec<_> = f.straight_segments.iter().filter(|s| seg_ok(s)).collect();
+    let arcs: Vec<_> = f.pseudo_arcs.iter().filter(|a| arc_ok(a)).collect();
+    let mut ok = true;
+    ok &= q.straight.is_none() || !segs.is_empty();
+    ok &= q.arc.is_none() || !arcs.is_empty();
+    if q.double_dwell {
+        let pair = arcs.iter().enumerate().any(|(i, a)| {
+            arcs[i + 1..].iter().any(|b| {
+                (a.radius - b.radius).abs() <= q.radius_tol_pct / 100.0 * a.radius.max(b.radius)
+                    && a.concave == b.concave
+            })
+        });
+        ok &= segs.len() >= 2 || pair;
+    }
+    if let Some(m) = q.min_transmission_deg {
+        ok &= c.transmission_deg[0] >= m && c.transmission_deg[1] <= 180.0 - m;
+    }
+    ok &= q.class.is_none_or(|k| k == c.class);
+    ok &= q.circuit.is_none_or(|k| k == c.circuit);
+    ok &= q.symmetric <= f.symmetry.is_some();
+    if let Some(l) = q.linkage {
+        ok &= (c.linkage.coupler - l[0]).abs() <= 1e-9
+            && (c.linkage.rocker - l[1]).abs() <= 1e-9
+            && (c.linkage.ground - l[2]).abs() <= 1e-9;
+    }
+    ok
+}
+
+fn span_filter() -> impl Strategy<Value = Option<SpanFilter>> {
+    prop_oneof![
+        Just(None),
+        (0.0..200.0f64, prop_oneof![Just(f64::INFINITY), 0.0..0.6f64]).prop_map(|(s, t)| Some(
+            SpanFilter {
+                min_span_deg: s,
+                max_error_pct: t
+            }
+        )),
+    ]
+}
+
+fn query() -> impl Strategy<Value = Query> {
+    (
+        span_filter(),
+        span_filter(),
+        any::<bool>(),
+        prop_oneof![Just(None), (0.0..60.0f64).prop_map(Some)],
+        prop_oneof![
+            Just(None),
+            Just(Some(Circuit::Open)),
+            Just(Some(Circuit::Crossed))
+        ],
+        any::<bool>(),
+        prop_oneof![
+            Just(None),
+            Just(Some([2.5, 2.5, 2.0])),
+            Just(Some([3.0, 2.5, 3.0]))
+        ],
+        prop_oneof![Just(None), Just(Some(Class::Gcrr))],
+    )
+        .prop_map(
+            |(straight, arc, double_dwell, mt, circuit, symmetric, linkage, class)| Query {
+                straight,
+                arc,
+                double_dwell,
+                radius_tol_pct: 2.0,
+                min_transmission_deg: mt,
+                class,
+                linkage,
+                circuit,
+                symmetric,
+                sort: SortKey::Id,
+                limit: 0,
+            },
+        )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    /// Sound and complete: hits are exactly the curves that satisfy the query.
+    #[test]
+    fn results_satisfy_their_filters(q in query()) {
+        let (_, curves, table) = atlas();
+        let hits: Vec<u64> = table.search(&q).iter().map(|h| table.rows[h.row].id).collect();
+        let expect: Vec<u64> = curves.iter().filter(|c| satisfies(c, &q)).map(|c| c.id).collect();
+        prop_assert_eq!(hits, expect);
+    }
+}
+
+#[test]
+fn cache_round_trip() {
+    let (_, _, table) = atlas();
+    let bytes = table.to_bytes([1, 2]);
+    assert_eq!(&SearchTable::from_bytes(&bytes, [1, 2]).unwrap(), table);
+    assert!(SearchTable::from_bytes(&bytes, [1, 3]).is_err());
+    assert!(SearchTable::from_bytes(&bytes[..bytes.len() - 1], [1, 2]).is_err());
+}
+
+/// domain.md §7: `search --straight` finds the Hoeken linkage, point (5, 0).
+#[test]
+fn hoeken_is_found_by_straight() {
+    let (index, _, _) = atlas();
+    let out = bin()
+        .args([
+            "search",
+            index.to_str().unwrap(),
+            "--straight",
+            "120:0.5",
+            "--format",
+            "json",
+            "--limit",
+            "0",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let hits: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let hoeken = hits.iter().find(|h| {
+        h["linkage"] == serde_json::json!({"coupler": 2.5, "rocker": 2.5, "ground": 2.0})
+            && h["point"] == serde_json::json!({"u": 5.0, "v": 0.0})
+            && h["circuit"] == "open"
+    });
+    let h = hoeken.unwrap_or_else(|| panic!("Hoeken not among {} hits", hits.len()));
+    let seg = &h["straight_segments"][0];
+    assert!(seg["span_deg"].as_f64().unwrap() >= 120.0);
+    assert!(seg["straightness_pct"].as_f64().unwrap() <= 0.5);
+    // The table format runs too, and a second run reads the cache.
+    let out = bin()
+        .args(["search", index.to_str().unwrap(), "--straight", "120:0.5"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("from cache"));
+}
