@@ -22,6 +22,7 @@ mod spec;
 mod window;
 
 pub mod features;
+pub mod search;
 
 pub mod reference;
 

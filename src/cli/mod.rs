@@ -4,6 +4,7 @@
 mod bench;
 mod curve;
 mod generate;
+mod search;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -24,6 +25,8 @@ enum Command {
     Merge(generate::MergeArgs),
     /// Sample the coupler curve of any single four-bar.
     Curve(curve::Args),
+    /// Search an atlas index by features (straight segments, arcs, dwells, transmission).
+    Search(search::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
     Bench(bench::Args),
 }
@@ -47,6 +50,7 @@ pub fn main() -> ExitCode {
         Command::Merge(args) => generate::merge(args),
         Command::Curve(args) => curve::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Search(args) => search::run(args),
     };
     match result {
         Ok(code) => code,
