@@ -163,8 +163,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     } else {
         writeln!(
             w,
-            "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9}  {}",
-            "id", "A", "B", "C", "u", "v", "circuit", "mu min", "matches / page"
+            "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9}  matches / page",
+            "id", "A", "B", "C", "u", "v", "circuit", "mu min"
         )?;
         for h in &hits {
             let r = &table.rows[h.row];
