@@ -122,3 +122,61 @@ fn curve_window_arc_and_errors() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("START:END"));
 }
+
+/// `cognates --format json`: the three linkages' pivots, lengths, points and circuits
+/// (as printed) trace the same curve; cognate 2 (input turning with the crank) at the
+/// same crank angle, to 1e-12. (Cognate 1 is checked in the library's unit test.)
+#[test]
+fn cognates_json_contract() {
+    use coupler_atlas::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose};
+    let j = run_json(&[
+        "cognates",
+        "--coupler",
+        "3",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "3.5",
+        "--point",
+        "1.5,1",
+        "--format",
+        "json",
+    ]);
+    let ls = j["linkages"].as_array().unwrap();
+    assert_eq!(ls.len(), 3);
+    assert_eq!(
+        j["crank_rockers"],
+        serde_json::json!(["original", "cognate 2"])
+    );
+    let trace = |l: &serde_json::Value, deg: f64| -> [f64; 2] {
+        let f = |k: &str| l[k].as_f64().unwrap();
+        let s = f("crank");
+        let four = FourBar::new(f("coupler") / s, f("rocker") / s, f("ground") / s).unwrap();
+        let p = CouplerPoint::new(
+            l["point"]["u"].as_f64().unwrap() / s,
+            l["point"]["v"].as_f64().unwrap() / s,
+        );
+        let circuit: Circuit = l["circuit"].as_str().unwrap().parse().unwrap();
+        let m = Pose::solve(&four, circuit, &CrankAngle::from_degrees(deg))
+            .unwrap()
+            .point(p);
+        let piv = |i: usize, k: usize| l["pivots"][i][k].as_f64().unwrap();
+        let (ax, ay) = (piv(1, 0) - piv(0, 0), piv(1, 1) - piv(0, 1));
+        let n = ax.hypot(ay);
+        let (c, sn) = (ax / n * s, ay / n * s);
+        [
+            piv(0, 0) + c * m.x - sn * m.y,
+            piv(0, 1) + sn * m.x + c * m.y,
+        ]
+    };
+    for k in 0..72 {
+        let deg = k as f64 * 5.0;
+        let (a, b) = (trace(&ls[0], deg), trace(&ls[2], deg));
+        assert!(
+            (a[0] - b[0]).hypot(a[1] - b[1]) < 1e-12,
+            "θ = {deg}: {a:?} vs {b:?}"
+        );
+    }
+    assert_eq!(ls[0]["pivots"], serde_json::json!([[0.0, 0.0], [3.5, 0.0]]));
+    assert_eq!(ls[1]["pivots"][0], serde_json::json!([0.0, 0.0]));
+}

@@ -1,0 +1,125 @@
+//! `coupler-atlas cognates --coupler A --rocker B --ground C --point U,V [--circuit] [--format]`
+
+use super::{UsageError, parse_length, parse_number};
+use anyhow::Result;
+use coupler_atlas::{Circuit, CouplerPoint, FourBar, cognates};
+use std::io::Write;
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Coupler length A (crank = 1).
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    coupler: f64,
+    /// Rocker length B.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    rocker: f64,
+    /// Ground length C.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    ground: f64,
+    /// Coupler point U,V in the coupler frame (crank units).
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    point: CouplerPoint,
+    /// Circuit (assembly) of the given linkage.
+    #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
+    circuit: String,
+    /// Output format.
+    #[arg(long, default_value = "table", value_parser = ["table", "json"])]
+    format: String,
+}
+
+fn parse_point(s: &str) -> Result<CouplerPoint, String> {
+    let (u, v) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected U,V (two numbers separated by a comma), got `{s}`"))?;
+    Ok(CouplerPoint::new(
+        parse_number(u.trim())?,
+        parse_number(v.trim())?,
+    ))
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let linkage = FourBar::new(args.coupler, args.rocker, args.ground)
+        .map_err(|e| UsageError(e.to_string()))?;
+    let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
+    let three = cognates(&linkage, circuit, args.point).map_err(|e| UsageError(e.to_string()))?;
+    let names = ["original", "cognate 1", "cognate 2"];
+    let stdout = std::io::stdout();
+    let mut w = std::io::BufWriter::new(stdout.lock());
+    if args.format == "json" {
+        let list: Vec<serde_json::Value> = three
+            .iter()
+            .zip(names)
+            .map(|(c, name)| {
+                let mut v = serde_json::to_value(c).expect("cognate serialises");
+                v["name"] = name.into();
+                if let Some((l, p)) = c.normalized() {
+                    v["normalized"] = serde_json::json!({
+                        "crank": 1.0, "coupler": l.coupler, "rocker": l.rocker, "ground": l.ground,
+                        "point": {"u": p.u, "v": p.v},
+                    });
+                }
+                v
+            })
+            .collect();
+        let crank_rockers: Vec<&str> = three
+            .iter()
+            .zip(names)
+            .filter(|(c, _)| c.crank_rocker)
+            .map(|(_, n)| n)
+            .collect();
+        serde_json::to_writer_pretty(
+            &mut w,
+            &serde_json::json!({
+                "third_pivot": three[1].pivots[1],
+                "linkages": list,
+                "crank_rockers": crank_rockers,
+            }),
+        )?;
+        writeln!(w)?;
+    } else {
+        writeln!(
+            w,
+            "Roberts–Chebyshev cognates of {linkage} ({circuit}), point ({}, {})",
+            args.point.u, args.point.v
+        )?;
+        writeln!(
+            w,
+            "{:<10} {:>22} {:>22} {:>8} {:>8} {:>8} {:>8} {:>20} {:>8} {:>5}  input follows",
+            "",
+            "crank pivot",
+            "rocker pivot",
+            "crank",
+            "coupler",
+            "rocker",
+            "ground",
+            "point (u, v)",
+            "circuit",
+            "class"
+        )?;
+        for (c, name) in three.iter().zip(names) {
+            let p = |q: [f64; 2]| format!("({:.4}, {:.4})", q[0], q[1]);
+            writeln!(
+                w,
+                "{name:<10} {:>22} {:>22} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>20} {:>8} {:>5}  {}{}",
+                p(c.pivots[0]),
+                p(c.pivots[1]),
+                c.crank,
+                c.coupler,
+                c.rocker,
+                c.ground,
+                format!("({:.4}, {:.4})", c.point.u, c.point.v),
+                c.circuit.name(),
+                c.class,
+                c.input_follows,
+                if c.crank_rocker {
+                    "  [crank-rocker]"
+                } else {
+                    ""
+                }
+            )?;
+        }
+    }
+    w.flush()?;
+    Ok(ExitCode::SUCCESS)
+}
