@@ -2,6 +2,7 @@
 //! code: 0 success, 1 failure while working, 2 bad usage or input (clap uses 2 too).
 
 mod bench;
+mod cognates;
 mod curve;
 mod generate;
 mod search;
@@ -25,6 +26,8 @@ enum Command {
     Merge(generate::MergeArgs),
     /// Sample the coupler curve of any single four-bar.
     Curve(curve::Args),
+    /// The three four-bars (Roberts–Chebyshev cognates) that trace one coupler curve.
+    Cognates(cognates::Args),
     /// Search an atlas index by features (straight segments, arcs, dwells, transmission).
     Search(search::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
@@ -51,6 +54,7 @@ pub fn main() -> ExitCode {
         Command::Curve(args) => curve::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Search(args) => search::run(args),
+        Command::Cognates(args) => cognates::run(args),
     };
     match result {
         Ok(code) => code,
