@@ -1,0 +1,259 @@
+//! `coupler-atlas dwell --coupler A --rocker B --ground C --point U,V --window S:E
+//! [--window2 S:E] [--kind single|double-lines|double-arcs] [--swing DEG] [--png FILE]`
+
+use super::{UsageError, parse_length, parse_number};
+use anyhow::{Context, Result};
+use coupler_atlas::dwell::{DwellMechanism, double_dwell_arcs, double_dwell_lines, single_dwell};
+use coupler_atlas::{Circuit, CouplerPoint, CrankAngle, CrankWindow, FourBar, Pose};
+use plotters::prelude::*;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Coupler length A (crank = 1).
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    coupler: f64,
+    /// Rocker length B.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    rocker: f64,
+    /// Ground length C.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    ground: f64,
+    /// Coupler point U,V in the coupler frame (crank units).
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    point: CouplerPoint,
+    /// Circuit (assembly).
+    #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
+    circuit: String,
+    /// The (first) dwell window START:END, crank degrees: the pseudo-arc or straight segment.
+    #[arg(long, allow_hyphen_values = true)]
+    window: String,
+    /// The second window, for a double dwell.
+    #[arg(long, allow_hyphen_values = true)]
+    window2: Option<String>,
+    /// single (one pseudo-arc), double-lines (two straight segments), double-arcs (two equal arcs).
+    #[arg(long, default_value = "single", value_parser = ["single", "double-lines", "double-arcs"])]
+    kind: String,
+    /// Output swing of a single dwell, degrees.
+    #[arg(long, default_value = "40", value_parser = parse_number)]
+    swing: f64,
+    /// Simulation step, crank degrees.
+    #[arg(long, default_value = "1", value_parser = parse_number)]
+    step: f64,
+    /// Draw the design and its output-angle plot to this PNG.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Output format.
+    #[arg(long, default_value = "table", value_parser = ["table", "json"])]
+    format: String,
+}
+
+fn parse_point(s: &str) -> Result<CouplerPoint, String> {
+    let (u, v) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected U,V (two numbers separated by a comma), got `{s}`"))?;
+    Ok(CouplerPoint::new(
+        parse_number(u.trim())?,
+        parse_number(v.trim())?,
+    ))
+}
+
+fn window(s: &str, step: f64) -> Result<CrankWindow, UsageError> {
+    s.parse::<CrankWindow>()
+        .and_then(|w| w.with_step(step))
+        .map_err(|e| UsageError(e.to_string()))
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let l = FourBar::new(args.coupler, args.rocker, args.ground)
+        .map_err(|e| UsageError(e.to_string()))?;
+    let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
+    if !(args.step > 0.0 && args.step <= 10.0) {
+        return Err(UsageError(format!(
+            "--step must be in (0, 10] degrees, got {}",
+            args.step
+        ))
+        .into());
+    }
+    if !(args.swing > 0.0 && args.swing < 180.0) {
+        return Err(UsageError(format!(
+            "--swing must be in (0, 180) degrees, got {}",
+            args.swing
+        ))
+        .into());
+    }
+    let w1 = window(&args.window, args.step)?;
+    let second = || -> Result<CrankWindow, UsageError> {
+        let s = args
+            .window2
+            .as_deref()
+            .ok_or_else(|| UsageError(format!("--kind {} needs --window2", args.kind)))?;
+        window(s, args.step)
+    };
+    let p = args.point;
+    let d = match args.kind.as_str() {
+        "single" => single_dwell(&l, circuit, p, &w1, args.swing, args.step),
+        "double-lines" => double_dwell_lines(&l, circuit, p, &w1, &second()?, args.step),
+        _ => double_dwell_arcs(&l, circuit, p, &w1, &second()?, args.step),
+    }
+    .map_err(|e| UsageError(e.to_string()))?;
+    let stdout = std::io::stdout();
+    let mut w = std::io::BufWriter::new(stdout.lock());
+    if args.format == "json" {
+        serde_json::to_writer(&mut w, &d)?;
+        writeln!(w)?;
+    } else {
+        writeln!(
+            w,
+            "{:?} dwell on {l} ({circuit}), point ({}, {})",
+            d.kind, p.u, p.v
+        )?;
+        writeln!(
+            w,
+            "link 5 {:.4}, output pivot O6 ({:.4}, {:.4}), link 6 {:.4}",
+            d.link5, d.output_pivot[0], d.output_pivot[1], d.link6
+        )?;
+        writeln!(w, "output swing {:.3}°", d.swing_deg)?;
+        for (k, x) in d.dwells.iter().enumerate() {
+            writeln!(
+                w,
+                "dwell {}: θ {}°+{}° ({} dashes of 10°), output {:.3}°, jitter {:.4}°",
+                k + 1,
+                x.start_deg,
+                x.span_deg,
+                (x.span_deg / 10.0 + 1e-9).floor(),
+                x.output_deg,
+                x.jitter_deg
+            )?;
+        }
+        let [a, b] = d.output_transmission_range_deg;
+        let [c, e] = d.fourbar_transmission_range_deg;
+        writeln!(
+            w,
+            "transmission angles: links 5–6 {a:.2}°–{b:.2}°, four-bar {c:.2}°–{e:.2}°"
+        )?;
+    }
+    w.flush()?;
+    if let Some(path) = &args.png {
+        draw(&d, path).with_context(|| format!("cannot draw {}", path.display()))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Left: the design (curve, dwell circles/pivots, the linkage at the first dwell); right:
+/// output angle against crank angle, dwells shaded. No text (plotters here has no font).
+fn draw(d: &DwellMechanism, path: &Path) -> Result<()> {
+    let root = BitMapBackend::new(path, (1400, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (left, right) = root.split_horizontally(700);
+    let l = &d.linkage;
+    let pose_at = |t: f64| Pose::solve(l, d.circuit, &CrankAngle::from_degrees(t));
+    let curve: Vec<(f64, f64)> = (0..=360)
+        .filter_map(|k| pose_at(k as f64).map(|p| p.point(d.point)))
+        .map(|m| (m.x, m.y))
+        .collect();
+    let mut pts: Vec<(f64, f64)> = curve.clone();
+    pts.extend([
+        (0.0, 0.0),
+        (l.ground, 0.0),
+        (d.output_pivot[0], d.output_pivot[1]),
+    ]);
+    pts.extend(d.dwell_points.iter().map(|c| (c[0], c[1])));
+    let (x0, x1) = pts
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    let (y0, y1) = pts
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
+    let half = 0.55 * (x1 - x0).max(y1 - y0);
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let mut chart = ChartBuilder::on(&left.margin(20, 20, 20, 20))
+        .build_cartesian_2d(cx - half..cx + half, cy - half..cy + half)?;
+    chart.draw_series(LineSeries::new(curve, BLACK.stroke_width(2)))?;
+    for c in &d.dwell_points {
+        let circle: Vec<(f64, f64)> = (0..=180)
+            .map(|k| {
+                let (s, co) = coupler_atlas::sincos_deg(k as f64 * 2.0);
+                (c[0] + d.link5 * co, c[1] + d.link5 * s)
+            })
+            .collect();
+        if d.link5 > 0.0 {
+            chart.draw_series(LineSeries::new(circle, BLUE.mix(0.5)))?;
+        }
+        chart.draw_series(std::iter::once(Circle::new((c[0], c[1]), 5, BLUE.filled())))?;
+    }
+    if let Some(first) = d.dwells.first() {
+        if let Some(pose) = pose_at(first.start_deg + 0.5 * first.span_deg) {
+            let m = pose.point(d.point);
+            let (pa, pb) = (pose.crank_pin, pose.rocker_pin);
+            let links = [
+                vec![(0.0, 0.0), (pa.x, pa.y)],
+                vec![(pa.x, pa.y), (pb.x, pb.y), (m.x, m.y), (pa.x, pa.y)],
+                vec![(l.ground, 0.0), (pb.x, pb.y)],
+            ];
+            for link in links {
+                chart.draw_series(LineSeries::new(link, RED.stroke_width(3)))?;
+            }
+            let c = d.dwell_points[0];
+            chart.draw_series(LineSeries::new(
+                vec![
+                    (m.x, m.y),
+                    (c[0], c[1]),
+                    (d.output_pivot[0], d.output_pivot[1]),
+                ],
+                GREEN.stroke_width(3),
+            ))?;
+        }
+    }
+    for p in [
+        (0.0, 0.0),
+        (l.ground, 0.0),
+        (d.output_pivot[0], d.output_pivot[1]),
+    ] {
+        chart.draw_series(std::iter::once(TriangleMarker::new(p, 9, BLACK.filled())))?;
+    }
+    // Output angle plot.
+    let t0 = d.theta_deg[0];
+    let (o0, o1) = d
+        .output_deg
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, &o| (a.0.min(o), a.1.max(o)));
+    let pad = 0.05 * (o1 - o0).max(1e-6);
+    let mut plot = ChartBuilder::on(&right.margin(30, 30, 30, 30))
+        .build_cartesian_2d(t0..t0 + 360.0, o0 - pad..o1 + pad)?;
+    for x in &d.dwells {
+        let s = t0 + (x.start_deg - t0).rem_euclid(360.0);
+        for (a, b) in [
+            (s, (s + x.span_deg).min(t0 + 360.0)),
+            (t0, s + x.span_deg - 360.0),
+        ] {
+            if b > a {
+                plot.draw_series(std::iter::once(Rectangle::new(
+                    [(a, o0 - pad), (b, o1 + pad)],
+                    BLUE.mix(0.15).filled(),
+                )))?;
+            }
+        }
+    }
+    plot.draw_series(LineSeries::new(
+        vec![
+            (t0, o0 - pad),
+            (t0 + 360.0, o0 - pad),
+            (t0 + 360.0, o1 + pad),
+            (t0, o1 + pad),
+            (t0, o0 - pad),
+        ],
+        BLACK,
+    ))?;
+    plot.draw_series(LineSeries::new(
+        d.theta_deg
+            .iter()
+            .copied()
+            .zip(d.output_deg.iter().copied()),
+        BLACK.stroke_width(2),
+    ))?;
+    root.present()?;
+    Ok(())
+}
