@@ -13,6 +13,7 @@
 
 mod cognates;
 mod curve;
+pub mod dwell;
 mod exact;
 pub mod generate;
 pub mod index;

@@ -4,6 +4,7 @@
 mod bench;
 mod cognates;
 mod curve;
+mod dwell;
 mod generate;
 mod search;
 
@@ -28,6 +29,9 @@ enum Command {
     Curve(curve::Args),
     /// The three four-bars (Roberts–Chebyshev cognates) that trace one coupler curve.
     Cognates(cognates::Args),
+    /// Design and simulate a dwell six-bar from a pseudo-arc (or a double dwell from two
+    /// straight segments or two equal arcs).
+    Dwell(dwell::Args),
     /// Search an atlas index by features (straight segments, arcs, dwells, transmission).
     Search(search::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
@@ -55,6 +59,7 @@ pub fn main() -> ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::Search(args) => search::run(args),
         Command::Cognates(args) => cognates::run(args),
+        Command::Dwell(args) => dwell::run(args),
     };
     match result {
         Ok(code) => code,
