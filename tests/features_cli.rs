@@ -180,3 +180,59 @@ fn cognates_json_contract() {
     assert_eq!(ls[0]["pivots"], serde_json::json!([[0.0, 0.0], [3.5, 0.0]]));
     assert_eq!(ls[1]["pivots"][0], serde_json::json!([0.0, 0.0]));
 }
+
+/// `dwell`: JSON report and a PNG; a narrower window (smaller deviation) jitters less.
+#[test]
+fn dwell_reports_and_draws() {
+    let dir = std::env::temp_dir().join(format!("coupler-atlas-dwell-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("dwell.png");
+    let base = [
+        "dwell",
+        "--coupler",
+        "3",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "3.5",
+        "--point",
+        "3,0.4",
+        "--format",
+        "json",
+    ];
+    let wide = run_json(
+        &[
+            &base[..],
+            &["--window", "100:160", "--png", png.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    let narrow = run_json(&[&base[..], &["--window", "110:150"]].concat());
+    let jitter = |j: &serde_json::Value| j["dwells"][0]["jitter_deg"].as_f64().unwrap();
+    assert!(jitter(&narrow) < jitter(&wide));
+    assert!((wide["swing_deg"].as_f64().unwrap() - 40.0).abs() < 1.0);
+    assert_eq!(wide["theta_deg"].as_array().unwrap().len(), 361);
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (1400, 700));
+    let lines = run_json(&[
+        "dwell",
+        "--coupler",
+        "2.5",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "2",
+        "--point",
+        "5,0",
+        "--kind",
+        "double-lines",
+        "--window",
+        "150:210",
+        "--window2",
+        "300:330",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(lines["dwells"].as_array().unwrap().len(), 2);
+    assert!(jitter(&lines) < 1.0);
+}
