@@ -382,14 +382,10 @@ impl SearchTable {
         Ok(t)
     }
 
-    /// Runs a query: every row that passes all filters, sorted and limited.
+    /// Runs a query: every row that passes all filters, sorted and limited. Sort keys
+    /// are computed once per hit; with a limit, only the best `limit` hits are sorted
+    /// (partial selection), so a query that matches most of a million curves stays fast.
     pub fn search(&self, q: &Query) -> Vec<Hit> {
-        let mut hits: Vec<Hit> = self
-            .rows
-            .iter()
-            .enumerate()
-            .filter_map(|(i, r)| q.matches(self, i, r))
-            .collect();
         let key = |h: &Hit| -> f64 {
             let r = &self.rows[h.row];
             match q.sort {
@@ -417,15 +413,21 @@ impl SearchTable {
                 SortKey::Transmission => -r.transmission_deg[0],
             }
         };
-        hits.sort_by(|a, b| {
-            key(a)
-                .total_cmp(&key(b))
-                .then(self.rows[a.row].id.cmp(&self.rows[b.row].id))
-        });
-        if q.limit > 0 {
-            hits.truncate(q.limit);
+        let mut keyed: Vec<(f64, u64, Hit)> = self
+            .rows
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| q.matches(self, i, r))
+            .map(|h| (key(&h), self.rows[h.row].id, h))
+            .collect();
+        let order =
+            |a: &(f64, u64, Hit), b: &(f64, u64, Hit)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        if q.limit > 0 && keyed.len() > q.limit {
+            keyed.select_nth_unstable_by(q.limit - 1, order);
+            keyed.truncate(q.limit);
         }
-        hits
+        keyed.sort_by(order);
+        keyed.into_iter().map(|(_, _, h)| h).collect()
     }
 }
 
