@@ -14,6 +14,7 @@
 mod curve;
 mod exact;
 mod linkage;
+pub mod methods;
 mod pose;
 
 pub mod reference;
