@@ -13,13 +13,21 @@
 
 mod curve;
 mod exact;
+pub mod generate;
+pub mod index;
 mod linkage;
 pub mod methods;
 mod pose;
+mod spec;
 
 pub mod reference;
 
-pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
+pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
 pub use exact::{Decimal, DecimalError};
+pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use pose::{CrankAngle, Pose, kahan_double_area, sincos_deg};
+pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
+pub use spec::{
+    DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges, PAGE_SIZES,
+    PageSettings, PointGrid, Sampling, Spec, SpecError,
+};
