@@ -2,7 +2,7 @@
 //! documented error bound. Meant for the `curve` JSON and the index: never silent.
 
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use crate::pose::{CrankAngle, Pose};
+use crate::pose::{CrankAngle, Pose, ToggleGaps};
 use serde::{Deserialize, Serialize};
 
 /// One condition worth telling a user about a sampled curve. Serialised in snake case
@@ -18,9 +18,10 @@ pub enum CurveFlag {
     /// (`|s + l − p − q| / l`): the linkage nearly folds flat; see `near_toggle`.
     NearChangePoint,
     /// Some sample lies at or near a toggle: the transmission angle's sine falls below
-    /// [`FlagTolerances::toggle_sin_mu`]. Positions stay finite and on their circuit, but
-    /// their error bound grows like `1/sin μ` (and velocities like `1/sin μ`, infinite at
-    /// the toggle itself).
+    /// [`FlagTolerances::toggle_sin_mu`]. Positions stay finite and on their circuit;
+    /// velocities grow like `1/sin μ` (infinite at the toggle itself) and, except at a
+    /// change point's fold, so does the position error bound (see
+    /// [`CurveFlags::error_bound_at`]).
     NearToggle,
     /// The linkage does not assemble at some sampled angles (the input is not a crank):
     /// those samples are missing (`None`/`NaN` in a [`Curve`](crate::Curve)), never guessed.
@@ -53,8 +54,9 @@ impl CurveFlag {
 pub struct FlagTolerances {
     /// Relative Grashof gap below which `near_change_point` is raised (default 1e-6).
     pub change_point_gap: f64,
-    /// `sin μ` below which `near_toggle` is raised (default 1e-3: the error bound is then
-    /// above ~1e-12 of the curve's scale).
+    /// `sin μ` below which `near_toggle` is raised (default 1e-3: velocities are then
+    /// amplified a thousandfold, and away from a change point's fold the position error
+    /// bound grows too).
     pub toggle_sin_mu: f64,
     /// `max(|u|, |v|) / longest link` above which `far_point` is raised (default 100).
     pub far_point: f64,
@@ -92,30 +94,55 @@ pub struct CurveFlags {
 
 impl CurveFlags {
     /// The constant `K` of the error bound, set from the stability sweep
-    /// (`coupler-atlas bench stability`) with a margin: no case measured needs more than
-    /// a quarter of it.
-    pub const BOUND_CONSTANT: f64 = 16.0;
+    /// (`coupler-atlas bench stability` prints the largest measured error / bound).
+    pub const BOUND_CONSTANT: f64 = 8.0;
 
-    /// The documented error bound of the shipped closed form at one pose:
+    /// The documented error bound of the shipped closed form ([`Pose::solve`]) at one
+    /// crank angle, in crank lengths:
     ///
-    /// `|M − M_exact| ≤ K·ε·S·(1 + L/(d·sin μ))`, `S = 1 + max(A, B, C) + |u| + |v|`,
-    /// `L = max(A, B, C)`, ε = 2⁻⁵², `K` = [`CurveFlags::BOUND_CONSTANT`].
+    /// `|M − M_exact| ≤ K·ε·S + K·(1 + (|u| + |v|)/A)·δh`, `S = 1 + max(A, B, C) + |u| + |v|`,
     ///
-    /// Why this shape: the closed form is backward stable in (cos θ, sin θ, d) (Kahan's area
-    /// is accurate to a few ulps for any triangle), so its error is the conditioning of the
-    /// half-chord h with respect to d: `∂h/∂d ~ L/h` and `h·d = A·B·sin μ`, which gives the
-    /// `1/sin μ` growth near a toggle; the coupler point's lever arm gives `S`.
-    pub fn error_bound_at(linkage: &FourBar, point: CouplerPoint, d: f64, sin_mu: f64) -> f64 {
-        let l = linkage.coupler.max(linkage.rocker).max(linkage.ground);
-        let s = 1.0 + l + point.u.abs() + point.v.abs();
-        let cond = if sin_mu > 0.0 && d > 0.0 {
-            1.0 + l / (d * sin_mu)
-        } else {
-            f64::INFINITY
+    /// `δh = min(ε·C·(c²·√(Q/P) + s²·√(P/Q))/d, (√(ε·4C·c²·Q) + √(ε·4C·s²·P))/(2d))`,
+    ///
+    /// with `s, c = sin, cos(θ/2)`, `P = (A+B)² − d²`, `Q = d² − (A−B)²` (the thin factors)
+    /// and `K` = [`CurveFlags::BOUND_CONSTANT`], ε = 2⁻⁵².
+    ///
+    /// Why this shape: the shipped form is backward stable except for the rounding of the
+    /// half-angle terms `4C·c²` and `4C·s²` that enter P and Q; the half-chord
+    /// `h = √(P·Q)/(2d)` turns a relative error ε in them into the first-order `δh` above,
+    /// which grows near a toggle (P or Q → 0) and is capped by the square-root form at the
+    /// toggle itself. At a change point's fold the small factor's half-angle term vanishes
+    /// with it, so the bound stays at `K·ε·S`: no loss at change points. The coupler
+    /// direction's error `δh/A` is carried to M by the lever arm `A + |u| + |v|`.
+    pub fn error_bound_at(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        point: CouplerPoint,
+        angle: &CrankAngle,
+    ) -> f64 {
+        let (a, b, c) = (linkage.coupler, linkage.rocker, linkage.ground);
+        let eps = f64::EPSILON;
+        let s = 1.0 + a.max(b).max(c) + point.u.abs() + point.v.abs();
+        let (sh2, ch2) = (
+            angle.sin_half * angle.sin_half,
+            angle.cos_half * angle.cos_half,
+        );
+        let p = (gaps.outer + 4.0 * c * ch2).max(0.0);
+        let q = (gaps.inner + 4.0 * c * sh2).max(0.0);
+        let d = ((c - 1.0) * (c - 1.0) + 4.0 * c * sh2).sqrt();
+        let ratio = |x: f64, y: f64| {
+            if y > 0.0 {
+                (x / y).sqrt()
+            } else {
+                f64::INFINITY
+            }
         };
-        // The half-chord error can never exceed √(ε·L·…) however thin the triangle.
-        let cap = (f64::EPSILON * l).sqrt() * s / f64::EPSILON;
-        CurveFlags::BOUND_CONSTANT * f64::EPSILON * (s * cond).min(cap)
+        let term = |w: f64, r: f64| if w == 0.0 { 0.0 } else { w * r };
+        let first = eps * c * (term(ch2, ratio(q, p)) + term(sh2, ratio(p, q))) / d;
+        let cap = ((eps * 4.0 * c * ch2 * q).sqrt() + (eps * 4.0 * c * sh2 * p).sqrt()) / (2.0 * d);
+        let dh = first.min(cap);
+        let _ = b;
+        CurveFlags::BOUND_CONSTANT * (eps * s + (1.0 + (point.u.abs() + point.v.abs()) / a) * dh)
     }
 
     /// Assesses a curve of `linkage`, `circuit`, `point` sampled at `degrees`.
@@ -154,15 +181,14 @@ impl CurveFlags {
         }
         let mut min_sin = 1.0f64;
         let mut bound = 0.0f64;
+        let gaps = ToggleGaps::of(linkage);
         let mut missing = false;
         for &deg in degrees {
             let t = CrankAngle::from_degrees(deg);
             match Pose::solve(linkage, circuit, &t) {
                 Some(pose) => {
-                    let sin_mu = libm::sin(pose.transmission);
-                    let d = (pose.crank_pin - nalgebra::Point2::new(linkage.ground, 0.0)).norm();
-                    min_sin = min_sin.min(sin_mu);
-                    bound = bound.max(CurveFlags::error_bound_at(linkage, point, d, sin_mu));
+                    min_sin = min_sin.min(libm::sin(pose.transmission));
+                    bound = bound.max(CurveFlags::error_bound_at(linkage, &gaps, point, &t));
                 }
                 None => missing = true,
             }

@@ -3,7 +3,8 @@
 //! double-double reference ([`crate::reference::coupler_point_dd`]).
 //!
 //! - [`ClosedForm`]: the method the atlas ships ([`Pose::solve`]: the chord's foot and a
-//!   half-chord from Kahan's area of the triangle A, B, d).
+//!   half-chord from Kahan's thin factors, formed from the exact inputs and the half-angle).
+//! - [`KahanOnD`]: the first shipped version, Kahan's area from a rounded `d`.
 //! - [`NaiveClosedForm`]: the same geometry with the textbook `h = √(A² − a²)`, which
 //!   cancels catastrophically near toggles (a "what goes wrong" baseline).
 //! - [`Newton`]: Newton–Raphson on the loop-closure equations in the coupler and rocker
@@ -19,6 +20,7 @@
 //! [`CrankAngle::from_degrees`]: crate::CrankAngle::from_degrees
 
 mod closed;
+mod features;
 mod flags;
 mod freudenstein;
 mod measure;
@@ -26,8 +28,9 @@ mod newton;
 mod rk4;
 mod sweep;
 
-pub use closed::{ClosedForm, FactoredClosedForm, NaiveClosedForm};
+pub use closed::{ClosedForm, KahanOnD, NaiveClosedForm};
 
+pub use features::{CircleFit, fit_circle, straightness_along_x};
 pub use flags::{CurveFlag, CurveFlags, FlagTolerances};
 pub use freudenstein::Freudenstein;
 pub use measure::{Measurement, measure, uniform_angles};
@@ -73,7 +76,7 @@ pub trait PositionMethod: Sync {
 pub fn all_methods() -> Vec<Box<dyn PositionMethod>> {
     vec![
         Box::new(ClosedForm),
-        Box::new(FactoredClosedForm),
+        Box::new(KahanOnD),
         Box::new(NaiveClosedForm),
         Box::new(Freudenstein),
         Box::new(Newton::default()),

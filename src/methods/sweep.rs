@@ -104,6 +104,24 @@ pub fn sweep_cases() -> Vec<SweepCase> {
             degrees,
         });
     }
+    // Around the toggle: θ_t − 10^−k … θ_t … θ_t + 10^−k (beyond it nothing assembles).
+    let mut around_t: Vec<f64> = (1..=12)
+        .map(|k| theta_t - libm::pow(10.0, -(k as f64)))
+        .collect();
+    around_t.push(theta_t);
+    around_t.extend(
+        (1..=12)
+            .rev()
+            .map(|k| theta_t + libm::pow(10.0, -(k as f64))),
+    );
+    cases.push(SweepCase {
+        group: "toggle of a triple rocker",
+        label: "θ_t ± 10^−k, k = 1…12".into(),
+        linkage: rocker,
+        circuit: Circuit::Open,
+        point: p,
+        degrees: around_t,
+    });
     // Extreme ratios.
     for (a, b, c) in [
         (1e3, 1e3, 1e3),
