@@ -21,6 +21,7 @@ mod pose;
 mod spec;
 
 pub mod reference;
+pub mod trace;
 
 pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
 pub use exact::{Decimal, DecimalError};
