@@ -4,6 +4,7 @@
 mod bench;
 mod bench_methods;
 mod curve;
+mod curve_full;
 mod generate;
 
 use clap::{Parser, Subcommand};
