@@ -644,3 +644,103 @@ pub fn stability(out: Option<&Path>) -> Result<ExitCode> {
         ExitCode::from(1)
     })
 }
+
+/// `bench classics`: the measured straightness of each curve of an explicit-curve spec
+/// (default `atlas-spec/classics.toml`) over its useful range: the longest run of samples
+/// (on any branch of the full curve) moving one way with ε_S below each tolerance.
+pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
+    use coupler_atlas::classics::{CurveList, TraceMode};
+    use coupler_atlas::methods::longest_straight_run;
+    use coupler_atlas::trace::{InputRange, trace_full};
+    let text =
+        std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
+    let list = CurveList::parse(&text, &spec.display().to_string())
+        .map_err(|e| super::UsageError(e.to_string()))?;
+    let step = list.crank_step_deg;
+    let tolerances = [1e-2, 1e-3, 1e-4];
+    let mut md = format!(
+        "## {}: measured straightness\n\nCommand: `coupler-atlas bench classics --spec {}` ({}° input steps, full curves across toggles).\n\n\
+         For each tolerance, the longest run of consecutive samples on any branch that moves one way along its fitted line \
+         (total least squares) with ε_S = (max Cy − min Cy)/Δx below it (Norton §3.8): its input span (degrees of input travel), \
+         Δx (units of the input link) and ε_S.\n\n\
+         | linkage | class | input range | branches |",
+        list.title,
+        spec.display(),
+        step
+    );
+    for t in tolerances {
+        write!(md, " ε_S ≤ {}%: span, Δx, ε_S |", t * 100.0)?;
+    }
+    md.push_str("\n|---|---|---|---|");
+    for _ in tolerances {
+        md.push_str("---|");
+    }
+    md.push('\n');
+    for c in &list.curves {
+        let full = trace_full(&c.linkage, c.point, step);
+        let branches: Vec<Vec<coupler_atlas::trace::TraceSample>> = match c.trace {
+            TraceMode::Full => full.branches.iter().map(|b| b.samples.clone()).collect(),
+            TraceMode::Circuit(circ) => full
+                .branches
+                .iter()
+                .map(|b| {
+                    b.samples
+                        .iter()
+                        .filter(|s| s.circuit == circ)
+                        .copied()
+                        .collect()
+                })
+                .collect(),
+        };
+        let range = match &full.range {
+            InputRange::Full => "full turn".to_string(),
+            InputRange::Never => "never assembles".to_string(),
+            InputRange::Rocks { intervals } => intervals
+                .iter()
+                .map(|(lo, hi)| format!("[{:.2}°, {:.2}°]", lo.degrees, hi.degrees))
+                .collect::<Vec<_>>()
+                .join(", "),
+        };
+        write!(
+            md,
+            "| {} | {} | {} | {} |",
+            c.name,
+            c.linkage.class(),
+            range,
+            branches.len()
+        )?;
+        for t in tolerances {
+            let mut best: Option<(f64, coupler_atlas::methods::StraightRun)> = None;
+            for b in &branches {
+                let pts: Vec<Point2<f64>> = b.iter().map(|s| s.point).collect();
+                if let Some(run) = longest_straight_run(&pts, t) {
+                    let span: f64 = b[run.start..run.start + run.len]
+                        .windows(2)
+                        .map(|w| (w[1].degrees - w[0].degrees).abs())
+                        .sum();
+                    if best.is_none_or(|(s, _)| span > s) {
+                        best = Some((span, run));
+                    }
+                }
+            }
+            match best {
+                Some((span, run)) => write!(
+                    md,
+                    " {:.1}°, {:.3}, {:.2e}% |",
+                    span,
+                    run.extent,
+                    run.straightness * 100.0
+                )?,
+                None => write!(md, " — |")?,
+            }
+        }
+        md.push('\n');
+    }
+    print!("{md}");
+    if let Some(out) = out {
+        std::fs::create_dir_all(out)?;
+        std::fs::write(out.join("classics.md"), &md)?;
+        eprintln!("wrote {}", out.join("classics.md").display());
+    }
+    Ok(ExitCode::SUCCESS)
+}

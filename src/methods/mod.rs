@@ -30,7 +30,10 @@ mod sweep;
 
 pub use closed::{ClosedForm, KahanOnD, NaiveClosedForm};
 
-pub use features::{CircleFit, fit_circle, straightness_along_x};
+pub use features::{
+    CircleFit, StraightRun, fit_circle, longest_straight_run, straightness_along_x,
+    straightness_fitted,
+};
 pub use flags::{CurveFlag, CurveFlags, FlagTolerances};
 pub use freudenstein::Freudenstein;
 pub use measure::{Measurement, measure, uniform_angles};
