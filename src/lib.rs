@@ -11,6 +11,7 @@
 //! The pure core ([`FourBar`], [`Pose`], [`PoseTable`], [`Curve`]) does no I/O and holds
 //! no global state; orchestration ([`generate`]) and the command line sit on top.
 
+pub mod classics;
 mod curve;
 mod exact;
 pub mod generate;

@@ -42,6 +42,15 @@ enum Which {
         #[arg(long)]
         out: Option<std::path::PathBuf>,
     },
+    /// Measured straightness of the classic straight-line linkages (full curves).
+    Classics {
+        /// The explicit-curve spec.
+        #[arg(long, default_value = "atlas-spec/classics.toml")]
+        spec: std::path::PathBuf,
+        /// Output folder for classics.md (none: print only).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -49,6 +58,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Which::Core { reps, atlas_reps } => core(reps.max(1), atlas_reps.max(1)),
         Which::Methods { out, reps } => super::bench_methods::methods(&out, reps.max(1)),
         Which::Stability { out } => super::bench_methods::stability(out.as_deref()),
+        Which::Classics { spec, out } => super::bench_methods::classics(&spec, out.as_deref()),
     }
 }
 
