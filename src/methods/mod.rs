@@ -19,6 +19,7 @@
 //! [`Pose::solve`]: crate::Pose::solve
 //! [`CrankAngle::from_degrees`]: crate::CrankAngle::from_degrees
 
+mod adaptive;
 mod closed;
 mod features;
 mod flags;
@@ -28,6 +29,9 @@ mod newton;
 mod rk4;
 mod sweep;
 
+pub use adaptive::{
+    AdaptiveSampling, CHECK_FRACTIONS, chord_error, uniform_closed, uniform_density_for,
+};
 pub use closed::{ClosedForm, KahanOnD, NaiveClosedForm};
 
 pub use features::{
