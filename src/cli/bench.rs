@@ -42,6 +42,15 @@ enum Which {
         #[arg(long)]
         out: Option<std::path::PathBuf>,
     },
+    /// Adaptive sampling against uniform sampling at equal chord-error tolerance.
+    Adaptive {
+        /// Output folder for adaptive.md (none: print only).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Repetitions of each timing (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        reps: usize,
+    },
     /// Measured straightness of the classic straight-line linkages (full curves).
     Classics {
         /// The explicit-curve spec.
@@ -58,6 +67,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Which::Core { reps, atlas_reps } => core(reps.max(1), atlas_reps.max(1)),
         Which::Methods { out, reps } => super::bench_methods::methods(&out, reps.max(1)),
         Which::Stability { out } => super::bench_methods::stability(out.as_deref()),
+        Which::Adaptive { out, reps } => super::bench_methods::adaptive(out.as_deref(), reps.max(1)),
         Which::Classics { spec, out } => super::bench_methods::classics(&spec, out.as_deref()),
     }
 }
