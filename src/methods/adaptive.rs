@@ -86,9 +86,10 @@ impl AdaptiveSampling {
                                 } else {
                                     (pm - pa).norm()
                                 };
-                                let turn_ok = !(va.norm() > 0.0 && vb.norm() > 0.0)
-                                    || !(va.norm().is_finite() && vb.norm().is_finite())
-                                    || va.dot(&vb) >= cos_turn * va.norm() * vb.norm();
+                                let (na, nb) = (va.norm(), vb.norm());
+                                let measurable =
+                                    na > 0.0 && nb > 0.0 && na.is_finite() && nb.is_finite();
+                                let turn_ok = !measurable || va.dot(&vb) >= cos_turn * na * nb;
                                 // Chord error falls like step²: split into as many equal
                                 // parts as that predicts (2 … 16), not blindly in two.
                                 let parts = if dev > self.tolerance {
