@@ -67,7 +67,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         Which::Core { reps, atlas_reps } => core(reps.max(1), atlas_reps.max(1)),
         Which::Methods { out, reps } => super::bench_methods::methods(&out, reps.max(1)),
         Which::Stability { out } => super::bench_methods::stability(out.as_deref()),
-        Which::Adaptive { out, reps } => super::bench_methods::adaptive(out.as_deref(), reps.max(1)),
+        Which::Adaptive { out, reps } => {
+            super::bench_methods::adaptive(out.as_deref(), reps.max(1))
+        }
         Which::Classics { spec, out } => super::bench_methods::classics(&spec, out.as_deref()),
     }
 }
