@@ -676,6 +676,7 @@ pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
         md.push_str("---|");
     }
     md.push('\n');
+    let mut panels: Vec<Panel> = Vec::new();
     for c in &list.curves {
         let full = trace_full(&c.linkage, c.point, step);
         let branches: Vec<Vec<coupler_atlas::trace::TraceSample>> = match c.trace {
@@ -709,6 +710,15 @@ pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
             range,
             branches.len()
         )?;
+        let mut panel = Panel {
+            title: format!("{} ({})", c.name, c.linkage.class()),
+            branches: branches
+                .iter()
+                .map(|b| b.iter().map(|s| (s.point.x, s.point.y)).collect())
+                .collect(),
+            straight: Vec::new(),
+            pivots: vec![(0.0, 0.0), (c.linkage.ground, 0.0)],
+        };
         for t in tolerances {
             let mut best: Option<(f64, coupler_atlas::methods::StraightRun)> = None;
             for b in &branches {
@@ -720,6 +730,12 @@ pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
                         .sum();
                     if best.is_none_or(|(s, _)| span > s) {
                         best = Some((span, run));
+                        if t == 1e-3 {
+                            panel.straight = pts[run.start..run.start + run.len]
+                                .iter()
+                                .map(|p| (p.x, p.y))
+                                .collect();
+                        }
                     }
                 }
             }
@@ -735,14 +751,80 @@ pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
             }
         }
         md.push('\n');
+        panels.push(panel);
     }
     print!("{md}");
     if let Some(out) = out {
         std::fs::create_dir_all(out)?;
         std::fs::write(out.join("classics.md"), &md)?;
-        eprintln!("wrote {}", out.join("classics.md").display());
+        register_font();
+        classics_figure(&out.join("classics.png"), &panels)?;
+        eprintln!(
+            "wrote {} and classics.png",
+            out.join("classics.md").display()
+        );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+struct Panel {
+    title: String,
+    branches: Vec<Vec<(f64, f64)>>,
+    straight: Vec<(f64, f64)>,
+    pivots: Vec<(f64, f64)>,
+}
+
+/// One panel per classic: every branch of the full curve (black), the longest run with
+/// ε_S ≤ 0.1 % (red), the ground pivots (dots); equal scales on both axes.
+fn classics_figure(file: &Path, panels: &[Panel]) -> Result<()> {
+    let cols = 3;
+    let rows = panels.len().div_ceil(cols);
+    let root = BitMapBackend::new(file, (1200, 420 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let areas = root.split_evenly((rows, cols));
+    for (panel, area) in panels.iter().zip(areas) {
+        let all = panel.branches.iter().flatten().chain(panel.pivots.iter());
+        let (mut x0, mut x1, mut y0, mut y1) =
+            (f64::INFINITY, -f64::INFINITY, f64::INFINITY, -f64::INFINITY);
+        for &(x, y) in all {
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+        let (w, h) = (x1 - x0, y1 - y0);
+        let half = 0.55 * w.max(h * 380.0 / 330.0).max(1e-9);
+        let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+        let mut chart = ChartBuilder::on(&area)
+            .caption(&panel.title, ("sans-serif", 18))
+            .margin(8)
+            .x_label_area_size(25)
+            .y_label_area_size(35)
+            .build_cartesian_2d(
+                cx - half..cx + half,
+                cy - half * 330.0 / 380.0..cy + half * 330.0 / 380.0,
+            )?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .label_style(("sans-serif", 11))
+            .draw()?;
+        for b in &panel.branches {
+            chart.draw_series(LineSeries::new(b.clone(), BLACK.stroke_width(1)))?;
+        }
+        chart.draw_series(LineSeries::new(
+            panel.straight.clone(),
+            RGBColor(214, 39, 40).stroke_width(4),
+        ))?;
+        chart.draw_series(
+            panel
+                .pivots
+                .iter()
+                .map(|&p| Circle::new(p, 4, BLUE.filled())),
+        )?;
+    }
+    root.present()?;
+    Ok(())
 }
 
 /// `bench adaptive`: adaptive sampling against fixed uniform sampling at equal quality
