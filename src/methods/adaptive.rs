@@ -33,6 +33,18 @@ impl AdaptiveSampling {
         min_step_deg: 1e-6,
     };
 
+    /// For a page: chord error below `fraction` of a pixel when the curve is drawn at
+    /// `pixels_per_unit` pixels per crank length (e.g. 0.1 px at 150 px per unit:
+    /// tolerance 6.7e-4).
+    ///
+    /// ```
+    /// let s = coupler_atlas::methods::AdaptiveSampling::for_page(150.0, 0.1);
+    /// assert!((s.tolerance - 0.1 / 150.0).abs() < 1e-18);
+    /// ```
+    pub fn for_page(pixels_per_unit: f64, fraction: f64) -> AdaptiveSampling {
+        AdaptiveSampling::with_tolerance(fraction / pixels_per_unit)
+    }
+
     /// The defaults with another tolerance.
     pub fn with_tolerance(tolerance: f64) -> AdaptiveSampling {
         AdaptiveSampling {
