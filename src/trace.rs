@@ -73,7 +73,9 @@ fn next_float(x: f64, dir: f64) -> f64 {
 
 /// Refines an estimated toggle angle to the float nearest it at which the vanishing
 /// factor, as [`Pose::solve`] computes it, lies in `[−tol, 0]`: the pose there is exactly
-/// flat (h = 0), so both circuits give the same position and a branch closes exactly.
+/// flat (h = 0), so both circuits give the same position. Where one ulp of θ moves the
+/// factor by more than that window, it returns the last angle that still assembles (the
+/// circuits then differ by h ~ √ε; [`trace_full`] uses the flat pose there).
 /// `outward` (±1) is the direction in θ leaving the assembled interval.
 fn refine_toggle(
     l: &FourBar,
@@ -111,8 +113,9 @@ fn refine_toggle(
             break; // stepped over the window: keep the last flat-or-inside angle below
         }
     }
-    // The factor jumps over the window (steep): take the side that still assembles.
-    if x0 > 0.0 { deg } else { next_float(deg, -dir) }
+    // The factor jumps over the window (steep): take the last angle that still assembles,
+    // the one before the step out if we started inside, the current one if we came in.
+    if x0 > 0.0 { next_float(deg, -dir) } else { deg }
 }
 
 /// The input's range: toggle angles from `d = A + B` or `d = |A − B|`, i.e.
@@ -225,7 +228,37 @@ fn sample(
     deg: f64,
     toggle: bool,
 ) -> Option<TraceSample> {
-    let pose = Pose::solve_with(l, gaps, c, &CrankAngle::from_degrees(deg))?;
+    let angle = CrankAngle::from_degrees(deg);
+    let pose = Pose::solve_with(l, gaps, c, &angle)?;
+    if toggle {
+        // The toggle itself: the flat pose, the same for both circuits. Where the refined
+        // angle could not make the thin factor exactly zero (it changes by more than its
+        // rounding window per ulp of θ), the circuits differ by h ~ √ε there; the coupler
+        // direction is then taken along the chord's foot, e = (e_open + e_crossed)/|…|,
+        // which is the flat pose to that same √ε.
+        let other = Pose::solve_with(l, gaps, c.other(), &angle)?;
+        let sum = pose.coupler_dir + other.coupler_dir;
+        let e = if sum.norm() > 0.0 {
+            sum / sum.norm()
+        } else {
+            pose.coupler_dir
+        };
+        let pa = pose.crank_pin;
+        let point = Point2::new(pa.x + p.u * e.x - p.v * e.y, pa.y + p.u * e.y + p.v * e.x);
+        let flat = if pose.transmission > std::f64::consts::FRAC_PI_2 {
+            std::f64::consts::PI
+        } else {
+            0.0
+        };
+        return Some(TraceSample {
+            degrees: deg,
+            circuit: c,
+            point,
+            velocity: Vector2::new(f64::INFINITY, f64::INFINITY),
+            transmission: flat,
+            toggle,
+        });
+    }
     Some(TraceSample {
         degrees: deg,
         circuit: c,

@@ -289,6 +289,48 @@ proptest! {
         }
     }
 
+    /// Any four-bar (random lengths, all of Barker's classes): the input range found in
+    /// closed form agrees with where the closed form assembles, and at each toggle both
+    /// circuits give the same point.
+    #[test]
+    fn input_range_agrees_with_assembly(a in 0.05f64..6.0, b in 0.05f64..6.0, c in 0.05f64..6.0, deg in 0.0f64..360.0) {
+        let l = FourBar::new(a, b, c).unwrap();
+        let inside = match input_range(&l) {
+            InputRange::Full => Some(true),
+            InputRange::Never => Some(false),
+            InputRange::Rocks { intervals } => {
+                let mut result = Some(false);
+                for (lo, hi) in &intervals {
+                    for shift in [-360.0, 0.0, 360.0] {
+                        let t = deg + shift;
+                        if t > lo.degrees + 1e-7 && t < hi.degrees - 1e-7 {
+                            result = Some(true);
+                        } else if (t - lo.degrees).abs() <= 1e-7 || (t - hi.degrees).abs() <= 1e-7 {
+                            result = None; // too close to a toggle to say
+                        }
+                    }
+                    let gaps = ToggleGaps::of(&l);
+                    for t in [lo.degrees, hi.degrees] {
+                        let at = CrankAngle::from_degrees(t);
+                        let o = Pose::solve_with(&l, &gaps, Circuit::Open, &at);
+                        let x = Pose::solve_with(&l, &gaps, Circuit::Crossed, &at);
+                        prop_assert!(o.is_some() && x.is_some(), "{} toggle {} does not assemble", l, t);
+                        let p = CouplerPoint::new(1.0, 1.0);
+                        // Exactly flat where the angle could be refined into the rounding
+                        // window, else within √ε-scale (h at one ulp from the toggle).
+                        let gap = (o.unwrap().point(p) - x.unwrap().point(p)).norm();
+                        prop_assert!(gap <= 1e-6 * (1.0 + a + b + c), "{} toggle {}: circuits differ by {:e}", l, t, gap);
+                    }
+                }
+                result
+            }
+        };
+        if let Some(expect) = inside {
+            let got = Pose::solve(&l, Circuit::Open, &CrankAngle::from_degrees(deg)).is_some();
+            prop_assert_eq!(got, expect, "{} at θ = {}", l, deg);
+        }
+    }
+
     /// Any four-bar: the full curve's branches close on themselves exactly and hold no NaN.
     #[test]
     fn full_curves_close((a, b, c) in nearly_degenerate(), u in -3.0f64..3.0, v in -3.0f64..3.0) {
@@ -335,4 +377,33 @@ fn regression_flat_snap_at_an_extended_fold() {
         Pose::solve(&l, Circuit::Open, &CrankAngle::from_degrees(180.0)).expect("snapped to flat");
     assert_eq!(pose.transmission, std::f64::consts::PI);
     check_curve(&l, Circuit::Open, p, &around(180.0)).unwrap();
+}
+
+/// Found by `input_range_agrees_with_assembly`: at this linkage's folded toggle near 341°
+/// one ulp of θ moves the thin factor Q by more than its rounding window, so no float makes
+/// it exactly zero; the refinement used to return the angle just *outside* (no assembly).
+/// Now it returns the last angle inside, and `trace_full` draws the flat pose there.
+#[test]
+fn regression_toggle_refinement_steps_over_the_window() {
+    let l = FourBar::new(3.360806528357262, 3.740434202181125, 1.134557005113053).unwrap();
+    let InputRange::Rocks { intervals } = input_range(&l) else {
+        panic!("rocks")
+    };
+    let gaps = ToggleGaps::of(&l);
+    let p = CouplerPoint::new(1.0, 1.0);
+    for (lo, hi) in &intervals {
+        for t in [lo.degrees, hi.degrees] {
+            let at = CrankAngle::from_degrees(t);
+            let o = Pose::solve_with(&l, &gaps, Circuit::Open, &at).expect("toggle assembles");
+            let x = Pose::solve_with(&l, &gaps, Circuit::Crossed, &at).expect("toggle assembles");
+            assert!((o.point(p) - x.point(p)).norm() < 1e-6);
+        }
+    }
+    for b in trace_full(&l, p, 1.0).branches {
+        let n = b.samples.len();
+        assert_eq!(b.samples[0].point, b.samples[n - 1].point);
+        for s in b.samples.iter().filter(|s| s.toggle) {
+            assert!(s.point.x.is_finite() && s.point.y.is_finite());
+        }
+    }
 }
