@@ -8,7 +8,8 @@
 //! - [`NaiveClosedForm`]: the same geometry with the textbook `h = √(A² − a²)`, which
 //!   cancels catastrophically near toggles (a "what goes wrong" baseline).
 //! - [`Newton`]: Newton–Raphson on the loop-closure equations in the coupler and rocker
-//!   angles, continued from the previous crank step (what general mechanism solvers do).
+//!   angles, continued from the previous crank step (what general mechanism solvers do),
+//!   with or without a first-order predictor.
 //! - [`Rk4`]: classical Runge–Kutta integration of the velocity ODE `dφ/dθ = ω(φ, θ)`,
 //!   with or without re-projection onto the constraint after each step.
 //! - [`Freudenstein`]: Norton's half-angle form, `θ3 = 2·atan((−E ± √(E² − 4DF))/(2D))`.
@@ -89,6 +90,10 @@ pub fn all_methods() -> Vec<Box<dyn PositionMethod>> {
         Box::new(Newton::default()),
         Box::new(Rk4::plain()),
         Box::new(Rk4::projected()),
+        Box::new(Newton {
+            predictor: true,
+            ..Newton::default()
+        }),
     ]
 }
 

@@ -35,6 +35,19 @@ impl LoopClosure {
         }
     }
 
+    /// The angular velocities `(ω3, ω4) = dφ/dθ` at `(θ, φ)`, from differentiating the loop
+    /// closure: `ω3 = −(Va·e4)/(A·(e3 × e4))`, `ω4 = −(Va·e3)/(B·(e3 × e4))`.
+    pub(crate) fn omega(&self, t: &CrankAngle, phi: [f64; 2]) -> [f64; 2] {
+        let (s3, c3) = (libm::sin(phi[0]), libm::cos(phi[0]));
+        let (s4, c4) = (libm::sin(phi[1]), libm::cos(phi[1]));
+        let cross = c3 * s4 - s3 * c4;
+        let (vax, vay) = (-t.sin, t.cos);
+        [
+            -(vax * c4 + vay * s4) / (self.a * cross),
+            -(vax * c3 + vay * s3) / (self.b * cross),
+        ]
+    }
+
     /// The residual `(f1, f2)`.
     pub(crate) fn residual(&self, t: &CrankAngle, phi: [f64; 2]) -> [f64; 2] {
         [
@@ -101,8 +114,10 @@ pub(crate) fn pose_angles(pose: &Pose) -> [f64; 2] {
 }
 
 /// Newton–Raphson on [`LoopClosure`], each crank step started from the previous step's
-/// solution (zeroth-order continuation), the first from the closed-form assembly (a solver
-/// is handed an assembled mechanism). This is what general mechanism solvers do.
+/// solution (zeroth-order continuation) or, with `predictor`, from the previous solution
+/// advanced along its velocity (`φ + ω·Δθ`, first-order continuation), the first from the
+/// closed-form assembly (a solver is handed an assembled mechanism). This is what general
+/// mechanism solvers do.
 ///
 /// Its failure modes are the subject of the stability sweep: near a toggle the Jacobian
 /// is singular and the iteration stalls (reported in [`MethodTrace::non_converged`]);
@@ -114,6 +129,8 @@ pub struct Newton {
     pub tolerance: f64,
     /// Give up after this many iterations per crank angle.
     pub max_iterations: usize,
+    /// Start each step from the first-order prediction `φ + ω·Δθ` instead of `φ`.
+    pub predictor: bool,
 }
 
 impl Newton {
@@ -127,13 +144,18 @@ impl Default for Newton {
         Newton {
             tolerance: Newton::DEFAULT_TOLERANCE,
             max_iterations: 30,
+            predictor: false,
         }
     }
 }
 
 impl PositionMethod for Newton {
     fn name(&self) -> &'static str {
-        "newton"
+        if self.predictor {
+            "newton-predictor"
+        } else {
+            "newton"
+        }
     }
 
     fn trace(
@@ -146,9 +168,20 @@ impl PositionMethod for Newton {
         let loop_eq = LoopClosure::new(l);
         let mut out = MethodTrace::default();
         let mut state: Option<[f64; 2]> = None;
+        let mut prev_deg = 0.0;
         for &deg in degrees {
             let t = CrankAngle::from_degrees(deg);
             let start = match state {
+                Some(phi) if self.predictor => {
+                    let w = loop_eq.omega(&CrankAngle::from_degrees(prev_deg), phi);
+                    let h = (deg - prev_deg).to_radians();
+                    let next = [phi[0] + w[0] * h, phi[1] + w[1] * h];
+                    if next.iter().all(|x| x.is_finite()) {
+                        next
+                    } else {
+                        phi
+                    }
+                }
                 Some(phi) => phi,
                 None => match Pose::solve(l, circuit, &t) {
                     Some(pose) => pose_angles(&pose),
@@ -164,6 +197,7 @@ impl PositionMethod for Newton {
                 out.non_converged += 1;
             }
             state = Some(r.phi);
+            prev_deg = deg;
             let e = (libm::cos(r.phi[0]), libm::sin(r.phi[0]));
             out.points
                 .push(Some(coupler_point(Point2::new(t.cos, t.sin), e, p)));
