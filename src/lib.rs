@@ -11,6 +11,7 @@
 //! The pure core ([`FourBar`], [`Pose`], [`PoseTable`], [`Curve`]) does no I/O and holds
 //! no global state; orchestration ([`generate`]) and the command line sit on top.
 
+pub mod classics;
 mod cognates;
 mod curve;
 pub mod dwell;
@@ -18,6 +19,7 @@ mod exact;
 pub mod generate;
 pub mod index;
 mod linkage;
+pub mod methods;
 mod pose;
 mod spec;
 mod window;
@@ -26,6 +28,7 @@ pub mod features;
 pub mod search;
 
 pub mod reference;
+pub mod trace;
 
 pub use cognates::{Cognate, CognateError, cognates};
 pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};

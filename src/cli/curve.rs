@@ -41,6 +41,11 @@ pub struct Args {
     /// Norton's Table 3-1), or a direction in degrees.
     #[arg(long, default_value = "fitted", allow_hyphen_values = true)]
     window_line: String,
+    /// `circuit`: one circuit, θ over a full turn (null where it does not assemble);
+    /// `full`: the complete coupler curve of any four-bar, driven across its toggles
+    /// (every branch, changing circuit at each toggle; `--circuit` is ignored).
+    #[arg(long, default_value = "circuit", value_parser = ["circuit", "full"])]
+    trace: String,
 }
 
 fn parse_point(s: &str) -> Result<CouplerPoint, String> {
@@ -109,6 +114,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
             )
         }
     };
+    if args.trace == "full" {
+        return super::curve_full::run(&linkage, p, table.step(), &args.format);
+    }
+    let flags = coupler_atlas::methods::CurveFlags::assess(
+        &linkage,
+        circuit,
+        p,
+        &table.angles().iter().map(|a| a.degrees).collect::<Vec<_>>(),
+        &coupler_atlas::methods::FlagTolerances::DEFAULT,
+    );
     let samples: Vec<Sample> = table
         .angles()
         .iter()
@@ -161,7 +176,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 w.write_all(if i == 0 { b"\n" } else { b",\n" })?;
                 serde_json::to_writer(&mut w, s)?;
             }
-            write!(w, "\n]")?;
+            write!(w, "\n],\"flags\":")?;
+            serde_json::to_writer(&mut w, &flags.flags)?;
+            write!(w, ",\"error_bound\":{:e}", flags.error_bound)?;
             if let Some(m) = &window {
                 write!(w, ",\"window\":")?;
                 serde_json::to_writer(&mut w, m)?;
