@@ -178,30 +178,54 @@ impl SearchTable {
     /// Reads the curves of an index written by [`crate::index::write_index`] (a header,
     /// then one curve per line), parsing the curve lines in parallel.
     pub fn from_index_text(text: &str) -> Result<SearchTable, SearchError> {
+        SearchTable::from_index_reader(text.as_bytes())
+    }
+
+    /// Like [`SearchTable::from_index_text`], streaming: lines are read and parsed in
+    /// batches (in parallel), so memory holds one batch of text and records at a time
+    /// besides the table.
+    pub fn from_index_reader<R: std::io::BufRead>(
+        mut reader: R,
+    ) -> Result<SearchTable, SearchError> {
         use rayon::prelude::*;
-        let head = text.get(..text.len().min(200)).unwrap_or("");
-        if !head.starts_with(&format!("{{\"schema_version\":{SCHEMA_VERSION},")) {
-            return Err(SearchError::Header(head.chars().take(60).collect()));
+        let io = |e: std::io::Error| SearchError::Header(e.to_string());
+        let mut first = String::new();
+        reader.read_line(&mut first).map_err(io)?;
+        if !first.starts_with(&format!("{{\"schema_version\":{SCHEMA_VERSION},")) {
+            return Err(SearchError::Header(first.chars().take(60).collect()));
         }
-        let lines: Vec<(usize, &str)> = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| l.starts_with("{\"id\":"))
-            .collect();
-        let parsed: Result<Vec<IndexCurve>, SearchError> = lines
-            .par_iter()
-            .map(|&(n, l)| {
-                serde_json::from_str(l.strip_suffix(',').unwrap_or(l)).map_err(|e| {
-                    SearchError::Line {
-                        line: n + 1,
-                        message: e.to_string(),
-                    }
-                })
-            })
-            .collect();
         let mut t = SearchTable::default();
-        for c in &parsed? {
-            t.push(c);
+        let mut line_no = 1;
+        let mut batch: Vec<(usize, String)> = Vec::with_capacity(1 << 14);
+        let mut done = false;
+        while !done {
+            batch.clear();
+            while batch.len() < 1 << 14 {
+                let mut l = String::new();
+                if reader.read_line(&mut l).map_err(io)? == 0 {
+                    done = true;
+                    break;
+                }
+                line_no += 1;
+                if l.starts_with("{\"id\":") {
+                    batch.push((line_no, l));
+                }
+            }
+            let parsed: Result<Vec<IndexCurve>, SearchError> = batch
+                .par_iter()
+                .map(|(n, l)| {
+                    let l = l.trim_end();
+                    serde_json::from_str(l.strip_suffix(',').unwrap_or(l)).map_err(|e| {
+                        SearchError::Line {
+                            line: *n,
+                            message: e.to_string(),
+                        }
+                    })
+                })
+                .collect();
+            for c in &parsed? {
+                t.push(c);
+            }
         }
         Ok(t)
     }
