@@ -282,3 +282,36 @@ fn feature_cost_breakdown() {
         println!("{name:>10}: {:8.1} µs per curve", t / n as f64 * 1e6);
     }
 }
+
+/// Regression: an arc's `turn_deg` is its real turn about its centre (path length ≈
+/// R·turn). A nearly straight window (R ≈ 500) once came out as turning 359.9° when its
+/// end-to-end polar angle wrapped negative; such windows must fail `arc_min_turn_deg`.
+#[test]
+fn arc_turn_matches_path_length() {
+    use coupler_atlas::{CrankWindow, WindowSamples};
+    let mut checked = 0;
+    for (a, b, c, u, v) in [
+        (4.0, 4.0, 4.5, 4.0, 4.0),
+        (2.5, 2.5, 2.0, 5.0, 0.0),
+        (3.0, 2.5, 3.5, 1.5, 1.0),
+        (2.0, 3.5, 4.0, 1.0, -2.0),
+    ] {
+        let l = FourBar::new(a, b, c).unwrap();
+        let f = features(a, b, c, u, v, Circuit::Open);
+        for arc in &f.pseudo_arcs {
+            let w = CrankWindow::new(arc.start_deg, arc.start_deg + arc.span_deg, 0.25).unwrap();
+            let s = WindowSamples::sample(&l, Circuit::Open, CouplerPoint::new(u, v), &w).unwrap();
+            let len: f64 = (1..s.x.len())
+                .map(|k| (s.x[k] - s.x[k - 1]).hypot(s.y[k] - s.y[k - 1]))
+                .sum();
+            let expect = arc.radius * arc.turn_deg.to_radians();
+            assert!(
+                (len - expect).abs() <= 0.05 * len,
+                "{a} {b} {c} ({u},{v}) {arc:?}: length {len}, R·turn {expect}"
+            );
+            assert!(arc.turn_deg >= FeatureTolerances::DEFAULT.arc_min_turn_deg);
+            checked += 1;
+        }
+    }
+    assert!(checked >= 4);
+}

@@ -40,21 +40,26 @@ fn winding(c: &Curve, i: usize, j: usize, center: [f64; 2]) -> f64 {
     }
 }
 
-/// The angle (radians) a window that runs one way round `center` with `sign` turns: its
-/// polar angle is monotone, so the turn is the end-to-end difference taken in the
-/// direction of travel (a window of less than a full crank turn that turns more than
-/// once round its centre is not an arc anyway).
+/// The angle (radians) a window that runs one way round `center` with `sign` turns: the
+/// sum of its polar angle's increments over eight sub-windows (each well under half a
+/// turn), each taken in the direction of travel; never negative.
 fn turn(c: &Curve, i: usize, j: usize, center: [f64; 2], sign: f64) -> f64 {
     let n = c.len();
     let polar = |k: usize| libm::atan2(c.y[k % n] - center[1], c.x[k % n] - center[0]);
-    let d = sign * (polar(j) - polar(i));
-    let t = d.rem_euclid(std::f64::consts::TAU);
-    // A whole circle sampled end to end (j − i = n − 1) turns nearly 2π, not nearly 0.
-    if t < 1e-12 && j > i {
-        std::f64::consts::TAU
-    } else {
-        t
+    let pieces = 8.min(j - i).max(1);
+    let mut total = 0.0;
+    let mut prev = polar(i);
+    for q in 1..=pieces {
+        let k = i + (j - i) * q / pieces;
+        let a = polar(k);
+        let d = sign * (a - prev);
+        // wrap into (−π, π]
+        let d = d - std::f64::consts::TAU
+            * ((d + std::f64::consts::PI) / std::f64::consts::TAU).floor();
+        total += d;
+        prev = a;
     }
+    total.max(0.0)
 }
 
 /// The pseudo-arcs of a closed curve sampled every `tol.step_deg` from θ = 0: maximal
@@ -116,7 +121,8 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances) -> Vec<PseudoArc> {
                 _ => k,
             };
             let sign = winding(c, i, j, circle.center);
-            if sign == 0.0 {
+            let turned = turn(c, i, j, circle.center, sign);
+            if sign == 0.0 || turned.to_degrees() < tol.arc_min_turn_deg {
                 return None;
             }
             let span = (j - i) as f64 * tol.step_deg;
@@ -127,7 +133,7 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances) -> Vec<PseudoArc> {
                 center: circle.center,
                 radius: circle.radius,
                 deviation_pct: circle.max_deviation(&xs, &ys) / circle.radius * 100.0,
-                turn_deg: turn(c, i, j, circle.center, sign).to_degrees(),
+                turn_deg: turned.to_degrees(),
                 // (M − c) × V > 0: counter-clockwise about c, so c is on the left.
                 concave: if sign > 0.0 { Side::Left } else { Side::Right },
             })
