@@ -69,7 +69,7 @@ fn cache_key(path: &Path) -> Result<[u64; 2]> {
 
 /// Loads the table from the cache if it matches the index, else parses the index (and
 /// writes the cache, best effort). Returns the table and how it was obtained.
-pub fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
+pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
     let key = cache_key(index)?;
     let mut cache = index.as_os_str().to_owned();
     cache.push(".search");
@@ -92,6 +92,19 @@ pub fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)
         }
     }
     Ok((table, "index"))
+}
+
+/// A feature as JSON with `"index"`: its 1-based position in the curve's list (what
+/// `dwell --arc K` / `--line K` takes).
+fn numbered<T: serde::Serialize>(x: &T, index: usize) -> serde_json::Value {
+    let mut v = serde_json::json!({ "index": index });
+    if let (Some(o), serde_json::Value::Object(f)) = (
+        v.as_object_mut(),
+        serde_json::to_value(x).unwrap_or_default(),
+    ) {
+        o.extend(f);
+    }
+    v
 }
 
 fn parse_linkage(s: &str) -> Result<[f64; 3], UsageError> {
@@ -150,8 +163,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 "circuit": r.circuit,
                 "class": r.class,
                 "transmission_deg": r.transmission_deg,
-                "straight_segments": h.straight.iter().map(|&k| table.segments[k]).collect::<Vec<_>>(),
-                "pseudo_arcs": h.arcs.iter().map(|&k| table.arcs[k]).collect::<Vec<_>>(),
+                "straight_segments": h.straight.iter().map(|&k| numbered(&table.segments[k], k - r.seg_start as usize + 1)).collect::<Vec<_>>(),
+                "pseudo_arcs": h.arcs.iter().map(|&k| numbered(&table.arcs[k], k - r.arc_start as usize + 1)).collect::<Vec<_>>(),
             });
             if r.page != u32::MAX {
                 o["page"] = serde_json::json!({"file": table.pages[r.page as usize], "bbox_px": r.page_bbox});
