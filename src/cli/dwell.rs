@@ -12,24 +12,38 @@ use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Coupler length A (crank = 1).
+    /// Coupler length A (crank = 1). Not with --index.
     #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    coupler: f64,
+    coupler: Option<f64>,
     /// Rocker length B.
     #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    rocker: f64,
+    rocker: Option<f64>,
     /// Ground length C.
     #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    ground: f64,
+    ground: Option<f64>,
     /// Coupler point U,V in the coupler frame (crank units).
     #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
-    point: CouplerPoint,
+    point: Option<CouplerPoint>,
     /// Circuit (assembly).
     #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
     circuit: String,
     /// The (first) dwell window START:END, crank degrees: the pseudo-arc or straight segment.
     #[arg(long, allow_hyphen_values = true)]
-    window: String,
+    window: Option<String>,
+    /// Take the linkage, point, circuit and windows from this index (with --curve and
+    /// --arc/--line): e.g. `--index atlas/index.json --curve 1234 --arc 2`.
+    #[arg(long)]
+    index: Option<PathBuf>,
+    /// Curve id in --index.
+    #[arg(long)]
+    curve: Option<u64>,
+    /// Use the curve's K-th pseudo-arc (1-based) as the (first) window; give it twice for
+    /// a double dwell on two arcs.
+    #[arg(long, value_name = "K")]
+    arc: Vec<usize>,
+    /// Use the curve's K-th straight segment; give it twice for a double dwell on two lines.
+    #[arg(long, value_name = "K")]
+    line: Vec<usize>,
     /// The second window, for a double dwell.
     #[arg(long, allow_hyphen_values = true)]
     window2: Option<String>,
@@ -66,10 +80,111 @@ fn window(s: &str, step: f64) -> Result<CrankWindow, UsageError> {
         .map_err(|e| UsageError(e.to_string()))
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
-    let l = FourBar::new(args.coupler, args.rocker, args.ground)
-        .map_err(|e| UsageError(e.to_string()))?;
+/// Resolves the linkage, point, circuit, windows and kind from the flags (directly, or
+/// from a curve of an index and its features).
+#[allow(clippy::type_complexity)]
+fn plan(
+    args: &Args,
+) -> Result<(
+    FourBar,
+    Circuit,
+    CouplerPoint,
+    String,
+    Option<String>,
+    String,
+)> {
+    if let Some(index) = &args.index {
+        let id = args
+            .curve
+            .ok_or_else(|| UsageError("--index needs --curve ID".into()))?;
+        let (table, _) = super::search::load(index, true)?;
+        let row = table
+            .rows
+            .iter()
+            .find(|r| r.id == id)
+            .ok_or_else(|| UsageError(format!("no curve {id} in {}", index.display())))?;
+        let l = FourBar::new(row.linkage[0], row.linkage[1], row.linkage[2])
+            .map_err(|e| UsageError(e.to_string()))?;
+        let p = CouplerPoint::new(row.point[0], row.point[1]);
+        let pick = |what: &str,
+                    ks: &[usize],
+                    spans: Vec<(f64, f64)>|
+         -> Result<Vec<(f64, f64)>, UsageError> {
+            ks.iter()
+                .map(|&k| {
+                    k.checked_sub(1)
+                        .and_then(|k| spans.get(k))
+                        .copied()
+                        .ok_or_else(|| {
+                            UsageError(format!(
+                                "curve {id} has {} {what}(s); {k} is not one",
+                                spans.len()
+                            ))
+                        })
+                })
+                .collect()
+        };
+        let (spans, kind) = match (args.arc.len(), args.line.len()) {
+            (n @ 1..=2, 0) => (
+                pick(
+                    "pseudo-arc",
+                    &args.arc,
+                    table
+                        .arcs_of(row)
+                        .iter()
+                        .map(|a| (a.start_deg, a.span_deg))
+                        .collect(),
+                )?,
+                if n == 1 { "single" } else { "double-arcs" },
+            ),
+            (0, 2) => (
+                pick(
+                    "straight segment",
+                    &args.line,
+                    table
+                        .segments_of(row)
+                        .iter()
+                        .map(|a| (a.start_deg, a.span_deg))
+                        .collect(),
+                )?,
+                "double-lines",
+            ),
+            _ => {
+                return Err(UsageError(
+                    "with --index, give --arc K (single), --arc K --arc K2 (double) or --line K --line K2".into(),
+                )
+                .into());
+            }
+        };
+        let w = |(s, n): (f64, f64)| format!("{s}:{}", s + n);
+        return Ok((
+            l,
+            row.circuit,
+            p,
+            w(spans[0]),
+            spans.get(1).map(|&x| w(x)),
+            kind.to_string(),
+        ));
+    }
+    let need = |name: &str| {
+        UsageError(format!(
+            "--{name} is required (or use --index with --curve)"
+        ))
+    };
+    let l = FourBar::new(
+        args.coupler.ok_or_else(|| need("coupler"))?,
+        args.rocker.ok_or_else(|| need("rocker"))?,
+        args.ground.ok_or_else(|| need("ground"))?,
+    )
+    .map_err(|e| UsageError(e.to_string()))?;
     let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
+    let p = args.point.ok_or_else(|| need("point"))?;
+    let w = args.window.clone().ok_or_else(|| need("window"))?;
+    Ok((l, circuit, p, w, args.window2.clone(), args.kind.clone()))
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let (l, circuit, p, window1, window2, kind) = plan(&args)?;
     if !(args.step > 0.0 && args.step <= 10.0) {
         return Err(UsageError(format!(
             "--step must be in (0, 10] degrees, got {}",
@@ -84,16 +199,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
         .into());
     }
-    let w1 = window(&args.window, args.step)?;
+    let w1 = window(&window1, args.step)?;
     let second = || -> Result<CrankWindow, UsageError> {
-        let s = args
-            .window2
+        let s = window2
             .as_deref()
-            .ok_or_else(|| UsageError(format!("--kind {} needs --window2", args.kind)))?;
+            .ok_or_else(|| UsageError(format!("--kind {kind} needs --window2")))?;
         window(s, args.step)
     };
-    let p = args.point;
-    let d = match args.kind.as_str() {
+    let d = match kind.as_str() {
         "single" => single_dwell(&l, circuit, p, &w1, args.swing, args.step),
         "double-lines" => double_dwell_lines(&l, circuit, p, &w1, &second()?, args.step),
         _ => double_dwell_arcs(&l, circuit, p, &w1, &second()?, args.step),
