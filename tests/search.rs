@@ -215,3 +215,42 @@ fn hoeken_is_found_by_straight() {
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("from cache"));
 }
+
+/// `dwell --index --curve --arc K` designs from the indexed arc: its dwell is that arc's window.
+#[test]
+fn dwell_from_an_indexed_arc() {
+    let (index, curves, _) = atlas();
+    let mut designed = 0;
+    for c in curves.iter().filter(|c| c.point.v != 0.0).take(12) {
+        let f = c.features.as_ref().unwrap();
+        for (k, arc) in f.pseudo_arcs.iter().enumerate() {
+            let out = bin()
+                .args([
+                    "dwell",
+                    "--index",
+                    index.to_str().unwrap(),
+                    "--curve",
+                    &c.id.to_string(),
+                    "--arc",
+                ])
+                .arg((k + 1).to_string())
+                .args(["--format", "json"])
+                .output()
+                .unwrap();
+            match out.status.code() {
+                Some(0) => {
+                    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+                    assert_eq!(j["dwells"][0]["span_deg"].as_f64().unwrap(), arc.span_deg);
+                    assert_eq!(
+                        j["dwells"][0]["start_deg"].as_f64().unwrap(),
+                        arc.start_deg % 360.0
+                    );
+                    designed += 1;
+                }
+                // a design that cannot be built is a clear usage error, never a crash
+                code => assert_eq!(code, Some(2), "{}", String::from_utf8_lossy(&out.stderr)),
+            }
+        }
+    }
+    assert!(designed >= 3, "only {designed} designs");
+}
