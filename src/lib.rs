@@ -12,6 +12,7 @@
 //! no global state; orchestration ([`generate`]) and the command line sit on top.
 
 mod curve;
+mod dash;
 mod exact;
 mod linkage;
 mod pose;
@@ -19,6 +20,10 @@ mod pose;
 pub mod reference;
 
 pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
+pub use dash::{
+    DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
+    DashPattern, DashedCurve, dash_curve, distance_to_segment,
+};
 pub use exact::{Decimal, DecimalError};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use pose::{CrankAngle, Pose, kahan_double_area, sincos_deg};
