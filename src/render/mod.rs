@@ -1,0 +1,97 @@
+//! Rendering: strokes what the layout gives, nothing more.
+//!
+//! The drawing interface ([`Canvas`]) takes f64 page points (1/72 in, y down), never
+//! integer pixels, so sub-pixel geometry survives to the rasteriser (plotters' backend
+//! trait rounds to whole pixels at the boundary; we don't). Two backends:
+//!
+//! - [`RasterPage`]: tiny-skia anti-aliased coverage into an 8-bit ink buffer (one buffer
+//!   per worker, reused page after page), text rasterised with ab_glyph from the embedded
+//!   font, written as 8-bit grayscale PNG with the DPI in a `pHYs` chunk ([`encode_png`]);
+//! - [`SvgPage`]: the same display list as exact vector paths (text as glyph outlines, so
+//!   the page looks the same without the font installed).
+
+pub mod font;
+mod raster;
+mod svg;
+
+pub use raster::{RasterPage, encode_png};
+pub use svg::SvgPage;
+
+use crate::layout::{Anchor, DisplayList, PagePoint, Primitive};
+
+/// A surface that can draw the layout's primitives, in page points.
+pub trait Canvas {
+    /// Strokes an open polyline (round caps and joins) of `width` points.
+    fn stroke_polyline(&mut self, points: &[PagePoint], width: f64);
+    /// Fills a closed polygon (non-zero rule).
+    fn fill_polygon(&mut self, points: &[PagePoint]);
+    /// A circle outline of `width` points, or a filled disc when `width` is `None`.
+    fn circle(&mut self, center: PagePoint, radius: f64, width: Option<f64>);
+    /// One line of text, baseline through `pos`, em size `size` points.
+    fn text(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str);
+}
+
+/// Draws a display list on a canvas, in order.
+pub fn draw(display: &DisplayList, canvas: &mut impl Canvas) {
+    for item in &display.items {
+        match item {
+            Primitive::Polyline { points, width } => canvas.stroke_polyline(points, *width),
+            Primitive::Polygon { points } => canvas.fill_polygon(points),
+            Primitive::Circle {
+                center,
+                radius,
+                width,
+            } => canvas.circle(*center, *radius, *width),
+            Primitive::Text {
+                pos,
+                size,
+                anchor,
+                text,
+            } => canvas.text(*pos, *size, *anchor, text),
+        }
+    }
+}
+
+/// Output formats for pages.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum PageFormat {
+    /// 8-bit grayscale PNG with DPI.
+    Png,
+    /// SVG (vector).
+    Svg,
+}
+
+impl PageFormat {
+    /// File extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            PageFormat::Png => "png",
+            PageFormat::Svg => "svg",
+        }
+    }
+}
+
+/// An unknown page format name.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("unknown page format {0:?} (expected png or svg; pdf is not built in)")]
+pub struct UnknownFormat(pub String);
+
+impl std::str::FromStr for PageFormat {
+    type Err = UnknownFormat;
+    fn from_str(s: &str) -> Result<PageFormat, UnknownFormat> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "png" => Ok(PageFormat::Png),
+            "svg" => Ok(PageFormat::Svg),
+            _ => Err(UnknownFormat(s.to_string())),
+        }
+    }
+}
+
+/// Text start x for an anchor, given its advance width.
+pub(crate) fn anchored_x(x: f64, width: f64, anchor: Anchor) -> f64 {
+    match anchor {
+        Anchor::Start => x,
+        Anchor::Middle => x - 0.5 * width,
+        Anchor::End => x - width,
+    }
+}
