@@ -14,8 +14,10 @@
 mod curve;
 mod dash;
 mod exact;
+pub mod layout;
 mod linkage;
 mod pose;
+pub mod render;
 
 pub mod reference;
 
