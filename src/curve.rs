@@ -1,7 +1,7 @@
 //! Coupler curves: sampled positions and velocities of coupler points over a crank turn.
 
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use crate::pose::{CrankAngle, Pose};
+use crate::pose::{CrankAngle, Pose, PoseCore, ToggleGaps};
 
 /// Evenly spaced crank angles `θ_k = k·step` for `k = 0 .. n`, `n = ⌈360/step⌉` (all
 /// below 360°), with their sines and cosines. Shared by every linkage sampled at that step.
@@ -59,31 +59,28 @@ impl CrankTable {
 
 /// The poses of one linkage and circuit at every angle of a [`CrankTable`], stored as
 /// columns (structure of arrays) so that tracing many coupler points streams through
-/// memory. A pose that cannot be assembled is marked invalid (its columns hold NaN).
+/// memory with one fused, branch-free loop. A pose that cannot be assembled is marked
+/// invalid (its columns hold NaN).
 #[derive(Clone, Debug)]
 pub struct PoseTable {
-    /// Crank pin x.
+    /// Crank pin x = cos θ.
     pub pa_x: Vec<f64>,
-    /// Crank pin y.
+    /// Crank pin y = sin θ.
     pub pa_y: Vec<f64>,
     /// Coupler direction e3, x.
     pub e_x: Vec<f64>,
     /// Coupler direction e3, y.
     pub e_y: Vec<f64>,
-    /// Crank pin velocity x.
-    pub va_x: Vec<f64>,
-    /// Crank pin velocity y.
-    pub va_y: Vec<f64>,
-    /// Coupler angular velocity ω3.
-    pub omega: Vec<f64>,
-    /// Transmission angle (radians).
-    pub transmission: Vec<f64>,
+    /// ω3·e3, x (ω3 the coupler's angular velocity for unit crank speed).
+    pub we_x: Vec<f64>,
+    /// ω3·e3, y.
+    pub we_y: Vec<f64>,
     /// Whether the linkage assembles at that angle.
     pub valid: Vec<bool>,
 }
 
 impl PoseTable {
-    /// Solves [`Pose::solve`] once per angle.
+    /// Solves the pose once per angle (the equations of [`Pose::solve`]).
     pub fn new(linkage: &FourBar, circuit: Circuit, table: &CrankTable) -> PoseTable {
         let n = table.len();
         let mut t = PoseTable {
@@ -91,34 +88,29 @@ impl PoseTable {
             pa_y: Vec::with_capacity(n),
             e_x: Vec::with_capacity(n),
             e_y: Vec::with_capacity(n),
-            va_x: Vec::with_capacity(n),
-            va_y: Vec::with_capacity(n),
-            omega: Vec::with_capacity(n),
-            transmission: Vec::with_capacity(n),
+            we_x: Vec::with_capacity(n),
+            we_y: Vec::with_capacity(n),
             valid: Vec::with_capacity(n),
         };
+        let gaps = ToggleGaps::of(linkage);
         for angle in table.angles() {
-            let pose = Pose::solve(linkage, circuit, angle);
-            let nan = f64::NAN;
+            let core = PoseCore::solve(linkage, &gaps, circuit, angle);
             t.pa_x.push(angle.cos);
             t.pa_y.push(angle.sin);
-            t.va_x.push(-angle.sin);
-            t.va_y.push(angle.cos);
-            t.valid.push(pose.is_some());
-            match pose {
-                Some(p) => {
-                    t.e_x.push(p.coupler_dir.x);
-                    t.e_y.push(p.coupler_dir.y);
-                    t.omega.push(p.coupler_omega);
-                    t.transmission.push(p.transmission);
-                }
-                None => {
-                    t.e_x.push(nan);
-                    t.e_y.push(nan);
-                    t.omega.push(nan);
-                    t.transmission.push(nan);
-                }
-            }
+            t.valid.push(core.is_some());
+            let c = core.unwrap_or(PoseCore {
+                e_x: f64::NAN,
+                e_y: f64::NAN,
+                omega: f64::NAN,
+                pb_x: f64::NAN,
+                pb_y: f64::NAN,
+                area4: f64::NAN,
+                d2: f64::NAN,
+            });
+            t.e_x.push(c.e_x);
+            t.e_y.push(c.e_y);
+            t.we_x.push(c.omega * c.e_x);
+            t.we_y.push(c.omega * c.e_y);
         }
         t
     }
@@ -138,9 +130,10 @@ impl PoseTable {
         self.valid.iter().all(|&v| v)
     }
 
-    /// Traces one coupler point into `out` (resized to the table's length): positions and
-    /// velocities per angle. The inner loop is branch-free straight-line arithmetic that
-    /// the compiler vectorises. Invalid angles come out as NaN; see [`Curve::is_valid`].
+    /// Traces one coupler point into `out` (resized to the table's length):
+    /// `M = Pa + u·e + v·J·e` and `V = J·Pa + ω·(u·J·e − v·e)` (dPa/dθ = J·Pa). Two
+    /// branch-free loops (positions, velocities), which the compiler vectorises. Invalid angles
+    /// come out as NaN; see [`Curve::is_valid`].
     pub fn trace_into(&self, p: CouplerPoint, out: &mut Curve) {
         let n = self.len();
         out.x.resize(n, 0.0);
@@ -148,17 +141,26 @@ impl PoseTable {
         out.vx.resize(n, 0.0);
         out.vy.resize(n, 0.0);
         let (u, v) = (p.u, p.v);
-        let (pa_x, pa_y, e_x, e_y) = (&self.pa_x[..n], &self.pa_y[..n], &self.e_x[..n], &self.e_y[..n]);
-        let (va_x, va_y, om) = (&self.va_x[..n], &self.va_y[..n], &self.omega[..n]);
-        let (x, y) = (&mut out.x[..n], &mut out.y[..n]);
+        let (pa_x, pa_y, e_x, e_y) = (
+            &self.pa_x[..n],
+            &self.pa_y[..n],
+            &self.e_x[..n],
+            &self.e_y[..n],
+        );
+        let (we_x, we_y) = (&self.we_x[..n], &self.we_y[..n]);
+        let (x, y, vx, vy) = (
+            &mut out.x[..n],
+            &mut out.y[..n],
+            &mut out.vx[..n],
+            &mut out.vy[..n],
+        );
         for k in 0..n {
-            x[k] = pa_x[k] + u * e_x[k] - v * e_y[k];
-            y[k] = pa_y[k] + u * e_y[k] + v * e_x[k];
+            x[k] = pa_x[k] + (u * e_x[k] - v * e_y[k]);
+            y[k] = pa_y[k] + (u * e_y[k] + v * e_x[k]);
         }
-        let (vx, vy) = (&mut out.vx[..n], &mut out.vy[..n]);
         for k in 0..n {
-            vx[k] = va_x[k] - om[k] * (u * e_y[k] + v * e_x[k]);
-            vy[k] = va_y[k] + om[k] * (u * e_x[k] - v * e_y[k]);
+            vx[k] = -pa_y[k] - (u * we_y[k] + v * we_x[k]);
+            vy[k] = pa_x[k] + (u * we_x[k] - v * we_y[k]);
         }
     }
 
@@ -168,6 +170,19 @@ impl PoseTable {
         self.trace_into(p, &mut c);
         c
     }
+}
+
+/// The range `[min, max]` of the transmission angle over a full crank turn, radians, or
+/// `None` unless the linkage assembles at θ = 0 and θ = 180°. μ depends only on
+/// `d² = 1 + C² − 2C·cos θ`, which is monotonic on [0°, 180°], so for a crank that turns
+/// fully the extremes fall exactly at θ = 0 and 180° (Norton §2.2; domain.md §3): exact,
+/// not limited by sampling. Both circuits share it.
+pub fn transmission_range(linkage: &FourBar) -> Option<[f64; 2]> {
+    let at = |deg: f64| {
+        Pose::solve(linkage, Circuit::Open, &CrankAngle::from_degrees(deg)).map(|p| p.transmission)
+    };
+    let (a, b) = (at(0.0)?, at(180.0)?);
+    Some([a.min(b), a.max(b)])
 }
 
 /// One sampled coupler curve: position `(x, y)` and velocity `(vx, vy)` for unit crank
@@ -228,7 +243,12 @@ impl CurveSummary {
             if !(x.is_finite() && y.is_finite() && s.is_finite()) {
                 return None;
             }
-            bbox = [bbox[0].min(x), bbox[1].min(y), bbox[2].max(x), bbox[3].max(y)];
+            bbox = [
+                bbox[0].min(x),
+                bbox[1].min(y),
+                bbox[2].max(x),
+                bbox[3].max(y),
+            ];
             speed = [speed[0].min(s), speed[1].max(s)];
             total += s;
         }
@@ -256,7 +276,7 @@ mod tests {
             let pose = Pose::solve(&l, Circuit::Crossed, angle).unwrap();
             let m = pose.point(p);
             let v = pose.velocity(p);
-            assert_eq!((c.x[k], c.y[k]), (m.x, m.y));
+            assert!((c.x[k] - m.x).abs() < 1e-15 && (c.y[k] - m.y).abs() < 1e-15);
             assert!((c.vx[k] - v.x).abs() < 1e-14 && (c.vy[k] - v.y).abs() < 1e-14);
         }
     }
@@ -270,6 +290,30 @@ mod tests {
         assert!((s.length - std::f64::consts::TAU).abs() < 1e-12);
         assert!((s.speed[0] - 1.0).abs() < 1e-15 && (s.speed[1] - 1.0).abs() < 1e-15);
         assert!((s.bbox[0] + 1.0).abs() < 1e-15 && (s.bbox[3] - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn transmission_extremes_are_at_0_and_180() {
+        let l = FourBar::new(2.5, 3.0, 3.5).unwrap();
+        let [lo, hi] = transmission_range(&l).unwrap();
+        let table = CrankTable::new(0.25).unwrap();
+        for angle in table.angles() {
+            let mu = Pose::solve(&l, Circuit::Crossed, angle)
+                .unwrap()
+                .transmission;
+            assert!(
+                lo - 1e-15 <= mu && mu <= hi + 1e-15,
+                "{} {mu}",
+                angle.degrees
+            );
+        }
+        // Law of cosines at θ = 0 (d = C − 1) and θ = 180° (d = C + 1).
+        let mu = |d: f64| ((2.5f64 * 2.5 + 9.0 - d * d) / (2.0 * 2.5 * 3.0)).acos();
+        // cos μ falls as d grows, so μ is smallest at θ = 0 (d = C − 1).
+        assert!(
+            (lo - mu(2.5)).abs() < 1e-14 && (hi - mu(4.5)).abs() < 1e-14,
+            "{lo} {hi}"
+        );
     }
 
     #[test]

@@ -196,10 +196,7 @@ impl std::str::FromStr for Decimal {
             return Err(DecimalError::NotFinite(text.to_string()));
         }
         let (body, exp) = match s.find(['e', 'E']) {
-            Some(i) => (
-                &s[..i],
-                s[i + 1..].parse::<i32>().map_err(|_| bad())?,
-            ),
+            Some(i) => (&s[..i], s[i + 1..].parse::<i32>().map_err(|_| bad())?),
             None => (s, 0),
         };
         let (negative, body) = match body.as_bytes().first() {
@@ -291,10 +288,16 @@ mod tests {
             assert_eq!(d(text).to_string(), shown, "{text}");
         }
         for bad in ["", ".", "-", "1.2.3", "abc", "1e", "0x10", "1_0"] {
-            assert!(matches!(bad.parse::<Decimal>(), Err(DecimalError::Syntax(_))), "{bad}");
+            assert!(
+                matches!(bad.parse::<Decimal>(), Err(DecimalError::Syntax(_))),
+                "{bad}"
+            );
         }
         for bad in ["inf", "-inf", "NaN", "infinity"] {
-            assert!(matches!(bad.parse::<Decimal>(), Err(DecimalError::NotFinite(_))), "{bad}");
+            assert!(
+                matches!(bad.parse::<Decimal>(), Err(DecimalError::NotFinite(_))),
+                "{bad}"
+            );
         }
     }
 
@@ -324,9 +327,15 @@ mod tests {
 
     #[test]
     fn ranges_count_exactly() {
-        assert_eq!(Decimal::steps_in_range(d("1.5"), d("4.5"), d("0.5")), Some(7));
+        assert_eq!(
+            Decimal::steps_in_range(d("1.5"), d("4.5"), d("0.5")),
+            Some(7)
+        );
         assert_eq!(Decimal::steps_in_range(d("0"), d("1"), d("0.1")), Some(11));
-        assert_eq!(Decimal::steps_in_range(d("0"), d("0.95"), d("0.1")), Some(10));
+        assert_eq!(
+            Decimal::steps_in_range(d("0"), d("0.95"), d("0.1")),
+            Some(10)
+        );
         assert_eq!(Decimal::steps_in_range(d("2"), d("1"), d("0.1")), Some(0));
         assert_eq!(Decimal::steps_in_range(d("0"), d("1"), d("0")), None);
     }

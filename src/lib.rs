@@ -14,18 +14,26 @@
 mod curve;
 mod dash;
 mod exact;
+pub mod generate;
+pub mod index;
 pub mod layout;
 mod linkage;
 mod pose;
 pub mod render;
+mod spec;
 
 pub mod reference;
 
-pub use curve::{CrankTable, Curve, CurveSummary, PoseTable};
+pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
 pub use dash::{
     DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
     DashPattern, DashedCurve, dash_curve, distance_to_segment,
 };
 pub use exact::{Decimal, DecimalError};
+pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use pose::{CrankAngle, Pose, kahan_double_area, sincos_deg};
+pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
+pub use spec::{
+    DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges, PAGE_SIZES,
+    PageSettings, PointGrid, Sampling, Spec, SpecError,
+};

@@ -108,11 +108,7 @@ impl FourBar {
 
 impl fmt::Display for FourBar {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "A={} B={} C={}",
-            self.coupler, self.rocker, self.ground
-        )
+        write!(f, "A={} B={} C={}", self.coupler, self.rocker, self.ground)
     }
 }
 

@@ -22,13 +22,24 @@ pub struct CrankAngle {
     pub cos: f64,
     /// sin θ.
     pub sin: f64,
+    /// sin(θ/2): with it, `C − cos θ = (C − 1) + 2·sin²(θ/2)` loses no digits near θ = 0.
+    pub sin_half: f64,
+    /// cos(θ/2): `1 + cos θ = 2·cos²(θ/2)` loses no digits near θ = 180°.
+    pub cos_half: f64,
 }
 
 impl CrankAngle {
     /// The angle θ (degrees, any finite value).
     pub fn from_degrees(degrees: f64) -> CrankAngle {
         let (sin, cos) = sincos_deg(degrees);
-        CrankAngle { degrees, cos, sin }
+        let (sin_half, cos_half) = sincos_deg(0.5 * degrees);
+        CrankAngle {
+            degrees,
+            cos,
+            sin,
+            sin_half,
+            cos_half,
+        }
     }
 
     /// The crank pin Pa = (cos θ, sin θ).
@@ -75,6 +86,10 @@ pub fn sincos_deg(degrees: f64) -> (f64, f64) {
     (sin_sign * s + 0.0, cos_sign * c + 0.0)
 }
 
+/// How far (in ulps of the longest side) the triangle inequality may fail by rounding
+/// and still count as a flat triangle (a toggle).
+pub const TOGGLE_ULPS: f64 = 4.0;
+
 /// Twice the area of the triangle with sides `a`, `b`, `c` (times two: `2·Area`), by
 /// Kahan's formula for needle-like triangles ("Miscalculating Area and Angles of a
 /// Needle-like Triangle", 2014): sort `x ≥ y ≥ z`, then
@@ -82,8 +97,11 @@ pub fn sincos_deg(degrees: f64) -> (f64, f64) {
 /// Accurate to a few ulps even for triangles that are nearly flat, where Heron's formula
 /// or `√(A² − a²)` lose all their digits.
 ///
-/// Returns `None` when the sides violate the triangle inequality (no triangle; the
-/// linkage cannot be assembled), and `Some(0.0)` for a flat triangle (a toggle).
+/// Returns `None` when the sides violate the triangle inequality by more than
+/// [`TOGGLE_ULPS`] ulps of the longest side (no triangle; the linkage cannot be
+/// assembled), and `Some(0.0)` for a triangle flat to within that (a toggle): the
+/// distance `d` carries a rounding error of about an ulp, so a linkage that just reaches
+/// a toggle must not be declared unassemblable by it.
 pub fn kahan_double_area(a: f64, b: f64, c: f64) -> Option<f64> {
     let (mut x, mut y, mut z) = (a, b, c);
     if x < y {
@@ -95,12 +113,138 @@ pub fn kahan_double_area(a: f64, b: f64, c: f64) -> Option<f64> {
     if x < y {
         std::mem::swap(&mut x, &mut y);
     }
-    let gap = z - (x - y);
-    if gap < 0.0 || gap.is_nan() {
+    let mut gap = z - (x - y);
+    if gap.is_nan() {
         return None;
+    }
+    if gap < 0.0 {
+        // Within rounding of flat (a few ulps of the longest side): a toggle, not a
+        // failure to assemble. Further out: no triangle.
+        if gap >= -TOGGLE_ULPS * f64::EPSILON * x {
+            gap = 0.0;
+        } else {
+            return None;
+        }
     }
     let p = (x + (y + z)) * gap * (z + (x - y)) * (x + (y - z));
     Some(0.5 * p.sqrt())
+}
+
+/// The two Grashof gaps of a linkage, the constants of [`Pose::solve`]'s thin factors:
+/// `outer = (A+B)² − (C+1)²` (how far the coupler and rocker are from folding out
+/// straight at θ = 180°) and `inner = (C−1)² − (A−B)²` (from folding onto each other at
+/// θ = 0), each computed with error-free products and sums and rounded once. Both are
+/// positive for a strict crank-rocker and zero at a change point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToggleGaps {
+    /// `(A+B)² − (C+1)²`.
+    pub outer: f64,
+    /// Sum of the magnitudes of its terms (for the rounding tolerance).
+    pub outer_scale: f64,
+    /// `(C−1)² − (A−B)²`.
+    pub inner: f64,
+    /// Sum of the magnitudes of its terms.
+    pub inner_scale: f64,
+}
+
+impl ToggleGaps {
+    /// The gaps of `linkage`.
+    pub fn of(linkage: &FourBar) -> ToggleGaps {
+        use crate::reference::Dd;
+        let (a, b, c) = (
+            Dd::from_f64(linkage.coupler),
+            Dd::from_f64(linkage.rocker),
+            Dd::from_f64(linkage.ground),
+        );
+        let one = Dd::from_f64(1.0);
+        let sq = |x: Dd| x * x;
+        let (ab_sum, ab_diff, c_plus, c_minus) = (a + b, a - b, c + one, c - one);
+        ToggleGaps {
+            outer: (sq(ab_sum) - sq(c_plus)).to_f64(),
+            outer_scale: sq(ab_sum).to_f64() + sq(c_plus).to_f64(),
+            inner: (sq(c_minus) - sq(ab_diff)).to_f64(),
+            inner_scale: sq(c_minus).to_f64() + sq(ab_diff).to_f64(),
+        }
+    }
+}
+
+/// A thin factor that is negative by no more than rounding (relative to the size of its
+/// terms) is a flat triangle, 0; more negative, no triangle.
+#[inline]
+fn flat_or_none(x: f64, scale: f64) -> Option<f64> {
+    if x >= 0.0 {
+        Some(x)
+    } else if x >= -TOGGLE_ULPS * f64::EPSILON * scale {
+        Some(0.0)
+    } else {
+        None
+    }
+}
+
+/// What every coupler point needs from a pose, and nothing more: the hot path of
+/// [`crate::PoseTable`]. Same equations as [`Pose::solve`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PoseCore {
+    /// Unit coupler direction e3.
+    pub e_x: f64,
+    pub e_y: f64,
+    /// Coupler angular velocity ω3.
+    pub omega: f64,
+    /// Rocker pin.
+    pub pb_x: f64,
+    pub pb_y: f64,
+    /// 4·Area of the triangle (A, B, d) = √(P·Q).
+    pub area4: f64,
+    /// d².
+    pub d2: f64,
+}
+
+impl PoseCore {
+    #[inline]
+    pub(crate) fn solve(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<PoseCore> {
+        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
+        let sh2 = angle.sin_half * angle.sin_half;
+        let ch2 = angle.cos_half * angle.cos_half;
+        let (wx, wy) = ((c_len - 1.0) + 2.0 * sh2, -angle.sin);
+        let d2 = (c_len - 1.0) * (c_len - 1.0) + 4.0 * c_len * sh2;
+        if d2 == 0.0 {
+            return None;
+        }
+        let p = flat_or_none(
+            gaps.outer + 4.0 * c_len * ch2,
+            gaps.outer_scale + 4.0 * c_len * ch2,
+        )?;
+        let q = flat_or_none(
+            gaps.inner + 4.0 * c_len * sh2,
+            gaps.inner_scale + 4.0 * c_len * sh2,
+        )?;
+        let area4 = (p * q).sqrt();
+        let inv_d2 = 1.0 / d2;
+        // Pb − Pa = (a/d)·w + σ(h/d)·J·w with a/d = (A² − B² + d²)/(2d²), h/d = area4/(2d²).
+        let along = 0.5 * ((a_len - b_len) * (a_len + b_len) + d2) * inv_d2;
+        let across = circuit.sign() * 0.5 * area4 * inv_d2;
+        let (cx, cy) = (wx * along - wy * across, wy * along + wx * across);
+        let pb_x = angle.cos + cx;
+        let pb_y = angle.sin + cy;
+        let inv_a = 1.0 / a_len;
+        // ω3 = −(Va·e4)/(A·(e3 × e4)) = −(Va·(Pb − O4)) / (σ·h·d) = −2·(Va·(Pb − O4)) / (σ·area4).
+        let va_dot = -angle.sin * (pb_x - c_len) + angle.cos * pb_y;
+        let omega = -2.0 * va_dot / (circuit.sign() * area4);
+        Some(PoseCore {
+            e_x: cx * inv_a,
+            e_y: cy * inv_a,
+            omega,
+            pb_x,
+            pb_y,
+            area4,
+            d2,
+        })
+    }
 }
 
 /// The linkage's pose at one crank angle: everything that depends only on (A, B, C, θ)
@@ -127,19 +271,30 @@ pub struct Pose {
 
 impl Pose {
     /// Solves the loop closure in closed form (domain.md §3):
-    /// `w = O4 − Pa`, `d = |w|`, foot `a = (A² − B² + d²)/(2d)`, half-chord `h = 2·Area/d`
-    /// with the area by [`kahan_double_area`], and
-    /// `Pb = Pa + (a/d)·w + σ·(h/d)·J·w` (σ = +1 open, −1 crossed).
+    /// `w = O4 − Pa`, `d = |w|`, foot `a = (A² − B² + d²)/(2d)`, half-chord `h = 2·Area/d`,
+    /// and `Pb = Pa + (a/d)·w + σ·(h/d)·J·w` (σ = +1 open, −1 crossed).
+    ///
+    /// The area is Kahan's factorisation of the triangle (A, B, d) (Kahan, "Miscalculating
+    /// Area and Angles of a Needle-like Triangle"): `16·Area² = P·Q` with the two thin
+    /// factors `P = (A+B)² − d²` and `Q = d² − (A−B)²`. Forming `d` first and subtracting
+    /// would cost all the digits of a toggle's small gap, so both are taken from the exact
+    /// inputs with the crank half-angle instead:
+    /// `P = [(A+B)² − (C+1)²] + 4C·cos²(θ/2)`, `Q = [(C−1)² − (A−B)²] + 4C·sin²(θ/2)`,
+    /// the brackets evaluated once with error-free products. For a crank-rocker both
+    /// brackets are positive (strict Grashof), so nothing cancels anywhere: positions are
+    /// good to a few ulps even within 1e-9 of a change point. Likewise
+    /// `w = ((C − 1) + 2·sin²(θ/2), −sin θ)` and `d² = (C−1)² + 4C·sin²(θ/2)`.
     ///
     /// Velocities (unit crank speed) differentiate `Pa + A·e3 = O4 + B·e4`:
     /// `ω3 = −(Va·e4) / (A·(e3 × e4))`, `ω4 = −(Va·e3) / (B·(e3 × e4))`, with
-    /// `e3 × e4 = σ·h·d/(A·B)` taken from the same area so it keeps its digits near a
-    /// toggle. Transmission angle `μ = atan2(2hd, A² + B² − d²)`.
+    /// `e3 × e4 = σ·h·d/(A·B)` from the same area. Transmission angle
+    /// `μ = atan2(√(P·Q), A² + B² − d²)` (tan μ = 4·Area/(A² + B² − d²); stable at 0° and
+    /// 180°, unlike `acos`).
     ///
     /// Degenerate cases, part of the contract: returns `None` where the linkage cannot be
-    /// assembled (the triangle A, B, d does not exist) or where Pa lies on O4 (d = 0). At
-    /// a toggle (h = 0, including a change point) both circuits meet; the pose is returned
-    /// with infinite `coupler_omega`/`rocker_omega` (velocities are infinite there).
+    /// assembled (`P` or `Q` negative beyond rounding, see [`TOGGLE_ULPS`]) or where Pa
+    /// lies on O4 (d = 0). At a toggle (h = 0, including a change point) both circuits
+    /// meet; the pose is returned with infinite `coupler_omega`/`rocker_omega`.
     ///
     /// ```
     /// use coupler_atlas::{FourBar, Circuit, CrankAngle, Pose};
@@ -149,37 +304,32 @@ impl Pose {
     /// assert!(((p.rocker_pin - p.crank_pin).norm() - 3.0).abs() < 1e-15);
     /// ```
     pub fn solve(linkage: &FourBar, circuit: Circuit, angle: &CrankAngle) -> Option<Pose> {
-        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
-        let pa = angle.crank_pin();
-        let w = Vector2::new(c_len - angle.cos, -angle.sin);
-        let d2 = w.x * w.x + w.y * w.y;
-        let d = d2.sqrt();
-        if d == 0.0 {
-            return None;
-        }
-        let area2 = kahan_double_area(a_len, b_len, d)?;
-        let h = area2 / d;
-        let foot = ((a_len - b_len) * (a_len + b_len) + d2) / (2.0 * d);
-        let sigma = circuit.sign();
-        let jw = Vector2::new(-w.y, w.x);
-        let chord = w * (foot / d) + jw * (sigma * h / d);
-        let pb = pa + chord;
-        let e3 = chord / a_len;
-        let o4 = Point2::new(c_len, 0.0);
-        let e4 = (pb - o4) / b_len;
-        let va = angle.crank_pin_velocity();
-        let cross34 = sigma * h * d / (a_len * b_len);
-        let coupler_omega = -va.dot(&e4) / (a_len * cross34);
+        Pose::solve_with(linkage, &ToggleGaps::of(linkage), circuit, angle)
+    }
+
+    /// [`Pose::solve`] with the linkage's constants computed once (see [`ToggleGaps`]).
+    pub fn solve_with(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<Pose> {
+        let core = PoseCore::solve(linkage, gaps, circuit, angle)?;
+        let (a_len, b_len) = (linkage.coupler, linkage.rocker);
+        let e4 = Vector2::new(core.pb_x - linkage.ground, core.pb_y) / b_len;
+        let e3 = Vector2::new(core.e_x, core.e_y);
+        let va = Vector2::new(-angle.sin, angle.cos);
+        // ω4 = −(Va·e3) / (B·(e3 × e4)) with e3 × e4 = σ·h·d/(A·B) = σ·area4/(2AB).
+        let cross34 = circuit.sign() * 0.5 * core.area4 / (a_len * b_len);
         let rocker_omega = -va.dot(&e3) / (b_len * cross34);
-        let transmission =
-            libm::atan2(2.0 * h * d, (a_len - b_len) * (a_len - b_len) + 2.0 * a_len * b_len - d2);
+        let transmission = libm::atan2(core.area4, a_len * a_len + b_len * b_len - core.d2);
         Some(Pose {
-            crank_pin: pa,
-            rocker_pin: pb,
+            crank_pin: Point2::new(angle.cos, angle.sin),
+            rocker_pin: Point2::new(core.pb_x, core.pb_y),
             coupler_dir: e3,
             rocker_dir: e4,
             crank_pin_velocity: va,
-            coupler_omega,
+            coupler_omega: core.omega,
             rocker_omega,
             transmission,
         })
@@ -253,6 +403,11 @@ mod tests {
         assert_eq!(kahan_double_area(3.0, 4.0, 5.0), Some(12.0));
         assert_eq!(kahan_double_area(1.0, 2.0, 3.0), Some(0.0));
         assert_eq!(kahan_double_area(1.0, 2.0, 3.5), None);
+        assert_eq!(
+            kahan_double_area(1.0, 2.0, 3.0 + 2.0 * f64::EPSILON),
+            Some(0.0)
+        );
+        assert_eq!(kahan_double_area(1.0, 2.0, 3.0 + 1e-12), None);
         assert_eq!(kahan_double_area(1.0, 2.0, f64::NAN), None);
     }
 
@@ -264,11 +419,15 @@ mod tests {
             for k in 0..36 {
                 let t = k as f64 * 10.0 + 3.0;
                 let hdeg = 1e-4;
-                let at = |deg: f64| Pose::solve(&l, circuit, &CrankAngle::from_degrees(deg)).unwrap();
+                let at =
+                    |deg: f64| Pose::solve(&l, circuit, &CrankAngle::from_degrees(deg)).unwrap();
                 let (m1, m2) = (at(t - hdeg).point(p), at(t + hdeg).point(p));
                 let fd = (m2 - m1) / (2.0 * hdeg.to_radians());
                 let v = at(t).velocity(p);
-                assert!((fd - v).norm() < 1e-6 * (1.0 + v.norm()), "{circuit} {t}: {fd} vs {v}");
+                assert!(
+                    (fd - v).norm() < 1e-6 * (1.0 + v.norm()),
+                    "{circuit} {t}: {fd} vs {v}"
+                );
                 let e4 = |deg: f64| at(deg).rocker_dir;
                 let phi = |e: Vector2<f64>| libm::atan2(e.y, e.x);
                 let fd4 = (phi(e4(t + hdeg)) - phi(e4(t - hdeg))) / (2.0 * hdeg.to_radians());

@@ -1,0 +1,148 @@
+//! `coupler-atlas bench …`: benchmarks that print a markdown report (machine, date,
+//! medians) for `docs/benchmarks.md`. Speed targets live here, not in timed tests.
+
+use anyhow::Result;
+use coupler_atlas::{Circuit, CrankTable, Curve, FourBar, PoseTable, Spec, generate};
+use std::hint::black_box;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(subcommand)]
+    which: Which,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum Which {
+    /// Kinematic core: cost per coupler-curve sample (one core, 50-point grid, 720
+    /// samples per curve) and wall time of `generate` on the default spec, index only.
+    Core {
+        /// Repetitions of each measurement (the median is reported).
+        #[arg(long, default_value_t = 15)]
+        reps: usize,
+        /// Repetitions of the whole-atlas run.
+        #[arg(long, default_value_t = 5)]
+        atlas_reps: usize,
+    },
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    match args.which {
+        Which::Core { reps, atlas_reps } => core(reps.max(1), atlas_reps.max(1)),
+    }
+}
+
+/// The machine and date, for the report header.
+pub fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let (y, m, d) = civil_from_days((secs / 86_400) as i64);
+    format!(
+        "{cpu}, {cores} cores; {y:04}-{m:02}-{d:02}; coupler-atlas {} ({} build)",
+        env!("CARGO_PKG_VERSION"),
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        }
+    )
+}
+
+/// Days since 1970-01-01 to (year, month, day) (Howard Hinnant's algorithm).
+fn civil_from_days(z: i64) -> (i64, u32, u32) {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    (yoe + era * 400 + i64::from(m <= 2), m, d)
+}
+
+/// Median of timings in seconds.
+pub fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(|a, b| a.total_cmp(b));
+    let n = xs.len();
+    if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    }
+}
+
+fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
+    println!("## Kinematic core\n\nMachine: {}\n", machine());
+    let linkage = FourBar::new(2.5, 3.0, 3.5)?;
+    let table = CrankTable::new(0.5).expect("valid step");
+    let spec = Spec::default_atlas();
+    let points = spec.points.points(linkage.coupler);
+    let grid: Vec<_> = points.iter().cycle().take(50).copied().collect();
+    let samples = (grid.len() * table.len()) as f64;
+    let mut curves: Vec<Curve> = vec![Curve::default(); grid.len()];
+    let (mut total, mut poses_only) = (Vec::new(), Vec::new());
+    for _ in 0..reps {
+        let t = Instant::now();
+        for _ in 0..20 {
+            let poses = PoseTable::new(black_box(&linkage), Circuit::Open, &table);
+            for (p, c) in grid.iter().zip(curves.iter_mut()) {
+                poses.trace_into(*p, c);
+            }
+            black_box(&curves);
+        }
+        total.push(t.elapsed().as_secs_f64() / 20.0);
+        let t = Instant::now();
+        for _ in 0..20 {
+            black_box(PoseTable::new(black_box(&linkage), Circuit::Open, &table));
+        }
+        poses_only.push(t.elapsed().as_secs_f64() / 20.0);
+    }
+    let per_sample = median(total) / samples * 1e9;
+    let pose = median(poses_only) / table.len() as f64 * 1e9;
+    println!("| measure | median | target |\n|---|---|---|");
+    println!(
+        "| cost per sample (position + velocity), 50 points × {} samples, 1 core | {per_sample:.2} ns | ≤ 2 ns |",
+        table.len()
+    );
+    println!(
+        "| of which the shared pose, per crank angle (amortised over 50 points: {:.2} ns/sample) | {pose:.1} ns | |",
+        pose / 50.0
+    );
+
+    for jobs in [1usize, 2] {
+        let mut times = Vec::new();
+        for _ in 0..atlas_reps {
+            let dir =
+                std::env::temp_dir().join(format!("coupler-atlas-bench-{}", std::process::id()));
+            let job = generate::Job::new(spec.clone(), "built-in", &dir, jobs);
+            let t = Instant::now();
+            let report = generate::run(&job, &|_| {})?;
+            times.push(t.elapsed().as_secs_f64());
+            black_box(report);
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+        let job = generate::Job::new(spec.clone(), "built-in", "unused", jobs);
+        println!(
+            "| `generate` default spec ({} curves), index only, {jobs} thread{} | {:.3} s | |",
+            job.curves(),
+            if jobs > 1 { "s" } else { "" },
+            median(times)
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

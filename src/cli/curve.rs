@@ -1,0 +1,184 @@
+//! `coupler-atlas curve --coupler A --rocker B --ground C --point U,V [--circuit] [--step] [--format]`
+
+use super::{UsageError, parse_length, parse_number};
+use anyhow::Result;
+use coupler_atlas::{Circuit, CouplerPoint, CrankTable, FourBar, Pose};
+use serde::Serialize;
+use std::io::Write;
+use std::process::ExitCode;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Coupler length A (crank = 1).
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    coupler: f64,
+    /// Rocker length B.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    rocker: f64,
+    /// Ground length C.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    ground: f64,
+    /// Coupler point U,V in the coupler frame (crank units), e.g. `--point 1.5,-0.5`.
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    point: CouplerPoint,
+    /// Circuit (assembly).
+    #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
+    circuit: String,
+    /// Crank step in degrees; samples at 0, step, 2·step, … below 360.
+    #[arg(long, default_value = "1", value_parser = parse_number, allow_hyphen_values = true)]
+    step: f64,
+    /// Output format.
+    #[arg(long, default_value = "json", value_parser = ["json", "csv", "table"])]
+    format: String,
+}
+
+fn parse_point(s: &str) -> Result<CouplerPoint, String> {
+    let (u, v) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected U,V (two numbers separated by a comma), got `{s}`"))?;
+    Ok(CouplerPoint::new(
+        parse_number(u.trim())?,
+        parse_number(v.trim())?,
+    ))
+}
+
+/// One sample of the `curve` JSON contract. `None` fields print as `null`: where the
+/// linkage cannot be assembled (all five), or at a toggle (velocities, infinite there).
+#[derive(Serialize)]
+struct Sample {
+    theta_deg: f64,
+    x: Option<f64>,
+    y: Option<f64>,
+    vx: Option<f64>,
+    vy: Option<f64>,
+    transmission_deg: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct Linkage {
+    coupler: f64,
+    rocker: f64,
+    ground: f64,
+}
+
+fn finite(x: f64) -> Option<f64> {
+    x.is_finite().then_some(x)
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let linkage = FourBar::new(args.coupler, args.rocker, args.ground)
+        .map_err(|e| UsageError(e.to_string()))?;
+    let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
+    let table = CrankTable::new(args.step).ok_or_else(|| {
+        UsageError(format!(
+            "--step must be > 0 and at most 360 degrees, got {}",
+            args.step
+        ))
+    })?;
+    let p = args.point;
+    let samples: Vec<Sample> = table
+        .angles()
+        .iter()
+        .map(|angle| match Pose::solve(&linkage, circuit, angle) {
+            Some(pose) => {
+                let m = pose.point(p);
+                let v = pose.velocity(p);
+                let fin = v.x.is_finite() && v.y.is_finite();
+                Sample {
+                    theta_deg: angle.degrees,
+                    x: finite(m.x),
+                    y: finite(m.y),
+                    vx: if fin { Some(v.x) } else { None },
+                    vy: if fin { Some(v.y) } else { None },
+                    transmission_deg: finite(pose.transmission.to_degrees()),
+                }
+            }
+            None => Sample {
+                theta_deg: angle.degrees,
+                x: None,
+                y: None,
+                vx: None,
+                vy: None,
+                transmission_deg: None,
+            },
+        })
+        .collect();
+    let stdout = std::io::stdout();
+    let mut w = std::io::BufWriter::new(stdout.lock());
+    match args.format.as_str() {
+        "json" => {
+            write!(w, "{{\"linkage\":")?;
+            serde_json::to_writer(
+                &mut w,
+                &Linkage {
+                    coupler: linkage.coupler,
+                    rocker: linkage.rocker,
+                    ground: linkage.ground,
+                },
+            )?;
+            write!(w, ",\"point\":")?;
+            serde_json::to_writer(&mut w, &p)?;
+            write!(
+                w,
+                ",\"circuit\":\"{}\",\"class\":\"{}\",\"samples\":[",
+                circuit.name(),
+                linkage.class().code()
+            )?;
+            for (i, s) in samples.iter().enumerate() {
+                w.write_all(if i == 0 { b"\n" } else { b",\n" })?;
+                serde_json::to_writer(&mut w, s)?;
+            }
+            writeln!(w, "\n]}}")?;
+        }
+        "csv" => {
+            writeln!(w, "theta_deg,x,y,vx,vy,transmission_deg")?;
+            let f = |x: Option<f64>| x.map(|x| x.to_string()).unwrap_or_default();
+            for s in &samples {
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{}",
+                    s.theta_deg,
+                    f(s.x),
+                    f(s.y),
+                    f(s.vx),
+                    f(s.vy),
+                    f(s.transmission_deg)
+                )?;
+            }
+        }
+        _ => {
+            writeln!(
+                w,
+                "# {} class {} circuit {} point ({}, {})",
+                linkage,
+                linkage.class(),
+                circuit,
+                p.u,
+                p.v
+            )?;
+            writeln!(
+                w,
+                "{:>9} {:>12} {:>12} {:>12} {:>12} {:>9}",
+                "theta°", "x", "y", "vx", "vy", "mu°"
+            )?;
+            let f = |x: Option<f64>, prec: usize| {
+                x.map(|x| format!("{x:.prec$}"))
+                    .unwrap_or_else(|| "-".into())
+            };
+            for s in &samples {
+                writeln!(
+                    w,
+                    "{:>9} {:>12} {:>12} {:>12} {:>12} {:>9}",
+                    s.theta_deg,
+                    f(s.x, 6),
+                    f(s.y, 6),
+                    f(s.vx, 6),
+                    f(s.vy, 6),
+                    f(s.transmission_deg, 2)
+                )?;
+            }
+        }
+    }
+    w.flush()?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,80 @@
+//! Subcommands, one file each. `main` maps errors to `error: …` on stderr and an exit
+//! code: 0 success, 1 failure while working, 2 bad usage or input (clap uses 2 too).
+
+mod bench;
+mod curve;
+mod generate;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Build, render, index and search a Hrones–Nelson style atlas of four-bar coupler curves.
+#[derive(Parser, Debug)]
+#[command(name = "coupler-atlas", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Generate an atlas (index and pages) from a spec; the built-in Hrones–Nelson atlas by default.
+    Generate(generate::Args),
+    /// Sample the coupler curve of any single four-bar.
+    Curve(curve::Args),
+    /// Benchmarks (results go to docs/benchmarks.md).
+    Bench(bench::Args),
+}
+
+/// An error that is the user's input (exit code 2), as opposed to a failure while working.
+#[derive(Debug)]
+pub struct UsageError(pub String);
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Generate(args) => generate::run(args),
+        Command::Curve(args) => curve::run(args),
+        Command::Bench(args) => bench::run(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            if err
+                .chain()
+                .any(|e| e.is::<UsageError>() || e.is::<coupler_atlas::SpecError>())
+            {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+/// Parses a length flag exactly (rejects NaN, infinities, text), as an f64.
+pub fn parse_number(s: &str) -> Result<f64, String> {
+    let d: coupler_atlas::Decimal = s
+        .parse()
+        .map_err(|e: coupler_atlas::DecimalError| e.to_string())?;
+    Ok(d.to_f64())
+}
+
+/// Parses a positive length flag.
+pub fn parse_length(s: &str) -> Result<f64, String> {
+    let x = parse_number(s)?;
+    if x > 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("a length must be > 0, got {s}"))
+    }
+}
