@@ -452,17 +452,18 @@ fn drawn_pose(page: &LinkagePage) -> Option<Pose> {
 /// points of the grid and the rocker pin at the drawn angle.
 fn linkage_bbox(page: &LinkagePage) -> [f64; 4] {
     let c = page.linkage.ground;
+    // Crank circle and both pivots; the rocker pin and the grid at the drawn angle.
     let mut b = [-1.0, -1.0, c.max(1.0), 1.0];
-    b = union(
-        b,
-        [
-            c - page.linkage.rocker,
-            -page.linkage.rocker,
-            c + page.linkage.rocker,
-            page.linkage.rocker,
-        ],
-    );
     if let Some(p) = drawn_pose(page) {
+        b = union(
+            b,
+            [
+                p.rocker_pin.x,
+                p.rocker_pin.y,
+                p.rocker_pin.x,
+                p.rocker_pin.y,
+            ],
+        );
         for q in &page.grid {
             let m = p.point(*q);
             b = union(b, [m.x, m.y, m.x, m.y]);
@@ -1056,13 +1057,30 @@ fn legend(dl: &mut DisplayList, page: &LinkagePage, geometry: &PageGeometry, set
         ),
     );
     // Footer settings line.
-    dl.text([w - m, h - m], 6.0, Anchor::End, setup.settings.clone());
+    dl.text([w - m, h - m], 6.0, Anchor::End, footer_settings(setup));
     dl.text(
         [m, h - m],
         6.0,
         Anchor::Start,
         format!("coupler-atlas {}", env!("CARGO_PKG_VERSION")),
     );
+}
+
+/// The footer line: generation settings that shape the page, then `setup.settings`.
+pub fn footer_settings(setup: &PageSetup) -> String {
+    let mut s = format!(
+        "dash {}° of crank, {} % drawn · {} dpi · {} · chord tolerance {} px",
+        fmt_num(setup.dash.step_deg),
+        fmt_num((setup.dash.fraction * 100.0).round()),
+        fmt_num(setup.dpi),
+        setup.size,
+        fmt_num(setup.chord_tolerance_px)
+    );
+    if !setup.settings.is_empty() {
+        s.push_str(" · ");
+        s.push_str(&setup.settings);
+    }
+    s
 }
 
 /// One line of the contents: a linkage and the pages it occupies.
@@ -1079,6 +1097,9 @@ pub struct ContentsEntry {
     /// Last page (inclusive).
     pub last_page: usize,
 }
+
+/// Column offsets of the contents table, points.
+const CONTENTS_COLUMNS: [f64; 6] = [0.0, 25.0, 50.0, 75.0, 110.0, 135.0];
 
 /// Lays out the contents: a table of linkages with their page ranges, in as many columns
 /// and pages as needed (returns at least one page).
@@ -1113,22 +1134,22 @@ pub fn layout_contents(entries: &[ContentsEntry], setup: &PageSetup) -> Vec<Disp
             let x = m + c as f64 * col_w;
             let y = top + r as f64 * row;
             if r == 0 {
-                dl.text(
-                    [x, top - row],
-                    style::SMALL_SIZE,
-                    Anchor::Start,
-                    "A      B      C     circuit  curves   pages",
-                );
+                for (dx, head) in CONTENTS_COLUMNS
+                    .iter()
+                    .zip(["A", "B", "C", "circuit", "curves", "pages"])
+                {
+                    dl.text([x + dx, top - row], style::SMALL_SIZE, Anchor::Start, head);
+                }
             }
             let l = e.linkage;
             let cells = [
-                (0.0, fmt_num(l.coupler)),
-                (25.0, fmt_num(l.rocker)),
-                (50.0, fmt_num(l.ground)),
-                (75.0, e.circuit.name().to_string()),
-                (110.0, e.curves.to_string()),
+                (CONTENTS_COLUMNS[0], fmt_num(l.coupler)),
+                (CONTENTS_COLUMNS[1], fmt_num(l.rocker)),
+                (CONTENTS_COLUMNS[2], fmt_num(l.ground)),
+                (CONTENTS_COLUMNS[3], e.circuit.name().to_string()),
+                (CONTENTS_COLUMNS[4], e.curves.to_string()),
                 (
-                    135.0,
+                    CONTENTS_COLUMNS[5],
                     if e.first_page == e.last_page {
                         e.first_page.to_string()
                     } else {
@@ -1140,7 +1161,7 @@ pub fn layout_contents(entries: &[ContentsEntry], setup: &PageSetup) -> Vec<Disp
                 dl.text([x + dx, y], style::SMALL_SIZE, Anchor::Start, s);
             }
         }
-        dl.text([w - m, h - m], 6.0, Anchor::End, setup.settings.clone());
+        dl.text([w - m, h - m], 6.0, Anchor::End, footer_settings(setup));
         pages.push(dl);
     }
     pages

@@ -11,6 +11,7 @@
 //!   the page looks the same without the font installed).
 
 pub mod font;
+pub mod pages;
 mod raster;
 mod svg;
 
