@@ -4,8 +4,12 @@
 //! that order, whatever the thread count.
 
 use crate::curve::{CrankTable, CurveSummary, PoseTable, transmission_range};
-use crate::index::{IndexCurve, IndexSummary, LinkageLengths, write_index};
+use crate::index::{IndexCurve, IndexSummary, LinkageLengths, PageRef, write_index};
+use crate::layout::ContentsEntry;
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
+use crate::render::pages::{
+    BufferPool, PageError, PageOptions, PageTimings, render_contents, render_linkage_pages,
+};
 use crate::spec::{Enumeration, Spec};
 use rayon::prelude::*;
 use std::fmt::Write as _;
@@ -25,6 +29,8 @@ pub struct Job {
     pub out: PathBuf,
     /// Worker threads.
     pub jobs: usize,
+    /// Page rendering into `out/pages/` (`None`: index only).
+    pub pages: Option<PageOptions>,
 }
 
 /// One unit of parallel work: a linkage in one circuit with all its coupler points. It
@@ -50,6 +56,9 @@ pub struct RunReport {
     pub summary: IndexSummary,
     /// The index file written.
     pub index_path: PathBuf,
+    /// Seconds spent per page phase `[compute, layout, draw, encode, write]` summed over
+    /// workers, and pages rendered (contents excluded), when pages were rendered.
+    pub page_seconds: Option<([f64; 5], u64)>,
 }
 
 /// Why a run failed.
@@ -75,6 +84,9 @@ pub enum GenerateError {
     /// The crank step is not usable.
     #[error("crank step {0}° is not usable")]
     BadStep(f64),
+    /// A page could not be rendered or written.
+    #[error(transparent)]
+    Page(#[from] PageError),
 }
 
 impl Job {
@@ -87,6 +99,7 @@ impl Job {
             enumeration,
             out: out.into(),
             jobs: jobs.max(1),
+            pages: None,
         }
     }
 
@@ -268,18 +281,61 @@ pub fn run(job: &Job, progress: &(dyn Fn(u64) + Sync)) -> Result<RunReport, Gene
             path: job.out.clone(),
             source: std::io::Error::other(e),
         })?;
+    let pages_dir = job.out.join("pages");
+    if job.pages.is_some() {
+        std::fs::create_dir_all(&pages_dir).map_err(io(&pages_dir))?;
+    }
+    let buffers = BufferPool::new();
+    let timings = PageTimings::default();
+    let page_count = job.pages();
     let results: Result<Vec<Vec<IndexCurve>>, GenerateError> = pool.install(|| {
         groups
             .par_iter()
             .map(|g| {
-                let curves = compute_group(&table, g)?;
+                let mut curves = compute_group(&table, g)?;
+                if let Some(opts) = &job.pages {
+                    let placed = render_linkage_pages(
+                        opts,
+                        &pages_dir,
+                        &buffers,
+                        &timings,
+                        g.linkage,
+                        g.circuit,
+                        &g.points,
+                        g.first_page,
+                        page_count,
+                    )?;
+                    for (c, p) in curves.iter_mut().zip(placed) {
+                        c.page = Some(PageRef {
+                            file: p.file,
+                            bbox_px: p.bbox_px.map(f64::from),
+                        });
+                    }
+                }
                 progress(curves.len() as u64);
                 Ok(curves)
             })
             .collect()
     });
     let curves: Vec<IndexCurve> = results?.into_iter().flatten().collect();
-    let summary = job.summary(0);
+    let mut page_seconds = None;
+    if let Some(opts) = &job.pages {
+        let per = opts.setup.curves_per_page.max(1) as u64;
+        let entries: Vec<ContentsEntry> = groups
+            .iter()
+            .map(|g| ContentsEntry {
+                linkage: g.linkage,
+                circuit: g.circuit,
+                curves: g.points.len(),
+                first_page: g.first_page as usize,
+                last_page: (g.first_page + (g.points.len() as u64).div_ceil(per)).saturating_sub(1)
+                    as usize,
+            })
+            .collect();
+        render_contents(opts, &pages_dir, &buffers, &entries)?;
+        page_seconds = Some(timings.seconds());
+    }
+    let summary = job.summary(if job.pages.is_some() { page_count } else { 0 });
     let index_path = job.out.join("index.json");
     write_atomically(&index_path, |w| {
         write_index(w, &job.spec, &summary, &curves)
@@ -287,6 +343,7 @@ pub fn run(job: &Job, progress: &(dyn Fn(u64) + Sync)) -> Result<RunReport, Gene
     Ok(RunReport {
         summary,
         index_path,
+        page_seconds,
     })
 }
 
