@@ -27,6 +27,15 @@ pub struct Args {
     /// Index only: do not render pages.
     #[arg(long)]
     no_pages: bool,
+    /// Page formats, comma-separated: png, svg (default: png).
+    #[arg(long, value_delimiter = ',', default_value = "png")]
+    format: Vec<String>,
+    /// Raster resolution of pages, dots per inch (default: the spec's).
+    #[arg(long)]
+    dpi: Option<f64>,
+    /// Page size: tabloid, letter, a4, a3, optionally -landscape (default: the spec's).
+    #[arg(long)]
+    page_size: Option<String>,
     /// Run even if the spec enumerates more than 5,000,000 curves.
     #[arg(long)]
     yes: bool,
@@ -62,7 +71,33 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
         .into());
     }
-    let job = generate::Job::new(spec, source, args.out.clone(), jobs);
+    let mut job = generate::Job::new(spec, source, args.out.clone(), jobs);
+    if !args.no_pages {
+        let mut opts = coupler_atlas::render::pages::PageOptions::from_spec(&job.spec)
+            .map_err(|e| UsageError(format!("page settings: {e}")))?;
+        let mut formats = Vec::new();
+        for f in &args.format {
+            let f: coupler_atlas::render::PageFormat = f
+                .parse()
+                .map_err(|e| UsageError(format!("--format: {e}")))?;
+            if !formats.contains(&f) {
+                formats.push(f);
+            }
+        }
+        opts.formats = formats;
+        if let Some(dpi) = args.dpi {
+            opts.setup.dpi = dpi;
+        }
+        if let Some(size) = &args.page_size {
+            opts.setup.size = size
+                .parse()
+                .map_err(|e| UsageError(format!("--page-size: {e}")))?;
+        }
+        opts.setup
+            .validate()
+            .map_err(|e| UsageError(format!("page settings: {e}")))?;
+        job.pages = Some(opts);
+    }
     if args.dry_run {
         println!("{}", job.describe());
         return Ok(ExitCode::SUCCESS);
