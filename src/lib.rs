@@ -13,6 +13,7 @@
 
 mod curve;
 mod dash;
+pub mod diff;
 mod exact;
 pub mod generate;
 pub mod index;

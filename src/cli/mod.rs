@@ -3,6 +3,7 @@
 
 mod bench;
 mod curve;
+mod diff;
 mod generate;
 
 use clap::{Parser, Subcommand};
@@ -24,6 +25,8 @@ enum Command {
     Curve(curve::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
     Bench(bench::Args),
+    /// Compare two page images pixel by pixel (score, diff image, exit 1 over threshold).
+    Diff(diff::Args),
 }
 
 /// An error that is the user's input (exit code 2), as opposed to a failure while working.
@@ -44,6 +47,7 @@ pub fn main() -> ExitCode {
         Command::Generate(args) => generate::run(args),
         Command::Curve(args) => curve::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Diff(args) => diff::run(args),
     };
     match result {
         Ok(code) => code,
