@@ -36,7 +36,7 @@ fn main() {
     let (w, h) = setup.size_px();
     let mut r = RasterPage::new(w, h, dpi).unwrap();
     draw(&lay.display, &mut r);
-    r.write_png(std::fs::File::create(&out).unwrap()).unwrap();
+    r.finish_png(std::fs::File::create(&out).unwrap()).unwrap();
     let mut s = SvgPage::new(lay.display.width, lay.display.height);
     draw(&lay.display, &mut s);
     std::fs::write(format!("{out}.svg"), s.finish()).unwrap();

@@ -201,7 +201,7 @@ fn emit(
                 draw(display, &mut buf);
                 t = PageTimings::add(&timings.draw, t);
                 let mut bytes = Vec::with_capacity(1 << 20);
-                let r = buf.write_png(&mut bytes);
+                let r = buf.finish_png(&mut bytes);
                 pool.give(buf);
                 r.map_err(|source| PageError::Png {
                     path: dir.join(name),
