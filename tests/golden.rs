@@ -11,6 +11,8 @@
 //! BLESS=1 cargo test --release --test golden
 //! ```
 
+#![allow(clippy::needless_range_loop)] // pixel rows and columns read best as indices
+
 use coupler_atlas::diff;
 use coupler_atlas::layout::{Anchor, PagePoint};
 use coupler_atlas::render::{Canvas, RasterPage, SvgPage};
