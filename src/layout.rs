@@ -286,6 +286,14 @@ pub enum Primitive {
         /// Stroke width.
         width: f64,
     },
+    /// Several open polylines of one width stroked together (the dashes of a curve):
+    /// the ink is the union of their strokes.
+    Polylines {
+        /// The polylines.
+        lines: Vec<Vec<PagePoint>>,
+        /// Stroke width.
+        width: f64,
+    },
     /// A filled polygon (closed implicitly), non-zero rule.
     Polygon {
         /// Vertices.
@@ -448,8 +456,9 @@ fn drawn_pose(page: &LinkagePage) -> Option<Pose> {
     )
 }
 
-/// World bounding box of the linkage drawing: ground pivots, crank circle, coupler
-/// points of the grid and the rocker pin at the drawn angle.
+/// World bounding box of what must be on the page besides the curves: ground pivots,
+/// crank circle, the rocker pin and this page's coupler points at the drawn angle. The
+/// rest of the grid is context: it is drawn where it falls inside the frame.
 fn linkage_bbox(page: &LinkagePage) -> [f64; 4] {
     let c = page.linkage.ground;
     // Crank circle and both pivots; the rocker pin and the grid at the drawn angle.
@@ -464,7 +473,7 @@ fn linkage_bbox(page: &LinkagePage) -> [f64; 4] {
                 p.rocker_pin.y,
             ],
         );
-        for q in &page.grid {
+        for q in &page.points {
             let m = p.point(*q);
             b = union(b, [m.x, m.y, m.x, m.y]);
         }
@@ -650,6 +659,37 @@ impl Occupancy {
     }
 }
 
+/// The part of segment `a`–`b` inside the rectangle `r` (Liang–Barsky), if any.
+pub fn clip_segment(a: PagePoint, b: PagePoint, r: [f64; 4]) -> Option<(PagePoint, PagePoint)> {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-dx, a[0] - r[0]),
+        (dx, r[2] - a[0]),
+        (-dy, a[1] - r[1]),
+        (dy, r[3] - a[1]),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let t = q / p;
+            if p < 0.0 {
+                t0 = t0.max(t);
+            } else {
+                t1 = t1.min(t);
+            }
+        }
+    }
+    (t0 < t1).then(|| {
+        (
+            [a[0] + t0 * dx, a[1] + t0 * dy],
+            [a[0] + t1 * dx, a[1] + t1 * dy],
+        )
+    })
+}
+
 fn rects_overlap(a: [f64; 4], b: [f64; 4]) -> bool {
     a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3]
 }
@@ -723,6 +763,8 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
     }
     for (c, dashes) in geometry.curves.iter().zip(&page_curves) {
         let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+        // Regular dashes of a curve go out as one primitive (one path, one fill).
+        let mut regular: Vec<Vec<PagePoint>> = Vec::with_capacity(dashes.len());
         for (k, (d, pts)) in c.dashes.iter().zip(dashes).enumerate() {
             let len: f64 = pts
                 .windows(2)
@@ -745,7 +787,11 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
                 dl.circle(p, r, None);
                 bbox = union(bbox, [p[0] - r, p[1] - r, p[0] + r, p[1] + r]);
             } else {
-                dl.line(pts.clone(), wdt);
+                if k == 0 {
+                    dl.line(pts.clone(), wdt);
+                } else {
+                    regular.push(pts.clone());
+                }
                 for p in pts {
                     bbox = union(
                         bbox,
@@ -759,6 +805,10 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
                 }
             }
         }
+        dl.items.push(Primitive::Polylines {
+            lines: regular,
+            width: style::DASH_WIDTH,
+        });
         // θ = 0: a dot at the start, an arrowhead at the end of dash 0 along the travel.
         let s0 = t.map(c.start.x, c.start.y);
         dl.circle(s0, style::START_DOT_RADIUS, None);
@@ -849,14 +899,26 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
                     t.map(m.x, m.y)
                 })
                 .collect();
-            dl.line(plate, style::THIN);
+            // Context, not a curve: clipped to the frame.
+            for w in plate.windows(2) {
+                if let Some((a, b)) = clip_segment(w[0], w[1], frame) {
+                    dl.line(vec![a, b], style::THIN);
+                }
+            }
         }
-        // Grid: small hollow circles.
+        // Grid: small hollow circles (those inside the frame).
         for q in &page.grid {
             let mq = pose.point(*q);
             let p = t.map(mq.x, mq.y);
-            dl.circle(p, style::GRID_RADIUS, Some(style::THIN));
-            occ.mark_point(p, 2);
+            let r = style::GRID_RADIUS;
+            if p[0] - r >= frame[0]
+                && p[0] + r <= frame[2]
+                && p[1] - r >= frame[1]
+                && p[1] + r <= frame[3]
+            {
+                dl.circle(p, r, Some(style::THIN));
+                occ.mark_point(p, 2);
+            }
         }
         let text = |s: &str| s.to_string();
         let lbl = [
@@ -1238,6 +1300,20 @@ mod tests {
             let f = geo.frame;
             assert!(b[0] >= f[0] && b[1] >= f[1] && b[2] <= f[2] && b[3] <= f[3]);
         }
+    }
+
+    #[test]
+    fn clipping() {
+        let r = [0.0, 0.0, 10.0, 10.0];
+        assert_eq!(
+            clip_segment([-5.0, 5.0], [15.0, 5.0], r),
+            Some(([0.0, 5.0], [10.0, 5.0]))
+        );
+        assert_eq!(
+            clip_segment([2.0, 2.0], [3.0, 3.0], r),
+            Some(([2.0, 2.0], [3.0, 3.0]))
+        );
+        assert_eq!(clip_segment([-5.0, -5.0], [-1.0, 20.0], r), None);
     }
 
     #[test]

@@ -24,6 +24,12 @@ use crate::layout::{Anchor, DisplayList, PagePoint, Primitive};
 pub trait Canvas {
     /// Strokes an open polyline (round caps and joins) of `width` points.
     fn stroke_polyline(&mut self, points: &[PagePoint], width: f64);
+    /// Strokes several open polylines of one width; the ink is the union of the strokes.
+    fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
+        for l in lines {
+            self.stroke_polyline(l, width);
+        }
+    }
     /// Fills a closed polygon (non-zero rule).
     fn fill_polygon(&mut self, points: &[PagePoint]);
     /// A circle outline of `width` points, or a filled disc when `width` is `None`.
@@ -37,6 +43,7 @@ pub fn draw(display: &DisplayList, canvas: &mut impl Canvas) {
     for item in &display.items {
         match item {
             Primitive::Polyline { points, width } => canvas.stroke_polyline(points, *width),
+            Primitive::Polylines { lines, width } => canvas.stroke_polylines(lines, *width),
             Primitive::Polygon { points } => canvas.fill_polygon(points),
             Primitive::Circle {
                 center,

@@ -159,6 +159,31 @@ impl Canvas for RasterPage {
         }
     }
 
+    fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
+        let mut pb = PathBuilder::new();
+        for points in lines.iter().filter(|l| !l.is_empty()) {
+            let (x, y) = self.px(points[0]);
+            pb.move_to(x, y);
+            if points.len() == 1 {
+                pb.line_to(x, y);
+            }
+            for p in &points[1..] {
+                let (x, y) = self.px(*p);
+                pb.line_to(x, y);
+            }
+        }
+        let Some(path) = pb.finish() else { return };
+        let stroke = Stroke {
+            width: (width * self.px_per_pt) as f32,
+            line_cap: LineCap::Round,
+            line_join: LineJoin::Round,
+            ..Stroke::default()
+        };
+        if let Some(outline) = path.stroke(&stroke, 1.0) {
+            self.fill(&outline);
+        }
+    }
+
     fn fill_polygon(&mut self, points: &[PagePoint]) {
         if points.len() < 3 {
             return;

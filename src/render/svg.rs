@@ -80,6 +80,27 @@ impl Canvas for SvgPage {
         );
     }
 
+    fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
+        let d: String = lines
+            .iter()
+            .filter(|l| !l.is_empty())
+            .map(|l| {
+                if l.len() == 1 {
+                    Self::path_d(l) + "h0"
+                } else {
+                    Self::path_d(l)
+                }
+            })
+            .collect();
+        if !d.is_empty() {
+            let _ = writeln!(
+                self.body,
+                "<path d=\"{d}\" fill=\"none\" stroke=\"#000\" stroke-width=\"{}\"/>",
+                num(width)
+            );
+        }
+    }
+
     fn fill_polygon(&mut self, points: &[PagePoint]) {
         if points.len() < 3 {
             return;
