@@ -1303,6 +1303,41 @@ mod tests {
     }
 
     #[test]
+    fn a_dash_shrunk_at_a_cusp_stays_a_countable_dot() {
+        let setup = PageSetup::default();
+        let mut pg = page();
+        pg.points.truncate(1);
+        let mut geo = compute_page(&pg, &setup).unwrap();
+        // Collapse dash 7 to a point, as at a cusp where the speed vanishes.
+        let d = &mut geo.curves[0].dashes[7];
+        let p = d.points[0];
+        d.points = vec![p, p];
+        let lay = layout_page(&pg, &geo, &setup);
+        let at = geo.transform.map(p.x, p.y);
+        let dots = lay
+            .display
+            .items
+            .iter()
+            .filter(|i| matches!(i, Primitive::Circle { center, width: None, radius } if *center == at && *radius >= 0.5))
+            .count();
+        assert_eq!(
+            dots, 1,
+            "the collapsed dash must be drawn as one filled dot"
+        );
+        // The other 35 dashes are strokes: 1 bold θ = 0 dash + 34 in the curve's set.
+        let regular: usize = lay
+            .display
+            .items
+            .iter()
+            .map(|i| match i {
+                Primitive::Polylines { lines, .. } => lines.len(),
+                _ => 0,
+            })
+            .sum();
+        assert_eq!(regular, 34);
+    }
+
+    #[test]
     fn clipping() {
         let r = [0.0, 0.0, 10.0, 10.0];
         assert_eq!(
