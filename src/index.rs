@@ -140,6 +140,19 @@ pub fn write_index<W: Write, S: Serialize>(
     summary: &IndexSummary,
     curves: &[IndexCurve],
 ) -> io::Result<()> {
+    write_index_header(&mut w, spec, summary)?;
+    for (i, c) in curves.iter().enumerate() {
+        write_curve_line(&mut w, i == 0, &curve_line(c)?)?;
+    }
+    write_index_footer(&mut w)
+}
+
+/// The index's opening: everything before the first curve.
+pub fn write_index_header<W: Write, S: Serialize>(
+    mut w: W,
+    spec: &S,
+    summary: &IndexSummary,
+) -> io::Result<()> {
     write!(w, "{{\"schema_version\":{SCHEMA_VERSION},\"generator\":")?;
     serde_json::to_writer(
         &mut w,
@@ -150,21 +163,31 @@ pub fn write_index<W: Write, S: Serialize>(
     w.write_all(b",\n\"summary\":")?;
     serde_json::to_writer(&mut w, summary)?;
     w.write_all(b",\n\"curves\":[")?;
-    for (i, c) in curves.iter().enumerate() {
-        w.write_all(if i == 0 { b"\n" } else { b",\n" })?;
-        let text = serde_json::to_string(c)?;
-        // serde_json writes NaN and infinities as `null`; a `null` in a numeric field would
-        // make the index unreadable, so refuse rather than write it.
-        if text.contains("null") {
-            return Err(io::Error::other(format!(
-                "internal error: curve {} has a non-finite measure",
-                c.id
-            )));
-        }
-        w.write_all(text.as_bytes())?;
-    }
-    w.write_all(b"\n]}\n")?;
     Ok(())
+}
+
+/// One curve's line of the index (no separators). Refuses non-finite measures: serde_json
+/// writes NaN and infinities as `null`, which would make the index unreadable.
+pub fn curve_line(c: &IndexCurve) -> io::Result<String> {
+    let text = serde_json::to_string(c)?;
+    if text.contains("null") {
+        return Err(io::Error::other(format!(
+            "internal error: curve {} has a non-finite measure",
+            c.id
+        )));
+    }
+    Ok(text)
+}
+
+/// Writes a curve line with its separator (`first` for the first curve of the index).
+pub fn write_curve_line<W: Write>(mut w: W, first: bool, line: &str) -> io::Result<()> {
+    w.write_all(if first { b"\n" } else { b",\n" })?;
+    w.write_all(line.as_bytes())
+}
+
+/// The index's closing.
+pub fn write_index_footer<W: Write>(mut w: W) -> io::Result<()> {
+    w.write_all(b"\n]}\n")
 }
 
 #[cfg(test)]

@@ -1,29 +1,29 @@
-//! `coupler-atlas generate [SPEC] --out DIR [--jobs N] [--dry-run]`
+//! `coupler-atlas generate [SPEC] [--out DIR] [--jobs N] [--dry-run] [--shard K/N] …` and
+//! `coupler-atlas merge [--spec SPEC] --out DIR SHARD_DIR…`
 
 use super::UsageError;
 use anyhow::{Context, Result};
-use coupler_atlas::{DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec, generate};
+use coupler_atlas::generate::{self, GenerateError, Job, NoPages, Renderer, Shard};
+use coupler_atlas::render::PageFormat;
+use coupler_atlas::render::pages::{PageOptions, PageRenderer};
+use coupler_atlas::{DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 /// Over this many curves, `generate` asks for `--yes` (a typo in a step is the usual cause).
 const CONFIRM_OVER: u64 = 5_000_000;
 
+/// What makes the output: the spec and the rendering flags. `merge` takes the same, and
+/// refuses shards made with anything else.
 #[derive(clap::Args, Debug)]
-pub struct Args {
-    /// Atlas spec (TOML). Default: the built-in atlas-spec/hrones-nelson.toml.
-    spec: Option<PathBuf>,
-    /// Output folder.
-    #[arg(long, default_value = "output")]
-    out: PathBuf,
-    /// Worker threads (default: all cores).
-    #[arg(long, short = 'j')]
-    jobs: Option<usize>,
-    /// Print the plan (linkages, curves, pages) and do no work.
+pub struct JobArgs {
+    /// Output folder. Default: output/<atlas name>.
     #[arg(long)]
-    dry_run: bool,
+    out: Option<PathBuf>,
     /// Index only: do not render pages.
     #[arg(long)]
     no_pages: bool,
@@ -36,6 +36,26 @@ pub struct Args {
     /// Page size: tabloid, letter, a4, a3, optionally -landscape (default: the spec's).
     #[arg(long)]
     page_size: Option<String>,
+    /// Write into a folder that holds files coupler-atlas did not write (none of them is deleted).
+    #[arg(long)]
+    force: bool,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Atlas spec (TOML). Default: the built-in atlas-spec/hrones-nelson.toml.
+    spec: Option<PathBuf>,
+    #[command(flatten)]
+    job: JobArgs,
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j')]
+    jobs: Option<usize>,
+    /// Print the plan (linkages, curves, pages) and do no work.
+    #[arg(long)]
+    dry_run: bool,
+    /// Compute only shard K of N (chunks c with c mod N = K − 1); combine with `merge`.
+    #[arg(long, value_parser = parse_shard)]
+    shard: Option<Shard>,
     /// Run even if the spec enumerates more than 5,000,000 curves.
     #[arg(long)]
     yes: bool,
@@ -44,8 +64,25 @@ pub struct Args {
     quiet: bool,
 }
 
-pub fn run(args: Args) -> Result<ExitCode> {
-    let (text, source) = match &args.spec {
+#[derive(clap::Args, Debug)]
+pub struct MergeArgs {
+    /// The atlas spec the shards were made from (default: the built-in one).
+    #[arg(long)]
+    spec: Option<PathBuf>,
+    #[command(flatten)]
+    job: JobArgs,
+    /// Shard output folders (from `generate --shard K/N`), in any order.
+    #[arg(required = true)]
+    shards: Vec<PathBuf>,
+}
+
+fn parse_shard(s: &str) -> Result<Shard, String> {
+    s.parse()
+}
+
+/// The validated job and its renderer, from the flags.
+fn plan(spec: &Option<PathBuf>, args: &JobArgs, jobs: usize) -> Result<(Job, Box<dyn Renderer>)> {
+    let (text, source) = match spec {
         None => (
             DEFAULT_SPEC_TEXT.to_string(),
             DEFAULT_SPEC_SOURCE.to_string(),
@@ -57,6 +94,65 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ),
     };
     let spec = Spec::parse(&text, &source)?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("output").join(&spec.name));
+    if out.exists() && !out.is_dir() {
+        return Err(UsageError(format!(
+            "--out {} exists and is not a folder",
+            out.display()
+        ))
+        .into());
+    }
+    let mut job = Job::new(spec, source, out, jobs);
+    job.force = args.force;
+    let renderer: Box<dyn Renderer> = if args.no_pages {
+        Box::new(NoPages)
+    } else {
+        Box::new(page_renderer(&job.spec, args)?)
+    };
+    Ok((job, renderer))
+}
+
+/// The page renderer from the spec's `[pages]` and the page flags.
+fn page_renderer(spec: &Spec, args: &JobArgs) -> Result<PageRenderer> {
+    let mut opts =
+        PageOptions::from_spec(spec).map_err(|e| UsageError(format!("page settings: {e}")))?;
+    let mut formats = Vec::new();
+    for f in &args.format {
+        let f: PageFormat = f
+            .parse()
+            .map_err(|e| UsageError(format!("--format: {e}")))?;
+        if !formats.contains(&f) {
+            formats.push(f);
+        }
+    }
+    opts.formats = formats;
+    if let Some(dpi) = args.dpi {
+        opts.setup.dpi = dpi;
+    }
+    if let Some(size) = &args.page_size {
+        opts.setup.size = size
+            .parse()
+            .map_err(|e| UsageError(format!("--page-size: {e}")))?;
+    }
+    opts.setup
+        .validate()
+        .map_err(|e| UsageError(format!("page settings: {e}")))?;
+    Ok(PageRenderer::new(opts))
+}
+
+/// Maps library errors in the user's input to exit code 2.
+fn classify(e: GenerateError) -> anyhow::Error {
+    if e.is_user_error() {
+        UsageError(e.to_string()).into()
+    } else {
+        e.into()
+    }
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
     let jobs = match args.jobs {
         Some(0) => return Err(UsageError("--jobs must be at least 1".into()).into()),
         Some(n) => n,
@@ -64,39 +160,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .map(|n| n.get())
             .unwrap_or(1),
     };
-    if args.out.exists() && !args.out.is_dir() {
-        return Err(UsageError(format!(
-            "--out {} exists and is not a folder",
-            args.out.display()
-        ))
-        .into());
-    }
-    let mut job = generate::Job::new(spec, source, args.out.clone(), jobs);
-    if !args.no_pages {
-        let mut opts = coupler_atlas::render::pages::PageOptions::from_spec(&job.spec)
-            .map_err(|e| UsageError(format!("page settings: {e}")))?;
-        let mut formats = Vec::new();
-        for f in &args.format {
-            let f: coupler_atlas::render::PageFormat = f
-                .parse()
-                .map_err(|e| UsageError(format!("--format: {e}")))?;
-            if !formats.contains(&f) {
-                formats.push(f);
-            }
-        }
-        opts.formats = formats;
-        if let Some(dpi) = args.dpi {
-            opts.setup.dpi = dpi;
-        }
-        if let Some(size) = &args.page_size {
-            opts.setup.size = size
-                .parse()
-                .map_err(|e| UsageError(format!("--page-size: {e}")))?;
-        }
-        opts.setup
-            .validate()
-            .map_err(|e| UsageError(format!("page settings: {e}")))?;
-        job.pages = Some(opts);
+    let (mut job, renderer) = plan(&args.spec, &args.job, jobs)?;
+    if let Some(shard) = args.shard {
+        job.shard = shard;
     }
     if args.dry_run {
         println!("{}", job.describe());
@@ -113,10 +179,25 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
         .into());
     }
+    let interrupt = Arc::new(AtomicBool::new(false));
+    {
+        let flag = interrupt.clone();
+        // If a handler cannot be installed (e.g. one already is), SIGINT just kills the
+        // run, which is safe too: every file is renamed into place only when complete.
+        let _ = ctrlc::set_handler(move || {
+            if flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!(
+                "\nstopping after the groups in progress (press Ctrl-C again to stop at once)…"
+            );
+        });
+    }
+    let total = job.curves();
     let bar = if args.quiet {
         ProgressBar::hidden()
     } else {
-        let bar = ProgressBar::with_draw_target(Some(job.curves()), ProgressDrawTarget::stderr());
+        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
         bar.set_style(
             ProgressStyle::with_template(
                 "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} curves ({per_sec}, eta {eta})",
@@ -126,20 +207,73 @@ pub fn run(args: Args) -> Result<ExitCode> {
         bar
     };
     let start = Instant::now();
-    let report = generate::run(&job, &|n| bar.inc(n))
-        .with_context(|| format!("generating {}", job.spec.name))?;
+    let result = generate::run(&job, renderer.as_ref(), &|n| bar.inc(n), &interrupt);
     bar.finish_and_clear();
+    let report = match result {
+        Ok(r) => r,
+        Err(e @ GenerateError::Interrupted { .. }) => {
+            eprintln!("{e}");
+            return Ok(ExitCode::from(130));
+        }
+        Err(e) => {
+            return Err(classify(e)).with_context(|| {
+                format!("generating {} into {}", job.spec.name, job.out.display())
+            });
+        }
+    };
     let s = &report.summary;
     let skipped: u64 = s.skipped.values().sum();
+    let reused = if report.reused_chunks > 0 {
+        format!(
+            ", {} of {} chunks reused from an earlier run",
+            report.reused_chunks, report.total_chunks
+        )
+    } else {
+        String::new()
+    };
+    match &report.index_path {
+        Some(index) => eprintln!(
+            "{}: {} curves of {} linkages ({} combinations, {} skipped as not strict crank-rockers), {} pages, in {:.2} s{reused}; index: {}",
+            job.spec.name,
+            s.curves,
+            s.linkages,
+            s.combinations,
+            skipped,
+            s.pages,
+            start.elapsed().as_secs_f64(),
+            index.display()
+        ),
+        None => eprintln!(
+            "{}: shard {}/{} complete in {} ({:.2} s{reused}); combine the shards with: coupler-atlas merge [--spec SPEC] --out DIR SHARD_DIR…",
+            job.spec.name,
+            job.shard.index,
+            job.shard.count,
+            job.out.display(),
+            start.elapsed().as_secs_f64()
+        ),
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+pub fn merge(args: MergeArgs) -> Result<ExitCode> {
+    let (job, renderer) = plan(&args.spec, &args.job, 1)?;
+    for d in &args.shards {
+        if !d.is_dir() {
+            return Err(UsageError(format!(
+                "shard folder {} does not exist or is not a folder",
+                d.display()
+            ))
+            .into());
+        }
+    }
+    let index = generate::merge(&job, renderer.as_ref(), &args.shards)
+        .map_err(classify)
+        .with_context(|| format!("merging into {}", job.out.display()))?;
     eprintln!(
-        "{}: {} curves of {} linkages ({} combinations, {} skipped as not strict crank-rockers) in {:.2} s; index: {}",
+        "{}: merged {} shard folder(s); index: {}",
         job.spec.name,
-        s.curves,
-        s.linkages,
-        s.combinations,
-        skipped,
-        start.elapsed().as_secs_f64(),
-        report.index_path.display()
+        args.shards.len(),
+        index.display()
     );
     Ok(ExitCode::SUCCESS)
 }

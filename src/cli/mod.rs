@@ -21,6 +21,8 @@ struct Cli {
 enum Command {
     /// Generate an atlas (index and pages) from a spec; the built-in Hrones–Nelson atlas by default.
     Generate(generate::Args),
+    /// Combine the output folders of `generate --shard K/N` runs into one atlas.
+    Merge(generate::MergeArgs),
     /// Sample the coupler curve of any single four-bar.
     Curve(curve::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
@@ -45,6 +47,7 @@ pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Generate(args) => generate::run(args),
+        Command::Merge(args) => generate::merge(args),
         Command::Curve(args) => curve::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Diff(args) => diff::run(args),
@@ -80,5 +83,16 @@ pub fn parse_length(s: &str) -> Result<f64, String> {
         Ok(x)
     } else {
         Err(format!("a length must be > 0, got {s}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+
+    #[test]
+    fn command_line_definition_is_consistent() {
+        Cli::command().debug_assert();
     }
 }

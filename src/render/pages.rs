@@ -1,16 +1,18 @@
-//! Rendering an atlas's pages to files: the per-page job that `generate` calls from its
-//! workers. Streaming: each worker borrows one raster buffer from a [`BufferPool`] for one
-//! page at a time and writes the page as soon as it is drawn, so memory stays bounded by
-//! the number of workers whatever the atlas size. Every page is a pure function of its
-//! linkage, points and settings, so files are byte-identical for any thread count.
+//! Rendering an atlas's pages: the per-page job behind `generate`'s [`Renderer`] hook.
+//! Streaming: each worker borrows one raster buffer from a [`BufferPool`] for one page at
+//! a time and hands the encoded page to the pipeline, which writes it at once (per group),
+//! so memory stays bounded by the number of workers whatever the atlas size. Every page
+//! is a pure function of its linkage, points and settings, so files are byte-identical
+//! for any thread count.
 
 use super::{PageFormat, RasterPage, SvgPage, draw};
+use crate::generate::{Artifact, GenerateError, Group, Job, Renderer};
+use crate::index::{IndexCurve, PageRef};
 use crate::layout::{
     ContentsEntry, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page, layout_contents,
     layout_page,
 };
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -73,24 +75,9 @@ pub enum PageError {
         #[source]
         source: LayoutError,
     },
-    /// Writing a file failed.
-    #[error("cannot write {}: {source}", path.display())]
-    Io {
-        /// File.
-        path: PathBuf,
-        /// Cause.
-        #[source]
-        source: std::io::Error,
-    },
     /// PNG encoding failed.
-    #[error("cannot encode {}: {source}", path.display())]
-    Png {
-        /// File.
-        path: PathBuf,
-        /// Cause.
-        #[source]
-        source: png::EncodingError,
-    },
+    #[error("cannot encode PNG: {0}")]
+    Png(#[source] png::EncodingError),
     /// The raster size is zero.
     #[error("page size {0}×{1} px is empty")]
     EmptyRaster(u32, u32),
@@ -138,7 +125,8 @@ pub struct PageTimings {
     pub draw: AtomicU64,
     /// PNG encoding.
     pub encode: AtomicU64,
-    /// Writing files.
+    /// Writing files (unused by [`PageRenderer`]: `generate` writes and hashes the
+    /// files it returns).
     pub write: AtomicU64,
     /// Pages done.
     pub pages: AtomicU64,
@@ -167,136 +155,228 @@ impl PageTimings {
     }
 }
 
-/// Where one curve was drawn: page file (relative to the pages folder's parent, i.e.
-/// `pages/NAME.png`) and bounding box in page pixels.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CurveOnPage {
-    /// `pages/STEM-0001.png` (the first format's file).
-    pub file: String,
-    /// `[x0, y0, x1, y1]` in pixels at the page DPI (x1, y1 exclusive).
-    pub bbox_px: [u32; 4],
-}
-
-/// Writes `bytes` to `dir/name` (whole file at once; a page is small).
-fn write_file(dir: &Path, name: &str, bytes: &[u8]) -> Result<(), PageError> {
-    let path = dir.join(name);
-    std::fs::write(&path, bytes).map_err(|source| PageError::Io { path, source })
-}
-
-/// Draws one display list in every format and writes the files into `dir`.
+/// Renders one display list in every format: `(format, bytes)` per format.
 fn emit(
     display: &DisplayList,
     opts: &PageOptions,
-    names: &[(PageFormat, String)],
-    dir: &Path,
     pool: &BufferPool,
     timings: &PageTimings,
     mut t: Instant,
-) -> Result<(), PageError> {
-    for (format, name) in names {
+) -> Result<Vec<(PageFormat, Vec<u8>)>, PageError> {
+    let mut out = Vec::with_capacity(opts.formats.len());
+    for format in &opts.formats {
         match format {
             PageFormat::Png => {
                 let (w, h) = opts.setup.size_px();
                 let mut buf = pool.take(w, h, opts.setup.dpi)?;
                 draw(display, &mut buf);
                 t = PageTimings::add(&timings.draw, t);
-                let mut bytes = Vec::with_capacity(1 << 20);
+                let mut bytes = Vec::with_capacity(1 << 19);
                 let r = buf.finish_png(&mut bytes);
                 pool.give(buf);
-                r.map_err(|source| PageError::Png {
-                    path: dir.join(name),
-                    source,
-                })?;
+                r.map_err(PageError::Png)?;
                 t = PageTimings::add(&timings.encode, t);
-                write_file(dir, name, &bytes)?;
-                t = PageTimings::add(&timings.write, t);
+                out.push((*format, bytes));
             }
             PageFormat::Svg => {
                 let mut svg = SvgPage::new(display.width, display.height);
                 draw(display, &mut svg);
-                let text = svg.finish();
+                out.push((*format, svg.finish().into_bytes()));
                 t = PageTimings::add(&timings.draw, t);
-                write_file(dir, name, text.as_bytes())?;
-                t = PageTimings::add(&timings.write, t);
             }
-        }
-    }
-    Ok(())
-}
-
-/// Renders the pages of one linkage (its points split into pages of
-/// `curves_per_page`, numbered from `first_page` of `page_count`) into `dir`, and
-/// returns where each point's curve went, in point order.
-#[allow(clippy::too_many_arguments)]
-pub fn render_linkage_pages(
-    opts: &PageOptions,
-    dir: &Path,
-    pool: &BufferPool,
-    timings: &PageTimings,
-    linkage: FourBar,
-    circuit: Circuit,
-    points: &[CouplerPoint],
-    first_page: u64,
-    page_count: u64,
-) -> Result<Vec<CurveOnPage>, PageError> {
-    let per = opts.setup.curves_per_page.max(1);
-    let mut out = Vec::with_capacity(points.len());
-    for (k, chunk) in points.chunks(per).enumerate() {
-        let number = first_page + k as u64;
-        let t0 = Instant::now();
-        let page = LinkagePage {
-            linkage,
-            circuit,
-            points: chunk.to_vec(),
-            grid: points.to_vec(),
-            page_number: number as usize,
-            page_count: page_count as usize,
-        };
-        let err = |source| PageError::Layout {
-            page: number,
-            source,
-        };
-        let geometry = compute_page(&page, &opts.setup).map_err(err)?;
-        let t = PageTimings::add(&timings.compute, t0);
-        let layout = layout_page(&page, &geometry, &opts.setup);
-        let t = PageTimings::add(&timings.layout, t);
-        let names: Vec<(PageFormat, String)> = opts
-            .formats
-            .iter()
-            .map(|f| (*f, opts.page_file(number, *f)))
-            .collect();
-        emit(&layout.display, opts, &names, dir, pool, timings, t)?;
-        timings.pages.fetch_add(1, Ordering::Relaxed);
-        let first = names.first().map(|n| n.1.clone()).unwrap_or_default();
-        for c in &layout.curves {
-            out.push(CurveOnPage {
-                file: format!("pages/{first}"),
-                bbox_px: c.bbox_px(opts.setup.dpi),
-            });
         }
     }
     Ok(out)
 }
 
-/// Renders the contents pages into `dir`; returns their file names (first format).
+/// One rendered page: its files (name relative to the pages folder, bytes) and where
+/// each of its curves is, in pixels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderedPage {
+    /// `(file name, bytes)`, one per format, in the order of `PageOptions::formats`.
+    pub files: Vec<(String, Vec<u8>)>,
+    /// Each curve's box `[x0, y0, x1, y1]` in pixels at the page DPI, in point order.
+    pub bbox_px: Vec<[u32; 4]>,
+}
+
+/// Renders atlas page `number` of `page_count`: `points` of `linkage` (whose whole grid is
+/// `grid`). Pure apart from the shared buffer pool and timing counters.
+#[allow(clippy::too_many_arguments)]
+pub fn render_page(
+    opts: &PageOptions,
+    pool: &BufferPool,
+    timings: &PageTimings,
+    linkage: FourBar,
+    circuit: Circuit,
+    points: &[CouplerPoint],
+    grid: &[CouplerPoint],
+    number: u64,
+    page_count: u64,
+) -> Result<RenderedPage, PageError> {
+    let t0 = Instant::now();
+    let page = LinkagePage {
+        linkage,
+        circuit,
+        points: points.to_vec(),
+        grid: grid.to_vec(),
+        page_number: number as usize,
+        page_count: page_count as usize,
+    };
+    let geometry = compute_page(&page, &opts.setup).map_err(|source| PageError::Layout {
+        page: number,
+        source,
+    })?;
+    let t = PageTimings::add(&timings.compute, t0);
+    let layout = layout_page(&page, &geometry, &opts.setup);
+    let t = PageTimings::add(&timings.layout, t);
+    let files = emit(&layout.display, opts, pool, timings, t)?
+        .into_iter()
+        .map(|(f, bytes)| (opts.page_file(number, f), bytes))
+        .collect();
+    timings.pages.fetch_add(1, Ordering::Relaxed);
+    Ok(RenderedPage {
+        files,
+        bbox_px: layout
+            .curves
+            .iter()
+            .map(|c| c.bbox_px(opts.setup.dpi))
+            .collect(),
+    })
+}
+
+/// Renders the contents pages: `(file name, bytes)` per page and format.
 pub fn render_contents(
     opts: &PageOptions,
-    dir: &Path,
     pool: &BufferPool,
     entries: &[ContentsEntry],
-) -> Result<Vec<String>, PageError> {
+) -> Result<Vec<(String, Vec<u8>)>, PageError> {
     let timings = PageTimings::default();
     let mut files = Vec::new();
     for (i, display) in layout_contents(entries, &opts.setup).iter().enumerate() {
-        let names: Vec<(PageFormat, String)> = opts
-            .formats
-            .iter()
-            .map(|f| (*f, opts.contents_file(i + 1, *f)))
-            .collect();
-        emit(display, opts, &names, dir, pool, &timings, Instant::now())?;
-        if let Some(n) = names.first() {
-            files.push(n.1.clone());
+        for (f, bytes) in emit(display, opts, pool, &timings, Instant::now())? {
+            files.push((opts.contents_file(i + 1, f), bytes));
         }
     }
     Ok(files)
+}
+
+/// The page renderer `generate` uses: implements its [`Renderer`] hook. Files go to
+/// `pages/` in the atlas folder; each curve's index record gets its page file (the first
+/// format's) and box in pixels.
+pub struct PageRenderer {
+    /// Settings.
+    pub opts: PageOptions,
+    pool: BufferPool,
+    /// Time spent per phase, summed over workers.
+    pub timings: PageTimings,
+}
+
+impl PageRenderer {
+    /// A renderer with an empty buffer pool.
+    pub fn new(opts: PageOptions) -> PageRenderer {
+        PageRenderer {
+            opts,
+            pool: BufferPool::new(),
+            timings: PageTimings::default(),
+        }
+    }
+}
+
+fn render_error(what: String, e: PageError) -> GenerateError {
+    GenerateError::Render {
+        what,
+        message: e.to_string(),
+    }
+}
+
+impl Renderer for PageRenderer {
+    fn render_group(
+        &self,
+        job: &Job,
+        group: &Group,
+        curves: &mut [IndexCurve],
+    ) -> Result<Vec<Artifact>, GenerateError> {
+        let per = self.opts.setup.curves_per_page.max(1);
+        let page_count = job.pages();
+        let mut out = Vec::new();
+        for (k, chunk) in group.points.chunks(per).enumerate() {
+            let number = group.first_page + k as u64;
+            let page = render_page(
+                &self.opts,
+                &self.pool,
+                &self.timings,
+                group.linkage,
+                group.circuit,
+                chunk,
+                &group.points,
+                number,
+                page_count,
+            )
+            .map_err(|e| render_error(format!("page {number}"), e))?;
+            let first = page
+                .files
+                .first()
+                .map(|f| format!("pages/{}", f.0))
+                .unwrap_or_default();
+            for (i, b) in page.bbox_px.iter().enumerate() {
+                if let Some(c) = curves.get_mut(k * per + i) {
+                    c.page = Some(PageRef {
+                        file: first.clone(),
+                        bbox_px: b.map(f64::from),
+                    });
+                }
+            }
+            out.extend(page.files.into_iter().map(|(name, bytes)| Artifact {
+                name: format!("pages/{name}"),
+                bytes,
+            }));
+        }
+        Ok(out)
+    }
+
+    fn render_atlas(&self, job: &Job) -> Result<Vec<Artifact>, GenerateError> {
+        let per = self.opts.setup.curves_per_page.max(1) as u64;
+        let entries: Vec<ContentsEntry> = job
+            .groups()
+            .iter()
+            .map(|g| ContentsEntry {
+                linkage: g.linkage,
+                circuit: g.circuit,
+                curves: g.points.len(),
+                first_page: g.first_page as usize,
+                last_page: (g.first_page + (g.points.len() as u64).div_ceil(per)).saturating_sub(1)
+                    as usize,
+            })
+            .collect();
+        let files = render_contents(&self.opts, &self.pool, &entries)
+            .map_err(|e| render_error("contents".into(), e))?;
+        Ok(files
+            .into_iter()
+            .map(|(name, bytes)| Artifact {
+                name: format!("pages/{name}"),
+                bytes,
+            })
+            .collect())
+    }
+
+    fn pages(&self, job: &Job) -> u64 {
+        job.pages()
+    }
+
+    fn settings(&self) -> String {
+        let s = &self.opts.setup;
+        format!(
+            "pages {} formats {:?} {} dpi {} margin {} pt dash {}°×{} tolerance {} px curves/page {} stem {}",
+            env!("CARGO_PKG_VERSION"),
+            self.opts.formats,
+            s.dpi,
+            s.size,
+            s.margin_pt,
+            s.dash.step_deg,
+            s.dash.fraction,
+            s.chord_tolerance_px,
+            s.curves_per_page,
+            self.opts.stem
+        )
+    }
 }
