@@ -294,6 +294,14 @@ pub enum Primitive {
         /// Stroke width.
         width: f64,
     },
+    /// An axis-aligned rectangle `[x0, y0, x1, y1]` outlined with a stroke of `width`
+    /// centred on its edges (mitred corners).
+    Rect {
+        /// Corners.
+        rect: [f64; 4],
+        /// Stroke width.
+        width: f64,
+    },
     /// A filled polygon (closed implicitly), non-zero rule.
     Polygon {
         /// Vertices.
@@ -364,11 +372,7 @@ impl DisplayList {
     }
 
     fn rect(&mut self, r: [f64; 4], width: f64) {
-        let [x0, y0, x1, y1] = r;
-        self.line(
-            vec![[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]],
-            width,
-        );
+        self.items.push(Primitive::Rect { rect: r, width });
     }
 }
 

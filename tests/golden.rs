@@ -308,6 +308,35 @@ fn filled_disc_and_text_draw_ink() {
 }
 
 #[test]
+fn rectangle_frame_has_exact_area_coverage() {
+    // A frame [2, 2, 10, 6] with a 1-px stroke: edges on pixel centres ± 0.5 → the band
+    // covers whole pixels exactly (1.5..2.5 covers half of pixel 1 and half of pixel 2).
+    let mut p = canvas(12, 8);
+    p.stroke_rect([2.5, 2.5, 9.5, 5.5], 1.0);
+    let r = rows(&p);
+    for x in 2..=9 {
+        assert_eq!((r[2][x], r[5][x]), (255, 255), "top/bottom x = {x}");
+        assert_eq!((r[1][x], r[6][x]), (0, 0), "x = {x}");
+    }
+    for x in 3..=8 {
+        assert_eq!((r[3][x], r[4][x]), (0, 0), "interior x = {x}");
+    }
+    for y in 2..=5 {
+        assert_eq!((r[y][2], r[y][9]), (255, 255), "sides y = {y}");
+        assert_eq!((r[y][1], r[y][10]), (0, 0), "outside y = {y}");
+    }
+    // Interior untouched.
+    assert_eq!((r[3][4], r[4][6]), (0, 0));
+    // Half-pixel band: 50 % coverage, exactly (exact area, not supersampled).
+    let mut q = canvas(6, 6);
+    q.stroke_rect([1.0, 1.0, 5.0, 5.0], 1.0);
+    let rq = rows(&q);
+    assert_eq!(rq[0][2], 128);
+    assert_eq!(rq[1][2], 128);
+    assert_eq!(rq[0][0], 64); // a corner pixel: a quarter of its area
+}
+
+#[test]
 fn svg_keeps_exact_coordinates() {
     let mut s = SvgPage::new(100.0, 50.0);
     let pts: [PagePoint; 3] = [[1.25, 2.5], [3.125, 4.0], [10.0, 20.0]];

@@ -30,6 +30,22 @@ pub trait Canvas {
             self.stroke_polyline(l, width);
         }
     }
+    /// Outlines an axis-aligned rectangle `[x0, y0, x1, y1]` with a stroke of `width`
+    /// centred on its edges, mitred corners.
+    fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
+        let [x0, y0, x1, y1] = rect;
+        let h = 0.5 * width;
+        // Four bands as filled polygons: exact mitred corners.
+        for band in [
+            [x0 - h, y0 - h, x1 + h, y0 + h],
+            [x0 - h, y1 - h, x1 + h, y1 + h],
+            [x0 - h, y0 + h, x0 + h, y1 - h],
+            [x1 - h, y0 + h, x1 + h, y1 - h],
+        ] {
+            let [a, b, c, d] = band;
+            self.fill_polygon(&[[a, b], [c, b], [c, d], [a, d]]);
+        }
+    }
     /// Fills a closed polygon (non-zero rule).
     fn fill_polygon(&mut self, points: &[PagePoint]);
     /// A circle outline of `width` points, or a filled disc when `width` is `None`.
@@ -44,6 +60,7 @@ pub fn draw(display: &DisplayList, canvas: &mut impl Canvas) {
         match item {
             Primitive::Polyline { points, width } => canvas.stroke_polyline(points, *width),
             Primitive::Polylines { lines, width } => canvas.stroke_polylines(lines, *width),
+            Primitive::Rect { rect, width } => canvas.stroke_rect(*rect, *width),
             Primitive::Polygon { points } => canvas.fill_polygon(points),
             Primitive::Circle {
                 center,

@@ -77,6 +77,38 @@ impl RasterPage {
         )
     }
 
+    /// Fills an axis-aligned rectangle given in pixels with exact area coverage (each
+    /// pixel gets the fraction of its area inside), composited as ink. A fast path for
+    /// frames and bands, which a general anti-aliasing scan handles row by row.
+    pub fn fill_rect_px(&mut self, x0: f64, y0: f64, x1: f64, y1: f64) {
+        let (w, h) = (self.width() as f64, self.height() as f64);
+        let (x0, x1) = (x0.clamp(0.0, w), x1.clamp(0.0, w));
+        let (y0, y1) = (y0.clamp(0.0, h), y1.clamp(0.0, h));
+        if x1 <= x0 || y1 <= y0 {
+            return;
+        }
+        let stride = self.width() as usize;
+        let cover = |lo: f64, hi: f64, i: usize| -> f64 {
+            let (a, b) = (i as f64, i as f64 + 1.0);
+            (hi.min(b) - lo.max(a)).max(0.0)
+        };
+        let (i0, i1) = (x0.floor() as usize, (x1.ceil() as usize).min(stride));
+        let (j0, j1) = (
+            y0.floor() as usize,
+            (y1.ceil() as usize).min(self.height() as usize),
+        );
+        let data = self.mask.data_mut();
+        for j in j0..j1 {
+            let cy = cover(y0, y1, j);
+            let row = &mut data[j * stride..(j + 1) * stride];
+            for (i, px) in row.iter_mut().enumerate().take(i1).skip(i0) {
+                let c = cover(x0, x1, i) * cy;
+                let ink = f64::from(*px);
+                *px = (ink + (255.0 - ink) * c + 0.5).min(255.0) as u8;
+            }
+        }
+    }
+
     fn fill(&mut self, path: &tiny_skia::Path) {
         self.mask
             .fill_path(path, FillRule::Winding, true, Transform::identity());
@@ -182,6 +214,16 @@ impl Canvas for RasterPage {
         if let Some(outline) = path.stroke(&stroke, 1.0) {
             self.fill(&outline);
         }
+    }
+
+    fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
+        let k = self.px_per_pt;
+        let [x0, y0, x1, y1] = rect.map(|v| v * k);
+        let h = 0.5 * width * k;
+        self.fill_rect_px(x0 - h, y0 - h, x1 + h, y0 + h);
+        self.fill_rect_px(x0 - h, y1 - h, x1 + h, y1 + h);
+        self.fill_rect_px(x0 - h, y0 + h, x0 + h, y1 - h);
+        self.fill_rect_px(x1 - h, y0 + h, x1 + h, y1 - h);
     }
 
     fn fill_polygon(&mut self, points: &[PagePoint]) {

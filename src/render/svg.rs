@@ -101,6 +101,19 @@ impl Canvas for SvgPage {
         }
     }
 
+    fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
+        let [x0, y0, x1, y1] = rect;
+        let _ = writeln!(
+            self.body,
+            "<rect x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#000\" stroke-width=\"{}\" stroke-linejoin=\"miter\"/>",
+            num(x0),
+            num(y0),
+            num(x1 - x0),
+            num(y1 - y0),
+            num(width)
+        );
+    }
+
     fn fill_polygon(&mut self, points: &[PagePoint]) {
         if points.len() < 3 {
             return;
