@@ -1165,7 +1165,7 @@ pub struct ContentsEntry {
 }
 
 /// Column offsets of the contents table, points.
-const CONTENTS_COLUMNS: [f64; 6] = [0.0, 25.0, 50.0, 75.0, 110.0, 135.0];
+const CONTENTS_COLUMNS: [f64; 6] = [0.0, 25.0, 50.0, 75.0, 112.0, 145.0];
 
 /// Lays out the contents: a table of linkages with their page ranges, in as many columns
 /// and pages as needed (returns at least one page).
@@ -1175,7 +1175,7 @@ pub fn layout_contents(entries: &[ContentsEntry], setup: &PageSetup) -> Vec<Disp
     let row = 11.0;
     let top = m + 50.0;
     let rows = (((h - m - 20.0) - top) / row).floor().max(1.0) as usize;
-    let col_w = 180.0;
+    let col_w = 195.0;
     let cols = (((w - 2.0 * m) / col_w).floor() as usize).max(1);
     let per_page = rows * cols;
     let n_pages = entries.len().div_ceil(per_page).max(1);
@@ -1339,6 +1339,52 @@ mod tests {
             })
             .sum();
         assert_eq!(regular, 34);
+    }
+
+    /// The coupler point that sits on the instant centre at θ0 has a cusp there (its
+    /// velocity vanishes). Its page still shows all 36 dashes, each a stroke or a dot.
+    #[test]
+    fn real_cusp_keeps_every_dash() {
+        let l = FourBar::new(3.0, 2.0, 3.0).unwrap();
+        let theta0 = 33.0; // the middle of dash 3 (30°–36°)
+        let pose = Pose::solve(&l, Circuit::Open, &CrankAngle::from_degrees(theta0)).unwrap();
+        // Instant centre: O2 + s·Pa = O4 + t·e4 (lines O2Pa and O4Pb).
+        let (a, e4) = (pose.crank_pin.coords, pose.rocker_dir);
+        let det = a.x * (-e4.y) - a.y * (-e4.x);
+        let s_ = (l.ground * (-e4.y)) / det;
+        let ic = a * s_;
+        let d = ic - pose.crank_pin.coords;
+        let e = pose.coupler_dir;
+        let p = CouplerPoint::new(d.dot(&e), -d.x * e.y + d.y * e.x);
+        assert!(
+            pose.velocity(p).norm() < 1e-9,
+            "not a cusp: {}",
+            pose.velocity(p).norm()
+        );
+        let mut pg = page();
+        pg.points = vec![p];
+        let setup = PageSetup::default();
+        let geo = compute_page(&pg, &setup).unwrap();
+        let cusp = &geo.curves[0].dashes[3];
+        assert!(cusp.length() < 0.2 * geo.curves[0].dashes[20].length());
+        let lay = layout_page(&pg, &geo, &setup);
+        let strokes: usize = lay
+            .display
+            .items
+            .iter()
+            .map(|i| match i {
+                Primitive::Polylines { lines, .. } => lines.len(),
+                _ => 0,
+            })
+            .sum();
+        let dots = lay
+            .display
+            .items
+            .iter()
+            .filter(|i| matches!(i, Primitive::Circle { width: None, radius, .. } if *radius < style::START_DOT_RADIUS))
+            .count();
+        // 1 bold θ = 0 dash + the others as strokes or dots.
+        assert_eq!(1 + strokes + dots, 36, "strokes {strokes}, dots {dots}");
     }
 
     #[test]
