@@ -212,12 +212,12 @@ impl Default for PageSetup {
 }
 
 impl PageSetup {
-    /// Checks ranges (DPI 10–2400, margin, curves per page ≥ 1, dash pattern).
+    /// Checks ranges (DPI 10–1200: a 1200 dpi tabloid page is a 269 MB buffer per worker; margin, curves per page ≥ 1, dash pattern).
     pub fn validate(&self) -> Result<(), LayoutError> {
         let (w, h) = self.size.size_pt();
-        if !(self.dpi.is_finite() && (10.0..=2400.0).contains(&self.dpi)) {
+        if !(self.dpi.is_finite() && (10.0..=1200.0).contains(&self.dpi)) {
             return Err(LayoutError::BadSetting(format!(
-                "dpi {} not in 10..=2400",
+                "dpi {} not in 10..=1200",
                 self.dpi
             )));
         }
@@ -855,6 +855,8 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
 
     // Linkage at θ = 0.
     let mut link_segments: Vec<(PagePoint, PagePoint)> = Vec::new();
+    // Boxes of text already on the frame (pivot names): curve labels avoid them.
+    let mut taken: Vec<[f64; 4]> = Vec::new();
     if let Some(pose) = drawn_pose(page) {
         let o2 = t.map(0.0, 0.0);
         let o4 = t.map(l.ground, 0.0);
@@ -932,12 +934,15 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
             (pb, text("Pb")),
         ];
         for (p, s) in lbl {
-            dl.text(
-                [p[0] + r + 1.5, p[1] - r - 1.5],
-                style::SMALL_SIZE,
-                Anchor::Start,
-                s,
-            );
+            let pos = [p[0] + r + 1.5, p[1] - r - 1.5];
+            let w = font::text_width(style::SMALL_SIZE, &s);
+            taken.push([
+                pos[0] - 1.0,
+                pos[1] - font::ascent(style::SMALL_SIZE) - 1.0,
+                pos[0] + w + 1.0,
+                pos[1] + font::descent(style::SMALL_SIZE) + 1.0,
+            ]);
+            dl.text(pos, style::SMALL_SIZE, Anchor::Start, s);
         }
     }
     for (a, b) in &link_segments {
@@ -947,7 +952,6 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
 
     // Labels: greedy, each at the candidate beside its own curve covering the least ink
     // and no earlier label.
-    let mut taken: Vec<[f64; 4]> = Vec::new();
     let asc = font::ascent(style::LABEL_SIZE);
     let desc = font::descent(style::LABEL_SIZE);
     for (ci, (dashes, p)) in page_curves.iter().zip(&page.points).enumerate() {
