@@ -628,7 +628,7 @@ impl Occupancy {
     }
 
     fn mark_segment(&mut self, a: PagePoint, b: PagePoint, weight: u32) {
-        let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
         let n = (len / (0.5 * self.cell)).ceil().max(1.0) as usize;
         for s in 0..=n {
             let t = s as f64 / n as f64;
@@ -772,7 +772,7 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
         for (k, (d, pts)) in c.dashes.iter().zip(dashes).enumerate() {
             let len: f64 = pts
                 .windows(2)
-                .map(|s| (s[1][0] - s[0][0]).hypot(s[1][1] - s[0][1]))
+                .map(|s| libm::hypot(s[1][0] - s[0][0], s[1][1] - s[0][1]))
                 .sum();
             let wdt = if k == 0 {
                 style::ZERO_DASH_WIDTH
@@ -865,7 +865,7 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
         let r = style::PIN_RADIUS;
         // Links stop at the pin circles (ink only: nothing is painted white).
         let mut link = |a: PagePoint, b: PagePoint, dl: &mut DisplayList| {
-            let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+            let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
             if len > 2.0 * r {
                 let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
                 let a2 = [a[0] + u[0] * r, a[1] + u[1] * r];
@@ -966,7 +966,7 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
             let b = pts[pts.len() - 1];
             let mid = pts[pts.len() / 2];
             let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-            let len = dx.hypot(dy);
+            let len = libm::hypot(dx, dy);
             let nrm = if len > 1e-9 {
                 [-dy / len, dx / len]
             } else {
