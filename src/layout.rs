@@ -765,7 +765,7 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
         }
         page_curves.push(dashes);
     }
-    for (c, dashes) in geometry.curves.iter().zip(&page_curves) {
+    for ((c, dashes), point) in geometry.curves.iter().zip(&page_curves).zip(&page.points) {
         let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
         // Regular dashes of a curve go out as one primitive (one path, one fill).
         let mut regular: Vec<Vec<PagePoint>> = Vec::with_capacity(dashes.len());
@@ -844,13 +844,10 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
             dl.items.push(Primitive::Polygon { points: tri });
         }
         placements.push(CurvePlacement {
-            point: CouplerPoint::new(0.0, 0.0),
+            point: *point,
             bbox_pt: bbox,
-            label_pt: [0.0; 4],
+            label_pt: [0.0; 4], // set when the label is placed, below
         });
-    }
-    for (pl, p) in placements.iter_mut().zip(&page.points) {
-        pl.point = *p;
     }
 
     // Linkage at θ = 0.
@@ -926,16 +923,9 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
                 occ.mark_point(p, 2);
             }
         }
-        let text = |s: &str| s.to_string();
-        let lbl = [
-            (o2, text("O2")),
-            (o4, text("O4")),
-            (pa, text("Pa")),
-            (pb, text("Pb")),
-        ];
-        for (p, s) in lbl {
+        for (p, s) in [(o2, "O2"), (o4, "O4"), (pa, "Pa"), (pb, "Pb")] {
             let pos = [p[0] + r + 1.5, p[1] - r - 1.5];
-            let w = font::text_width(style::SMALL_SIZE, &s);
+            let w = font::text_width(style::SMALL_SIZE, s);
             taken.push([
                 pos[0] - 1.0,
                 pos[1] - font::ascent(style::SMALL_SIZE) - 1.0,
