@@ -12,9 +12,13 @@
 
 pub mod font;
 pub mod pages;
+#[cfg(feature = "pdf")]
+mod pdf;
 mod raster;
 mod svg;
 
+#[cfg(feature = "pdf")]
+pub use pdf::PdfPage;
 pub use raster::{RasterPage, encode_png};
 pub use svg::SvgPage;
 
@@ -84,6 +88,9 @@ pub enum PageFormat {
     Png,
     /// SVG (vector).
     Svg,
+    /// PDF (vector; built with the `pdf` cargo feature).
+    #[cfg(feature = "pdf")]
+    Pdf,
 }
 
 impl PageFormat {
@@ -92,13 +99,20 @@ impl PageFormat {
         match self {
             PageFormat::Png => "png",
             PageFormat::Svg => "svg",
+            #[cfg(feature = "pdf")]
+            PageFormat::Pdf => "pdf",
         }
     }
 }
 
+#[cfg(feature = "pdf")]
+const FORMATS_MORE: &str = " or pdf";
+#[cfg(not(feature = "pdf"))]
+const FORMATS_MORE: &str = "; pdf needs a build with --features pdf";
+
 /// An unknown page format name.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("unknown page format {0:?} (expected png or svg; pdf is not built in)")]
+#[error("unknown page format {0:?} (expected png, svg{more})", more = FORMATS_MORE)]
 pub struct UnknownFormat(pub String);
 
 impl std::str::FromStr for PageFormat {
@@ -107,6 +121,8 @@ impl std::str::FromStr for PageFormat {
         match s.trim().to_ascii_lowercase().as_str() {
             "png" => Ok(PageFormat::Png),
             "svg" => Ok(PageFormat::Svg),
+            #[cfg(feature = "pdf")]
+            "pdf" => Ok(PageFormat::Pdf),
             _ => Err(UnknownFormat(s.to_string())),
         }
     }

@@ -184,6 +184,13 @@ fn emit(
                 out.push((*format, svg.finish().into_bytes()));
                 t = PageTimings::add(&timings.draw, t);
             }
+            #[cfg(feature = "pdf")]
+            PageFormat::Pdf => {
+                let mut pdf = super::PdfPage::new(display.width, display.height);
+                draw(display, &mut pdf);
+                out.push((*format, pdf.finish()));
+                t = PageTimings::add(&timings.draw, t);
+            }
         }
     }
     Ok(out)
