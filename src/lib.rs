@@ -11,6 +11,7 @@
 //! The pure core ([`FourBar`], [`Pose`], [`PoseTable`], [`Curve`]) does no I/O and holds
 //! no global state; orchestration ([`generate`]) and the command line sit on top.
 
+pub mod classics;
 mod curve;
 mod dash;
 pub mod diff;
@@ -19,11 +20,13 @@ pub mod generate;
 pub mod index;
 pub mod layout;
 mod linkage;
+pub mod methods;
 mod pose;
 pub mod render;
 mod spec;
 
 pub mod reference;
+pub mod trace;
 
 pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
 pub use dash::{

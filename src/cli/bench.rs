@@ -39,12 +39,53 @@ enum Which {
         #[arg(long)]
         out: Option<std::path::PathBuf>,
     },
+    /// Position methods charted: time per curve against max error, and feature accuracy
+    /// against samples per dash (PNG charts, CSV tables, markdown; docs/methods.md).
+    Methods {
+        /// Output folder.
+        #[arg(long, default_value = "docs/methods")]
+        out: std::path::PathBuf,
+        /// Repetitions of each timing (the median is reported).
+        #[arg(long, default_value_t = 15)]
+        reps: usize,
+    },
+    /// Stability sweep: every method near change points, toggles, extreme ratios and far
+    /// coupler points, as a markdown table (also written to `<out>/stability.md`).
+    Stability {
+        /// Output folder for stability.md (none: print only).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
+    /// Adaptive sampling against uniform sampling at equal chord-error tolerance.
+    Adaptive {
+        /// Output folder for adaptive.md (none: print only).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Repetitions of each timing (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        reps: usize,
+    },
+    /// Measured straightness of the classic straight-line linkages (full curves).
+    Classics {
+        /// The explicit-curve spec.
+        #[arg(long, default_value = "atlas-spec/classics.toml")]
+        spec: std::path::PathBuf,
+        /// Output folder for classics.md (none: print only).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.which {
         Which::Core { reps, atlas_reps } => core(reps.max(1), atlas_reps.max(1)),
         Which::Pages { jobs, reps, out } => pages(jobs.max(1), reps.max(1), out),
+        Which::Methods { out, reps } => super::bench_methods::methods(&out, reps.max(1)),
+        Which::Stability { out } => super::bench_methods::stability(out.as_deref()),
+        Which::Adaptive { out, reps } => {
+            super::bench_methods::adaptive(out.as_deref(), reps.max(1))
+        }
+        Which::Classics { spec, out } => super::bench_methods::classics(&spec, out.as_deref()),
     }
 }
 

@@ -30,6 +30,11 @@ pub struct Args {
     /// Output format.
     #[arg(long, default_value = "json", value_parser = ["json", "csv", "table"])]
     format: String,
+    /// `circuit`: one circuit, θ over a full turn (null where it does not assemble);
+    /// `full`: the complete coupler curve of any four-bar, driven across its toggles
+    /// (every branch, changing circuit at each toggle; `--circuit` is ignored).
+    #[arg(long, default_value = "circuit", value_parser = ["circuit", "full"])]
+    trace: String,
 }
 
 fn parse_point(s: &str) -> Result<CouplerPoint, String> {
@@ -76,6 +81,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
     })?;
     let p = args.point;
+    if args.trace == "full" {
+        return super::curve_full::run(&linkage, p, table.step(), &args.format);
+    }
+    let flags = coupler_atlas::methods::CurveFlags::assess(
+        &linkage,
+        circuit,
+        p,
+        &table.angles().iter().map(|a| a.degrees).collect::<Vec<_>>(),
+        &coupler_atlas::methods::FlagTolerances::DEFAULT,
+    );
     let samples: Vec<Sample> = table
         .angles()
         .iter()
@@ -128,7 +143,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 w.write_all(if i == 0 { b"\n" } else { b",\n" })?;
                 serde_json::to_writer(&mut w, s)?;
             }
-            writeln!(w, "\n]}}")?;
+            write!(w, "\n],\"flags\":")?;
+            serde_json::to_writer(&mut w, &flags.flags)?;
+            writeln!(w, ",\"error_bound\":{:e}}}", flags.error_bound)?;
         }
         "csv" => {
             writeln!(w, "theta_deg,x,y,vx,vy,transmission_deg")?;
