@@ -14,13 +14,17 @@
 pub mod classics;
 mod cognates;
 mod curve;
+mod dash;
+pub mod diff;
 pub mod dwell;
 mod exact;
 pub mod generate;
 pub mod index;
+pub mod layout;
 mod linkage;
 pub mod methods;
 mod pose;
+pub mod render;
 mod spec;
 mod window;
 
@@ -32,6 +36,10 @@ pub mod trace;
 
 pub use cognates::{Cognate, CognateError, cognates};
 pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
+pub use dash::{
+    DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
+    DashPattern, DashedCurve, dash_curve, distance_to_segment,
+};
 pub use features::{
     CurveFeatures, FeatureExtractor, FeatureTolerances, PseudoArc, Side, StraightSegment, Symmetry,
 };

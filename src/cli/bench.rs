@@ -25,6 +25,20 @@ enum Which {
         #[arg(long, default_value_t = 5)]
         atlas_reps: usize,
     },
+    /// Pages: `generate` of the default atlas with pages (300 dpi tabloid grayscale PNG),
+    /// wall time and the per-page split into compute, layout, draw, encode, write.
+    Pages {
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        jobs: usize,
+        /// Repetitions (the median wall time is reported, the split from the last).
+        #[arg(long, default_value_t = 1)]
+        reps: usize,
+        /// Output folder (kept, so its size can be measured); default: a temporary one,
+        /// removed afterwards.
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
     /// Position methods charted: time per curve against max error, and feature accuracy
     /// against samples per dash (PNG charts, CSV tables, markdown; docs/methods.md).
     Methods {
@@ -65,6 +79,7 @@ enum Which {
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.which {
         Which::Core { reps, atlas_reps } => core(reps.max(1), atlas_reps.max(1)),
+        Which::Pages { jobs, reps, out } => pages(jobs.max(1), reps.max(1), out),
         Which::Methods { out, reps } => super::bench_methods::methods(&out, reps.max(1)),
         Which::Stability { out } => super::bench_methods::stability(out.as_deref()),
         Which::Adaptive { out, reps } => {
@@ -253,5 +268,63 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
             median(times)
         );
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<ExitCode> {
+    use coupler_atlas::render::pages::{PageOptions, PageRenderer};
+    println!("## Pages\n\nMachine: {}\n", machine());
+    let spec = Spec::default_atlas();
+    let keep = out.is_some();
+    let dir = out.unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("coupler-atlas-bench-pages-{}", std::process::id()))
+    });
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..reps {
+        let _ = std::fs::remove_dir_all(&dir);
+        let job = generate::Job::new(spec.clone(), "built-in", &dir, jobs);
+        let renderer = PageRenderer::new(PageOptions::from_spec(&job.spec)?);
+        let interrupt = std::sync::atomic::AtomicBool::new(false);
+        let t = Instant::now();
+        generate::run(&job, &renderer, &|_| {}, &interrupt)?;
+        let wall = t.elapsed().as_secs_f64();
+        times.push(wall);
+        last = Some((renderer.timings.seconds(), job.curves(), wall));
+    }
+    let bytes: u64 = std::fs::read_dir(dir.join("pages"))?
+        .filter_map(|e| e.ok()?.metadata().ok())
+        .map(|m| m.len())
+        .sum();
+    if !keep {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    let ((mut secs, pages), curves, wall) = last.expect("at least one run");
+    // Writing (atomic rename, hashing, chunk records, index) is done by `generate`, not the
+    // renderer: count it as the rest of the workers' time.
+    secs[4] = (wall * jobs as f64 - secs[..4].iter().sum::<f64>()).max(0.0);
+    let per = |s: f64| s / pages.max(1) as f64 * 1e3;
+    let busy: f64 = secs.iter().sum();
+    println!("| measure | value | target |\n|---|---|---|");
+    println!(
+        "| `generate` default spec with pages ({curves} curves, {pages} pages, 300 dpi tabloid 8-bit gray PNG), {jobs} threads, wall | {:.2} s | ≤ 15 s |",
+        median(times)
+    );
+    println!("| pages written | {:.0} MB | |", bytes as f64 / 1e6);
+    let names = [
+        "compute (dash sampling)",
+        "layout",
+        "draw (rasterise)",
+        "encode (PNG)",
+        "write + index (the rest of the workers' time)",
+    ];
+    for (name, s) in names.iter().zip(secs) {
+        println!(
+            "| per page: {name} | {:.2} ms ({:.0} %) | |",
+            per(s),
+            100.0 * s / busy.max(1e-12)
+        );
+    }
+    println!("| per page: total (one worker) | {:.2} ms | |", per(busy));
     Ok(ExitCode::SUCCESS)
 }

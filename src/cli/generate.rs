@@ -4,6 +4,8 @@
 use super::UsageError;
 use anyhow::{Context, Result};
 use coupler_atlas::generate::{self, GenerateError, Job, NoPages, Renderer, Shard};
+use coupler_atlas::render::PageFormat;
+use coupler_atlas::render::pages::{PageOptions, PageRenderer};
 use coupler_atlas::{DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
@@ -25,6 +27,15 @@ pub struct JobArgs {
     /// Index only: do not render pages.
     #[arg(long)]
     no_pages: bool,
+    /// Page formats, comma-separated: png, svg (default: png).
+    #[arg(long, value_delimiter = ',', default_value = "png")]
+    format: Vec<String>,
+    /// Raster resolution of pages, dots per inch (default: the spec's).
+    #[arg(long)]
+    dpi: Option<f64>,
+    /// Page size: tabloid, letter, a4, a3, optionally -landscape (default: the spec's).
+    #[arg(long)]
+    page_size: Option<String>,
     /// Write into a folder that holds files coupler-atlas did not write (none of them is deleted).
     #[arg(long)]
     force: bool,
@@ -96,8 +107,40 @@ fn plan(spec: &Option<PathBuf>, args: &JobArgs, jobs: usize) -> Result<(Job, Box
     }
     let mut job = Job::new(spec, source, out, jobs);
     job.force = args.force;
-    let renderer: Box<dyn Renderer> = Box::new(NoPages);
+    let renderer: Box<dyn Renderer> = if args.no_pages {
+        Box::new(NoPages)
+    } else {
+        Box::new(page_renderer(&job.spec, args)?)
+    };
     Ok((job, renderer))
+}
+
+/// The page renderer from the spec's `[pages]` and the page flags.
+fn page_renderer(spec: &Spec, args: &JobArgs) -> Result<PageRenderer> {
+    let mut opts =
+        PageOptions::from_spec(spec).map_err(|e| UsageError(format!("page settings: {e}")))?;
+    let mut formats = Vec::new();
+    for f in &args.format {
+        let f: PageFormat = f
+            .parse()
+            .map_err(|e| UsageError(format!("--format: {e}")))?;
+        if !formats.contains(&f) {
+            formats.push(f);
+        }
+    }
+    opts.formats = formats;
+    if let Some(dpi) = args.dpi {
+        opts.setup.dpi = dpi;
+    }
+    if let Some(size) = &args.page_size {
+        opts.setup.size = size
+            .parse()
+            .map_err(|e| UsageError(format!("--page-size: {e}")))?;
+    }
+    opts.setup
+        .validate()
+        .map_err(|e| UsageError(format!("page settings: {e}")))?;
+    Ok(PageRenderer::new(opts))
 }
 
 /// Maps library errors in the user's input to exit code 2.

@@ -6,6 +6,7 @@ mod bench_methods;
 mod cognates;
 mod curve;
 mod curve_full;
+mod diff;
 mod dwell;
 mod generate;
 mod search;
@@ -38,6 +39,8 @@ enum Command {
     Search(search::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
     Bench(bench::Args),
+    /// Compare two page images pixel by pixel (score, diff image, exit 1 over threshold).
+    Diff(diff::Args),
 }
 
 /// An error that is the user's input (exit code 2), as opposed to a failure while working.
@@ -62,6 +65,7 @@ pub fn main() -> ExitCode {
         Command::Search(args) => search::run(args),
         Command::Cognates(args) => cognates::run(args),
         Command::Dwell(args) => dwell::run(args),
+        Command::Diff(args) => diff::run(args),
     };
     match result {
         Ok(code) => code,
