@@ -10,7 +10,7 @@ fn gather(c: &Curve, i: usize, j: usize, xs: &mut Vec<f64>, ys: &mut Vec<f64>) -
     xs.clear();
     ys.clear();
     for k in i..=j {
-        let k = k % n;
+        let k = if k < n { k } else { k - n }; // k < 2n: no division
         if !(c.is_valid(k) && c.vx[k].is_finite() && c.vy[k].is_finite()) {
             return None;
         }
@@ -26,7 +26,7 @@ fn winding(c: &Curve, i: usize, j: usize, center: [f64; 2]) -> f64 {
     let n = c.len();
     let (mut pos, mut neg) = (true, true);
     for k in i..=j {
-        let k = k % n;
+        let k = if k < n { k } else { k - n };
         let cross = (c.x[k] - center[0]) * c.vy[k] - (c.y[k] - center[1]) * c.vx[k];
         pos &= cross > 0.0;
         neg &= cross < 0.0;

@@ -141,23 +141,30 @@ pub fn kasa_circle(xs: &[f64], ys: &[f64]) -> Option<Circle> {
     }
     let mx = xs.iter().sum::<f64>() / n as f64;
     let my = ys.iter().sum::<f64>() / n as f64;
-    let mut m = Matrix3::<f64>::zeros();
-    let mut rhs = Vector3::<f64>::zeros();
+    // Centred, Σx = Σy = 0, so the normal equations split: F = −Σz/n and
+    // [Sxx Sxy; Sxy Syy]·(D, E) = −(Szx, Szy), with z = x² + y².
+    let (mut sxx, mut sxy, mut syy, mut szx, mut szy, mut sz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     let mut spread: f64 = 0.0;
     for (&x, &y) in xs.iter().zip(ys) {
         let (x, y) = (x - mx, y - my);
         spread = spread.max(x.abs()).max(y.abs());
-        let row = Vector3::new(x, y, 1.0);
-        let z = -(x * x + y * y);
-        m += row * row.transpose();
-        rhs += row * z;
+        let z = x * x + y * y;
+        sxx += x * x;
+        sxy += x * y;
+        syy += y * y;
+        szx += z * x;
+        szy += z * y;
+        sz += z;
     }
-    if spread == 0.0 {
+    let det = sxx * syy - sxy * sxy;
+    if spread == 0.0 || det == 0.0 {
         return None;
     }
-    let sol = m.lu().solve(&rhs)?;
-    let (a, b) = (-sol[0] / 2.0, -sol[1] / 2.0);
-    let r2 = a * a + b * b - sol[2];
+    let d = -(szx * syy - szy * sxy) / det;
+    let e = -(sxx * szy - sxy * szx) / det;
+    let f = -sz / n as f64;
+    let (a, b) = (-d / 2.0, -e / 2.0);
+    let r2 = a * a + b * b - f;
     let c = Circle {
         center: [a + mx, b + my],
         radius: r2.max(0.0).sqrt(),
@@ -208,17 +215,38 @@ pub fn fit_circle(
     for _ in 0..options.max_iterations {
         let mut jtj = Matrix3::<f64>::zeros();
         let mut jtr = Vector3::<f64>::zeros();
+        let (mut a00, mut a01, mut a02, mut a11, mut a12, mut a22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut g0, mut g1, mut g2) = (0.0, 0.0, 0.0);
         for (&x, &y) in xs.iter().zip(ys) {
             let (dx, dy) = (x - c.center[0], y - c.center[1]);
             let d = dx.hypot(dy);
             if d == 0.0 {
                 continue;
             }
-            let j = Vector3::new(-dx / d, -dy / d, -1.0);
+            let (j0, j1) = (-dx / d, -dy / d); // j2 = −1
             let r = d - c.radius;
-            jtj += j * j.transpose();
-            jtr += j * r;
+            a00 += j0 * j0;
+            a01 += j0 * j1;
+            a02 -= j0;
+            a11 += j1 * j1;
+            a12 -= j1;
+            a22 += 1.0;
+            g0 += j0 * r;
+            g1 += j1 * r;
+            g2 -= r;
         }
+        jtj[(0, 0)] = a00;
+        jtj[(0, 1)] = a01;
+        jtj[(1, 0)] = a01;
+        jtj[(0, 2)] = a02;
+        jtj[(2, 0)] = a02;
+        jtj[(1, 1)] = a11;
+        jtj[(1, 2)] = a12;
+        jtj[(2, 1)] = a12;
+        jtj[(2, 2)] = a22;
+        jtr[0] = g0;
+        jtr[1] = g1;
+        jtr[2] = g2;
         let mut accepted = false;
         for _ in 0..8 {
             let mut a = jtj;

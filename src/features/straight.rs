@@ -20,7 +20,7 @@ pub(crate) fn window_line(c: &Curve, i: usize, j: usize) -> Option<WindowLine> {
     let n = c.len();
     let mut sums = LineSums::new([c.x[i % n], c.y[i % n]]);
     for k in i..=j {
-        let k = k % n;
+        let k = if k < n { k } else { k - n }; // k < 2n: no division
         if !(c.is_valid(k) && c.vx[k].is_finite() && c.vy[k].is_finite()) {
             return None;
         }
@@ -30,7 +30,7 @@ pub(crate) fn window_line(c: &Curve, i: usize, j: usize) -> Option<WindowLine> {
     let (mut cx0, mut cx1, mut cy0, mut cy1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     let (mut v0, mut v1, mut vs) = (f64::MAX, f64::MIN, 0.0);
     for k in i..=j {
-        let k = k % n;
+        let k = if k < n { k } else { k - n };
         let (px, py) = (c.x[k] - g[0], c.y[k] - g[1]);
         let cx = px * d[0] + py * d[1];
         let cy = py * d[0] - px * d[1];
