@@ -201,11 +201,19 @@ fn dwell_of(rev: &Revolution, out: &[f64], start: f64, span: f64) -> Dwell {
         })
         .map(|(_, &o)| o)
         .collect();
-    let [lo, hi] = range(inside.iter().copied());
+    // Relative to one sample of the window, wrapped into (−180°, 180°]: the simulated
+    // revolution may start inside the window, and an output that turns fully adds 360°
+    // on the way round; neither is motion during the dwell.
+    let reference = inside.first().copied().unwrap_or(0.0);
+    let rel: Vec<f64> = inside
+        .iter()
+        .map(|&o| unwrap_deg(0.0, o - reference))
+        .collect();
+    let [lo, hi] = range(rel.iter().copied());
     Dwell {
         start_deg: start,
         span_deg: span,
-        output_deg: inside.iter().sum::<f64>() / inside.len().max(1) as f64,
+        output_deg: reference + rel.iter().sum::<f64>() / rel.len().max(1) as f64,
         jitter_deg: hi - lo,
     }
 }
@@ -381,8 +389,9 @@ pub fn double_dwell_lines(
 }
 
 /// The double dwell on two arcs of (nearly) equal radius: link 5 of the mean radius, D
-/// dwelling at either centre, O6 on their perpendicular bisector at the distance of the
-/// centres' separation from its midpoint.
+/// dwelling at either centre, O6 on their perpendicular bisector (tried at ½, 1, 2, 4, 8,
+/// 16 × the centres' separation from their midpoint, either side; the design that
+/// assembles all the way round with the best worst-case transmission angle is kept).
 pub fn double_dwell_arcs(
     l: &FourBar,
     circuit: Circuit,
@@ -406,11 +415,36 @@ pub fn double_dwell_arcs(
         return Err(DwellError::NoMotion);
     }
     let n = [-(c2[1] - c1[1]) / sep, (c2[0] - c1[0]) / sep];
-    let o6 = [mid[0] + sep * n[0], mid[1] + sep * n[1]];
-    let l6 = (c1[0] - o6[0]).hypot(c1[1] - o6[1]);
     let start = 0.5 * (w1.start_deg + w1.end_deg);
     let rev = revolution(l, circuit, p, start, step_deg)?;
-    let (out, mu) = simulate_dyad(&rev, r5, o6, l6, c1)?;
+    // O6 on the bisector, at h = k·sep from the midpoint on either side: keep the design
+    // that assembles all the way round with the best worst-case transmission angle.
+    /// (O6, L6, output angles, transmission angles, worst transmission margin)
+    type Candidate = ([f64; 2], f64, Vec<f64>, Vec<f64>, f64);
+    let mut best: Option<Candidate> = None;
+    let mut last_err = DwellError::Dyad(start);
+    for k in [1.0, 0.5, 2.0, 4.0, 8.0, 16.0] {
+        for side in [1.0, -1.0] {
+            let o6 = [
+                mid[0] + side * k * sep * n[0],
+                mid[1] + side * k * sep * n[1],
+            ];
+            let l6 = (c1[0] - o6[0]).hypot(c1[1] - o6[1]);
+            match simulate_dyad(&rev, r5, o6, l6, c1) {
+                Ok((out, mu)) => {
+                    let worst = mu
+                        .iter()
+                        .map(|m| m.min(180.0 - m))
+                        .fold(f64::INFINITY, f64::min);
+                    if best.as_ref().is_none_or(|b| worst > b.4) {
+                        best = Some((o6, l6, out, mu, worst));
+                    }
+                }
+                Err(e) => last_err = e,
+            }
+        }
+    }
+    let (o6, l6, out, mu, _) = best.ok_or(last_err)?;
     let dwells = vec![
         dwell_of(&rev, &out, w1.start_deg.rem_euclid(360.0), w1.span_deg()),
         dwell_of(&rev, &out, w2.start_deg.rem_euclid(360.0), w2.span_deg()),

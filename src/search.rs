@@ -668,10 +668,16 @@ impl Query {
             });
             match (two_lines, pair) {
                 (true, _) => {
+                    // Show the arcs that passed --arc if it was given, else the equal pair.
+                    let arcs = if self.arc.is_some() {
+                        arcs
+                    } else {
+                        pair.map(|p| p.to_vec()).unwrap_or_default()
+                    };
                     return Some(Hit {
                         row: i,
                         straight,
-                        arcs: pair.map(|p| p.to_vec()).unwrap_or_default(),
+                        arcs,
                     });
                 }
                 (false, Some(p)) => {

@@ -187,16 +187,23 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 .map(|&k| {
                     let s = &table.segments[k];
                     format!(
-                        "line {}°+{}° ε_S {:.3}%",
-                        s.start_deg, s.span_deg, s.straightness_pct
+                        "line#{} {}°+{}° ε_S {:.3}%",
+                        k - r.seg_start as usize + 1,
+                        s.start_deg,
+                        s.span_deg,
+                        s.straightness_pct
                     )
                 })
                 .collect();
             m.extend(h.arcs.iter().map(|&k| {
                 let a = &table.arcs[k];
                 format!(
-                    "arc {}°+{}° R {:.3} dev {:.3}%",
-                    a.start_deg, a.span_deg, a.radius, a.deviation_pct
+                    "arc#{} {}°+{}° R {:.3} dev {:.3}%",
+                    k - r.arc_start as usize + 1,
+                    a.start_deg,
+                    a.span_deg,
+                    a.radius,
+                    a.deviation_pct
                 )
             }));
             if r.page != u32::MAX {
