@@ -390,8 +390,8 @@ pub fn double_dwell_lines(
 
 /// The double dwell on two arcs of (nearly) equal radius: link 5 of the mean radius, D
 /// dwelling at either centre, O6 on their perpendicular bisector (tried at ½, 1, 2, 4, 8,
-/// 16 × the centres' separation from their midpoint, either side; the design that
-/// assembles all the way round with the best worst-case transmission angle is kept).
+/// 16 × the centres' separation from their midpoint, either side; of the designs that
+/// assemble all the way round, the one whose worse dwell jitters least is kept).
 pub fn double_dwell_arcs(
     l: &FourBar,
     circuit: Circuit,
@@ -419,7 +419,7 @@ pub fn double_dwell_arcs(
     let rev = revolution(l, circuit, p, start, step_deg)?;
     // O6 on the bisector, at h = k·sep from the midpoint on either side: keep the design
     // that assembles all the way round with the best worst-case transmission angle.
-    /// (O6, L6, output angles, transmission angles, worst transmission margin)
+    /// (O6, L6, output angles, transmission angles, worse dwell jitter)
     type Candidate = ([f64; 2], f64, Vec<f64>, Vec<f64>, f64);
     let mut best: Option<Candidate> = None;
     let mut last_err = DwellError::Dyad(start);
@@ -432,12 +432,14 @@ pub fn double_dwell_arcs(
             let l6 = (c1[0] - o6[0]).hypot(c1[1] - o6[1]);
             match simulate_dyad(&rev, r5, o6, l6, c1) {
                 Ok((out, mu)) => {
-                    let worst = mu
-                        .iter()
-                        .map(|m| m.min(180.0 - m))
-                        .fold(f64::INFINITY, f64::min);
-                    if best.as_ref().is_none_or(|b| worst > b.4) {
-                        best = Some((o6, l6, out, mu, worst));
+                    // Score: the worse of the two dwells' jitter (D must settle at both
+                    // centres on the branch the mechanism runs on).
+                    let jitter = |w: &CrankWindow| {
+                        dwell_of(&rev, &out, w.start_deg.rem_euclid(360.0), w.span_deg()).jitter_deg
+                    };
+                    let score = jitter(w1).max(jitter(w2));
+                    if best.as_ref().is_none_or(|b| score < b.4) {
+                        best = Some((o6, l6, out, mu, score));
                     }
                 }
                 Err(e) => last_err = e,
