@@ -245,6 +245,26 @@ mod tests {
     }
 
     #[test]
+    fn floats_read_back_to_the_bit() {
+        // serde_json's default float parser may be off by an ulp; the index needs the
+        // `float_roundtrip` feature so that search compares the values generate measured.
+        let mut c = curve(0);
+        let mut x = 0.1f64;
+        for k in 0..2000 {
+            x = (x * 1.618_033_988_749_895 + 0.377) % 97.0 + 1e-9 * k as f64;
+            c.length = x / 3.0;
+            c.bbox = [x.sqrt(), -x / 7.0, x * 1e-300, x * 1e300];
+            let mut out = Vec::new();
+            write_index(&mut out, &1, &summary(), std::slice::from_ref(&c)).unwrap();
+            let back = Index::from_slice(&out).unwrap();
+            assert_eq!(back.curves[0].length.to_bits(), c.length.to_bits());
+            for (a, b) in back.curves[0].bbox.iter().zip(c.bbox) {
+                assert_eq!(a.to_bits(), b.to_bits());
+            }
+        }
+    }
+
+    #[test]
     fn refuses_non_finite_and_other_versions() {
         let mut c = curve(0);
         c.length = f64::NAN;
