@@ -13,8 +13,8 @@
 //! `c mod N = K − 1`; [`merge`] gathers shard folders and assembles exactly what one run
 //! writes.
 
-use crate::features::{FeatureExtractor, FeatureTolerances};
 use crate::curve::{CrankTable, CurveSummary, PoseTable, transmission_range};
+use crate::features::{FeatureExtractor, FeatureTolerances};
 use crate::index::{
     IndexCurve, IndexSummary, LinkageLengths, curve_line, write_curve_line, write_index_footer,
     write_index_header,
@@ -315,6 +315,8 @@ pub fn compute_group(
         circuit: group.circuit,
     })?;
     let transmission_deg = [tmin.to_degrees(), tmax.to_degrees()];
+    let class = group.linkage.class();
+    let flag_tol = crate::methods::FlagTolerances::DEFAULT;
     let mut curve = Default::default();
     let mut out = Vec::with_capacity(group.points.len());
     for (k, &point) in group.points.iter().enumerate() {
@@ -329,11 +331,17 @@ pub fn compute_group(
             linkage: LinkageLengths::from(&group.linkage),
             point,
             circuit: group.circuit,
-            class: group.linkage.class(),
+            class,
             bbox: summary.bbox,
             transmission_deg,
             speed: summary.speed,
             length: summary.length,
+            flags: crate::methods::CurveFlags::for_full_turn(
+                &group.linkage,
+                point,
+                [tmin, tmax],
+                &flag_tol,
+            ),
             page: None,
             features: extractor.as_mut().map(|x| x.extract(point)),
         });
@@ -605,8 +613,11 @@ pub fn run(
                             dir: job.out.clone(),
                         });
                     }
-                    let features =
-                        job.spec.features.enabled.then_some(&job.spec.features.tolerances);
+                    let features = job
+                        .spec
+                        .features
+                        .enabled
+                        .then_some(&job.spec.features.tolerances);
                     let mut curves = compute_group(&table, g, features)?;
                     let artifacts = renderer.render_group(job, g, &mut curves)?;
                     let mut files = Vec::with_capacity(artifacts.len());

@@ -61,6 +61,10 @@ pub struct IndexCurve {
     pub speed: [f64; 2],
     /// Curve length ∮|V|dθ, crank units.
     pub length: f64,
+    /// Conditions the numerics cannot fully resolve (`near_change_point`, `near_toggle`,
+    /// `far_point`, `extreme_ratio`; see `docs/methods.md`); omitted when there are none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub flags: Vec<crate::methods::CurveFlag>,
     /// The page that draws it, when pages were rendered.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub page: Option<PageRef>,
@@ -212,6 +216,7 @@ mod tests {
             transmission_deg: [40.0, 120.5],
             speed: [0.1, 2.0],
             length: 10.0,
+            flags: Vec::new(),
             page: None,
             features: None,
         }

@@ -40,10 +40,10 @@ pub use dash::{
     DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
     DashPattern, DashedCurve, dash_curve, distance_to_segment,
 };
+pub use exact::{Decimal, DecimalError};
 pub use features::{
     CurveFeatures, FeatureExtractor, FeatureTolerances, PseudoArc, Side, StraightSegment, Symmetry,
 };
-pub use exact::{Decimal, DecimalError};
 pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};

@@ -336,3 +336,48 @@ fn default_atlas_generates_completely() {
     assert_eq!(index["curves"].as_array().unwrap().len(), 7000);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn index_flags_what_the_numerics_cannot_resolve() {
+    let dir = tmp("flags");
+    std::fs::create_dir_all(&dir).unwrap();
+    // A = B = 3, C = 5 − 1e-7: a crank-rocker a hair from the change point 1 + 5 = 3 + 3,
+    // folding almost flat at θ = 180°.
+    let spec = dir.join("near.toml");
+    std::fs::write(
+        &spec,
+        "[atlas]\nname = \"near\"\n[linkages]\ncoupler = { start = 3, end = 3, step = 1 }\nrocker = { start = 3, end = 3, step = 1 }\nground = { start = 4.9999999, end = 4.9999999, step = 1 }\n[points]\nu = { start = 0, end = 1, step = 1, relative = true }\nv = { start = 0, end = 0, step = 1 }\n",
+    )
+    .unwrap();
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.join("near").to_str().unwrap(),
+        "--quiet",
+        "--no-pages",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("near/index.json")).unwrap()).unwrap();
+    for c in index["curves"].as_array().unwrap() {
+        assert_eq!(
+            c["flags"],
+            serde_json::json!(["near_change_point", "near_toggle"]),
+            "{c}"
+        );
+    }
+    // The default atlas's half-unit crank-rockers are all well away from such conditions.
+    let plain = run(&[
+        "generate",
+        "--out",
+        dir.join("plain").to_str().unwrap(),
+        "--quiet",
+        "--no-pages",
+    ]);
+    assert!(plain.status.success());
+    let text_index =
+        String::from_utf8(std::fs::read(dir.join("plain/index.json")).unwrap()).unwrap();
+    assert!(!text_index.contains("\"flags\""));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -163,22 +163,7 @@ impl CurveFlags {
         degrees: &[f64],
         tol: &FlagTolerances,
     ) -> CurveFlags {
-        let mut flags = Vec::new();
-        let class = linkage.class();
-        let mut links = [1.0, linkage.coupler, linkage.rocker, linkage.ground];
-        links.sort_by(f64::total_cmp);
-        let gap = ((links[0] + links[3]) - (links[1] + links[2])).abs() / links[3];
-        if class.is_change_point() {
-            flags.push(CurveFlag::ChangePoint);
-        } else if gap < tol.change_point_gap {
-            flags.push(CurveFlag::NearChangePoint);
-        }
-        if links[3] / links[0] > tol.extreme_ratio {
-            flags.push(CurveFlag::ExtremeRatio);
-        }
-        if point.u.abs().max(point.v.abs()) > tol.far_point * links[3] {
-            flags.push(CurveFlag::FarPoint);
-        }
+        let mut flags = CurveFlags::static_flags(linkage, point, tol);
         let mut min_sin = 1.0f64;
         let mut bound = 0.0f64;
         let gaps = ToggleGaps::of(linkage);
@@ -206,6 +191,51 @@ impl CurveFlags {
             error_bound: bound,
             min_sin_transmission: min_sin,
         }
+    }
+
+    /// The flags that depend only on the linkage and the point, not on sampling:
+    /// `change_point`, `near_change_point`, `extreme_ratio`, `far_point` (unsorted).
+    pub fn static_flags(
+        linkage: &FourBar,
+        point: CouplerPoint,
+        tol: &FlagTolerances,
+    ) -> Vec<CurveFlag> {
+        let mut flags = Vec::new();
+        let mut links = [1.0, linkage.coupler, linkage.rocker, linkage.ground];
+        links.sort_by(f64::total_cmp);
+        let gap = ((links[0] + links[3]) - (links[1] + links[2])).abs() / links[3];
+        if linkage.class().is_change_point() {
+            flags.push(CurveFlag::ChangePoint);
+        } else if gap < tol.change_point_gap {
+            flags.push(CurveFlag::NearChangePoint);
+        }
+        if links[3] / links[0] > tol.extreme_ratio {
+            flags.push(CurveFlag::ExtremeRatio);
+        }
+        if point.u.abs().max(point.v.abs()) > tol.far_point * links[3] {
+            flags.push(CurveFlag::FarPoint);
+        }
+        flags
+    }
+
+    /// The flags of a curve of a linkage whose crank turns fully (the atlas's
+    /// crank-rockers), without sampling: the static flags, and `near_toggle` from the
+    /// transmission angle's exact extremes (`transmission` = `[min, max]` in radians, from
+    /// [`crate::transmission_range`]). Sorted and unique, as in [`CurveFlags::assess`].
+    pub fn for_full_turn(
+        linkage: &FourBar,
+        point: CouplerPoint,
+        transmission: [f64; 2],
+        tol: &FlagTolerances,
+    ) -> Vec<CurveFlag> {
+        let mut flags = CurveFlags::static_flags(linkage, point, tol);
+        let min_sin = libm::sin(transmission[0]).min(libm::sin(transmission[1]));
+        if min_sin < tol.toggle_sin_mu {
+            flags.push(CurveFlag::NearToggle);
+        }
+        flags.sort();
+        flags.dedup();
+        flags
     }
 
     /// The flags' names, for printing.
