@@ -212,12 +212,12 @@ impl Default for PageSetup {
 }
 
 impl PageSetup {
-    /// Checks ranges (DPI 10–1200: a 1200 dpi tabloid page is a 269 MB buffer per worker; margin, curves per page ≥ 1, dash pattern).
+    /// Checks ranges (DPI 36–1200, as in specs: a 1200 dpi tabloid page is a 269 MB buffer per worker; margin, curves per page ≥ 1, dash pattern).
     pub fn validate(&self) -> Result<(), LayoutError> {
         let (w, h) = self.size.size_pt();
-        if !(self.dpi.is_finite() && (10.0..=1200.0).contains(&self.dpi)) {
+        if !(self.dpi.is_finite() && (36.0..=1200.0).contains(&self.dpi)) {
             return Err(LayoutError::BadSetting(format!(
-                "dpi {} not in 10..=1200",
+                "dpi {} not in 36..=1200",
                 self.dpi
             )));
         }

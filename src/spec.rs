@@ -499,11 +499,11 @@ impl Spec {
                 pages.orientation = o.get_ref().clone();
             }
             if let Some(d) = &rp.dpi {
-                if !(36..=2400).contains(d.get_ref()) {
+                if !(36..=1200).contains(d.get_ref()) {
                     return Err(cx.error(
                         d.span(),
                         Some("pages.dpi"),
-                        format!("must be from 36 to 2400, got {}", d.get_ref()),
+                        format!("must be from 36 to 1200, got {}", d.get_ref()),
                     ));
                 }
                 pages.dpi = *d.get_ref() as u32;

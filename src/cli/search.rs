@@ -26,8 +26,8 @@ pub struct Args {
     /// Relative tolerance on the radii of a double dwell's two arcs, percent.
     #[arg(long, default_value_t = DEFAULT_RADIUS_TOL_PCT)]
     radius_tol: f64,
-    /// Transmission angle within [DEG, 180 − DEG] over the whole revolution.
-    #[arg(long, value_name = "DEG")]
+    /// Transmission angle within [DEG, 180 − DEG] over the whole revolution (0 ≤ DEG ≤ 90).
+    #[arg(long, value_name = "DEG", value_parser = parse_min_transmission)]
     min_transmission: Option<f64>,
     /// Barker class, e.g. GCRR.
     #[arg(long)]
@@ -55,9 +55,23 @@ pub struct Args {
     no_cache: bool,
 }
 
+fn parse_min_transmission(s: &str) -> Result<f64, String> {
+    let x: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("expected degrees, got `{s}`"))?;
+    if x.is_finite() && (0.0..=90.0).contains(&x) {
+        Ok(x)
+    } else {
+        Err(format!(
+            "must be from 0 to 90 degrees (the band is [DEG, 180 − DEG]), got {s}"
+        ))
+    }
+}
+
 fn cache_key(path: &Path) -> Result<[u64; 2]> {
-    let meta =
-        std::fs::metadata(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let meta = std::fs::metadata(path)
+        .map_err(|e| UsageError(format!("cannot read index {}: {e}", path.display())))?;
     let mtime = meta
         .modified()
         .ok()
