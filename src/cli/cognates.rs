@@ -1,6 +1,6 @@
 //! `coupler-atlas cognates --coupler A --rocker B --ground C --point U,V [--circuit] [--format]`
 
-use super::{UsageError, parse_length, parse_number};
+use super::{UsageError, parse_length, parse_point};
 use anyhow::Result;
 use coupler_atlas::{Circuit, CouplerPoint, FourBar, cognates};
 use std::io::Write;
@@ -26,16 +26,6 @@ pub struct Args {
     /// Output format.
     #[arg(long, default_value = "table", value_parser = ["table", "json"])]
     format: String,
-}
-
-fn parse_point(s: &str) -> Result<CouplerPoint, String> {
-    let (u, v) = s
-        .split_once(',')
-        .ok_or_else(|| format!("expected U,V (two numbers separated by a comma), got `{s}`"))?;
-    Ok(CouplerPoint::new(
-        parse_number(u.trim())?,
-        parse_number(v.trim())?,
-    ))
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {

@@ -1,6 +1,6 @@
 //! `coupler-atlas curve --coupler A --rocker B --ground C --point U,V [--circuit] [--step] [--format]`
 
-use super::{UsageError, parse_length, parse_number};
+use super::{UsageError, parse_length, parse_number, parse_point};
 use anyhow::Result;
 use coupler_atlas::{
     Circuit, CouplerPoint, CrankTable, FourBar, LineDirection, Pose, WindowMeasures,
@@ -46,16 +46,6 @@ pub struct Args {
     /// (every branch, changing circuit at each toggle; `--circuit` is ignored).
     #[arg(long, default_value = "circuit", value_parser = ["circuit", "full"])]
     trace: String,
-}
-
-fn parse_point(s: &str) -> Result<CouplerPoint, String> {
-    let (u, v) = s
-        .split_once(',')
-        .ok_or_else(|| format!("expected U,V (two numbers separated by a comma), got `{s}`"))?;
-    Ok(CouplerPoint::new(
-        parse_number(u.trim())?,
-        parse_number(v.trim())?,
-    ))
 }
 
 /// One sample of the `curve` JSON contract. `None` fields print as `null`: where the

@@ -1,7 +1,7 @@
 //! `coupler-atlas dwell --coupler A --rocker B --ground C --point U,V --window S:E
 //! [--window2 S:E] [--kind single|double-lines|double-arcs] [--swing DEG] [--png FILE]`
 
-use super::{UsageError, parse_length, parse_number};
+use super::{UsageError, parse_length, parse_number, parse_point};
 use anyhow::{Context, Result};
 use coupler_atlas::dwell::{DwellMechanism, double_dwell_arcs, double_dwell_lines, single_dwell};
 use coupler_atlas::{Circuit, CouplerPoint, CrankAngle, CrankWindow, FourBar, Pose};
@@ -62,16 +62,6 @@ pub struct Args {
     /// Output format.
     #[arg(long, default_value = "table", value_parser = ["table", "json"])]
     format: String,
-}
-
-fn parse_point(s: &str) -> Result<CouplerPoint, String> {
-    let (u, v) = s
-        .split_once(',')
-        .ok_or_else(|| format!("expected U,V (two numbers separated by a comma), got `{s}`"))?;
-    Ok(CouplerPoint::new(
-        parse_number(u.trim())?,
-        parse_number(v.trim())?,
-    ))
 }
 
 fn window(s: &str, step: f64) -> Result<CrankWindow, UsageError> {

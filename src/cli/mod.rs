@@ -91,6 +91,17 @@ pub fn parse_number(s: &str) -> Result<f64, String> {
     Ok(d.to_f64())
 }
 
+/// Parses a coupler point `U,V` (exact decimals).
+pub fn parse_point(s: &str) -> Result<coupler_atlas::CouplerPoint, String> {
+    let (u, v) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected U,V (two numbers separated by a comma), got `{s}`"))?;
+    Ok(coupler_atlas::CouplerPoint::new(
+        parse_number(u.trim())?,
+        parse_number(v.trim())?,
+    ))
+}
+
 /// Parses a positive length flag.
 pub fn parse_length(s: &str) -> Result<f64, String> {
     let x = parse_number(s)?;
