@@ -198,6 +198,7 @@ impl SearchTable {
         let mut line_no = 1;
         let mut batch: Vec<(usize, String)> = Vec::with_capacity(1 << 14);
         let mut done = false;
+        let mut closed = false;
         while !done {
             batch.clear();
             while batch.len() < 1 << 14 {
@@ -209,6 +210,10 @@ impl SearchTable {
                 line_no += 1;
                 if l.starts_with("{\"id\":") {
                     batch.push((line_no, l));
+                } else if !l.trim().is_empty() {
+                    // The index closes with `]}`; anything after the curves but that
+                    // means the file was cut short or altered.
+                    closed = l.trim() == "]}";
                 }
             }
             let parsed: Result<Vec<IndexCurve>, SearchError> = batch
@@ -226,6 +231,12 @@ impl SearchTable {
             for c in &parsed? {
                 t.push(c);
             }
+        }
+        if !closed {
+            return Err(SearchError::Line {
+                line: line_no,
+                message: "the index ends without its closing `]}`: it is truncated".into(),
+            });
         }
         Ok(t)
     }

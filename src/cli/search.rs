@@ -1,7 +1,7 @@
 //! `coupler-atlas search INDEX [filters] [--sort] [--limit] [--format table|json]`
 
 use super::UsageError;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use coupler_atlas::search::{DEFAULT_RADIUS_TOL_PCT, Query, SearchTable, SortKey, SpanFilter};
 use coupler_atlas::{Circuit, Class};
 use std::io::Write;
@@ -95,9 +95,11 @@ pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'stat
             }
         }
     }
-    let text = std::fs::read_to_string(index)
-        .with_context(|| format!("cannot read {}", index.display()))?;
-    let table = SearchTable::from_index_text(&text)
+    // Streamed line by line: memory holds the table and one batch of lines, not the
+    // whole index (2 GB for a million curves with features).
+    let file = std::fs::File::open(index)
+        .map_err(|e| UsageError(format!("cannot read index {}: {e}", index.display())))?;
+    let table = SearchTable::from_index_reader(std::io::BufReader::with_capacity(1 << 20, file))
         .map_err(|e| UsageError(format!("{}: {e}", index.display())))?;
     if use_cache {
         let tmp = cache.with_extension("search.tmp");
