@@ -1,38 +1,23 @@
 //! `coupler-atlas cognates --coupler A --rocker B --ground C --point U,V [--circuit] [--format]`
 
-use super::{UsageError, parse_length, parse_point};
+use super::{LinkageArgs, UsageError};
 use anyhow::Result;
-use coupler_atlas::{Circuit, CouplerPoint, FourBar, cognates};
+use coupler_atlas::cognates;
 use std::io::Write;
 use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Coupler length A (crank = 1).
-    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    coupler: f64,
-    /// Rocker length B.
-    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    rocker: f64,
-    /// Ground length C.
-    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    ground: f64,
-    /// Coupler point U,V in the coupler frame (crank units).
-    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
-    point: CouplerPoint,
-    /// Circuit (assembly) of the given linkage.
-    #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
-    circuit: String,
+    #[command(flatten)]
+    linkage: LinkageArgs,
     /// Output format.
     #[arg(long, default_value = "table", value_parser = ["table", "json"])]
     format: String,
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let linkage = FourBar::new(args.coupler, args.rocker, args.ground)
-        .map_err(|e| UsageError(e.to_string()))?;
-    let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
-    let three = cognates(&linkage, circuit, args.point).map_err(|e| UsageError(e.to_string()))?;
+    let (linkage, circuit, point) = args.linkage.resolve()?;
+    let three = cognates(&linkage, circuit, point).map_err(|e| UsageError(e.to_string()))?;
     let names = ["original", "cognate 1", "cognate 2"];
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
@@ -71,7 +56,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         writeln!(
             w,
             "Roberts–Chebyshev cognates of {linkage} ({circuit}), point ({}, {})",
-            args.point.u, args.point.v
+            point.u, point.v
         )?;
         writeln!(
             w,

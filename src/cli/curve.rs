@@ -1,31 +1,16 @@
 //! `coupler-atlas curve --coupler A --rocker B --ground C --point U,V [--circuit] [--step] [--format]`
 
-use super::{UsageError, parse_length, parse_number, parse_point};
+use super::{LinkageArgs, UsageError, parse_number};
 use anyhow::Result;
-use coupler_atlas::{
-    Circuit, CouplerPoint, CrankTable, FourBar, LineDirection, Pose, WindowMeasures,
-};
+use coupler_atlas::{CrankTable, LineDirection, Pose, WindowMeasures};
 use serde::Serialize;
 use std::io::Write;
 use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Coupler length A (crank = 1).
-    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    coupler: f64,
-    /// Rocker length B.
-    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    rocker: f64,
-    /// Ground length C.
-    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    ground: f64,
-    /// Coupler point U,V in the coupler frame (crank units), e.g. `--point 1.5,-0.5`.
-    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
-    point: CouplerPoint,
-    /// Circuit (assembly).
-    #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
-    circuit: String,
+    #[command(flatten)]
+    linkage: LinkageArgs,
     /// Crank step in degrees; samples at 0, step, 2·step, … below 360.
     #[arg(long, default_value = "1", value_parser = parse_number, allow_hyphen_values = true)]
     step: f64,
@@ -72,16 +57,14 @@ fn finite(x: f64) -> Option<f64> {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let linkage = FourBar::new(args.coupler, args.rocker, args.ground)
-        .map_err(|e| UsageError(e.to_string()))?;
-    let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
+    let (linkage, circuit, point) = args.linkage.resolve()?;
     let table = CrankTable::new(args.step).ok_or_else(|| {
         UsageError(format!(
             "--step must be > 0 and at most 360 degrees, got {}",
             args.step
         ))
     })?;
-    let p = args.point;
+    let p = point;
     let window = match &args.window {
         None => None,
         Some(text) => {

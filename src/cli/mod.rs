@@ -91,6 +91,45 @@ pub fn parse_number(s: &str) -> Result<f64, String> {
     Ok(d.to_f64())
 }
 
+/// The flags that name one four-bar, a coupler point and a circuit (`curve`, `cognates`).
+#[derive(clap::Args, Debug)]
+pub struct LinkageArgs {
+    /// Coupler length A (crank = 1).
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    coupler: f64,
+    /// Rocker length B.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    rocker: f64,
+    /// Ground length C.
+    #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
+    ground: f64,
+    /// Coupler point U,V in the coupler frame (crank units), e.g. `--point 1.5,-0.5`.
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    point: coupler_atlas::CouplerPoint,
+    /// Circuit (assembly) of the linkage.
+    #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
+    circuit: String,
+}
+
+impl LinkageArgs {
+    /// The validated linkage, circuit and point.
+    pub fn resolve(
+        &self,
+    ) -> Result<
+        (
+            coupler_atlas::FourBar,
+            coupler_atlas::Circuit,
+            coupler_atlas::CouplerPoint,
+        ),
+        UsageError,
+    > {
+        let linkage = coupler_atlas::FourBar::new(self.coupler, self.rocker, self.ground)
+            .map_err(|e| UsageError(e.to_string()))?;
+        let circuit = self.circuit.parse().map_err(UsageError)?;
+        Ok((linkage, circuit, self.point))
+    }
+}
+
 /// Parses a coupler point `U,V` (exact decimals).
 pub fn parse_point(s: &str) -> Result<coupler_atlas::CouplerPoint, String> {
     let (u, v) = s

@@ -164,36 +164,11 @@ pub fn encode_png(
     Ok(())
 }
 
-impl Canvas for RasterPage {
-    fn stroke_polyline(&mut self, points: &[PagePoint], width: f64) {
-        if points.is_empty() {
-            return;
-        }
+impl RasterPage {
+    /// Strokes polylines as one path (round caps and joins; a single point is a dot).
+    fn stroke_paths<'a>(&mut self, lines: impl Iterator<Item = &'a [PagePoint]>, width: f64) {
         let mut pb = PathBuilder::new();
-        let (x, y) = self.px(points[0]);
-        pb.move_to(x, y);
-        if points.len() == 1 {
-            pb.line_to(x, y);
-        }
-        for p in &points[1..] {
-            let (x, y) = self.px(*p);
-            pb.line_to(x, y);
-        }
-        let Some(path) = pb.finish() else { return };
-        let stroke = Stroke {
-            width: (width * self.px_per_pt) as f32,
-            line_cap: LineCap::Round,
-            line_join: LineJoin::Round,
-            ..Stroke::default()
-        };
-        if let Some(outline) = path.stroke(&stroke, 1.0) {
-            self.fill(&outline);
-        }
-    }
-
-    fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
-        let mut pb = PathBuilder::new();
-        for points in lines.iter().filter(|l| !l.is_empty()) {
+        for points in lines.filter(|l| !l.is_empty()) {
             let (x, y) = self.px(points[0]);
             pb.move_to(x, y);
             if points.len() == 1 {
@@ -214,6 +189,16 @@ impl Canvas for RasterPage {
         if let Some(outline) = path.stroke(&stroke, 1.0) {
             self.fill(&outline);
         }
+    }
+}
+
+impl Canvas for RasterPage {
+    fn stroke_polyline(&mut self, points: &[PagePoint], width: f64) {
+        self.stroke_paths(std::iter::once(points), width);
+    }
+
+    fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
+        self.stroke_paths(lines.iter().map(Vec::as_slice), width);
     }
 
     fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
