@@ -44,7 +44,7 @@ pub enum DwellError {
     #[error("the coupler point never leaves the arc: the output would not move")]
     NoMotion,
     /// Two arcs admit no double-dwell six-bar, and why.
-    #[error("no double dwell on these two arcs: {0}")]
+    #[error("no double dwell on two arcs: {0}")]
     NoDoubleDwell(NoDoubleDwell),
 }
 
@@ -544,6 +544,15 @@ pub enum NoDoubleDwell {
     /// Every admissible output link turns fully round instead of oscillating.
     #[error("every admissible output link turns fully round instead of oscillating")]
     FullTurn,
+    /// [`best_double_dwell_arcs`] found no pair of pseudo-arc windows on the curve that
+    /// admits a design.
+    #[error(
+        "no pair of pseudo-arc windows on this curve ({pairs} candidate pairs tried) admits a double dwell"
+    )]
+    NoPair {
+        /// How many candidate pairs were designed.
+        pairs: usize,
+    },
 }
 
 /// The two arcs, as the design sees them.
@@ -791,40 +800,39 @@ fn dwell_swing(dwells: &[Dwell]) -> f64 {
     unwrap_deg(0.0, dwells[1].output_deg - dwells[0].output_deg).abs()
 }
 
-/// The double dwell on two pseudo-arcs of (nearly) equal radius and the same concavity
-/// (domain.md §6, Norton §3.9).
+/// The double dwell on two pseudo-arcs of (nearly) equal radius (domain.md §6, Norton
+/// §3.9).
 ///
 /// **Mechanism.** Link 5 (length R) hangs from the coupler point M; its far end D is
-/// pinned to output link 6 (pivot O6, length L6). D dwells at c1 while M runs on arc 1
-/// and at c2 while M runs on arc 2 (c_i the arcs' free-fit centres, the centres of least
-/// radial spread), which needs `|O6 − c1| = |O6 − c2| = L6`: O6 lies on the perpendicular
-/// bisector of c1c2. With h = |c2 − c1|/2, n the unit normal of c1→c2 and β the output
-/// swing between the dwells (the angle c1–O6–c2):
-/// `O6 = (c1 + c2)/2 ± h·cot(β/2)·n`, `L6 = h / sin(β/2)`.
+/// pinned to output link 6 (pivot O6, length L6). D dwells at D1 while M runs on arc 1
+/// and at D2 while M runs on arc 2, D_i the arc's best centre for radius R (least squares
+/// of the radial distances, refitted from the arc's free circle c_i, r_i: for a short arc
+/// the radius is poorly determined, and refitting absorbs the difference r_i − R into
+/// the centre instead of leaving it as an offset that the turning link 5 turns into
+/// jitter). `|O6 − D1| = |O6 − D2| = L6` puts O6 on the perpendicular bisector of D1D2.
+/// With h = |D2 − D1|/2, n the unit normal of D1→D2 and β the output swing between the
+/// dwells (the angle D1–O6–D2):
+/// `O6 = (D1 + D2)/2 ± h·cot(β/2)·n`, `L6 = h / sin(β/2)`.
 ///
 /// **Admissible designs.** At every crank step the dyad must assemble with its
 /// transmission angle μ at D, `cos μ = (R² + L6² − |M − O6|²)/(2·R·L6)`, within
 /// `[limit, 180° − limit]` ([`DoubleArcOptions::min_transmission_deg`]). Then M, D, O6
 /// are never collinear, so the dyad keeps one branch, the sign of (O6 − M) × (D − M),
-/// all the way round; D reaches c1 and c2 only if both lie on that branch: the sign of
-/// (O6 − M) × (c_i − M) must be the same for every sample M of both arcs (for fixed M it
-/// is the sign of a function linear in O6, so the admissible pivots on the bisector form
-/// intervals). The output must also oscillate (not turn fully round).
+/// all the way round (it is simulated on that fixed branch); D reaches D1 and D2 only if
+/// both lie on it: the sign of (O6 − M) × (D_i − M) must be the same for every sample M
+/// of both arcs (for fixed M it is the sign of a function linear in O6, so the admissible
+/// pivots on the bisector form intervals). The output must also oscillate.
 ///
-/// **Jitter.** To first order, with δ(M) = |M − c_i| − R the radial error of M from the
-/// dwell circle, D leaves c_i along link 6's circle by δ / sin μ, so the output moves by
-/// `δ(M) / (L6 · sin μ(M))` radians: the dwell's jitter is about the spread of that over
-/// the arc, `≤ [2·e_i / sin μ_i + (e_i + |r_i − R|)·(1/sin μ_i − 1)] / L6` with e_i the
-/// arc's largest radial deviation from its circle and μ_i the worst (folded)
-/// transmission angle during the dwell. A constant radius mismatch r_i − R only shifts
-/// D when μ stays near 90°; a small swing shrinks the jitter with the swing
-/// (L6 = h / sin(β/2)).
+/// **Jitter.** To first order, with δ(M) = |M − D_i| − R the radial error of M from the
+/// dwell circle, D leaves D_i along link 6's circle by δ / sin μ, so the output moves by
+/// `δ(M) / (L6 · sin μ(M))` radians: the dwell's jitter is at most `2·e_i / (L6 · s_i)`,
+/// e_i = max |δ| over the arc (≤ the arc's free-fit deviation + |r_i − R|, the free
+/// centre being one candidate) and s_i the sine of the worst folded transmission angle
+/// during the dwell. Since L6 = h / sin(β/2), the relative jitter (jitter / swing) is
+/// about `δ-spread / (2h · sin μ) · sin(β/2)/(β/2)`: the arcs' radial spread over the
+/// centres' separation, over sin μ; no choice of pivot beats that by more than 2/π.
 ///
-/// Since L6 = h / sin(β/2), the relative jitter is about
-/// `δ-spread / (2h · sin μ) · sin(β/2)/(β/2)`: the arcs' radial spread over the centres'
-/// separation, divided by sin μ. No choice of pivot beats it by more than 2/π.
-///
-/// **Objective.** Over the swing β (both sides of c1c2) and R ∈ [min(r1, r2),
+/// **Objective.** Over the swing β (both sides of D1D2) and R ∈ [min(r1, r2),
 /// max(r1, r2)], among admissible designs (simulated: the jitters are measured, not
 /// predicted): with no swing asked for, minimise the worse dwell's jitter *relative to
 /// the swing between the dwells* (jitter / swing, which does not reward a vanishing
@@ -832,17 +840,20 @@ fn dwell_swing(dwells: &[Dwell]) -> f64 {
 /// measured swing between the dwells is within [`SWING_TOLERANCE`] of it, or if there
 /// are none, take the admissible design whose swing comes nearest (it reports the swing
 /// it has). Search: a grid (β every 0.5°, 5 radii, both sides), each candidate checked
-/// as above and simulated, then a pattern search on (β, R) about the best one.
+/// as above and simulated, then a pattern search on (β, R) about the best one. The best
+/// design is refused if its worse dwell jitters more than
+/// [`DoubleArcOptions::max_relative_jitter`] of its swing.
 ///
-/// **Which arc pairs work.** With φ_i the direction of M − c_i (link 5 at dwell i)
-/// measured from c1→c2 and α that of O6 − c1, the branches are the signs of
+/// **Which arc pairs work.** With φ_i the direction of M − D_i (link 5 at dwell i)
+/// measured from D1→D2 and α that of O6 − D1, the branches are the signs of
 /// sin(α − φ1) and sin(α + φ2). Arcs that are mirror images across the centres'
 /// bisector (φ2 = 180° − φ1: the equal arcs of a symmetric coupler curve) are always on
 /// opposite branches, whatever O6 ([`NoDoubleDwell::Branches`]); the ideal pair has
 /// φ2 = −φ1 (mirror images across the line of centres), where μ = 90° at both dwells
-/// is possible.
+/// is possible. The concave side of the arcs does not decide it.
 ///
-/// Errors: [`DwellError::NoDoubleDwell`] with the reason when no admissible design exists.
+/// Errors: [`DwellError::NoDoubleDwell`] with the reason when no admissible design
+/// exists; window and assembly errors of the four-bar as for the other designs.
 pub fn double_dwell_arcs(
     l: &FourBar,
     circuit: Circuit,
@@ -924,6 +935,147 @@ pub fn double_dwell_arcs(
     );
     d.dwell_swing_deg = Some(dwell_swing(&d.dwells));
     Ok(d)
+}
+
+/// How [`best_double_dwell_arcs`] looks for arc windows on a curve.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ArcPairSearch {
+    /// Window lengths tried, crank degrees.
+    pub spans_deg: Vec<f64>,
+    /// Window starts every this many crank degrees.
+    pub start_step_deg: f64,
+    /// Largest radial deviation of a window from its circle, percent of the radius.
+    pub max_deviation_pct: f64,
+    /// How many of the best-ranked pairs are designed.
+    pub candidates: usize,
+}
+
+impl Default for ArcPairSearch {
+    /// Windows of 30°, 45° and 60° starting every 5°, deviation ≤ 0.2 %, 24 candidates.
+    fn default() -> Self {
+        ArcPairSearch {
+            spans_deg: vec![30.0, 45.0, 60.0],
+            start_step_deg: 5.0,
+            max_deviation_pct: 0.2,
+            candidates: 24,
+        }
+    }
+}
+
+/// Finds the best double dwell on two arcs of one coupler curve, windows chosen here.
+///
+/// Every window of `search.spans_deg` starting every `search.start_step_deg` whose free
+/// circle fits within `search.max_deviation_pct` is a candidate arc. Pairs of
+/// non-overlapping candidates with radii within `opts.radius_tol_pct` are kept if their
+/// link-5 directions at mid-window (φ_i, from c_i to M, measured from c1→c2) satisfy
+/// cos(φ1 + φ2) > 0 — the branch condition of [`double_dwell_arcs`] leaves no good pivot
+/// otherwise (mirror pairs have φ1 + φ2 = 180°) — and ranked by the centres' separation
+/// over the larger radial deviation (the relative jitter is about its inverse). The best
+/// `search.candidates` pairs are designed with [`double_dwell_arcs`]; the design with the
+/// least worse-dwell jitter relative to its swing is returned (with `opts.swing_deg`:
+/// the least jitter among those within [`SWING_TOLERANCE`] of it, else the nearest swing).
+pub fn best_double_dwell_arcs(
+    l: &FourBar,
+    circuit: Circuit,
+    p: CouplerPoint,
+    search: &ArcPairSearch,
+    opts: &DoubleArcOptions,
+) -> Result<DwellMechanism, DwellError> {
+    struct Candidate {
+        window: CrankWindow,
+        c: [f64; 2],
+        r: f64,
+        e: f64,
+        mid: [f64; 2],
+    }
+    let mut arcs = Vec::new();
+    let starts = (360.0 / search.start_step_deg).round() as usize;
+    for k in 0..starts {
+        let start = k as f64 * search.start_step_deg;
+        for &span in &search.spans_deg {
+            let w = CrankWindow::new(start, start + span, opts.step_deg)?;
+            let Ok(s) = WindowSamples::sample(l, circuit, p, &w) else {
+                continue;
+            };
+            let m = WindowMeasures::of_samples(&s, &w, LineDirection::Fitted);
+            let (Some(c), Some(r), Some(dev)) = (m.arc_center, m.arc_radius, m.arc_deviation_pct)
+            else {
+                continue;
+            };
+            if dev > search.max_deviation_pct {
+                continue;
+            }
+            let pose = Pose::solve(l, circuit, &CrankAngle::from_degrees(start + span / 2.0))
+                .ok_or(DwellError::NotAssembled(start + span / 2.0))?;
+            let mid = pose.point(p);
+            arcs.push(Candidate {
+                window: w,
+                c,
+                r,
+                e: dev / 100.0 * r,
+                mid: [mid.x, mid.y],
+            });
+        }
+    }
+    let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
+    for (i, a) in arcs.iter().enumerate() {
+        for (j, b) in arcs.iter().enumerate() {
+            // b starts after a ends, and a after b ends, going round the crank.
+            let gap_ab = (b.window.start_deg - a.window.end_deg).rem_euclid(360.0);
+            let gap_ba = (a.window.start_deg - b.window.end_deg).rem_euclid(360.0);
+            if i == j
+                || gap_ab + gap_ba + a.window.span_deg() + b.window.span_deg() > 360.0 + 1e-9
+                || a.window.start_deg > b.window.start_deg
+            {
+                continue;
+            }
+            if (a.r - b.r).abs() > opts.radius_tol_pct / 100.0 * a.r.max(b.r) {
+                continue;
+            }
+            let sep = (b.c[0] - a.c[0]).hypot(b.c[1] - a.c[1]);
+            let e = a.e.max(b.e);
+            if sep <= CENTRE_SEPARATION_FACTOR * e || sep == 0.0 {
+                continue;
+            }
+            let u = [(b.c[0] - a.c[0]) / sep, (b.c[1] - a.c[1]) / sep];
+            let phi = |m: [f64; 2], c: [f64; 2]| {
+                let v = [m[0] - c[0], m[1] - c[1]];
+                libm::atan2(u[0] * v[1] - u[1] * v[0], u[0] * v[0] + u[1] * v[1])
+            };
+            if libm::cos(phi(a.mid, a.c) + phi(b.mid, b.c)) <= 0.0 {
+                continue;
+            }
+            pairs.push((sep / e.max(f64::MIN_POSITIVE), i, j));
+        }
+    }
+    pairs.sort_by(|x, y| y.0.total_cmp(&x.0));
+    let tried = pairs.len().min(search.candidates);
+    let key = |d: &DwellMechanism| {
+        let swing = d.dwell_swing_deg.unwrap_or(0.0);
+        let worst = d.dwells.iter().map(|x| x.jitter_deg).fold(0.0, f64::max);
+        match opts.swing_deg {
+            None => (0, worst / swing.max(1e-12)),
+            Some(want) => {
+                let miss = (swing - want).abs();
+                if miss <= SWING_TOLERANCE.0.max(SWING_TOLERANCE.1 * want) {
+                    (0, worst)
+                } else {
+                    (1, miss)
+                }
+            }
+        }
+    };
+    let mut best: Option<DwellMechanism> = None;
+    for &(_, i, j) in &pairs[..tried] {
+        if let Ok(d) = double_dwell_arcs(l, circuit, p, &arcs[i].window, &arcs[j].window, opts) {
+            if best.as_ref().is_none_or(|b| key(&d) < key(b)) {
+                best = Some(d);
+            }
+        }
+    }
+    best.ok_or(DwellError::NoDoubleDwell(NoDoubleDwell::NoPair {
+        pairs: tried,
+    }))
 }
 
 /// The search of [`double_dwell_arcs`]: grid, then pattern search.
@@ -1292,6 +1444,31 @@ mod tests {
         assert!(
             (got - want).abs() <= 0.005 * want + 1e-9,
             "asked {want}, got {got}"
+        );
+    }
+
+    /// The window finder: on curve 2723 it finds a pair at least as good as the hand-picked
+    /// windows (≤ 0.1 % relative jitter, swing > 30°); on the symmetric curve 5 every
+    /// equal-radius pair is a mirror pair, so nothing is even tried.
+    #[test]
+    fn finds_arc_windows() {
+        let l = FourBar::new(3.0, 3.5, 2.5).unwrap();
+        let p = CouplerPoint::new(1.5, -3.0);
+        let opts = DoubleArcOptions::DEFAULT;
+        let d =
+            best_double_dwell_arcs(&l, Circuit::Open, p, &ArcPairSearch::default(), &opts).unwrap();
+        let swing = d.dwell_swing_deg.unwrap();
+        let worst = d.dwells.iter().map(|x| x.jitter_deg).fold(0.0, f64::max);
+        assert!(
+            swing > 30.0 && worst <= 0.001 * swing,
+            "swing {swing}, jitter {worst}"
+        );
+        let l = FourBar::new(1.5, 1.5, 1.5).unwrap();
+        let p = CouplerPoint::new(1.5, -1.5);
+        assert_eq!(
+            best_double_dwell_arcs(&l, Circuit::Open, p, &ArcPairSearch::default(), &opts)
+                .unwrap_err(),
+            DwellError::NoDoubleDwell(NoDoubleDwell::NoPair { pairs: 0 })
         );
     }
 }

@@ -4,7 +4,8 @@
 use super::{UsageError, parse_length, parse_number, parse_point};
 use anyhow::{Context, Result};
 use coupler_atlas::dwell::{
-    DoubleArcOptions, DwellMechanism, double_dwell_arcs, double_dwell_lines, single_dwell,
+    ArcPairSearch, DoubleArcOptions, DwellMechanism, best_double_dwell_arcs, double_dwell_arcs,
+    double_dwell_lines, single_dwell,
 };
 use coupler_atlas::{Circuit, CouplerPoint, CrankAngle, CrankWindow, FourBar, Pose};
 use plotters::prelude::*;
@@ -29,7 +30,9 @@ pub struct Args {
     /// Circuit (assembly).
     #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
     circuit: String,
-    /// The (first) dwell window START:END, crank degrees: the pseudo-arc or straight segment.
+    /// The (first) dwell window START:END, crank degrees: the pseudo-arc or straight
+    /// segment. For double-arcs, leave out both windows to have the best pair of arc
+    /// windows found on the curve.
     #[arg(long, allow_hyphen_values = true)]
     window: Option<String>,
     /// Take the linkage, point, circuit and windows from this index (with --curve and
@@ -95,7 +98,7 @@ fn plan(
     FourBar,
     Circuit,
     CouplerPoint,
-    String,
+    Option<String>,
     Option<String>,
     String,
 )> {
@@ -130,13 +133,16 @@ fn plan(
                 })
                 .collect()
         };
-        if let (0, 0, Some(w)) = (args.arc.len(), args.line.len(), &args.window) {
-            // The curve from the index, the windows as given.
+        if args.arc.is_empty()
+            && args.line.is_empty()
+            && (args.window.is_some() || args.kind == "double-arcs")
+        {
+            // The curve from the index, the windows as given (or, for double-arcs, found).
             return Ok((
                 l,
                 row.circuit,
                 p,
-                w.clone(),
+                args.window.clone(),
                 args.window2.clone(),
                 args.kind.clone(),
             ));
@@ -178,7 +184,7 @@ fn plan(
             l,
             row.circuit,
             p,
-            w(spans[0]),
+            Some(w(spans[0])),
             spans.get(1).map(|&x| w(x)),
             kind.to_string(),
         ));
@@ -196,8 +202,17 @@ fn plan(
     .map_err(|e| UsageError(e.to_string()))?;
     let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
     let p = args.point.ok_or_else(|| need("point"))?;
-    let w = args.window.clone().ok_or_else(|| need("window"))?;
-    Ok((l, circuit, p, w, args.window2.clone(), args.kind.clone()))
+    if args.window.is_none() && args.kind != "double-arcs" {
+        return Err(need("window").into());
+    }
+    Ok((
+        l,
+        circuit,
+        p,
+        args.window.clone(),
+        args.window2.clone(),
+        args.kind.clone(),
+    ))
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -223,30 +238,39 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
         .into());
     }
-    let w1 = window(&window1, args.step)?;
+    let first = || -> Result<CrankWindow, UsageError> {
+        let s = window1
+            .as_deref()
+            .ok_or_else(|| UsageError(format!("--kind {kind} needs --window")))?;
+        window(s, args.step)
+    };
     let second = || -> Result<CrankWindow, UsageError> {
         let s = window2
             .as_deref()
             .ok_or_else(|| UsageError(format!("--kind {kind} needs --window2")))?;
         window(s, args.step)
     };
+    let arc_opts = DoubleArcOptions {
+        step_deg: args.step,
+        min_transmission_deg: args.min_transmission,
+        swing_deg: args.swing,
+        radius_tol_pct: args.radius_tol,
+        max_relative_jitter: args.max_jitter_pct / 100.0,
+    };
     let d = match kind.as_str() {
-        "single" => single_dwell(&l, circuit, p, &w1, args.swing.unwrap_or(40.0), args.step),
-        "double-lines" => double_dwell_lines(&l, circuit, p, &w1, &second()?, args.step),
-        _ => double_dwell_arcs(
+        "single" => single_dwell(
             &l,
             circuit,
             p,
-            &w1,
-            &second()?,
-            &DoubleArcOptions {
-                step_deg: args.step,
-                min_transmission_deg: args.min_transmission,
-                swing_deg: args.swing,
-                radius_tol_pct: args.radius_tol,
-                max_relative_jitter: args.max_jitter_pct / 100.0,
-            },
+            &first()?,
+            args.swing.unwrap_or(40.0),
+            args.step,
         ),
+        "double-lines" => double_dwell_lines(&l, circuit, p, &first()?, &second()?, args.step),
+        _ if window1.is_none() && window2.is_none() => {
+            best_double_dwell_arcs(&l, circuit, p, &ArcPairSearch::default(), &arc_opts)
+        }
+        _ => double_dwell_arcs(&l, circuit, p, &first()?, &second()?, &arc_opts),
     }
     .map_err(|e| UsageError(e.to_string()))?;
     let stdout = std::io::stdout();
