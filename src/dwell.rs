@@ -435,6 +435,11 @@ pub const DEFAULT_MAX_RELATIVE_JITTER: f64 = 0.1;
 /// [`double_dwell_arcs`]).
 pub const CENTRE_SEPARATION_FACTOR: f64 = 4.0;
 
+/// With the swing left free, designs swinging less than this between the dwells rank
+/// after all that swing more (a swing of a fraction of a degree is no use, however
+/// small its relative jitter), degrees.
+pub const MIN_FREE_SWING_DEG: f64 = 5.0;
+
 /// How close the swing between the dwells must come to a swing asked for (degrees, and a
 /// fraction of it; the larger applies) before jitter decides.
 pub const SWING_TOLERANCE: (f64, f64) = (0.01, 0.005);
@@ -770,7 +775,10 @@ fn evaluate(
     // [`SWING_TOLERANCE`] of it, the worse jitter; else (a second tier) the swing's miss.
     let swing = dwell_swing(&dwells);
     let score = match opts.swing_deg {
-        None => (0, worst / swing.max(1e-12)),
+        None => (
+            u8::from(swing < MIN_FREE_SWING_DEG),
+            worst / swing.max(1e-12),
+        ),
         Some(want) => {
             let miss = (swing - want).abs();
             if miss <= SWING_TOLERANCE.0.max(SWING_TOLERANCE.1 * want) {
@@ -836,7 +844,7 @@ fn dwell_swing(dwells: &[Dwell]) -> f64 {
 /// max(r1, r2)], among admissible designs (simulated: the jitters are measured, not
 /// predicted): with no swing asked for, minimise the worse dwell's jitter *relative to
 /// the swing between the dwells* (jitter / swing, which does not reward a vanishing
-/// swing); with `swing_deg`, minimise the worse dwell's jitter among designs whose
+/// swing), designs swinging less than [`MIN_FREE_SWING_DEG`] ranking last; with `swing_deg`, minimise the worse dwell's jitter among designs whose
 /// measured swing between the dwells is within [`SWING_TOLERANCE`] of it, or if there
 /// are none, take the admissible design whose swing comes nearest (it reports the swing
 /// it has). Search: a grid (β every 0.5°, 5 radii, both sides), each candidate checked
@@ -1054,7 +1062,10 @@ pub fn best_double_dwell_arcs(
         let swing = d.dwell_swing_deg.unwrap_or(0.0);
         let worst = d.dwells.iter().map(|x| x.jitter_deg).fold(0.0, f64::max);
         match opts.swing_deg {
-            None => (0, worst / swing.max(1e-12)),
+            None => (
+                u8::from(swing < MIN_FREE_SWING_DEG),
+                worst / swing.max(1e-12),
+            ),
             Some(want) => {
                 let miss = (swing - want).abs();
                 if miss <= SWING_TOLERANCE.0.max(SWING_TOLERANCE.1 * want) {
