@@ -112,20 +112,22 @@ impl DashPattern {
 /// One dash: a crank interval and the polyline the coupler point traces over it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Dash {
-    /// Dash number `k` (0 starts at θ = 0).
-    pub index: usize,
+    /// Dash number `k` (0 starts at θ = 0; on a rocking input's leg, the `k` of the
+    /// interval `[kΔ, kΔ + fΔ]` it lies in, which may be negative there: see [`dash_leg`]).
+    pub index: i64,
     /// First crank angle, degrees.
     pub theta_start: f64,
     /// Last crank angle, degrees.
     pub theta_end: f64,
-    /// Points of M, in curve units, in the order of travel (θ increasing). At least two.
+    /// Points of M, in curve units, in the order of travel (θ increasing, except on the
+    /// return leg of a rocking input: [`dash_leg`]). At least two.
     pub points: Vec<Point2<f64>>,
 }
 
 impl Dash {
-    /// Crank span in degrees (`f·Δ`).
+    /// Crank span in degrees (`f·Δ`, less for a dash cut by a toggle).
     pub fn span_deg(&self) -> f64 {
-        self.theta_end - self.theta_start
+        (self.theta_end - self.theta_start).abs()
     }
 
     /// Polyline length in curve units (a lower bound of the arc length, within the chord
@@ -290,7 +292,7 @@ pub fn dash_curve(
             ];
         }
         dashes.push(Dash {
-            index: k,
+            index: k as i64,
             theta_start: t0,
             theta_end: t1,
             points,
@@ -316,6 +318,65 @@ pub fn dash_curve(
     })
 }
 
+/// The dashes of one leg of a complete coupler curve ([`crate::trace::trace_full`]): the
+/// input moving from `from_deg` to `to_deg` (either way) on `circuit`, as a rocking input
+/// does between its toggles. Dash `k` is the part of `θ ∈ [kΔ, kΔ + fΔ]` inside the leg,
+/// the same intervals of the input as a crank's dashes, so one dash still reads `Δ` of
+/// input time; a dash cut by a toggle is shorter (a piece under 1 % of `fΔ` is dropped).
+/// Dashes come in the order of travel, each polyline in that order too. Near a toggle the
+/// curve's speed in θ grows without bound (a square-root branch point); the bisection
+/// follows it there to the chord tolerance.
+///
+/// Errors as [`dash_curve`]; also if the linkage does not assemble inside the leg (the
+/// ends must be within the input's range: use the toggle angles `trace_full` reports).
+pub fn dash_leg(
+    linkage: &FourBar,
+    circuit: Circuit,
+    point: CouplerPoint,
+    pattern: &DashPattern,
+    tolerance: f64,
+    from_deg: f64,
+    to_deg: f64,
+) -> Result<Vec<Dash>, DashError> {
+    pattern.validate()?;
+    if !(tolerance.is_finite() && tolerance > 0.0) {
+        return Err(DashError::BadTolerance(tolerance));
+    }
+    let s = Sampler {
+        linkage,
+        circuit,
+        point,
+    };
+    let (lo, hi) = (from_deg.min(to_deg), from_deg.max(to_deg));
+    let step = pattern.step_deg;
+    let drawn = pattern.fraction * step;
+    let mut dashes = Vec::new();
+    let first = (lo / step).floor() as i64;
+    let last = (hi / step).floor() as i64;
+    for k in first..=last {
+        let a = (k as f64 * step).max(lo);
+        let b = (k as f64 * step + drawn).min(hi);
+        if b - a < 0.01 * drawn {
+            continue;
+        }
+        let (t0, t1) = if to_deg >= from_deg { (a, b) } else { (b, a) };
+        let p0 = s.at(t0)?;
+        let p1 = s.at(t1)?;
+        let mut points = vec![p0];
+        s.refine(t0, p0, t1, p1, tolerance, 0, &mut points)?;
+        dashes.push(Dash {
+            index: k,
+            theta_start: t0,
+            theta_end: t1,
+            points,
+        });
+    }
+    if to_deg < from_deg {
+        dashes.reverse();
+    }
+    Ok(dashes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -338,7 +399,7 @@ mod tests {
             .unwrap();
             assert_eq!(c.dashes.len(), (360.0 / step) as usize);
             for (k, d) in c.dashes.iter().enumerate() {
-                assert_eq!(d.index, k);
+                assert_eq!(d.index, k as i64);
                 assert!(
                     (d.span_deg() - step * f).abs() < 1e-12,
                     "span {}",
