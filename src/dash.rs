@@ -188,11 +188,14 @@ pub fn distance_to_segment(p: Point2<f64>, a: Point2<f64>, b: Point2<f64>) -> f6
     (p - (a + ab * t)).norm()
 }
 
-/// Samples coupler point M over crank angles.
+/// Samples coupler point M over crank angles, bisecting in a parameter σ with
+/// θ = `warp(σ)` (the identity for a crank; near a toggle a square map that makes the
+/// curve regular in σ: [`dash_leg`]).
 struct Sampler<'a> {
     linkage: &'a FourBar,
     circuit: Circuit,
     point: CouplerPoint,
+    warp: &'a dyn Fn(f64) -> f64,
 }
 
 impl Sampler<'_> {
@@ -226,12 +229,12 @@ impl Sampler<'_> {
         out: &mut Vec<Point2<f64>>,
     ) -> Result<(), DashError> {
         let tm = 0.5 * (t0 + t1);
-        let pm = self.at(tm)?;
+        let pm = self.at((self.warp)(tm))?;
         let mut err = distance_to_segment(pm, p0, p1);
         if err <= tol && depth < 2 {
             // Cheap extra check on coarse pieces: the quarter points.
-            let q1 = self.at(0.5 * (t0 + tm))?;
-            let q3 = self.at(0.5 * (tm + t1))?;
+            let q1 = self.at((self.warp)(0.5 * (t0 + tm)))?;
+            let q3 = self.at((self.warp)(0.5 * (tm + t1)))?;
             err = err
                 .max(distance_to_segment(q1, p0, p1))
                 .max(distance_to_segment(q3, p0, p1));
@@ -274,6 +277,7 @@ pub fn dash_curve(
         linkage,
         circuit,
         point,
+        warp: &|t| t,
     };
     let mut dashes = Vec::with_capacity(pattern.count());
     let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
@@ -342,11 +346,6 @@ pub fn dash_leg(
     if !(tolerance.is_finite() && tolerance > 0.0) {
         return Err(DashError::BadTolerance(tolerance));
     }
-    let s = Sampler {
-        linkage,
-        circuit,
-        point,
-    };
     let (lo, hi) = (from_deg.min(to_deg), from_deg.max(to_deg));
     let step = pattern.step_deg;
     let drawn = pattern.fraction * step;
@@ -359,11 +358,35 @@ pub fn dash_leg(
         if b - a < 0.01 * drawn {
             continue;
         }
-        let (t0, t1) = if to_deg >= from_deg { (a, b) } else { (b, a) };
-        let p0 = s.at(t0)?;
-        let p1 = s.at(t1)?;
+        // Bisect in σ ∈ [0, 1] with θ = a + (b − a)·w(σ): w(σ) = σ in the open; a square
+        // at an end that is a leg end (a toggle), where M(θ) has a square-root branch
+        // point but M(θ(σ)) is regular, so the midpoint test bounds the chord error there
+        // as it does elsewhere: w = σ² at `lo`, 1 − (1 − σ)² at `hi`, the smooth step
+        // (1 − cos πσ)/2 when the dash touches both.
+        let (at_lo, at_hi) = (a == lo, b == hi);
+        let warp = move |x: f64| -> f64 {
+            let w = match (at_lo, at_hi) {
+                (false, false) => x,
+                (true, false) => x * x,
+                (false, true) => 1.0 - (1.0 - x) * (1.0 - x),
+                (true, true) => 0.5 * (1.0 - libm::cos(std::f64::consts::PI * x)),
+            };
+            if x >= 1.0 { b } else { a + (b - a) * w }
+        };
+        let s = Sampler {
+            linkage,
+            circuit,
+            point,
+            warp: &warp,
+        };
+        let (p_a, p_b) = (s.at(a)?, s.at(b)?);
+        let (t0, t1, p0, p1, s0, s1) = if to_deg >= from_deg {
+            (a, b, p_a, p_b, 0.0, 1.0)
+        } else {
+            (b, a, p_b, p_a, 1.0, 0.0)
+        };
         let mut points = vec![p0];
-        s.refine(t0, p0, t1, p1, tolerance, 0, &mut points)?;
+        s.refine(s0, p0, s1, p1, tolerance, 0, &mut points)?;
         dashes.push(Dash {
             index: k,
             theta_start: t0,
@@ -514,5 +537,111 @@ mod tests {
         assert!((c.start_direction - Vector2::new(-s, co)).norm() < 1e-12);
         // Dash length ≈ arc of 6° on a unit circle.
         assert!((c.dashes[0].length() - 6f64.to_radians()).abs() < 1e-4);
+    }
+
+    /// Toggle angles of a rocking input's first interval (from the full trace).
+    fn toggles(l: &FourBar) -> (f64, f64) {
+        match crate::trace::input_range(l) {
+            crate::trace::InputRange::Rocks { intervals } => {
+                (intervals[0].0.degrees, intervals[0].1.degrees)
+            }
+            r => panic!("not a rocking input: {r:?}"),
+        }
+    }
+
+    /// The classic rockers of `atlas-spec/classics.toml` (Watt, Roberts, Evans).
+    fn rockers() -> [(FourBar, CouplerPoint); 3] {
+        [
+            (
+                FourBar::new(1.0, 1.0, 5f64.sqrt()).unwrap(),
+                CouplerPoint::new(0.5, 0.0),
+            ),
+            (
+                FourBar::new(0.8, 1.0, 1.6).unwrap(),
+                CouplerPoint::new(0.4, -0.916515138991168),
+            ),
+            (
+                FourBar::new(1.0, 4.0, 17f64.sqrt()).unwrap(),
+                CouplerPoint::new(-1.0, 0.0),
+            ),
+        ]
+    }
+
+    /// A leg's dashes are the pattern's intervals cut to the leg, in the order of travel;
+    /// the return leg on the same circuit is the same polylines reversed, exactly.
+    #[test]
+    fn leg_dashes_follow_the_input_both_ways() {
+        let pat = DashPattern::default();
+        for (l, p) in rockers() {
+            let (lo, hi) = toggles(&l);
+            let out = dash_leg(&l, Circuit::Open, p, &pat, 1e-4, lo, hi).unwrap();
+            let back = dash_leg(&l, Circuit::Open, p, &pat, 1e-4, hi, lo).unwrap();
+            // Every interval [kΔ, kΔ + fΔ] meeting (lo, hi) by more than 1 % of fΔ.
+            let expected = (((lo / 10.0).floor() as i64)..=((hi / 10.0).floor() as i64))
+                .filter(|&k| {
+                    let (a, b) = ((k as f64 * 10.0).max(lo), (k as f64 * 10.0 + 6.0).min(hi));
+                    b - a >= 0.06
+                })
+                .count();
+            assert_eq!(out.len(), expected, "{l:?}");
+            for w in out.windows(2) {
+                assert!(w[0].theta_end < w[1].theta_start && w[0].index + 1 == w[1].index);
+            }
+            for d in &out {
+                let k = d.index as f64;
+                assert!(
+                    d.theta_start >= (10.0 * k).max(lo) && d.theta_end <= (10.0 * k + 6.0).min(hi)
+                );
+                assert!(d.span_deg() <= 6.0 + 1e-12 && d.points.len() >= 2);
+            }
+            assert_eq!(back.len(), out.len());
+            for (b, o) in back.iter().zip(out.iter().rev()) {
+                assert_eq!(b.index, o.index);
+                assert_eq!((b.theta_start, b.theta_end), (o.theta_end, o.theta_start));
+                let mut rev = o.points.clone();
+                rev.reverse();
+                assert_eq!(b.points, rev);
+            }
+            // Outside the input's range the linkage does not assemble: an error.
+            assert!(dash_leg(&l, Circuit::Open, p, &pat, 1e-4, lo, hi + 5.0).is_err());
+        }
+    }
+
+    /// The chord bound holds up to the toggles, where the point's speed in θ is
+    /// unbounded (dense samples of the true curve within the tolerance of the polyline).
+    /// Frozen failure: bisecting in θ itself (no square warp at the toggles), Roberts'
+    /// crossed leg at 1e-4 left a sample 1.013e-4 from its polyline at θ = 84.2502°.
+    #[test]
+    fn leg_chord_error_bound_holds_at_toggles() {
+        let pat = DashPattern::new(10.0, 0.6).unwrap();
+        for (l, p) in rockers() {
+            let (lo, hi) = toggles(&l);
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                for tol in [1e-3, 1e-4] {
+                    let dashes = dash_leg(&l, circuit, p, &pat, tol, lo, hi).unwrap();
+                    for d in [&dashes[0], &dashes[dashes.len() - 1]] {
+                        let n = 400;
+                        for i in 0..=n {
+                            let t =
+                                d.theta_start + (d.theta_end - d.theta_start) * i as f64 / n as f64;
+                            let Some(pose) = Pose::solve(&l, circuit, &CrankAngle::from_degrees(t))
+                            else {
+                                continue; // the last ulps before a toggle may not assemble
+                            };
+                            let m = pose.point(p);
+                            let dist = d
+                                .points
+                                .windows(2)
+                                .map(|w| distance_to_segment(m, w[0], w[1]))
+                                .fold(f64::INFINITY, f64::min);
+                            assert!(
+                                dist <= tol * 1.01,
+                                "{l:?} {circuit} θ={t}: {dist:e} > {tol:e}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 }

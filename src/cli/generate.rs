@@ -307,7 +307,7 @@ pub fn merge(args: MergeArgs) -> Result<ExitCode> {
 fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Result<ExitCode> {
     if args.shard.is_some() {
         return Err(UsageError(format!(
-            "--shard: {source} is a full-curve page set ({} curves), which is not sharded",
+            "--shard: {source} is a full-curve page set ({} curve(s)), which is not sharded",
             list.curves.len()
         ))
         .into());
