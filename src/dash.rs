@@ -404,6 +404,12 @@ pub fn dash_leg(
 mod tests {
     use super::*;
 
+    fn distance_to_polyline(p: Point2<f64>, pts: &[Point2<f64>]) -> f64 {
+        pts.windows(2)
+            .map(|w| distance_to_segment(p, w[0], w[1]))
+            .fold(f64::INFINITY, f64::min)
+    }
+
     fn crank_rocker() -> FourBar {
         FourBar::new(3.0, 2.0, 3.0).unwrap()
     }
@@ -488,11 +494,7 @@ mod tests {
                             let m = Pose::solve(&l, circuit, &CrankAngle::from_degrees(t))
                                 .unwrap()
                                 .point(p);
-                            let dist = d
-                                .points
-                                .windows(2)
-                                .map(|w| distance_to_segment(m, w[0], w[1]))
-                                .fold(f64::INFINITY, f64::min);
+                            let dist = distance_to_polyline(m, &d.points);
                             assert!(
                                 dist <= tol * 1.01,
                                 "{l:?} {p:?} {circuit} θ={t}: {dist:e} > {tol:e}"
@@ -629,11 +631,7 @@ mod tests {
                                 continue; // the last ulps before a toggle may not assemble
                             };
                             let m = pose.point(p);
-                            let dist = d
-                                .points
-                                .windows(2)
-                                .map(|w| distance_to_segment(m, w[0], w[1]))
-                                .fold(f64::INFINITY, f64::min);
+                            let dist = distance_to_polyline(m, &d.points);
                             assert!(
                                 dist <= tol * 1.01,
                                 "{l:?} {circuit} θ={t}: {dist:e} > {tol:e}"

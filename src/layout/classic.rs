@@ -127,13 +127,6 @@ pub fn compute_classic(
             world = union(world, [q.x, q.y, q.x, q.y]);
         }
     }
-    let pad = 0.02 * (world[2] - world[0]).max(world[3] - world[1]);
-    world = [
-        world[0] - pad,
-        world[1] - pad,
-        world[2] + pad,
-        world[3] + pad,
-    ];
     let (transform, frame) = fit_transform(world, setup, &NICE_INCHES_PER_UNIT);
     let tol = setup.chord_tolerance_px / setup.px_per_pt() / transform.scale;
     let mut legs = Vec::new();

@@ -487,10 +487,19 @@ fn linkage_bbox(page: &LinkagePage) -> [f64; 4] {
     b
 }
 
-/// The frame of the page and the transform that centres `world` (a curve-unit box) in it
+/// The frame of the page and the transform that centres `world` (a curve-unit box, padded
+/// by 2 % of its extent) in it
 /// at the largest round scale that fits (inches per unit from `nice`, ascending, so pages
 /// of similar linkages share a scale; the exact fit if even the smallest is too large).
 fn fit_transform(world: [f64; 4], setup: &PageSetup, nice: &[f64]) -> (WorldToPage, [f64; 4]) {
+    // A margin of 2 % of the extent (sampled extents can miss a sliver of a sharp tip).
+    let pad = 0.02 * (world[2] - world[0]).max(world[3] - world[1]);
+    let world = [
+        world[0] - pad,
+        world[1] - pad,
+        world[2] + pad,
+        world[3] + pad,
+    ];
     let frame = frame_of(setup);
     let inner = [
         frame[0] + style::FRAME_PAD,
@@ -536,14 +545,7 @@ pub fn compute_page(page: &LinkagePage, setup: &PageSetup) -> Result<PageGeometr
             }
         }
     }
-    // 2° sampling may miss a sliver of a sharp tip: pad by 2 % of the extent.
-    let pad = 0.02 * (world[2] - world[0]).max(world[3] - world[1]);
-    world = [
-        world[0] - pad,
-        world[1] - pad,
-        world[2] + pad,
-        world[3] + pad,
-    ];
+    // 2° sampling may miss a sliver of a sharp tip: fit_transform pads by 2 %.
     let (transform, frame) = fit_transform(world, setup, &NICE_INCHES_PER_UNIT);
     let scale = transform.scale;
     let tol_world = setup.chord_tolerance_px / setup.px_per_pt() / scale;
