@@ -537,22 +537,12 @@ fn bracket(
 
 /// Legend and footer of a classic page.
 fn legend(dl: &mut DisplayList, geometry: &ClassicGeometry, setup: &PageSetup, rocks: bool) {
-    let (w, h) = setup.size_pt();
     let m = setup.margin_pt;
-    let top = h - m - style::FOOTER_HEIGHT + 10.0;
-    let pat = setup.dash;
     let ts = style::SMALL_SIZE;
-    let y = top + 6.0;
-    let x = super::dash_sample(dl, m, y, pat.fraction);
-    dl.text(
-        [x, y + 2.5],
-        ts,
-        Anchor::Start,
-        format!(
-            "one dash = {}° of input ({}° drawn); dot: start of a branch (θ = 0 for a crank, the lower toggle for a rocking input); bold: its first dash; arrowhead: direction of travel",
-            fmt_num(pat.step_deg),
-            fmt_num(pat.step_deg * pat.fraction)
-        ),
+    let y = super::dash_legend(
+        dl,
+        setup,
+        "one dash = {step}° of input ({drawn}° drawn); dot: start of a branch (θ = 0 for a crank, the lower toggle for a rocking input); bold: its first dash; arrowhead: direction of travel",
     );
     let y2 = y + 14.0;
     let (deg, circuit) = geometry.drawn;
@@ -579,16 +569,9 @@ fn legend(dl: &mut DisplayList, geometry: &ClassicGeometry, setup: &PageSetup, r
         geometry.transform.scale,
         "input link 1 = {} in on this page",
     );
-    dl.text(
-        [w - m, h - m],
-        6.0,
-        Anchor::End,
+    super::footer(
+        dl,
+        setup,
         footer_settings(setup).replacen("of crank", "of input", 1),
-    );
-    dl.text(
-        [m, h - m],
-        6.0,
-        Anchor::Start,
-        format!("coupler-atlas {}", env!("CARGO_PKG_VERSION")),
     );
 }

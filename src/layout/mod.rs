@@ -1113,23 +1113,13 @@ fn ground_symbol(dl: &mut DisplayList, p: PagePoint, r: f64) {
 /// Legend and footer: dash meaning, θ = 0 mark, crank sense, circuit, scale bar,
 /// generation settings.
 fn legend(dl: &mut DisplayList, page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetup) {
-    let (w, h) = setup.size_pt();
     let m = setup.margin_pt;
-    let top = h - m - style::FOOTER_HEIGHT + 10.0;
-    let pat = setup.dash;
     let ts = style::SMALL_SIZE;
     let unit = 12.0;
-    let y = top + 6.0;
-    let x = dash_sample(dl, m, y, pat.fraction);
-    dl.text(
-        [x, y + 2.5],
-        ts,
-        Anchor::Start,
-        format!(
-            "one dash = {}° of crank ({}° drawn); bold dash and dot: θ = 0; arrowhead: direction of travel",
-            fmt_num(pat.step_deg),
-            fmt_num(pat.step_deg * pat.fraction)
-        ),
+    let y = dash_legend(
+        dl,
+        setup,
+        "one dash = {step}° of crank ({drawn}° drawn); bold dash and dot: θ = 0; arrowhead: direction of travel",
     );
     // Crank sense: a small counter-clockwise arc arrow.
     let y2 = y + 14.0;
@@ -1170,8 +1160,29 @@ fn legend(dl: &mut DisplayList, page: &LinkagePage, geometry: &PageGeometry, set
         geometry.transform.scale,
         "crank length 1 = {} in on this page",
     );
-    // Footer settings line.
-    dl.text([w - m, h - m], 6.0, Anchor::End, footer_settings(setup));
+    footer(dl, setup, footer_settings(setup));
+}
+
+/// The legend's first line: sample dashes and `text` with `{step}` and `{drawn}` replaced
+/// by the dash step and its drawn part (degrees). Returns the line's y.
+fn dash_legend(dl: &mut DisplayList, setup: &PageSetup, text: &str) -> f64 {
+    let (_, h) = setup.size_pt();
+    let m = setup.margin_pt;
+    let y = h - m - style::FOOTER_HEIGHT + 16.0;
+    let pat = setup.dash;
+    let x = dash_sample(dl, m, y, pat.fraction);
+    let text = text
+        .replace("{step}", &fmt_num(pat.step_deg))
+        .replace("{drawn}", &fmt_num(pat.step_deg * pat.fraction));
+    dl.text([x, y + 2.5], style::SMALL_SIZE, Anchor::Start, text);
+    y
+}
+
+/// The footer: `settings` at the bottom right, the program and version at the left.
+fn footer(dl: &mut DisplayList, setup: &PageSetup, settings: String) {
+    let (w, h) = setup.size_pt();
+    let m = setup.margin_pt;
+    dl.text([w - m, h - m], 6.0, Anchor::End, settings);
     dl.text(
         [m, h - m],
         6.0,
