@@ -5,7 +5,10 @@
 //! Pure: parses text.
 
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use serde::Deserialize;
+use crate::methods::longest_straight_run;
+use crate::spec::{AtlasSpec, PageSettings, Sampling, SpecError};
+use crate::trace::{Branch, InputRange, trace_full};
+use serde::Serialize;
 
 /// How a curve of an explicit spec is traced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -29,130 +32,150 @@ pub struct NamedCurve {
     pub trace: TraceMode,
 }
 
-/// A parsed explicit-curve spec.
+/// A parsed full-curve page set: the `[atlas]`, `[sampling]` and `[pages]` sections of a
+/// spec with a list of `[[curve]]` entries instead of the grid. Parsed by
+/// [`crate::spec::AtlasSpec::parse`] (errors are located like every spec error).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CurveList {
     /// `[atlas] name`.
     pub name: String,
     /// `[atlas] title` (the name if absent).
     pub title: String,
-    /// `[sampling] crank_step_deg` (default 1).
-    pub crank_step_deg: f64,
+    /// `[sampling]`: the input step of the traced samples behind the measures, and the
+    /// input angle per dash on the pages.
+    pub sampling: Sampling,
+    /// `[pages]` (one curve per page).
+    pub pages: PageSettings,
     /// The curves, in file order.
     pub curves: Vec<NamedCurve>,
 }
 
-/// An error in an explicit-curve spec.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("{source_name}: {message}")]
-pub struct CurveListError {
-    /// The file.
-    pub source_name: String,
-    /// What is wrong (with the curve's name or index).
-    pub message: String,
-}
-
-#[derive(Deserialize)]
-struct Raw {
-    atlas: RawAtlas,
-    #[serde(default)]
-    sampling: Option<RawSampling>,
-    #[serde(default)]
-    pages: Option<toml::Value>,
-    curve: Vec<RawCurve>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawAtlas {
-    name: String,
-    #[serde(default)]
-    title: Option<String>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawSampling {
-    #[serde(default)]
-    crank_step_deg: Option<f64>,
-    #[serde(default)]
-    dash_deg: Option<f64>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawCurve {
-    name: String,
-    coupler: f64,
-    rocker: f64,
-    ground: f64,
-    u: f64,
-    v: f64,
-    #[serde(default)]
-    trace: Option<String>,
-}
-
 impl CurveList {
-    /// Parses and validates an explicit-curve spec.
+    /// Parses and validates a full-curve page set.
     ///
     /// ```
     /// let text = include_str!("../atlas-spec/classics.toml");
     /// let list = coupler_atlas::classics::CurveList::parse(text, "classics.toml").unwrap();
     /// assert_eq!(list.curves.len(), 5);
     /// ```
-    pub fn parse(text: &str, source_name: &str) -> Result<CurveList, CurveListError> {
-        let err = |message: String| CurveListError {
-            source_name: source_name.to_string(),
-            message,
+    pub fn parse(text: &str, source_name: &str) -> Result<CurveList, SpecError> {
+        match AtlasSpec::parse(text, source_name)? {
+            AtlasSpec::Curves(list) => Ok(list),
+            AtlasSpec::Grid(_) => Err(SpecError {
+                source_name: source_name.to_string(),
+                line: 1,
+                column: 1,
+                key: Some("curve".into()),
+                message: "this spec is a grid ([linkages] and [points]); a list of [[curve]] entries is needed here".into(),
+                snippet: None,
+            }),
+        }
+    }
+}
+
+/// Tolerances on ε_S at which each curve's straight run is measured (1 %, 0.1 %,
+/// 0.01 %): the pages print all three, the middle one is drawn.
+pub const STRAIGHTNESS_TOLERANCES: [f64; 3] = [1e-2, 1e-3, 1e-4];
+
+/// The longest straight run of a full curve at one tolerance.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct StraightMeasure {
+    /// The ε_S bound it was found under (a fraction, not %).
+    pub tolerance: f64,
+    /// Index of the branch it lies on.
+    pub branch: usize,
+    /// Index of its first sample in the branch, and the number of samples.
+    pub samples: [usize; 2],
+    /// Input angle at its ends, degrees (in the order of motion).
+    pub input_deg: [f64; 2],
+    /// Input travel over it, degrees (summed along the branch: a run through a toggle
+    /// counts the travel out and back).
+    pub input_span_deg: f64,
+    /// Δx along the fitted line, in units of the input link.
+    pub extent: f64,
+    /// ε_S over the run (a fraction).
+    pub straightness: f64,
+    /// Its end points.
+    pub ends: [[f64; 2]; 2],
+}
+
+/// A named curve traced in full and measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClassicCurve {
+    /// Where the input can go (toggles).
+    pub range: InputRange,
+    /// The branches drawn (every branch for `full`; for one circuit, its samples).
+    pub branches: Vec<Branch>,
+    /// The longest straight run at each of [`STRAIGHTNESS_TOLERANCES`] (`None` where no
+    /// run of three samples qualifies).
+    pub straight: Vec<Option<StraightMeasure>>,
+}
+
+impl ClassicCurve {
+    /// Traces `c` at input steps of `step_deg` across its toggles
+    /// ([`crate::trace::trace_full`]) and measures its longest straight run at each
+    /// tolerance: the longest run of consecutive samples on one branch that moves one
+    /// way along its total-least-squares line with ε_S ≤ the tolerance (Norton §3.8),
+    /// the longest by input travel across branches.
+    pub fn compute(c: &NamedCurve, step_deg: f64) -> ClassicCurve {
+        let full = trace_full(&c.linkage, c.point, step_deg);
+        let branches: Vec<Branch> = match c.trace {
+            TraceMode::Full => full.branches,
+            TraceMode::Circuit(circ) => full
+                .branches
+                .into_iter()
+                .filter(|b| b.samples.first().is_some_and(|s| s.circuit == circ))
+                .collect(),
         };
-        let raw: Raw = toml::from_str(text).map_err(|e| err(e.to_string()))?;
-        let _ = raw.pages;
-        let step = raw
-            .sampling
-            .as_ref()
-            .and_then(|s| s.crank_step_deg)
-            .unwrap_or(1.0);
-        let _ = raw.sampling.as_ref().and_then(|s| s.dash_deg);
-        if !(step.is_finite() && step > 0.0 && step <= 360.0) {
-            return Err(err(format!(
-                "sampling.crank_step_deg must be in (0, 360], got {step}"
-            )));
+        let straight = STRAIGHTNESS_TOLERANCES
+            .iter()
+            .map(|&t| {
+                let mut best: Option<StraightMeasure> = None;
+                for (bi, b) in branches.iter().enumerate() {
+                    let pts = b.points();
+                    let Some(run) = longest_straight_run(&pts, t) else {
+                        continue;
+                    };
+                    let seg = &b.samples[run.start..run.start + run.len];
+                    let span: f64 = seg
+                        .windows(2)
+                        .map(|w| (w[1].degrees - w[0].degrees).abs())
+                        .sum();
+                    if best.is_none_or(|m| span > m.input_span_deg) {
+                        let (first, last) = (seg[0], seg[seg.len() - 1]);
+                        best = Some(StraightMeasure {
+                            tolerance: t,
+                            branch: bi,
+                            samples: [run.start, run.len],
+                            input_deg: [first.degrees, last.degrees],
+                            input_span_deg: span,
+                            extent: run.extent,
+                            straightness: run.straightness,
+                            ends: [[first.point.x, first.point.y], [last.point.x, last.point.y]],
+                        });
+                    }
+                }
+                best
+            })
+            .collect();
+        ClassicCurve {
+            range: full.range,
+            branches,
+            straight,
         }
-        if raw.curve.is_empty() {
-            return Err(err("no [[curve]] entries".into()));
+    }
+
+    /// The input's range in words: "full turn", or the rocking intervals in degrees.
+    pub fn range_text(&self) -> String {
+        match &self.range {
+            InputRange::Full => "full turn".to_string(),
+            InputRange::Never => "never assembles".to_string(),
+            InputRange::Rocks { intervals } => intervals
+                .iter()
+                .map(|(lo, hi)| format!("[{:.2}°, {:.2}°]", lo.degrees, hi.degrees))
+                .collect::<Vec<_>>()
+                .join(", "),
         }
-        let mut curves = Vec::new();
-        for (i, c) in raw.curve.iter().enumerate() {
-            let at = |m: String| err(format!("curve {} (`{}`): {m}", i + 1, c.name));
-            let linkage =
-                FourBar::new(c.coupler, c.rocker, c.ground).map_err(|e| at(e.to_string()))?;
-            if !(c.u.is_finite() && c.v.is_finite()) {
-                return Err(at("u and v must be finite".into()));
-            }
-            let trace = match c.trace.as_deref().unwrap_or("full") {
-                "full" => TraceMode::Full,
-                other => TraceMode::Circuit(other.parse().map_err(|_| {
-                    at(format!(
-                        "trace must be `full`, `open` or `crossed`, got `{other}`"
-                    ))
-                })?),
-            };
-            if curves.iter().any(|n: &NamedCurve| n.name == c.name) {
-                return Err(at("name used twice".into()));
-            }
-            curves.push(NamedCurve {
-                name: c.name.clone(),
-                linkage,
-                point: CouplerPoint::new(c.u, c.v),
-                trace,
-            });
-        }
-        Ok(CurveList {
-            title: raw.atlas.title.unwrap_or_else(|| raw.atlas.name.clone()),
-            name: raw.atlas.name,
-            crank_step_deg: step,
-            curves,
-        })
     }
 }
 
@@ -160,13 +183,70 @@ impl CurveList {
 mod tests {
     use super::*;
 
+    fn parse(text: &str) -> Result<CurveList, SpecError> {
+        CurveList::parse(text, "t.toml")
+    }
+
+    const BASE: &str = "[atlas]\nname = \"x\"\n[[curve]]\nname = \"a\"\ncoupler = 1.0\nrocker = 1.0\nground = 1.5\nu = 0.0\nv = 0.0\n";
+
     #[test]
-    fn rejects_bad_entries() {
-        let base = "[atlas]\nname = \"x\"\n[[curve]]\nname = \"a\"\ncoupler = 1.0\nrocker = 1.0\nground = 1.0\nu = 0.0\nv = 0.0\n";
-        assert!(CurveList::parse(base, "t").is_ok());
-        assert!(CurveList::parse(&base.replace("coupler = 1.0", "coupler = -1.0"), "t").is_err());
-        assert!(CurveList::parse(&format!("{base}trace = \"sideways\"\n"), "t").is_err());
-        assert!(CurveList::parse(&format!("{base}colour = 3\n"), "t").is_err());
-        assert!(CurveList::parse("[atlas]\nname = \"x\"\ncurve = []\n", "t").is_err());
+    fn rejects_bad_entries_with_their_line_and_key() {
+        assert!(parse(BASE).is_ok());
+        let e = parse(&BASE.replace("coupler = 1.0", "coupler = -1.0")).unwrap_err();
+        assert_eq!(
+            (e.line, e.key.as_deref()),
+            (5, Some("curve.coupler")),
+            "{e}"
+        );
+        let e = parse(&format!("{BASE}trace = \"sideways\"\n")).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("curve.trace"), "{e}");
+        let e = parse(&format!("{BASE}colour = 3\n")).unwrap_err();
+        assert!(e.message.contains("unknown field"), "{e}");
+        assert!(parse("[atlas]\nname = \"x\"\ncurve = []\n").is_err());
+        let e = parse(&format!("{BASE}[[curve]]\nname = \"a\"\ncoupler = 1.0\nrocker = 1.0\nground = 1.5\nu = 0.0\nv = 0.0\n")).unwrap_err();
+        assert!(e.message.contains("earlier"), "{e}");
+        // A triple rocker cannot be traced on one circuit over a full turn.
+        let e = parse(&format!("{BASE}trace = \"open\"\n")).unwrap_err();
+        assert!(e.message.contains("cannot turn fully"), "{e}");
+        let e = parse(&format!("[pages]\ncurves_per_page = 4\n{BASE}")).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("pages.curves_per_page"), "{e}");
+        // Grid and list together.
+        let e = parse(&format!("{BASE}[linkages]\ncoupler = {{ start = 1, end = 1, step = 1 }}\nrocker = {{ start = 1, end = 1, step = 1 }}\nground = {{ start = 1, end = 1, step = 1 }}\n")).unwrap_err();
+        assert!(e.message.contains("not both"), "{e}");
+        // A grid spec is not a curve list, and a curve list is not a grid spec.
+        assert!(parse(include_str!("../atlas-spec/quick.toml")).is_err());
+        let e = crate::Spec::parse(BASE, "t.toml").unwrap_err();
+        assert!(e.message.contains("[[curve]]"), "{e}");
+    }
+
+    /// The shipped page set's measures: Hoeken's straight run at 1 % spans θ = 180° on
+    /// the open circuit (domain.md §7), and every classic has one at each tolerance,
+    /// longer at looser tolerances.
+    #[test]
+    fn classics_measure_their_straight_runs() {
+        let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "c").unwrap();
+        for c in &list.curves {
+            let m = ClassicCurve::compute(c, list.sampling.crank_step_deg);
+            let spans: Vec<f64> = m
+                .straight
+                .iter()
+                .map(|s| s.expect("a straight run").input_span_deg)
+                .collect();
+            assert!(
+                spans[0] > spans[1] && spans[1] > spans[2],
+                "{}: {spans:?}",
+                c.name
+            );
+            for s in m.straight.iter().flatten() {
+                assert!(s.straightness <= s.tolerance, "{}", c.name);
+            }
+            if c.name == "Hoeken" {
+                // The straight part spans θ = 180° on the open circuit (domain.md §7).
+                let s = m.straight[0].unwrap();
+                let b = &m.branches[s.branch];
+                assert_eq!(b.samples[s.samples[0]].circuit, crate::Circuit::Open);
+                assert!(s.input_deg[0] < 180.0 && 180.0 < s.input_deg[1], "{s:?}");
+            }
+        }
     }
 }

@@ -112,20 +112,22 @@ impl DashPattern {
 /// One dash: a crank interval and the polyline the coupler point traces over it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Dash {
-    /// Dash number `k` (0 starts at θ = 0).
-    pub index: usize,
+    /// Dash number `k` (0 starts at θ = 0; on a rocking input's leg, the `k` of the
+    /// interval `[kΔ, kΔ + fΔ]` it lies in, which may be negative there: see [`dash_leg`]).
+    pub index: i64,
     /// First crank angle, degrees.
     pub theta_start: f64,
     /// Last crank angle, degrees.
     pub theta_end: f64,
-    /// Points of M, in curve units, in the order of travel (θ increasing). At least two.
+    /// Points of M, in curve units, in the order of travel (θ increasing, except on the
+    /// return leg of a rocking input: [`dash_leg`]). At least two.
     pub points: Vec<Point2<f64>>,
 }
 
 impl Dash {
-    /// Crank span in degrees (`f·Δ`).
+    /// Crank span in degrees (`f·Δ`, less for a dash cut by a toggle).
     pub fn span_deg(&self) -> f64 {
-        self.theta_end - self.theta_start
+        (self.theta_end - self.theta_start).abs()
     }
 
     /// Polyline length in curve units (a lower bound of the arc length, within the chord
@@ -186,11 +188,14 @@ pub fn distance_to_segment(p: Point2<f64>, a: Point2<f64>, b: Point2<f64>) -> f6
     (p - (a + ab * t)).norm()
 }
 
-/// Samples coupler point M over crank angles.
+/// Samples coupler point M over crank angles, bisecting in a parameter σ with
+/// θ = `warp(σ)` (the identity for a crank; near a toggle a square map that makes the
+/// curve regular in σ: [`dash_leg`]).
 struct Sampler<'a> {
     linkage: &'a FourBar,
     circuit: Circuit,
     point: CouplerPoint,
+    warp: &'a dyn Fn(f64) -> f64,
 }
 
 impl Sampler<'_> {
@@ -224,12 +229,12 @@ impl Sampler<'_> {
         out: &mut Vec<Point2<f64>>,
     ) -> Result<(), DashError> {
         let tm = 0.5 * (t0 + t1);
-        let pm = self.at(tm)?;
+        let pm = self.at((self.warp)(tm))?;
         let mut err = distance_to_segment(pm, p0, p1);
         if err <= tol && depth < 2 {
             // Cheap extra check on coarse pieces: the quarter points.
-            let q1 = self.at(0.5 * (t0 + tm))?;
-            let q3 = self.at(0.5 * (tm + t1))?;
+            let q1 = self.at((self.warp)(0.5 * (t0 + tm)))?;
+            let q3 = self.at((self.warp)(0.5 * (tm + t1)))?;
             err = err
                 .max(distance_to_segment(q1, p0, p1))
                 .max(distance_to_segment(q3, p0, p1));
@@ -272,6 +277,7 @@ pub fn dash_curve(
         linkage,
         circuit,
         point,
+        warp: &|t| t,
     };
     let mut dashes = Vec::with_capacity(pattern.count());
     let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
@@ -290,7 +296,7 @@ pub fn dash_curve(
             ];
         }
         dashes.push(Dash {
-            index: k,
+            index: k as i64,
             theta_start: t0,
             theta_end: t1,
             points,
@@ -316,9 +322,93 @@ pub fn dash_curve(
     })
 }
 
+/// The dashes of one leg of a complete coupler curve ([`crate::trace::trace_full`]): the
+/// input moving from `from_deg` to `to_deg` (either way) on `circuit`, as a rocking input
+/// does between its toggles. Dash `k` is the part of `θ ∈ [kΔ, kΔ + fΔ]` inside the leg,
+/// the same intervals of the input as a crank's dashes, so one dash still reads `Δ` of
+/// input time; a dash cut by a toggle is shorter (a piece under 1 % of `fΔ` is dropped).
+/// Dashes come in the order of travel, each polyline in that order too. Near a toggle the
+/// curve's speed in θ grows without bound (a square-root branch point); the bisection
+/// follows it there to the chord tolerance.
+///
+/// Errors as [`dash_curve`]; also if the linkage does not assemble inside the leg (the
+/// ends must be within the input's range: use the toggle angles `trace_full` reports).
+pub fn dash_leg(
+    linkage: &FourBar,
+    circuit: Circuit,
+    point: CouplerPoint,
+    pattern: &DashPattern,
+    tolerance: f64,
+    from_deg: f64,
+    to_deg: f64,
+) -> Result<Vec<Dash>, DashError> {
+    pattern.validate()?;
+    if !(tolerance.is_finite() && tolerance > 0.0) {
+        return Err(DashError::BadTolerance(tolerance));
+    }
+    let (lo, hi) = (from_deg.min(to_deg), from_deg.max(to_deg));
+    let step = pattern.step_deg;
+    let drawn = pattern.fraction * step;
+    let mut dashes = Vec::new();
+    let first = (lo / step).floor() as i64;
+    let last = (hi / step).floor() as i64;
+    for k in first..=last {
+        let a = (k as f64 * step).max(lo);
+        let b = (k as f64 * step + drawn).min(hi);
+        if b - a < 0.01 * drawn {
+            continue;
+        }
+        // Bisect in σ ∈ [0, 1] with θ = a + (b − a)·w(σ): w(σ) = σ in the open; a square
+        // at an end that is a leg end (a toggle), where M(θ) has a square-root branch
+        // point but M(θ(σ)) is regular, so the midpoint test bounds the chord error there
+        // as it does elsewhere: w = σ² at `lo`, 1 − (1 − σ)² at `hi`, the smooth step
+        // (1 − cos πσ)/2 when the dash touches both.
+        let (at_lo, at_hi) = (a == lo, b == hi);
+        let warp = move |x: f64| -> f64 {
+            let w = match (at_lo, at_hi) {
+                (false, false) => x,
+                (true, false) => x * x,
+                (false, true) => 1.0 - (1.0 - x) * (1.0 - x),
+                (true, true) => 0.5 * (1.0 - libm::cos(std::f64::consts::PI * x)),
+            };
+            if x >= 1.0 { b } else { a + (b - a) * w }
+        };
+        let s = Sampler {
+            linkage,
+            circuit,
+            point,
+            warp: &warp,
+        };
+        let (p_a, p_b) = (s.at(a)?, s.at(b)?);
+        let (t0, t1, p0, p1, s0, s1) = if to_deg >= from_deg {
+            (a, b, p_a, p_b, 0.0, 1.0)
+        } else {
+            (b, a, p_b, p_a, 1.0, 0.0)
+        };
+        let mut points = vec![p0];
+        s.refine(s0, p0, s1, p1, tolerance, 0, &mut points)?;
+        dashes.push(Dash {
+            index: k,
+            theta_start: t0,
+            theta_end: t1,
+            points,
+        });
+    }
+    if to_deg < from_deg {
+        dashes.reverse();
+    }
+    Ok(dashes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn distance_to_polyline(p: Point2<f64>, pts: &[Point2<f64>]) -> f64 {
+        pts.windows(2)
+            .map(|w| distance_to_segment(p, w[0], w[1]))
+            .fold(f64::INFINITY, f64::min)
+    }
 
     fn crank_rocker() -> FourBar {
         FourBar::new(3.0, 2.0, 3.0).unwrap()
@@ -338,7 +428,7 @@ mod tests {
             .unwrap();
             assert_eq!(c.dashes.len(), (360.0 / step) as usize);
             for (k, d) in c.dashes.iter().enumerate() {
-                assert_eq!(d.index, k);
+                assert_eq!(d.index, k as i64);
                 assert!(
                     (d.span_deg() - step * f).abs() < 1e-12,
                     "span {}",
@@ -404,11 +494,7 @@ mod tests {
                             let m = Pose::solve(&l, circuit, &CrankAngle::from_degrees(t))
                                 .unwrap()
                                 .point(p);
-                            let dist = d
-                                .points
-                                .windows(2)
-                                .map(|w| distance_to_segment(m, w[0], w[1]))
-                                .fold(f64::INFINITY, f64::min);
+                            let dist = distance_to_polyline(m, &d.points);
                             assert!(
                                 dist <= tol * 1.01,
                                 "{l:?} {p:?} {circuit} θ={t}: {dist:e} > {tol:e}"
@@ -453,5 +539,107 @@ mod tests {
         assert!((c.start_direction - Vector2::new(-s, co)).norm() < 1e-12);
         // Dash length ≈ arc of 6° on a unit circle.
         assert!((c.dashes[0].length() - 6f64.to_radians()).abs() < 1e-4);
+    }
+
+    /// Toggle angles of a rocking input's first interval (from the full trace).
+    fn toggles(l: &FourBar) -> (f64, f64) {
+        match crate::trace::input_range(l) {
+            crate::trace::InputRange::Rocks { intervals } => {
+                (intervals[0].0.degrees, intervals[0].1.degrees)
+            }
+            r => panic!("not a rocking input: {r:?}"),
+        }
+    }
+
+    /// The classic rockers of `atlas-spec/classics.toml` (Watt, Roberts, Evans).
+    fn rockers() -> [(FourBar, CouplerPoint); 3] {
+        [
+            (
+                FourBar::new(1.0, 1.0, 5f64.sqrt()).unwrap(),
+                CouplerPoint::new(0.5, 0.0),
+            ),
+            (
+                FourBar::new(0.8, 1.0, 1.6).unwrap(),
+                CouplerPoint::new(0.4, -0.916515138991168),
+            ),
+            (
+                FourBar::new(1.0, 4.0, 17f64.sqrt()).unwrap(),
+                CouplerPoint::new(-1.0, 0.0),
+            ),
+        ]
+    }
+
+    /// A leg's dashes are the pattern's intervals cut to the leg, in the order of travel;
+    /// the return leg on the same circuit is the same polylines reversed, exactly.
+    #[test]
+    fn leg_dashes_follow_the_input_both_ways() {
+        let pat = DashPattern::default();
+        for (l, p) in rockers() {
+            let (lo, hi) = toggles(&l);
+            let out = dash_leg(&l, Circuit::Open, p, &pat, 1e-4, lo, hi).unwrap();
+            let back = dash_leg(&l, Circuit::Open, p, &pat, 1e-4, hi, lo).unwrap();
+            // Every interval [kΔ, kΔ + fΔ] meeting (lo, hi) by more than 1 % of fΔ.
+            let expected = (((lo / 10.0).floor() as i64)..=((hi / 10.0).floor() as i64))
+                .filter(|&k| {
+                    let (a, b) = ((k as f64 * 10.0).max(lo), (k as f64 * 10.0 + 6.0).min(hi));
+                    b - a >= 0.06
+                })
+                .count();
+            assert_eq!(out.len(), expected, "{l:?}");
+            for w in out.windows(2) {
+                assert!(w[0].theta_end < w[1].theta_start && w[0].index + 1 == w[1].index);
+            }
+            for d in &out {
+                let k = d.index as f64;
+                assert!(
+                    d.theta_start >= (10.0 * k).max(lo) && d.theta_end <= (10.0 * k + 6.0).min(hi)
+                );
+                assert!(d.span_deg() <= 6.0 + 1e-12 && d.points.len() >= 2);
+            }
+            assert_eq!(back.len(), out.len());
+            for (b, o) in back.iter().zip(out.iter().rev()) {
+                assert_eq!(b.index, o.index);
+                assert_eq!((b.theta_start, b.theta_end), (o.theta_end, o.theta_start));
+                let mut rev = o.points.clone();
+                rev.reverse();
+                assert_eq!(b.points, rev);
+            }
+            // Outside the input's range the linkage does not assemble: an error.
+            assert!(dash_leg(&l, Circuit::Open, p, &pat, 1e-4, lo, hi + 5.0).is_err());
+        }
+    }
+
+    /// The chord bound holds up to the toggles, where the point's speed in θ is
+    /// unbounded (dense samples of the true curve within the tolerance of the polyline).
+    /// Frozen failure: bisecting in θ itself (no square warp at the toggles), Roberts'
+    /// crossed leg at 1e-4 left a sample 1.013e-4 from its polyline at θ = 84.2502°.
+    #[test]
+    fn leg_chord_error_bound_holds_at_toggles() {
+        let pat = DashPattern::new(10.0, 0.6).unwrap();
+        for (l, p) in rockers() {
+            let (lo, hi) = toggles(&l);
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                for tol in [1e-3, 1e-4] {
+                    let dashes = dash_leg(&l, circuit, p, &pat, tol, lo, hi).unwrap();
+                    for d in [&dashes[0], &dashes[dashes.len() - 1]] {
+                        let n = 400;
+                        for i in 0..=n {
+                            let t =
+                                d.theta_start + (d.theta_end - d.theta_start) * i as f64 / n as f64;
+                            let Some(pose) = Pose::solve(&l, circuit, &CrankAngle::from_degrees(t))
+                            else {
+                                continue; // the last ulps before a toggle may not assemble
+                            };
+                            let m = pose.point(p);
+                            let dist = distance_to_polyline(m, &d.points);
+                            assert!(
+                                dist <= tol * 1.01,
+                                "{l:?} {circuit} θ={t}: {dist:e} > {tol:e}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 }

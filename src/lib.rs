@@ -38,7 +38,7 @@ pub use cognates::{Cognate, CognateError, cognates};
 pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
 pub use dash::{
     DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
-    DashPattern, DashedCurve, dash_curve, distance_to_segment,
+    DashPattern, DashedCurve, dash_curve, dash_leg, distance_to_segment,
 };
 pub use exact::{Decimal, DecimalError};
 pub use features::{
@@ -48,8 +48,8 @@ pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VER
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
 pub use spec::{
-    DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges, PAGE_SIZES,
-    PageSettings, PointGrid, Sampling, Spec, SpecError,
+    AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
+    PAGE_SIZES, PageSettings, PointGrid, Sampling, Spec, SpecError,
 };
 pub use window::{
     CrankWindow, DEFAULT_WINDOW_STEP_DEG, LineDirection, LineMeasures, WindowError, WindowMeasures,

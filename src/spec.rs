@@ -183,8 +183,12 @@ pub const PAGE_SIZES: [&str; 4] = ["tabloid", "letter", "a4", "a3"];
 #[serde(deny_unknown_fields)]
 struct RawSpec {
     atlas: Spanned<RawAtlas>,
-    linkages: Spanned<RawLinkages>,
-    points: Spanned<RawPoints>,
+    #[serde(default)]
+    linkages: Option<Spanned<RawLinkages>>,
+    #[serde(default)]
+    points: Option<Spanned<RawPoints>>,
+    #[serde(default)]
+    curve: Option<Spanned<Vec<Spanned<RawCurve>>>>,
     #[serde(default)]
     sampling: Option<Spanned<RawSampling>>,
     #[serde(default)]
@@ -199,6 +203,20 @@ struct RawAtlas {
     name: Spanned<String>,
     #[serde(default)]
     title: Option<Spanned<String>>,
+}
+
+/// One `[[curve]]` entry of a full-curve page set.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCurve {
+    name: Spanned<String>,
+    coupler: Spanned<f64>,
+    rocker: Spanned<f64>,
+    ground: Spanned<f64>,
+    u: Spanned<f64>,
+    v: Spanned<f64>,
+    #[serde(default)]
+    trace: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -369,9 +387,19 @@ impl Ctx<'_> {
 /// At most this many values in one range (a guard against typos like `step = 1e-9`).
 pub const MAX_RANGE_VALUES: u64 = 100_000;
 
-impl Spec {
-    /// Parses and validates a spec; `source_name` is used in error messages.
-    pub fn parse(text: &str, source_name: &str) -> Result<Spec, SpecError> {
+/// What a spec file describes: a Hrones–Nelson grid (`[linkages]` and `[points]`), or a
+/// full-curve page set (a list of `[[curve]]` entries, e.g. `atlas-spec/classics.toml`).
+#[derive(Clone, Debug, PartialEq)]
+pub enum AtlasSpec {
+    /// A grid of crank-rockers and coupler points.
+    Grid(Box<Spec>),
+    /// Explicit named curves, each traced in full.
+    Curves(crate::classics::CurveList),
+}
+
+impl AtlasSpec {
+    /// Parses and validates either kind of spec; `source_name` is used in error messages.
+    pub fn parse(text: &str, source_name: &str) -> Result<AtlasSpec, SpecError> {
         let cx = Ctx {
             name: source_name,
             text,
@@ -382,31 +410,95 @@ impl Spec {
             let key = error_key_path(text, &span, &message);
             cx.error(span, key.as_deref(), message)
         })?;
+        let (name, title) = cx.atlas(raw.atlas.get_ref())?;
+        let sampling = cx.sampling(raw.sampling.as_ref())?;
+        match (&raw.linkages, &raw.points, &raw.curve) {
+            (_, _, Some(curves)) => {
+                if let Some(t) = &raw.linkages {
+                    return Err(cx.error(t.span(), Some("linkages"), "a spec gives either a grid ([linkages] and [points]) or [[curve]] entries, not both".into()));
+                }
+                if let Some(t) = &raw.points {
+                    return Err(cx.error(t.span(), Some("points"), "a spec gives either a grid ([linkages] and [points]) or [[curve]] entries, not both".into()));
+                }
+                if let Some(t) = &raw.features {
+                    return Err(cx.error(t.span(), Some("features"), "[features] configures the index of a grid atlas; a [[curve]] page set measures each curve's straight runs (docs/spec-format.md)".into()));
+                }
+                let pages = cx.pages(raw.pages.as_ref(), false)?;
+                let curves = cx.curves(curves)?;
+                Ok(AtlasSpec::Curves(crate::classics::CurveList {
+                    name,
+                    title,
+                    sampling,
+                    pages,
+                    curves,
+                }))
+            }
+            (Some(l), Some(p), None) => {
+                let pages = cx.pages(raw.pages.as_ref(), true)?;
+                let features = match &raw.features {
+                    None => crate::features::FeatureSettings::DEFAULT,
+                    Some(t) => crate::features::FeatureSettings::from_table(t.get_ref())
+                        .map_err(|m| cx.error(t.span(), Some("features"), m))?,
+                };
+                let (linkages, circuits) = cx.linkages(l.get_ref())?;
+                let pr = p.get_ref();
+                let (u, u_relative) = cx.range(&pr.u, "points.u", false)?;
+                let (v, v_relative) = cx.range(&pr.v, "points.v", false)?;
+                Ok(AtlasSpec::Grid(Box::new(Spec {
+                    name,
+                    title,
+                    linkages,
+                    circuits,
+                    points: PointGrid {
+                        u,
+                        v,
+                        u_relative,
+                        v_relative,
+                    },
+                    sampling,
+                    pages,
+                    features,
+                })))
+            }
+            (l, _, None) => {
+                let missing = if l.is_none() { "linkages" } else { "points" };
+                Err(cx.error(
+                    0..0,
+                    Some(missing),
+                    format!("missing field `{missing}` (a spec needs [linkages] and [points], or a list of [[curve]] entries)"),
+                ))
+            }
+        }
+    }
+}
 
-        let atlas = raw.atlas.get_ref();
+impl Ctx<'_> {
+    fn atlas(&self, atlas: &RawAtlas) -> Result<(String, String), SpecError> {
         let name = atlas.name.get_ref().trim().to_string();
         if name.is_empty()
             || !name
                 .chars()
                 .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
         {
-            return Err(cx.error(atlas.name.span(), Some("atlas.name"), "name must be non-empty and use only ASCII letters, digits, `-` and `_` (it names files)".into()));
+            return Err(self.error(atlas.name.span(), Some("atlas.name"), "name must be non-empty and use only ASCII letters, digits, `-` and `_` (it names files)".into()));
         }
         let title = atlas
             .title
             .as_ref()
             .map(|t| t.get_ref().clone())
             .unwrap_or_else(|| name.clone());
+        Ok((name, title))
+    }
 
-        let l = raw.linkages.get_ref();
-        let (coupler, _) = cx.range(&l.coupler, "linkages.coupler", true)?;
-        let (rocker, _) = cx.range(&l.rocker, "linkages.rocker", true)?;
-        let (ground, _) = cx.range(&l.ground, "linkages.ground", true)?;
+    fn linkages(&self, l: &RawLinkages) -> Result<(LinkageRanges, Vec<Circuit>), SpecError> {
+        let (coupler, _) = self.range(&l.coupler, "linkages.coupler", true)?;
+        let (rocker, _) = self.range(&l.rocker, "linkages.rocker", true)?;
+        let (ground, _) = self.range(&l.ground, "linkages.ground", true)?;
         let circuits = match &l.circuits {
             None => vec![Circuit::Open],
             Some(list) => {
                 if list.get_ref().is_empty() {
-                    return Err(cx.error(
+                    return Err(self.error(
                         list.span(),
                         Some("linkages.circuits"),
                         "list is empty: give `open`, `crossed` or both".into(),
@@ -417,9 +509,9 @@ impl Spec {
                     let circuit: Circuit = c
                         .get_ref()
                         .parse()
-                        .map_err(|m: String| cx.error(c.span(), Some("linkages.circuits"), m))?;
+                        .map_err(|m: String| self.error(c.span(), Some("linkages.circuits"), m))?;
                     if out.contains(&circuit) {
-                        return Err(cx.error(
+                        return Err(self.error(
                             c.span(),
                             Some("linkages.circuits"),
                             format!("`{circuit}` is listed twice"),
@@ -430,111 +522,218 @@ impl Spec {
                 out
             }
         };
-
-        let p = raw.points.get_ref();
-        let (u, u_relative) = cx.range(&p.u, "points.u", false)?;
-        let (v, v_relative) = cx.range(&p.v, "points.v", false)?;
-
-        let sampling = match &raw.sampling {
-            None => Sampling {
-                crank_step_deg: 1.0,
-                dash_deg: 10.0,
-            },
-            Some(s) => {
-                let s = s.get_ref();
-                Sampling {
-                    crank_step_deg: match &s.crank_step_deg {
-                        Some(x) => cx.divides_360(x, "sampling.crank_step_deg")?,
-                        None => 1.0,
-                    },
-                    dash_deg: match &s.dash_deg {
-                        Some(x) => cx.divides_360(x, "sampling.dash_deg")?,
-                        None => 10.0,
-                    },
-                }
-            }
-        };
-
-        let mut pages = PageSettings {
-            curves_per_page: 10,
-            size: "tabloid".into(),
-            orientation: "portrait".into(),
-            dpi: 300,
-        };
-        if let Some(raw_pages) = &raw.pages {
-            let rp = raw_pages.get_ref();
-            if let Some(n) = &rp.curves_per_page {
-                if !(1..=100).contains(n.get_ref()) {
-                    return Err(cx.error(
-                        n.span(),
-                        Some("pages.curves_per_page"),
-                        format!("must be from 1 to 100, got {}", n.get_ref()),
-                    ));
-                }
-                pages.curves_per_page = *n.get_ref() as u32;
-            }
-            if let Some(s) = &rp.size {
-                let lower = s.get_ref().to_ascii_lowercase();
-                if !PAGE_SIZES.contains(&lower.as_str()) {
-                    return Err(cx.error(
-                        s.span(),
-                        Some("pages.size"),
-                        format!(
-                            "unknown page size `{}` (expected one of {})",
-                            s.get_ref(),
-                            PAGE_SIZES.join(", ")
-                        ),
-                    ));
-                }
-                pages.size = lower;
-            }
-            if let Some(o) = &rp.orientation {
-                if !matches!(o.get_ref().as_str(), "portrait" | "landscape") {
-                    return Err(cx.error(
-                        o.span(),
-                        Some("pages.orientation"),
-                        format!("must be `portrait` or `landscape`, got `{}`", o.get_ref()),
-                    ));
-                }
-                pages.orientation = o.get_ref().clone();
-            }
-            if let Some(d) = &rp.dpi {
-                if !(36..=1200).contains(d.get_ref()) {
-                    return Err(cx.error(
-                        d.span(),
-                        Some("pages.dpi"),
-                        format!("must be from 36 to 1200, got {}", d.get_ref()),
-                    ));
-                }
-                pages.dpi = *d.get_ref() as u32;
-            }
-        }
-
-        let features = match &raw.features {
-            None => crate::features::FeatureSettings::DEFAULT,
-            Some(t) => crate::features::FeatureSettings::from_table(t.get_ref())
-                .map_err(|m| cx.error(t.span(), Some("features"), m))?,
-        };
-
-        Ok(Spec {
-            name,
-            title,
-            linkages: LinkageRanges {
+        Ok((
+            LinkageRanges {
                 coupler,
                 rocker,
                 ground,
             },
             circuits,
-            points: PointGrid {
-                u,
-                v,
-                u_relative,
-                v_relative,
-            },
-            sampling,
-            pages,
-            features,
-        })
+        ))
+    }
+
+    fn sampling(&self, raw: Option<&Spanned<RawSampling>>) -> Result<Sampling, SpecError> {
+        let mut sampling = Sampling {
+            crank_step_deg: 1.0,
+            dash_deg: 10.0,
+        };
+        if let Some(s) = raw {
+            let s = s.get_ref();
+            if let Some(x) = &s.crank_step_deg {
+                sampling.crank_step_deg = self.divides_360(x, "sampling.crank_step_deg")?;
+            }
+            if let Some(x) = &s.dash_deg {
+                sampling.dash_deg = self.divides_360(x, "sampling.dash_deg")?;
+            }
+        }
+        Ok(sampling)
+    }
+
+    /// `[pages]`; `per_page` says whether `curves_per_page` applies (a [[curve]] page set
+    /// puts one curve on each page).
+    fn pages(
+        &self,
+        raw: Option<&Spanned<RawPages>>,
+        per_page: bool,
+    ) -> Result<PageSettings, SpecError> {
+        let mut pages = PageSettings {
+            curves_per_page: if per_page { 10 } else { 1 },
+            size: "tabloid".into(),
+            orientation: "portrait".into(),
+            dpi: 300,
+        };
+        let Some(raw_pages) = raw else {
+            return Ok(pages);
+        };
+        let rp = raw_pages.get_ref();
+        if let Some(n) = &rp.curves_per_page {
+            if !per_page {
+                return Err(self.error(
+                    n.span(),
+                    Some("pages.curves_per_page"),
+                    "a [[curve]] page set puts one curve on each page".into(),
+                ));
+            }
+            if !(1..=100).contains(n.get_ref()) {
+                return Err(self.error(
+                    n.span(),
+                    Some("pages.curves_per_page"),
+                    format!("must be from 1 to 100, got {}", n.get_ref()),
+                ));
+            }
+            pages.curves_per_page = *n.get_ref() as u32;
+        }
+        if let Some(s) = &rp.size {
+            let lower = s.get_ref().to_ascii_lowercase();
+            if !PAGE_SIZES.contains(&lower.as_str()) {
+                return Err(self.error(
+                    s.span(),
+                    Some("pages.size"),
+                    format!(
+                        "unknown page size `{}` (expected one of {})",
+                        s.get_ref(),
+                        PAGE_SIZES.join(", ")
+                    ),
+                ));
+            }
+            pages.size = lower;
+        }
+        if let Some(o) = &rp.orientation {
+            if !matches!(o.get_ref().as_str(), "portrait" | "landscape") {
+                return Err(self.error(
+                    o.span(),
+                    Some("pages.orientation"),
+                    format!("must be `portrait` or `landscape`, got `{}`", o.get_ref()),
+                ));
+            }
+            pages.orientation = o.get_ref().clone();
+        }
+        if let Some(d) = &rp.dpi {
+            if !(36..=1200).contains(d.get_ref()) {
+                return Err(self.error(
+                    d.span(),
+                    Some("pages.dpi"),
+                    format!("must be from 36 to 1200, got {}", d.get_ref()),
+                ));
+            }
+            pages.dpi = *d.get_ref() as u32;
+        }
+        Ok(pages)
+    }
+
+    /// The `[[curve]]` entries: lengths > 0 and finite (input link = 1), finite point,
+    /// a trace mode, and distinct names that can name files.
+    fn curves(
+        &self,
+        raw: &Spanned<Vec<Spanned<RawCurve>>>,
+    ) -> Result<Vec<crate::classics::NamedCurve>, SpecError> {
+        use crate::classics::{NamedCurve, TraceMode};
+        if raw.get_ref().is_empty() {
+            return Err(self.error(
+                raw.span(),
+                Some("curve"),
+                "the list of [[curve]] entries is empty".into(),
+            ));
+        }
+        let mut out: Vec<NamedCurve> = Vec::new();
+        for entry in raw.get_ref() {
+            let c = entry.get_ref();
+            let name = c.name.get_ref().trim().to_string();
+            if name.is_empty() || name.chars().any(char::is_control) {
+                return Err(self.error(
+                    c.name.span(),
+                    Some("curve.name"),
+                    "name must be non-empty text (it titles the page)".into(),
+                ));
+            }
+            if out.iter().any(|n| n.name == name) {
+                return Err(self.error(
+                    c.name.span(),
+                    Some("curve.name"),
+                    format!("`{name}` is used by an earlier [[curve]]"),
+                ));
+            }
+            let length = |x: &Spanned<f64>, key: &str| -> Result<f64, SpecError> {
+                let v = *x.get_ref();
+                if !v.is_finite() || v <= 0.0 {
+                    return Err(self.error(
+                        x.span(),
+                        Some(key),
+                        format!("link lengths must be finite and > 0 (input link = 1), got {v}"),
+                    ));
+                }
+                Ok(v)
+            };
+            let coupler = length(&c.coupler, "curve.coupler")?;
+            let rocker = length(&c.rocker, "curve.rocker")?;
+            let ground = length(&c.ground, "curve.ground")?;
+            let linkage = FourBar::new(coupler, rocker, ground)
+                .map_err(|e| self.error(entry.span(), Some("curve"), e.to_string()))?;
+            for (x, key) in [(&c.u, "curve.u"), (&c.v, "curve.v")] {
+                if !x.get_ref().is_finite() {
+                    return Err(self.error(
+                        x.span(),
+                        Some(key),
+                        format!("must be a finite number, got {}", x.get_ref()),
+                    ));
+                }
+            }
+            let trace = match &c.trace {
+                None => TraceMode::Full,
+                Some(t) if t.get_ref() == "full" => TraceMode::Full,
+                Some(t) => TraceMode::Circuit(t.get_ref().parse().map_err(|_| {
+                    self.error(
+                        t.span(),
+                        Some("curve.trace"),
+                        format!("must be `full`, `open` or `crossed`, got `{}`", t.get_ref()),
+                    )
+                })?),
+            };
+            if let TraceMode::Circuit(circuit) = trace {
+                if !matches!(
+                    crate::trace::input_range(&linkage),
+                    crate::trace::InputRange::Full
+                ) {
+                    return Err(self.error(
+                        c.trace.as_ref().map(|t| t.span()).unwrap_or(entry.span()),
+                        Some("curve.trace"),
+                        format!(
+                            "`{circuit}` traces one circuit over a full turn of the input, but this linkage's input cannot turn fully (class {}): use `full`",
+                            linkage.class().code()
+                        ),
+                    ));
+                }
+            }
+            out.push(NamedCurve {
+                name,
+                linkage,
+                point: CouplerPoint::new(*c.u.get_ref(), *c.v.get_ref()),
+                trace,
+            });
+        }
+        Ok(out)
+    }
+}
+
+impl Spec {
+    /// Parses and validates a grid spec; `source_name` is used in error messages. A
+    /// full-curve page set (`[[curve]]` entries) is an error here: see [`AtlasSpec::parse`].
+    pub fn parse(text: &str, source_name: &str) -> Result<Spec, SpecError> {
+        match AtlasSpec::parse(text, source_name)? {
+            AtlasSpec::Grid(spec) => Ok(*spec),
+            AtlasSpec::Curves(_) => {
+                let at = text.find("[[curve]]").unwrap_or(0);
+                Err(Ctx {
+                    name: source_name,
+                    text,
+                }
+                .error(
+                    at..at,
+                    Some("curve"),
+                    "this spec lists [[curve]] entries (a full-curve page set); a grid of [linkages] and [points] is needed here".into(),
+                ))
+            }
+        }
     }
 
     /// The built-in default spec.

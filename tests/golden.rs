@@ -1,6 +1,7 @@
 //! Golden pages and pixel-exact primitives.
 //!
-//! Golden pages: `generate atlas-spec/hartenberg-denavit.toml --dpi 72` must give, page
+//! Golden pages: `generate atlas-spec/hartenberg-denavit.toml --dpi 72` (and two pages of
+//! `atlas-spec/classics.toml`) must give, page
 //! for page, the same decoded pixels as the PNGs committed in `tests/golden/` (compared
 //! by pixels, not bytes: PNG streams may change with the encoder version). On a mismatch
 //! the test writes `target/golden-diff/NAME.diff.png` and the score, and fails.
@@ -43,7 +44,11 @@ fn tmp(name: &str) -> PathBuf {
 }
 
 fn generate(out: &Path, extra: &[&str]) {
-    let spec = root().join("atlas-spec/hartenberg-denavit.toml");
+    generate_spec("atlas-spec/hartenberg-denavit.toml", out, extra)
+}
+
+fn generate_spec(spec: &str, out: &Path, extra: &[&str]) {
+    let spec = root().join(spec);
     let mut args = vec![
         "generate".to_string(),
         spec.to_str().unwrap().into(),
@@ -65,13 +70,27 @@ fn generate(out: &Path, extra: &[&str]) {
 
 #[test]
 fn golden_pages_match() {
-    let out = tmp("golden");
-    generate(&out, &["--dpi", GOLDEN_DPI, "--jobs", "2"]);
+    check_golden("atlas-spec/hartenberg-denavit.toml", &GOLDEN_PAGES);
+}
+
+/// The classics page set: Chebyshev (two branches of a Grashof double rocker) and Watt
+/// (one branch across two toggles).
+#[test]
+fn golden_classic_pages_match() {
+    check_golden(
+        "atlas-spec/classics.toml",
+        &["classics-0002.png", "classics-0003.png"],
+    );
+}
+
+fn check_golden(spec: &str, pages: &[&str]) {
+    let out = tmp(&format!("golden-{}", spec.replace('/', "-")));
+    generate_spec(spec, &out, &["--dpi", GOLDEN_DPI, "--jobs", "2"]);
     let golden = root().join("tests/golden");
     let bless = std::env::var_os("BLESS").is_some();
     let diff_dir = root().join("target/golden-diff");
     let mut failures = Vec::new();
-    for name in GOLDEN_PAGES {
+    for &name in pages {
         let got = out.join("pages").join(name);
         let want = golden.join(name);
         if bless {

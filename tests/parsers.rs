@@ -1,16 +1,21 @@
 //! Property tests of the parsers that read user input (the same targets are fuzzed with
 //! cargo-fuzz in `fuzz/`): no input makes them panic, and every error is located.
 
-use coupler_atlas::{Decimal, Index, Spec};
+use coupler_atlas::{AtlasSpec, Decimal, Index, Spec};
 use proptest::prelude::*;
 
 const QUICK: &str = include_str!("../atlas-spec/quick.toml");
 const HD: &str = include_str!("../atlas-spec/hartenberg-denavit.toml");
+const CLASSICS: &str = include_str!("../atlas-spec/classics.toml");
 
 /// A valid spec with one edit: a byte replaced, a line dropped or duplicated, or text
 /// inserted — the kind of damage hand-written specs get.
 fn mutated_spec() -> impl Strategy<Value = String> {
-    let base = prop_oneof![Just(QUICK.to_string()), Just(HD.to_string())];
+    let base = prop_oneof![
+        Just(QUICK.to_string()),
+        Just(HD.to_string()),
+        Just(CLASSICS.to_string())
+    ];
     (
         base,
         0usize..4,
@@ -59,10 +64,16 @@ proptest! {
 
     #[test]
     fn spec_parser_never_panics_and_locates_errors(text in mutated_spec()) {
-        match Spec::parse(&text, "fuzz.toml") {
-            Ok(spec) => {
+        match AtlasSpec::parse(&text, "fuzz.toml") {
+            Ok(AtlasSpec::Grid(spec)) => {
                 // Whatever parses must also enumerate without panicking.
                 let _ = spec.enumerate();
+            }
+            Ok(AtlasSpec::Curves(list)) => {
+                // Every curve of a page set that parses has a valid linkage and point.
+                for c in &list.curves {
+                    prop_assert!(c.linkage.coupler > 0.0 && c.point.u.is_finite(), "{c:?}");
+                }
             }
             Err(e) => {
                 let lines = text.lines().count().max(1);
@@ -75,6 +86,7 @@ proptest! {
     #[test]
     fn spec_parser_survives_arbitrary_text(text in "[ -~\n\t]{0,200}") {
         let _ = Spec::parse(&text, "fuzz.toml");
+        let _ = AtlasSpec::parse(&text, "fuzz.toml");
     }
 
     #[test]

@@ -649,15 +649,12 @@ pub fn stability(out: Option<&Path>) -> Result<ExitCode> {
 /// (default `atlas-spec/classics.toml`) over its useful range: the longest run of samples
 /// (on any branch of the full curve) moving one way with ε_S below each tolerance.
 pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
-    use coupler_atlas::classics::{CurveList, TraceMode};
-    use coupler_atlas::methods::longest_straight_run;
-    use coupler_atlas::trace::{InputRange, trace_full};
+    use coupler_atlas::classics::{ClassicCurve, CurveList, STRAIGHTNESS_TOLERANCES};
     let text =
         std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
     let list = CurveList::parse(&text, &spec.display().to_string())
         .map_err(|e| super::UsageError(e.to_string()))?;
-    let step = list.crank_step_deg;
-    let tolerances = [1e-2, 1e-3, 1e-4];
+    let step = list.sampling.crank_step_deg;
     let mut md = format!(
         "## {}: measured straightness\n\nCommand: `coupler-atlas bench classics --spec {}` ({}° input steps, full curves across toggles).\n\n\
          For each tolerance, the longest run of consecutive samples on any branch that moves one way along its fitted line \
@@ -668,90 +665,55 @@ pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
         spec.display(),
         step
     );
-    for t in tolerances {
+    for t in STRAIGHTNESS_TOLERANCES {
         write!(md, " ε_S ≤ {}%: span, Δx, ε_S |", t * 100.0)?;
     }
     md.push_str("\n|---|---|---|---|");
-    for _ in tolerances {
+    for _ in STRAIGHTNESS_TOLERANCES {
         md.push_str("---|");
     }
     md.push('\n');
     let mut panels: Vec<Panel> = Vec::new();
     for c in &list.curves {
-        let full = trace_full(&c.linkage, c.point, step);
-        let branches: Vec<Vec<coupler_atlas::trace::TraceSample>> = match c.trace {
-            TraceMode::Full => full.branches.iter().map(|b| b.samples.clone()).collect(),
-            TraceMode::Circuit(circ) => full
-                .branches
-                .iter()
-                .map(|b| {
-                    b.samples
-                        .iter()
-                        .filter(|s| s.circuit == circ)
-                        .copied()
-                        .collect()
-                })
-                .collect(),
-        };
-        let range = match &full.range {
-            InputRange::Full => "full turn".to_string(),
-            InputRange::Never => "never assembles".to_string(),
-            InputRange::Rocks { intervals } => intervals
-                .iter()
-                .map(|(lo, hi)| format!("[{:.2}°, {:.2}°]", lo.degrees, hi.degrees))
-                .collect::<Vec<_>>()
-                .join(", "),
-        };
+        let m = ClassicCurve::compute(c, step);
         write!(
             md,
             "| {} | {} | {} | {} |",
             c.name,
             c.linkage.class(),
-            range,
-            branches.len()
+            m.range_text(),
+            m.branches.len()
         )?;
-        let mut panel = Panel {
-            title: format!("{} ({})", c.name, c.linkage.class()),
-            branches: branches
+        let straight = match m.straight[1] {
+            Some(s) => m.branches[s.branch].samples[s.samples[0]..s.samples[0] + s.samples[1]]
                 .iter()
-                .map(|b| b.iter().map(|s| (s.point.x, s.point.y)).collect())
+                .map(|p| (p.point.x, p.point.y))
                 .collect(),
-            straight: Vec::new(),
-            pivots: vec![(0.0, 0.0), (c.linkage.ground, 0.0)],
+            None => Vec::new(),
         };
-        for t in tolerances {
-            let mut best: Option<(f64, coupler_atlas::methods::StraightRun)> = None;
-            for b in &branches {
-                let pts: Vec<Point2<f64>> = b.iter().map(|s| s.point).collect();
-                if let Some(run) = longest_straight_run(&pts, t) {
-                    let span: f64 = b[run.start..run.start + run.len]
-                        .windows(2)
-                        .map(|w| (w[1].degrees - w[0].degrees).abs())
-                        .sum();
-                    if best.is_none_or(|(s, _)| span > s) {
-                        best = Some((span, run));
-                        if t == 1e-3 {
-                            panel.straight = pts[run.start..run.start + run.len]
-                                .iter()
-                                .map(|p| (p.x, p.y))
-                                .collect();
-                        }
-                    }
-                }
-            }
-            match best {
-                Some((span, run)) => write!(
+        panels.push(Panel {
+            title: format!("{} ({})", c.name, c.linkage.class()),
+            branches: m
+                .branches
+                .iter()
+                .map(|b| b.samples.iter().map(|s| (s.point.x, s.point.y)).collect())
+                .collect(),
+            straight,
+            pivots: vec![(0.0, 0.0), (c.linkage.ground, 0.0)],
+        });
+        for s in &m.straight {
+            match s {
+                Some(s) => write!(
                     md,
                     " {:.1}°, {:.3}, {:.2e}% |",
-                    span,
-                    run.extent,
-                    run.straightness * 100.0
+                    s.input_span_deg,
+                    s.extent,
+                    s.straightness * 100.0
                 )?,
                 None => write!(md, " — |")?,
             }
         }
         md.push('\n');
-        panels.push(panel);
     }
     print!("{md}");
     if let Some(out) = out {

@@ -3,10 +3,12 @@
 
 use super::UsageError;
 use anyhow::{Context, Result};
+use coupler_atlas::classics::CurveList;
+use coupler_atlas::generate::curves::{self as curve_set, CurveJob};
 use coupler_atlas::generate::{self, GenerateError, Job, NoPages, Renderer, Shard};
 use coupler_atlas::render::PageFormat;
 use coupler_atlas::render::pages::{PageOptions, PageRenderer};
-use coupler_atlas::{DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec};
+use coupler_atlas::{AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -80,9 +82,9 @@ fn parse_shard(s: &str) -> Result<Shard, String> {
     s.parse()
 }
 
-/// The validated job and its renderer, from the flags.
-fn plan(spec: &Option<PathBuf>, args: &JobArgs, jobs: usize) -> Result<(Job, Box<dyn Renderer>)> {
-    let (text, source) = match spec {
+/// The spec's text and where it came from (the built-in default when no path is given).
+fn read_spec(spec: &Option<PathBuf>) -> Result<(String, String)> {
+    Ok(match spec {
         None => (
             DEFAULT_SPEC_TEXT.to_string(),
             DEFAULT_SPEC_SOURCE.to_string(),
@@ -92,8 +94,22 @@ fn plan(spec: &Option<PathBuf>, args: &JobArgs, jobs: usize) -> Result<(Job, Box
                 .map_err(|e| UsageError(format!("cannot read spec {}: {e}", path.display())))?,
             path.display().to_string(),
         ),
-    };
+    })
+}
+
+/// The validated job and its renderer, from the flags.
+fn plan(spec: &Option<PathBuf>, args: &JobArgs, jobs: usize) -> Result<(Job, Box<dyn Renderer>)> {
+    let (text, source) = read_spec(spec)?;
     let spec = Spec::parse(&text, &source)?;
+    plan_grid(spec, source, args, jobs)
+}
+
+fn plan_grid(
+    spec: Spec,
+    source: String,
+    args: &JobArgs,
+    jobs: usize,
+) -> Result<(Job, Box<dyn Renderer>)> {
     let out = args
         .out
         .clone()
@@ -117,8 +133,13 @@ fn plan(spec: &Option<PathBuf>, args: &JobArgs, jobs: usize) -> Result<(Job, Box
 
 /// The page renderer from the spec's `[pages]` and the page flags.
 fn page_renderer(spec: &Spec, args: &JobArgs) -> Result<PageRenderer> {
-    let mut opts =
+    let opts =
         PageOptions::from_spec(spec).map_err(|e| UsageError(format!("page settings: {e}")))?;
+    Ok(PageRenderer::new(page_options(opts, args)?))
+}
+
+/// Page options with the page flags applied.
+fn page_options(mut opts: PageOptions, args: &JobArgs) -> Result<PageOptions> {
     let mut formats = Vec::new();
     for f in &args.format {
         let f: PageFormat = f
@@ -140,7 +161,7 @@ fn page_renderer(spec: &Spec, args: &JobArgs) -> Result<PageRenderer> {
     opts.setup
         .validate()
         .map_err(|e| UsageError(format!("page settings: {e}")))?;
-    Ok(PageRenderer::new(opts))
+    Ok(opts)
 }
 
 /// Maps library errors in the user's input to exit code 2.
@@ -160,7 +181,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .map(|n| n.get())
             .unwrap_or(1),
     };
-    let (mut job, renderer) = plan(&args.spec, &args.job, jobs)?;
+    let (text, source) = read_spec(&args.spec)?;
+    let (mut job, renderer) = match AtlasSpec::parse(&text, &source)? {
+        AtlasSpec::Grid(spec) => plan_grid(*spec, source, &args.job, jobs)?,
+        AtlasSpec::Curves(list) => return run_curves(list, source, &args, jobs),
+    };
     if let Some(shard) = args.shard {
         job.shard = shard;
     }
@@ -274,6 +299,108 @@ pub fn merge(args: MergeArgs) -> Result<ExitCode> {
         job.spec.name,
         args.shards.len(),
         index.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `generate` for a full-curve page set (`[[curve]]` entries): one page per curve.
+fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Result<ExitCode> {
+    if args.shard.is_some() {
+        return Err(UsageError(format!(
+            "--shard: {source} is a full-curve page set ({} curve(s)), which is not sharded",
+            list.curves.len()
+        ))
+        .into());
+    }
+    let out = args
+        .job
+        .out
+        .clone()
+        .unwrap_or_else(|| curve_set::default_out(&list));
+    if out.exists() && !out.is_dir() {
+        return Err(UsageError(format!(
+            "--out {} exists and is not a folder",
+            out.display()
+        ))
+        .into());
+    }
+    let pages = if args.job.no_pages {
+        None
+    } else {
+        let opts = PageOptions::from_settings(&list.name, &list.sampling, &list.pages)
+            .map_err(|e| UsageError(format!("page settings: {e}")))?;
+        Some(page_options(opts, &args.job)?)
+    };
+    if args.dry_run {
+        println!("spec:     {} ({source}), a full-curve page set", list.name);
+        for (i, c) in list.curves.iter().enumerate() {
+            println!(
+                "curve {}: {} (A = {}, B = {}, C = {}, point ({}, {}), class {}, trace {})",
+                i + 1,
+                c.name,
+                c.linkage.coupler,
+                c.linkage.rocker,
+                c.linkage.ground,
+                c.point.u,
+                c.point.v,
+                c.linkage.class().code(),
+                match c.trace {
+                    coupler_atlas::classics::TraceMode::Full => "full",
+                    coupler_atlas::classics::TraceMode::Circuit(c) => c.name(),
+                }
+            );
+        }
+        println!(
+            "samples:  every {}° of input, plus the toggles",
+            list.sampling.crank_step_deg
+        );
+        println!(
+            "pages:    {}",
+            if pages.is_some() {
+                list.curves.len()
+            } else {
+                0
+            }
+        );
+        println!("output:   {}", out.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let job = CurveJob {
+        list,
+        source,
+        out,
+        jobs,
+        force: args.job.force,
+    };
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        let bar = ProgressBar::with_draw_target(
+            Some(job.list.curves.len() as u64),
+            ProgressDrawTarget::stderr(),
+        );
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} curves",
+            )
+            .expect("valid template"),
+        );
+        bar
+    };
+    let start = Instant::now();
+    let interrupt = AtomicBool::new(false);
+    let result = curve_set::run(&job, pages.as_ref(), &|n| bar.inc(n), &interrupt);
+    bar.finish_and_clear();
+    let report = result
+        .map_err(classify)
+        .with_context(|| format!("generating {} into {}", job.list.name, job.out.display()))?;
+    eprintln!(
+        "{}: {} curves traced in full, {} pages, in {:.2} s; measures: {}",
+        job.list.name,
+        report.curves,
+        report.pages,
+        start.elapsed().as_secs_f64(),
+        report.record_path.display()
     );
     Ok(ExitCode::SUCCESS)
 }

@@ -33,22 +33,31 @@ impl PageOptions {
     /// Options from a spec's `[pages]` and `[sampling]` sections: PNG only, the spec's
     /// size, orientation, DPI, curves per page and dash step.
     pub fn from_spec(spec: &crate::Spec) -> Result<PageOptions, LayoutError> {
-        let p = &spec.pages;
+        PageOptions::from_settings(&spec.name, &spec.sampling, &spec.pages)
+    }
+
+    /// Options from the `[sampling]` and `[pages]` settings of the spec named `name`
+    /// (either kind of spec).
+    pub fn from_settings(
+        name: &str,
+        sampling: &crate::Sampling,
+        p: &crate::PageSettings,
+    ) -> Result<PageOptions, LayoutError> {
         let size: crate::layout::PageSize = format!("{}-{}", p.size, p.orientation).parse()?;
         let setup = PageSetup {
             size,
             dpi: f64::from(p.dpi),
             curves_per_page: p.curves_per_page as usize,
-            dash: crate::DashPattern::new(spec.sampling.dash_deg, crate::DEFAULT_DASH_FRACTION)?,
-            spec_name: spec.name.clone(),
-            settings: format!("spec {}", spec.name),
+            dash: crate::DashPattern::new(sampling.dash_deg, crate::DEFAULT_DASH_FRACTION)?,
+            spec_name: name.to_string(),
+            settings: format!("spec {name}"),
             ..PageSetup::default()
         };
         setup.validate()?;
         Ok(PageOptions {
             setup,
             formats: vec![PageFormat::Png],
-            stem: spec.name.clone(),
+            stem: name.to_string(),
         })
     }
 
@@ -206,6 +215,30 @@ pub struct RenderedPage {
     pub bbox_px: Vec<[u32; 4]>,
 }
 
+/// Encodes a laid-out page in every format and counts it.
+fn finish_page(
+    opts: &PageOptions,
+    pool: &BufferPool,
+    timings: &PageTimings,
+    number: u64,
+    layout: &crate::layout::PageLayout,
+    t: Instant,
+) -> Result<RenderedPage, PageError> {
+    let files = emit(&layout.display, opts, pool, timings, t)?
+        .into_iter()
+        .map(|(f, bytes)| (opts.page_file(number, f), bytes))
+        .collect();
+    timings.pages.fetch_add(1, Ordering::Relaxed);
+    Ok(RenderedPage {
+        files,
+        bbox_px: layout
+            .curves
+            .iter()
+            .map(|c| c.bbox_px(opts.setup.dpi))
+            .collect(),
+    })
+}
+
 /// Renders atlas page `number` of `page_count`: `points` of `linkage` (whose whole grid is
 /// `grid`). Pure apart from the shared buffer pool and timing counters.
 #[allow(clippy::too_many_arguments)]
@@ -236,19 +269,27 @@ pub fn render_page(
     let t = PageTimings::add(&timings.compute, t0);
     let layout = layout_page(&page, &geometry, &opts.setup);
     let t = PageTimings::add(&timings.layout, t);
-    let files = emit(&layout.display, opts, pool, timings, t)?
-        .into_iter()
-        .map(|(f, bytes)| (opts.page_file(number, f), bytes))
-        .collect();
-    timings.pages.fetch_add(1, Ordering::Relaxed);
-    Ok(RenderedPage {
-        files,
-        bbox_px: layout
-            .curves
-            .iter()
-            .map(|c| c.bbox_px(opts.setup.dpi))
-            .collect(),
-    })
+    finish_page(opts, pool, timings, number, &layout, t)
+}
+
+/// Renders page `page.page_number` of a full-curve page set (one named curve).
+pub fn render_classic(
+    opts: &PageOptions,
+    pool: &BufferPool,
+    timings: &PageTimings,
+    page: &crate::layout::classic::ClassicPage,
+) -> Result<RenderedPage, PageError> {
+    use crate::layout::classic::{compute_classic, layout_classic};
+    let number = page.page_number as u64;
+    let t0 = Instant::now();
+    let geometry = compute_classic(page, &opts.setup).map_err(|source| PageError::Layout {
+        page: number,
+        source,
+    })?;
+    let t = PageTimings::add(&timings.compute, t0);
+    let layout = layout_classic(page, &geometry, &opts.setup);
+    let t = PageTimings::add(&timings.layout, t);
+    finish_page(opts, pool, timings, number, &layout, t)
 }
 
 /// Renders the contents pages: `(file name, bytes)` per page and format.

@@ -16,6 +16,8 @@ use crate::pose::{CrankAngle, Pose};
 use crate::render::font;
 use crate::{CrankTable, PoseTable};
 
+pub mod classic;
+
 /// Points per inch.
 pub const PT_PER_INCH: f64 = 72.0;
 /// Default resolution for raster pages (print quality).
@@ -485,6 +487,46 @@ fn linkage_bbox(page: &LinkagePage) -> [f64; 4] {
     b
 }
 
+/// The frame of the page and the transform that centres `world` (a curve-unit box, padded
+/// by 2 % of its extent) in it
+/// at the largest round scale that fits (inches per unit from `nice`, ascending, so pages
+/// of similar linkages share a scale; the exact fit if even the smallest is too large).
+fn fit_transform(world: [f64; 4], setup: &PageSetup, nice: &[f64]) -> (WorldToPage, [f64; 4]) {
+    // A margin of 2 % of the extent (sampled extents can miss a sliver of a sharp tip).
+    let pad = 0.02 * (world[2] - world[0]).max(world[3] - world[1]);
+    let world = [
+        world[0] - pad,
+        world[1] - pad,
+        world[2] + pad,
+        world[3] + pad,
+    ];
+    let frame = frame_of(setup);
+    let inner = [
+        frame[0] + style::FRAME_PAD,
+        frame[1] + style::FRAME_PAD,
+        frame[2] - style::FRAME_PAD,
+        frame[3] - style::FRAME_PAD,
+    ];
+    let fit = ((inner[2] - inner[0]) / (world[2] - world[0]))
+        .min((inner[3] - inner[1]) / (world[3] - world[1]));
+    let fit_in = fit / PT_PER_INCH;
+    let scale_in = nice
+        .iter()
+        .rev()
+        .copied()
+        .find(|&s| s <= fit_in)
+        .unwrap_or(fit_in); // tiny: keep the exact fit rather than overrun
+    let scale = scale_in * PT_PER_INCH;
+    let cx = 0.5 * (world[0] + world[2]);
+    let cy = 0.5 * (world[1] + world[3]);
+    let mid = [0.5 * (inner[0] + inner[2]), 0.5 * (inner[1] + inner[3])];
+    let transform = WorldToPage {
+        scale,
+        origin: [mid[0] - scale * cx, mid[1] + scale * cy],
+    };
+    (transform, frame)
+}
+
 /// Computes the page's curves: estimates their extent from a 2° trace (one pose table
 /// shared by every point), picks the largest round scale at which the linkage and all
 /// curves fit in the frame, then dashes every curve with a chord tolerance of
@@ -503,38 +545,9 @@ pub fn compute_page(page: &LinkagePage, setup: &PageSetup) -> Result<PageGeometr
             }
         }
     }
-    // 2° sampling may miss a sliver of a sharp tip: pad by 2 % of the extent.
-    let pad = 0.02 * (world[2] - world[0]).max(world[3] - world[1]);
-    world = [
-        world[0] - pad,
-        world[1] - pad,
-        world[2] + pad,
-        world[3] + pad,
-    ];
-    let frame = frame_of(setup);
-    let inner = [
-        frame[0] + style::FRAME_PAD,
-        frame[1] + style::FRAME_PAD,
-        frame[2] - style::FRAME_PAD,
-        frame[3] - style::FRAME_PAD,
-    ];
-    let fit = ((inner[2] - inner[0]) / (world[2] - world[0]))
-        .min((inner[3] - inner[1]) / (world[3] - world[1]));
-    let fit_in = fit / PT_PER_INCH;
-    let scale_in = NICE_INCHES_PER_UNIT
-        .iter()
-        .rev()
-        .copied()
-        .find(|&s| s <= fit_in)
-        .unwrap_or(fit_in); // tiny: keep the exact fit rather than overrun
-    let scale = scale_in * PT_PER_INCH;
-    let cx = 0.5 * (world[0] + world[2]);
-    let cy = 0.5 * (world[1] + world[3]);
-    let mid = [0.5 * (inner[0] + inner[2]), 0.5 * (inner[1] + inner[3])];
-    let transform = WorldToPage {
-        scale,
-        origin: [mid[0] - scale * cx, mid[1] + scale * cy],
-    };
+    // 2° sampling may miss a sliver of a sharp tip: fit_transform pads by 2 %.
+    let (transform, frame) = fit_transform(world, setup, &NICE_INCHES_PER_UNIT);
+    let scale = transform.scale;
     let tol_world = setup.chord_tolerance_px / setup.px_per_pt() / scale;
     let curves = page
         .points
@@ -698,6 +711,168 @@ fn rects_overlap(a: [f64; 4], b: [f64; 4]) -> bool {
     a[0] < b[2] && b[0] < a[2] && a[1] < b[3] && b[1] < a[3]
 }
 
+/// Draws dashes (`pts`: each dash's polyline already on the page): the dash at `bold`
+/// wide, the others as one primitive; a dash shorter than a point becomes a dot at its
+/// midpoint (so a dash shrunk at a cusp still counts). Returns the ink's box.
+fn draw_dashes(
+    dl: &mut DisplayList,
+    t: &WorldToPage,
+    dashes: &[crate::dash::Dash],
+    pts: &[Vec<PagePoint>],
+    bold: Option<usize>,
+) -> [f64; 4] {
+    let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+    // Regular dashes of a curve go out as one primitive (one path, one fill).
+    let mut regular: Vec<Vec<PagePoint>> = Vec::with_capacity(dashes.len());
+    for (k, (d, pts)) in dashes.iter().zip(pts).enumerate() {
+        let is_bold = bold == Some(k);
+        let len: f64 = pts
+            .windows(2)
+            .map(|s| libm::hypot(s[1][0] - s[0][0], s[1][1] - s[0][1]))
+            .sum();
+        let wdt = if is_bold {
+            style::ZERO_DASH_WIDTH
+        } else {
+            style::DASH_WIDTH
+        };
+        if len < style::MIN_DASH_LENGTH {
+            // Shrunk near a cusp: a dot, so it still counts.
+            let mp = d.midpoint();
+            let p = t.map(mp.x, mp.y);
+            let r = if is_bold {
+                style::START_DOT_RADIUS
+            } else {
+                style::DOT_RADIUS.max(0.5 * wdt)
+            };
+            dl.circle(p, r, None);
+            bbox = union(bbox, [p[0] - r, p[1] - r, p[0] + r, p[1] + r]);
+        } else {
+            if is_bold {
+                dl.line(pts.clone(), wdt);
+            } else {
+                regular.push(pts.clone());
+            }
+            for p in pts {
+                bbox = union(
+                    bbox,
+                    [
+                        p[0] - 0.5 * wdt,
+                        p[1] - 0.5 * wdt,
+                        p[0] + 0.5 * wdt,
+                        p[1] + 0.5 * wdt,
+                    ],
+                );
+            }
+        }
+    }
+    dl.items.push(Primitive::Polylines {
+        lines: regular,
+        width: style::DASH_WIDTH,
+    });
+    bbox
+}
+
+/// The start of a curve: a dot at `start`, and an arrowhead just past `first_dash_end`
+/// along `direction` (world units, y up; none if zero). Returns the ink's box.
+fn start_marker(
+    dl: &mut DisplayList,
+    t: &WorldToPage,
+    start: nalgebra::Point2<f64>,
+    first_dash_end: nalgebra::Point2<f64>,
+    direction: nalgebra::Vector2<f64>,
+) -> [f64; 4] {
+    let s0 = t.map(start.x, start.y);
+    dl.circle(s0, style::START_DOT_RADIUS, None);
+    let r = style::START_DOT_RADIUS;
+    let mut bbox = [s0[0] - r, s0[1] - r, s0[0] + r, s0[1] + r];
+    let tip = t.map(first_dash_end.x, first_dash_end.y);
+    let dir = [direction.x, -direction.y];
+    if dir[0] != 0.0 || dir[1] != 0.0 {
+        let tip = [
+            tip[0] + dir[0] * 0.5 * style::ARROW_LENGTH,
+            tip[1] + dir[1] * 0.5 * style::ARROW_LENGTH,
+        ];
+        let base = [
+            tip[0] - dir[0] * style::ARROW_LENGTH,
+            tip[1] - dir[1] * style::ARROW_LENGTH,
+        ];
+        let n = [
+            -dir[1] * style::ARROW_HALF_WIDTH,
+            dir[0] * style::ARROW_HALF_WIDTH,
+        ];
+        let tri = vec![
+            tip,
+            [base[0] + n[0], base[1] + n[1]],
+            [base[0] - n[0], base[1] - n[1]],
+        ];
+        for p in &tri {
+            bbox = union(bbox, [p[0], p[1], p[0], p[1]]);
+        }
+        dl.items.push(Primitive::Polygon { points: tri });
+    }
+    bbox
+}
+
+/// Draws the four-bar in `pose`: links stopping at the pin circles, the four pins, the
+/// ground symbols at O2 and O4; records the link strokes (and ground symbols) in
+/// `segments` for label placement. Returns O2, O4, Pa, Pb on the page.
+fn draw_links(
+    dl: &mut DisplayList,
+    t: &WorldToPage,
+    l: &FourBar,
+    pose: &Pose,
+    segments: &mut Vec<(PagePoint, PagePoint)>,
+) -> [PagePoint; 4] {
+    let o2 = t.map(0.0, 0.0);
+    let o4 = t.map(l.ground, 0.0);
+    let pa = t.map(pose.crank_pin.x, pose.crank_pin.y);
+    let pb = t.map(pose.rocker_pin.x, pose.rocker_pin.y);
+    let r = style::PIN_RADIUS;
+    // Links stop at the pin circles (ink only: nothing is painted white).
+    let mut link = |a: PagePoint, b: PagePoint, dl: &mut DisplayList| {
+        let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
+        if len > 2.0 * r {
+            let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
+            let a2 = [a[0] + u[0] * r, a[1] + u[1] * r];
+            let b2 = [b[0] - u[0] * r, b[1] - u[1] * r];
+            dl.line(vec![a2, b2], style::LINK_WIDTH);
+            segments.push((a2, b2));
+        }
+    };
+    link(o2, pa, dl);
+    link(pa, pb, dl);
+    link(o4, pb, dl);
+    for p in [o2, o4, pa, pb] {
+        dl.circle(p, r, Some(0.9));
+    }
+    for p in [o2, o4] {
+        ground_symbol(dl, p, r);
+        segments.push(([p[0] - 8.0, p[1] + r], [p[0] + 8.0, p[1] + 12.0]));
+    }
+    [o2, o4, pa, pb]
+}
+
+/// Small names beside pins (up and to the right); returns their boxes (labels avoid them).
+fn pivot_labels<'a>(
+    dl: &mut DisplayList,
+    pins: impl IntoIterator<Item = (PagePoint, &'a str)>,
+) -> Vec<[f64; 4]> {
+    let r = style::PIN_RADIUS;
+    let mut taken = Vec::new();
+    for (p, s) in pins {
+        let pos = [p[0] + r + 1.5, p[1] - r - 1.5];
+        let w = font::text_width(style::SMALL_SIZE, s);
+        taken.push([
+            pos[0] - 1.0,
+            pos[1] - font::ascent(style::SMALL_SIZE) - 1.0,
+            pos[0] + w + 1.0,
+            pos[1] + font::descent(style::SMALL_SIZE) + 1.0,
+        ]);
+        dl.text(pos, style::SMALL_SIZE, Anchor::Start, s);
+    }
+    taken
+}
+
 /// Lays out a linkage page from its computed geometry.
 pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetup) -> PageLayout {
     let (w, h) = setup.size_pt();
@@ -766,83 +941,18 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
         page_curves.push(dashes);
     }
     for ((c, dashes), point) in geometry.curves.iter().zip(&page_curves).zip(&page.points) {
-        let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
-        // Regular dashes of a curve go out as one primitive (one path, one fill).
-        let mut regular: Vec<Vec<PagePoint>> = Vec::with_capacity(dashes.len());
-        for (k, (d, pts)) in c.dashes.iter().zip(dashes).enumerate() {
-            let len: f64 = pts
-                .windows(2)
-                .map(|s| libm::hypot(s[1][0] - s[0][0], s[1][1] - s[0][1]))
-                .sum();
-            let wdt = if k == 0 {
-                style::ZERO_DASH_WIDTH
-            } else {
-                style::DASH_WIDTH
-            };
-            if len < style::MIN_DASH_LENGTH {
-                // Shrunk near a cusp: a dot, so it still counts.
-                let mp = d.midpoint();
-                let p = t.map(mp.x, mp.y);
-                let r = if k == 0 {
-                    style::START_DOT_RADIUS
-                } else {
-                    style::DOT_RADIUS.max(0.5 * wdt)
-                };
-                dl.circle(p, r, None);
-                bbox = union(bbox, [p[0] - r, p[1] - r, p[0] + r, p[1] + r]);
-            } else {
-                if k == 0 {
-                    dl.line(pts.clone(), wdt);
-                } else {
-                    regular.push(pts.clone());
-                }
-                for p in pts {
-                    bbox = union(
-                        bbox,
-                        [
-                            p[0] - 0.5 * wdt,
-                            p[1] - 0.5 * wdt,
-                            p[0] + 0.5 * wdt,
-                            p[1] + 0.5 * wdt,
-                        ],
-                    );
-                }
-            }
-        }
-        dl.items.push(Primitive::Polylines {
-            lines: regular,
-            width: style::DASH_WIDTH,
-        });
-        // θ = 0: a dot at the start, an arrowhead at the end of dash 0 along the travel.
-        let s0 = t.map(c.start.x, c.start.y);
-        dl.circle(s0, style::START_DOT_RADIUS, None);
+        let mut bbox = draw_dashes(&mut dl, &t, &c.dashes, dashes, Some(0));
         let d0 = &c.dashes[0];
-        let end = d0.points[d0.points.len() - 1];
-        let tip = t.map(end.x, end.y);
-        let dir = [c.start_direction.x, -c.start_direction.y];
-        if dir[0] != 0.0 || dir[1] != 0.0 {
-            let tip = [
-                tip[0] + dir[0] * 0.5 * style::ARROW_LENGTH,
-                tip[1] + dir[1] * 0.5 * style::ARROW_LENGTH,
-            ];
-            let base = [
-                tip[0] - dir[0] * style::ARROW_LENGTH,
-                tip[1] - dir[1] * style::ARROW_LENGTH,
-            ];
-            let n = [
-                -dir[1] * style::ARROW_HALF_WIDTH,
-                dir[0] * style::ARROW_HALF_WIDTH,
-            ];
-            let tri = vec![
-                tip,
-                [base[0] + n[0], base[1] + n[1]],
-                [base[0] - n[0], base[1] - n[1]],
-            ];
-            for p in &tri {
-                bbox = union(bbox, [p[0], p[1], p[0], p[1]]);
-            }
-            dl.items.push(Primitive::Polygon { points: tri });
-        }
+        bbox = union(
+            bbox,
+            start_marker(
+                &mut dl,
+                &t,
+                c.start,
+                d0.points[d0.points.len() - 1],
+                c.start_direction,
+            ),
+        );
         placements.push(CurvePlacement {
             point: *point,
             bbox_pt: bbox,
@@ -855,32 +965,7 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
     // Boxes of text already on the frame (pivot names): curve labels avoid them.
     let mut taken: Vec<[f64; 4]> = Vec::new();
     if let Some(pose) = drawn_pose(page) {
-        let o2 = t.map(0.0, 0.0);
-        let o4 = t.map(l.ground, 0.0);
-        let pa = t.map(pose.crank_pin.x, pose.crank_pin.y);
-        let pb = t.map(pose.rocker_pin.x, pose.rocker_pin.y);
-        let r = style::PIN_RADIUS;
-        // Links stop at the pin circles (ink only: nothing is painted white).
-        let mut link = |a: PagePoint, b: PagePoint, dl: &mut DisplayList| {
-            let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
-            if len > 2.0 * r {
-                let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
-                let a2 = [a[0] + u[0] * r, a[1] + u[1] * r];
-                let b2 = [b[0] - u[0] * r, b[1] - u[1] * r];
-                dl.line(vec![a2, b2], style::LINK_WIDTH);
-                link_segments.push((a2, b2));
-            }
-        };
-        link(o2, pa, &mut dl);
-        link(pa, pb, &mut dl);
-        link(o4, pb, &mut dl);
-        for p in [o2, o4, pa, pb] {
-            dl.circle(p, r, Some(0.9));
-        }
-        for p in [o2, o4] {
-            ground_symbol(&mut dl, p, r);
-            link_segments.push(([p[0] - 8.0, p[1] + r], [p[0] + 8.0, p[1] + 12.0]));
-        }
+        let [o2, o4, pa, pb] = draw_links(&mut dl, &t, &l, &pose, &mut link_segments);
         // Crank circle (path of Pa), thin.
         let circle: Vec<PagePoint> = (0..=120)
             .map(|k| {
@@ -923,17 +1008,10 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
                 occ.mark_point(p, 2);
             }
         }
-        for (p, s) in [(o2, "O2"), (o4, "O4"), (pa, "Pa"), (pb, "Pb")] {
-            let pos = [p[0] + r + 1.5, p[1] - r - 1.5];
-            let w = font::text_width(style::SMALL_SIZE, s);
-            taken.push([
-                pos[0] - 1.0,
-                pos[1] - font::ascent(style::SMALL_SIZE) - 1.0,
-                pos[0] + w + 1.0,
-                pos[1] + font::descent(style::SMALL_SIZE) + 1.0,
-            ]);
-            dl.text(pos, style::SMALL_SIZE, Anchor::Start, s);
-        }
+        taken.extend(pivot_labels(
+            &mut dl,
+            [(o2, "O2"), (o4, "O4"), (pa, "Pa"), (pb, "Pb")],
+        ));
     }
     for (a, b) in &link_segments {
         occ.mark_segment(*a, *b, 4);
@@ -1035,35 +1113,13 @@ fn ground_symbol(dl: &mut DisplayList, p: PagePoint, r: f64) {
 /// Legend and footer: dash meaning, θ = 0 mark, crank sense, circuit, scale bar,
 /// generation settings.
 fn legend(dl: &mut DisplayList, page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetup) {
-    let (w, h) = setup.size_pt();
     let m = setup.margin_pt;
-    let top = h - m - style::FOOTER_HEIGHT + 10.0;
-    let pat = setup.dash;
     let ts = style::SMALL_SIZE;
-    // Sample dashes: 3 dashes of 10 pt per step.
     let unit = 12.0;
-    let y = top + 6.0;
-    let mut x = m;
-    for k in 0..3 {
-        let x0 = x + k as f64 * unit;
-        let wdt = if k == 0 {
-            style::ZERO_DASH_WIDTH
-        } else {
-            style::DASH_WIDTH
-        };
-        dl.line(vec![[x0, y], [x0 + pat.fraction * unit, y]], wdt);
-    }
-    dl.circle([x, y], style::START_DOT_RADIUS, None);
-    x += 3.0 * unit + 4.0;
-    dl.text(
-        [x, y + 2.5],
-        ts,
-        Anchor::Start,
-        format!(
-            "one dash = {}° of crank ({}° drawn); bold dash and dot: θ = 0; arrowhead: direction of travel",
-            fmt_num(pat.step_deg),
-            fmt_num(pat.step_deg * pat.fraction)
-        ),
+    let y = dash_legend(
+        dl,
+        setup,
+        "one dash = {step}° of crank ({drawn}° drawn); bold dash and dot: θ = 0; arrowhead: direction of travel",
     );
     // Crank sense: a small counter-clockwise arc arrow.
     let y2 = y + 14.0;
@@ -1097,32 +1153,84 @@ fn legend(dl: &mut DisplayList, page: &LinkagePage, geometry: &PageGeometry, set
             fmt_num(DRAWN_CRANK_ANGLE_DEG)
         ),
     );
-    // Scale bar: one crank unit.
-    let s = geometry.transform.scale;
-    let y3 = y2 + 14.0;
-    let x0 = m + 2.0;
-    dl.line(
-        vec![[x0, y3 - 3.0], [x0, y3], [x0 + s, y3], [x0 + s, y3 - 3.0]],
-        0.8,
+    scale_bar(
+        dl,
+        m,
+        y2 + 14.0,
+        geometry.transform.scale,
+        "crank length 1 = {} in on this page",
     );
-    let half = [x0 + 0.5 * s, y3];
-    dl.line(vec![half, [half[0], y3 - 2.0]], 0.5);
-    dl.text(
-        [x0 + s + 6.0, y3 + 1.0],
-        ts,
-        Anchor::Start,
-        format!(
-            "crank length 1 = {} in on this page",
-            fmt_num((s / PT_PER_INCH * 1000.0).round() / 1000.0)
-        ),
-    );
-    // Footer settings line.
-    dl.text([w - m, h - m], 6.0, Anchor::End, footer_settings(setup));
+    footer(dl, setup, footer_settings(setup));
+}
+
+/// The legend's first line: sample dashes and `text` with `{step}` and `{drawn}` replaced
+/// by the dash step and its drawn part (degrees). Returns the line's y.
+fn dash_legend(dl: &mut DisplayList, setup: &PageSetup, text: &str) -> f64 {
+    let (_, h) = setup.size_pt();
+    let m = setup.margin_pt;
+    let y = h - m - style::FOOTER_HEIGHT + 16.0;
+    let pat = setup.dash;
+    let x = dash_sample(dl, m, y, pat.fraction);
+    let text = text
+        .replace("{step}", &fmt_num(pat.step_deg))
+        .replace("{drawn}", &fmt_num(pat.step_deg * pat.fraction));
+    dl.text([x, y + 2.5], style::SMALL_SIZE, Anchor::Start, text);
+    y
+}
+
+/// The footer: `settings` at the bottom right, the program and version at the left.
+fn footer(dl: &mut DisplayList, setup: &PageSetup, settings: String) {
+    let (w, h) = setup.size_pt();
+    let m = setup.margin_pt;
+    dl.text([w - m, h - m], 6.0, Anchor::End, settings);
     dl.text(
         [m, h - m],
         6.0,
         Anchor::Start,
         format!("coupler-atlas {}", env!("CARGO_PKG_VERSION")),
+    );
+}
+
+/// Three sample dashes (the first bold, with the start dot) at `(x, y)`, 12 pt per step;
+/// returns where the explaining text starts.
+fn dash_sample(dl: &mut DisplayList, x: f64, y: f64, fraction: f64) -> f64 {
+    let unit = 12.0;
+    for k in 0..3 {
+        let x0 = x + k as f64 * unit;
+        let wdt = if k == 0 {
+            style::ZERO_DASH_WIDTH
+        } else {
+            style::DASH_WIDTH
+        };
+        dl.line(vec![[x0, y], [x0 + fraction * unit, y]], wdt);
+    }
+    dl.circle([x, y], style::START_DOT_RADIUS, None);
+    x + 3.0 * unit + 4.0
+}
+
+/// A scale bar one unit (`scale` points) long at `(x, y)` + 2 pt, with a half tick, and
+/// `label` with `{}` replaced by the unit's length in inches.
+fn scale_bar(dl: &mut DisplayList, x: f64, y: f64, scale: f64, label: &str) {
+    let x0 = x + 2.0;
+    dl.line(
+        vec![
+            [x0, y - 3.0],
+            [x0, y],
+            [x0 + scale, y],
+            [x0 + scale, y - 3.0],
+        ],
+        0.8,
+    );
+    let half = [x0 + 0.5 * scale, y];
+    dl.line(vec![half, [half[0], y - 2.0]], 0.5);
+    dl.text(
+        [x0 + scale + 6.0, y + 1.0],
+        style::SMALL_SIZE,
+        Anchor::Start,
+        label.replace(
+            "{}",
+            &fmt_num((scale / PT_PER_INCH * 1000.0).round() / 1000.0),
+        ),
     );
 }
 

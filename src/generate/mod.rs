@@ -28,6 +28,8 @@ use std::io::{BufRead, Write as _};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+pub mod curves;
+
 /// A validated generate job: the spec, what it enumerates, and where output goes.
 #[derive(Clone, Debug)]
 pub struct Job {
@@ -718,9 +720,15 @@ fn assemble(
         write_index_footer(&mut *w)
     })?;
     files.push(FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?);
+    write_manifest(&job.out, key, files)?;
+    Ok(index_path)
+}
+
+/// Writes `manifest.json` in `dir`: the run key and every file (sorted by name) with its
+/// size and XXH3-128 hash.
+fn write_manifest(dir: &Path, key: &str, mut files: Vec<FileEntry>) -> Result<(), GenerateError> {
     files.sort_by(|a, b| a.name.cmp(&b.name));
-    let manifest = job.out.join("manifest.json");
-    write_atomically(&manifest, |w| {
+    write_atomically(&dir.join("manifest.json"), |w| {
         write!(
             w,
             "{{\"schema_version\":1,\"run_key\":\"{key}\",\"files\":["
@@ -730,8 +738,7 @@ fn assemble(
             serde_json::to_writer(&mut *w, f)?;
         }
         w.write_all(b"\n]}\n")
-    })?;
-    Ok(index_path)
+    })
 }
 
 /// Merges shard folders into `job.out` (which may be one of them): copies every chunk
@@ -843,7 +850,7 @@ mod tests {
 
     #[test]
     fn groups_cover_ids_and_pages_in_order() {
-        let spec = Spec::parse(include_str!("../atlas-spec/quick.toml"), "quick").unwrap();
+        let spec = Spec::parse(include_str!("../../atlas-spec/quick.toml"), "quick").unwrap();
         let job = Job::new(spec, "quick", "unused", 1);
         let groups = job.groups();
         let mut id = 0;

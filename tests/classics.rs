@@ -1,0 +1,150 @@
+//! The classics page set as a user makes it: `generate atlas-spec/classics.toml` draws
+//! one page per classic straight-line linkage, traced in full across its toggles, and
+//! writes `curves.json` with the measured straightness and where each curve is drawn.
+
+use coupler_atlas::classics::{ClassicCurve, CurveList};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "coupler-atlas-classics-{}-{name}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("runs")
+}
+
+fn generate(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "generate",
+        "atlas-spec/classics.toml",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--dpi",
+        "60",
+    ];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v = Vec::new();
+    for sub in ["", "pages"] {
+        for e in std::fs::read_dir(dir.join(sub)).unwrap() {
+            let e = e.unwrap();
+            if e.file_type().unwrap().is_file() {
+                let name = format!("{sub}/{}", e.file_name().to_string_lossy());
+                v.push((name, std::fs::read(e.path()).unwrap()));
+            }
+        }
+    }
+    v.sort();
+    v
+}
+
+/// One page per classic; `curves.json` carries for each the measures the library
+/// computes (not figures copied here), closed branches, and a page reference whose box
+/// lies on the page; the manifest lists every file with its hash; any thread count gives
+/// the same bytes.
+#[test]
+fn classics_pages_and_measures() {
+    let out = tmp("set");
+    let o = generate(&out, &["--jobs", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let list = CurveList::parse(
+        &std::fs::read_to_string(root().join("atlas-spec/classics.toml")).unwrap(),
+        "classics.toml",
+    )
+    .unwrap();
+    let doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("curves.json")).unwrap()).unwrap();
+    assert_eq!(doc["schema_version"], 1);
+    let curves = doc["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), list.curves.len());
+    for (rec, c) in curves.iter().zip(&list.curves) {
+        assert_eq!(rec["name"], c.name.as_str());
+        let m = ClassicCurve::compute(c, list.sampling.crank_step_deg);
+        assert!(rec["closure"].as_f64().unwrap() <= 1e-12, "{}", c.name);
+        for (got, want) in rec["straight"].as_array().unwrap().iter().zip(&m.straight) {
+            let want = want.expect("every classic has a straight run");
+            assert_eq!(got["input_span_deg"].as_f64(), Some(want.input_span_deg));
+            assert_eq!(got["straightness"].as_f64(), Some(want.straightness));
+            assert!(want.straightness <= want.tolerance);
+        }
+        let page = rec["page"]["file"].as_str().unwrap();
+        let png = std::fs::read(out.join(page)).expect("page file");
+        let decoder = png::Decoder::new(std::io::Cursor::new(png));
+        let info = decoder.read_info().unwrap().info().clone();
+        let b: Vec<f64> = rec["page"]["bbox_px"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert!(
+            b[0] < b[2] && b[1] < b[3] && b[2] <= info.width as f64 && b[3] <= info.height as f64
+        );
+    }
+    // Watt's curve is one branch, out on the open circuit and back on the crossed;
+    // Chebyshev's two; Hoeken (a crank) is drawn on its open circuit only.
+    let branches: Vec<u64> = curves
+        .iter()
+        .map(|c| c["branches"].as_u64().unwrap())
+        .collect();
+    assert_eq!(branches, [1, 2, 1, 1, 1]);
+    assert_eq!(curves[2]["input"]["kind"], "rocks");
+
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    let listed: Vec<&str> = manifest["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(listed.len(), list.curves.len() + 1);
+    assert!(listed.contains(&"curves.json") && listed.contains(&"pages/classics-0003.png"));
+
+    let again = tmp("set-j1");
+    let o = generate(&again, &["--jobs", "1"]);
+    assert!(o.status.success());
+    assert_eq!(
+        files(&out),
+        files(&again),
+        "bytes differ between --jobs 2 and 1"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&again);
+}
+
+/// Settings that do not apply to a page set are refused, and nothing is written.
+#[test]
+fn page_set_refuses_what_does_not_apply() {
+    let out = tmp("refuse");
+    let o = generate(&out, &["--shard", "1/2"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not sharded"));
+    assert!(!out.exists());
+    let o = generate(&out, &["--dry-run"]);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("curve 5: Evans") && text.contains("pages:    5"),
+        "{text}"
+    );
+    assert!(!out.exists());
+}
