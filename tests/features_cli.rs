@@ -236,3 +236,62 @@ fn dwell_reports_and_draws() {
     assert_eq!(lines["dwells"].as_array().unwrap().len(), 2);
     assert!(jitter(&lines) < 1.0);
 }
+
+/// `dwell --kind double-arcs`: a usable design on two 30° arcs of atlas curve 2723
+/// (A = 3, B = 3.5, C = 2.5, point (1.5, −3)), and a typed refusal on the mirror-image
+/// arcs of the symmetric atlas curve 5 (A = B = C = 1.5, point (1.5, −1.5)).
+#[test]
+fn dwell_double_arcs_designs_or_refuses() {
+    let d = run_json(&[
+        "dwell",
+        "--coupler",
+        "3",
+        "--rocker",
+        "3.5",
+        "--ground",
+        "2.5",
+        "--point",
+        "1.5,-3",
+        "--kind",
+        "double-arcs",
+        "--window",
+        "195:225",
+        "--window2",
+        "355:385",
+        "--format",
+        "json",
+    ]);
+    let swing = d["dwell_swing_deg"].as_f64().unwrap();
+    assert!(swing > 30.0, "swing {swing}");
+    for x in d["dwells"].as_array().unwrap() {
+        assert!(x["jitter_deg"].as_f64().unwrap() < 0.1, "{x}");
+    }
+    let mu = d["output_transmission_deg"].as_array().unwrap();
+    assert!(mu.iter().all(|m| {
+        let m = m.as_f64().unwrap();
+        (30.0 - 1e-9..=150.0 + 1e-9).contains(&m)
+    }));
+    let out = bin()
+        .args([
+            "dwell",
+            "--coupler",
+            "1.5",
+            "--rocker",
+            "1.5",
+            "--ground",
+            "1.5",
+            "--point",
+            "1.5,-1.5",
+            "--kind",
+            "double-arcs",
+            "--window",
+            "65:130",
+            "--window2",
+            "230:295",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("opposite branches"), "{err}");
+}

@@ -3,7 +3,10 @@
 
 use super::{UsageError, parse_length, parse_number, parse_point};
 use anyhow::{Context, Result};
-use coupler_atlas::dwell::{DwellMechanism, double_dwell_arcs, double_dwell_lines, single_dwell};
+use coupler_atlas::dwell::{
+    ArcPairSearch, DoubleArcOptions, DwellMechanism, best_double_dwell_arcs, double_dwell_arcs,
+    double_dwell_lines, single_dwell,
+};
 use coupler_atlas::{Circuit, CouplerPoint, CrankAngle, CrankWindow, FourBar, Pose};
 use plotters::prelude::*;
 use std::io::Write;
@@ -27,11 +30,14 @@ pub struct Args {
     /// Circuit (assembly).
     #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
     circuit: String,
-    /// The (first) dwell window START:END, crank degrees: the pseudo-arc or straight segment.
+    /// The (first) dwell window START:END, crank degrees: the pseudo-arc or straight
+    /// segment. For double-arcs, leave out both windows to have the best pair of arc
+    /// windows found on the curve.
     #[arg(long, allow_hyphen_values = true)]
     window: Option<String>,
     /// Take the linkage, point, circuit and windows from this index (with --curve and
-    /// --arc/--line): e.g. `--index atlas/index.json --curve 1234 --arc 2`.
+    /// --arc/--line): e.g. `--index atlas/index.json --curve 1234 --arc 2`; or only the
+    /// curve, with --window/--window2 and --kind.
     #[arg(long)]
     index: Option<PathBuf>,
     /// Curve id in --index.
@@ -50,9 +56,22 @@ pub struct Args {
     /// single (one pseudo-arc), double-lines (two straight segments), double-arcs (two equal arcs).
     #[arg(long, default_value = "single", value_parser = ["single", "double-lines", "double-arcs"])]
     kind: String,
-    /// Output swing of a single dwell, degrees.
-    #[arg(long, default_value = "40", value_parser = parse_number)]
-    swing: f64,
+    /// Output swing, degrees: of a single dwell (default 40); for double-arcs, the swing
+    /// between the two dwells (default: free, chosen for the least jitter relative to the
+    /// swing; if no admissible design has the swing asked for, the nearest one is taken).
+    #[arg(long, value_parser = parse_number)]
+    swing: Option<f64>,
+    /// double-arcs: lower limit of the links 5–6 transmission angle over the whole
+    /// revolution, degrees (the angle at D stays within [limit, 180° − limit]).
+    #[arg(long, default_value_t = coupler_atlas::dwell::DEFAULT_MIN_TRANSMISSION_DEG, value_parser = parse_number)]
+    min_transmission: f64,
+    /// double-arcs: largest difference of the two arcs' radii, percent of the larger.
+    #[arg(long, default_value_t = coupler_atlas::dwell::DEFAULT_DOUBLE_ARC_RADIUS_TOL_PCT, value_parser = parse_number)]
+    radius_tol: f64,
+    /// double-arcs: refuse a design whose worse dwell jitters more than this percentage
+    /// of the swing between the dwells.
+    #[arg(long, default_value_t = 100.0 * coupler_atlas::dwell::DEFAULT_MAX_RELATIVE_JITTER, value_parser = parse_number)]
+    max_jitter_pct: f64,
     /// Simulation step, crank degrees.
     #[arg(long, default_value = "1", value_parser = parse_number)]
     step: f64,
@@ -79,7 +98,7 @@ fn plan(
     FourBar,
     Circuit,
     CouplerPoint,
-    String,
+    Option<String>,
     Option<String>,
     String,
 )> {
@@ -114,6 +133,20 @@ fn plan(
                 })
                 .collect()
         };
+        if args.arc.is_empty()
+            && args.line.is_empty()
+            && (args.window.is_some() || args.kind == "double-arcs")
+        {
+            // The curve from the index, the windows as given (or, for double-arcs, found).
+            return Ok((
+                l,
+                row.circuit,
+                p,
+                args.window.clone(),
+                args.window2.clone(),
+                args.kind.clone(),
+            ));
+        }
         let (spans, kind) = match (args.arc.len(), args.line.len()) {
             (n @ 1..=2, 0) => (
                 pick(
@@ -141,7 +174,7 @@ fn plan(
             ),
             _ => {
                 return Err(UsageError(
-                    "with --index, give --arc K (single), --arc K --arc K2 (double) or --line K --line K2".into(),
+                    "with --index, give --arc K (single), --arc K --arc K2 (double), --line K --line K2, or --window S:E [--window2 S:E] with --kind".into(),
                 )
                 .into());
             }
@@ -151,7 +184,7 @@ fn plan(
             l,
             row.circuit,
             p,
-            w(spans[0]),
+            Some(w(spans[0])),
             spans.get(1).map(|&x| w(x)),
             kind.to_string(),
         ));
@@ -169,8 +202,17 @@ fn plan(
     .map_err(|e| UsageError(e.to_string()))?;
     let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
     let p = args.point.ok_or_else(|| need("point"))?;
-    let w = args.window.clone().ok_or_else(|| need("window"))?;
-    Ok((l, circuit, p, w, args.window2.clone(), args.kind.clone()))
+    if args.window.is_none() && args.kind != "double-arcs" {
+        return Err(need("window").into());
+    }
+    Ok((
+        l,
+        circuit,
+        p,
+        args.window.clone(),
+        args.window2.clone(),
+        args.kind.clone(),
+    ))
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -182,24 +224,53 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
         .into());
     }
-    if !(args.swing > 0.0 && args.swing < 180.0) {
+    if let Some(swing) = args.swing {
+        if !(swing > 0.0 && swing < 180.0) {
+            return Err(
+                UsageError(format!("--swing must be in (0, 180) degrees, got {swing}")).into(),
+            );
+        }
+    }
+    if !(args.min_transmission >= 0.0 && args.min_transmission < 90.0) {
         return Err(UsageError(format!(
-            "--swing must be in (0, 180) degrees, got {}",
-            args.swing
+            "--min-transmission must be in [0, 90) degrees, got {}",
+            args.min_transmission
         ))
         .into());
     }
-    let w1 = window(&window1, args.step)?;
+    let first = || -> Result<CrankWindow, UsageError> {
+        let s = window1
+            .as_deref()
+            .ok_or_else(|| UsageError(format!("--kind {kind} needs --window")))?;
+        window(s, args.step)
+    };
     let second = || -> Result<CrankWindow, UsageError> {
         let s = window2
             .as_deref()
             .ok_or_else(|| UsageError(format!("--kind {kind} needs --window2")))?;
         window(s, args.step)
     };
+    let arc_opts = DoubleArcOptions {
+        step_deg: args.step,
+        min_transmission_deg: args.min_transmission,
+        swing_deg: args.swing,
+        radius_tol_pct: args.radius_tol,
+        max_relative_jitter: args.max_jitter_pct / 100.0,
+    };
     let d = match kind.as_str() {
-        "single" => single_dwell(&l, circuit, p, &w1, args.swing, args.step),
-        "double-lines" => double_dwell_lines(&l, circuit, p, &w1, &second()?, args.step),
-        _ => double_dwell_arcs(&l, circuit, p, &w1, &second()?, args.step),
+        "single" => single_dwell(
+            &l,
+            circuit,
+            p,
+            &first()?,
+            args.swing.unwrap_or(40.0),
+            args.step,
+        ),
+        "double-lines" => double_dwell_lines(&l, circuit, p, &first()?, &second()?, args.step),
+        _ if window1.is_none() && window2.is_none() => {
+            best_double_dwell_arcs(&l, circuit, p, &ArcPairSearch::default(), &arc_opts)
+        }
+        _ => double_dwell_arcs(&l, circuit, p, &first()?, &second()?, &arc_opts),
     }
     .map_err(|e| UsageError(e.to_string()))?;
     let stdout = std::io::stdout();
@@ -218,11 +289,21 @@ pub fn run(args: Args) -> Result<ExitCode> {
             "link 5 {:.4}, output pivot O6 ({:.4}, {:.4}), link 6 {:.4}",
             d.link5, d.output_pivot[0], d.output_pivot[1], d.link6
         )?;
-        writeln!(w, "output swing {:.3}°", d.swing_deg)?;
+        write!(w, "output swing {:.3}°", d.swing_deg)?;
+        if let Some(s) = d.dwell_swing_deg {
+            write!(w, ", between the dwells {s:.3}°")?;
+            if let (Some(want), "double-arcs") = (args.swing, kind.as_str()) {
+                if (s - want).abs() > 1.0 {
+                    write!(w, " (asked for {want}°: no admissible design has it)")?;
+                }
+            }
+        }
+        writeln!(w)?;
         for (k, x) in d.dwells.iter().enumerate() {
+            let [a, b] = x.output_transmission_range_deg;
             writeln!(
                 w,
-                "dwell {}: θ {}°+{}° ({} dashes of 10°), output {:.3}°, jitter {:.4}°",
+                "dwell {}: θ {}°+{}° ({} dashes of 10°), output {:.3}°, jitter {:.4}°, links 5–6 transmission {a:.1}°–{b:.1}°",
                 k + 1,
                 x.start_deg,
                 x.span_deg,
