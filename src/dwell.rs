@@ -722,6 +722,27 @@ fn simulate_branch(
     Ok((out, mu))
 }
 
+/// How a double-arc design ranks (lower first), from the swing between its dwells and its
+/// worse dwell jitter (degrees). Free swing: the jitter relative to the swing, designs
+/// swinging less than [`MIN_FREE_SWING_DEG`] last. Swing asked for: within
+/// [`SWING_TOLERANCE`] of it, the worse jitter; else (a second tier) the swing's miss.
+fn design_score(asked: Option<f64>, swing: f64, worst: f64) -> (u8, f64) {
+    match asked {
+        None => (
+            u8::from(swing < MIN_FREE_SWING_DEG),
+            worst / swing.max(1e-12),
+        ),
+        Some(want) => {
+            let miss = (swing - want).abs();
+            if miss <= SWING_TOLERANCE.0.max(SWING_TOLERANCE.1 * want) {
+                (0, worst)
+            } else {
+                (1, miss)
+            }
+        }
+    }
+}
+
 /// Checks and simulates the design with swing `beta` on `side` and link 5 = `r5`.
 fn evaluate(
     rev: &Revolution,
@@ -771,23 +792,8 @@ fn evaluate(
         .map(|w| dwell_of(rev, &out, &mu, w.start_deg.rem_euclid(360.0), w.span_deg()))
         .collect();
     let worst = dwells[0].jitter_deg.max(dwells[1].jitter_deg);
-    // Free swing: the worse jitter relative to the swing. Swing asked for: within
-    // [`SWING_TOLERANCE`] of it, the worse jitter; else (a second tier) the swing's miss.
     let swing = dwell_swing(&dwells);
-    let score = match opts.swing_deg {
-        None => (
-            u8::from(swing < MIN_FREE_SWING_DEG),
-            worst / swing.max(1e-12),
-        ),
-        Some(want) => {
-            let miss = (swing - want).abs();
-            if miss <= SWING_TOLERANCE.0.max(SWING_TOLERANCE.1 * want) {
-                (0, worst)
-            } else {
-                (1, miss)
-            }
-        }
-    };
+    let score = design_score(opts.swing_deg, swing, worst);
     Verdict::Admissible(Box::new(ArcDesign {
         dwell_points: bis.d,
         beta,
@@ -1061,20 +1067,7 @@ pub fn best_double_dwell_arcs(
     let key = |d: &DwellMechanism| {
         let swing = d.dwell_swing_deg.unwrap_or(0.0);
         let worst = d.dwells.iter().map(|x| x.jitter_deg).fold(0.0, f64::max);
-        match opts.swing_deg {
-            None => (
-                u8::from(swing < MIN_FREE_SWING_DEG),
-                worst / swing.max(1e-12),
-            ),
-            Some(want) => {
-                let miss = (swing - want).abs();
-                if miss <= SWING_TOLERANCE.0.max(SWING_TOLERANCE.1 * want) {
-                    (0, worst)
-                } else {
-                    (1, miss)
-                }
-            }
-        }
+        design_score(opts.swing_deg, swing, worst)
     };
     let mut best: Option<DwellMechanism> = None;
     for &(_, i, j) in &pairs[..tried] {

@@ -240,13 +240,11 @@ pub fn layout_classic(
     let frame = geometry.frame;
     let l = page.curve.linkage;
     let p = page.curve.point;
-    let m = setup.margin_pt;
 
     // Header.
-    dl.text(
-        [m, m + style::TITLE_SIZE],
-        style::TITLE_SIZE,
-        Anchor::Start,
+    super::header(
+        &mut dl,
+        setup,
         format!(
             "{}    A = {}   B = {}   C = {}   M = ({}, {})",
             page.curve.name,
@@ -256,27 +254,11 @@ pub fn layout_classic(
             fmt_num(p.u),
             fmt_num(p.v)
         ),
-    );
-    dl.text(
-        [w - m, m + style::TITLE_SIZE],
-        style::TITLE_SIZE,
-        Anchor::End,
-        format!("page {} of {}", page.page_number, page.page_count),
-    );
-    dl.text(
-        [m, m + style::TITLE_SIZE + 15.0],
-        style::TEXT_SIZE,
-        Anchor::Start,
         format!(
             "{};  input = 1, coupler A, rocker B, ground C",
             kind_text(page)
         ),
-    );
-    dl.text(
-        [w - m, m + style::TITLE_SIZE + 15.0],
-        style::TEXT_SIZE,
-        Anchor::End,
-        setup.spec_name.clone(),
+        [page.page_number, page.page_count],
     );
     dl.rect(frame, style::FRAME);
 

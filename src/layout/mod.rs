@@ -873,22 +873,17 @@ fn pivot_labels<'a>(
     taken
 }
 
-/// Lays out a linkage page from its computed geometry.
-pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetup) -> PageLayout {
-    let (w, h) = setup.size_pt();
-    let mut dl = DisplayList::new(w, h);
-    let t = geometry.transform;
-    let frame = geometry.frame;
-    let l = page.linkage;
-
-    // Header.
+/// The page header: `title` large at the left, "page N of M" at the right; `subtitle`
+/// below it, the spec's name at the right.
+fn header(
+    dl: &mut DisplayList,
+    setup: &PageSetup,
+    title: String,
+    subtitle: String,
+    [number, count]: [usize; 2],
+) {
+    let (w, _) = setup.size_pt();
     let m = setup.margin_pt;
-    let title = format!(
-        "A = {}   B = {}   C = {}",
-        fmt_num(l.coupler),
-        fmt_num(l.rocker),
-        fmt_num(l.ground)
-    );
     dl.text(
         [m, m + style::TITLE_SIZE],
         style::TITLE_SIZE,
@@ -899,29 +894,54 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
         [w - m, m + style::TITLE_SIZE],
         style::TITLE_SIZE,
         Anchor::End,
-        format!("page {} of {}", page.page_number, page.page_count),
+        format!("page {number} of {count}"),
     );
-    let class = l.class();
     dl.text(
         [m, m + style::TITLE_SIZE + 15.0],
         style::TEXT_SIZE,
         Anchor::Start,
-        format!(
-            "class {} ({})   {} circuit   crank = 1, coupler A, rocker B, ground C",
-            class.code(),
-            if l.is_crank_rocker() {
-                "crank-rocker"
-            } else {
-                "not a crank-rocker"
-            },
-            page.circuit.name()
-        ),
+        subtitle,
     );
     dl.text(
         [w - m, m + style::TITLE_SIZE + 15.0],
         style::TEXT_SIZE,
         Anchor::End,
         setup.spec_name.clone(),
+    );
+}
+
+/// Lays out a linkage page from its computed geometry.
+pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetup) -> PageLayout {
+    let (w, h) = setup.size_pt();
+    let mut dl = DisplayList::new(w, h);
+    let t = geometry.transform;
+    let frame = geometry.frame;
+    let l = page.linkage;
+
+    // Header.
+    let title = format!(
+        "A = {}   B = {}   C = {}",
+        fmt_num(l.coupler),
+        fmt_num(l.rocker),
+        fmt_num(l.ground)
+    );
+    let class = l.class();
+    let subtitle = format!(
+        "class {} ({})   {} circuit   crank = 1, coupler A, rocker B, ground C",
+        class.code(),
+        if l.is_crank_rocker() {
+            "crank-rocker"
+        } else {
+            "not a crank-rocker"
+        },
+        page.circuit.name()
+    );
+    header(
+        &mut dl,
+        setup,
+        title,
+        subtitle,
+        [page.page_number, page.page_count],
     );
     dl.rect(frame, style::FRAME);
 
