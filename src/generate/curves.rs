@@ -5,7 +5,7 @@
 //!
 //! The same guarantees as the grid pipeline: the output folder is refused if it holds
 //! files this program did not write; every file is written under a temporary name and
-//! renamed into place; a stop between curves leaves only complete files; output is
+//! renamed into place, so a run stopped at any point leaves only complete files; output is
 //! byte-identical for any number of threads. A set is small (one page per curve), so it
 //! is recomputed whole on every run rather than resumed.
 
@@ -20,7 +20,6 @@ use crate::trace::InputRange;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Schema version of `curves.json` (documented in `docs/index-schema.md`).
 pub const CURVES_SCHEMA_VERSION: u32 = 1;
@@ -136,13 +135,13 @@ fn run_key(job: &CurveJob, pages: Option<&PageOptions>) -> String {
 }
 
 /// Runs the job: traces and measures every curve (in parallel), renders its page when
-/// `pages` is given, writes the pages, `curves.json` and `manifest.json`. `progress` is
-/// called once per finished curve; `interrupt` is polled before each curve.
+/// `pages` is given, then writes the pages, `curves.json` and `manifest.json` (each
+/// atomically, so a run stopped at any point leaves only complete files). `progress` is
+/// called once per finished curve.
 pub fn run(
     job: &CurveJob,
     pages: Option<&PageOptions>,
     progress: &(dyn Fn(u64) + Sync),
-    interrupt: &AtomicBool,
 ) -> Result<CurveRunReport, GenerateError> {
     check_out_dir(&job.out, job.force)?;
     let state = job.out.join(STATE_DIR);
@@ -165,13 +164,6 @@ pub fn run(
             .par_iter()
             .enumerate()
             .map(|(i, c)| {
-                if interrupt.load(Ordering::SeqCst) {
-                    return Err(GenerateError::Interrupted {
-                        done: 0,
-                        total: count,
-                        dir: job.out.clone(),
-                    });
-                }
                 let measured = ClassicCurve::compute(c, step);
                 let mut rec = record(i, c, &measured);
                 let mut files = Vec::new();
@@ -213,16 +205,7 @@ pub fn run(
     let mut n_pages = 0;
     let pages_dir = job.out.join("pages");
     for r in done {
-        let (rec, files) = match r {
-            Err(GenerateError::Interrupted { total, dir, .. }) => {
-                return Err(GenerateError::Interrupted {
-                    done: 0,
-                    total,
-                    dir,
-                });
-            }
-            other => other?,
-        };
+        let (rec, files) = r?;
         if !files.is_empty() {
             std::fs::create_dir_all(&pages_dir).map_err(io_err(&pages_dir))?;
             n_pages += 1;
