@@ -19,6 +19,16 @@ pub enum TraceMode {
     Full,
 }
 
+impl TraceMode {
+    /// As written in a spec: `"full"`, `"open"` or `"crossed"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            TraceMode::Full => "full",
+            TraceMode::Circuit(c) => c.name(),
+        }
+    }
+}
+
 /// One named curve.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NamedCurve {

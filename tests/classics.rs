@@ -131,9 +131,10 @@ fn classics_pages_and_measures() {
     let _ = std::fs::remove_dir_all(&again);
 }
 
-/// Settings that do not apply to a page set are refused, and nothing is written.
+/// `--shard` does not apply to a page set: refused, nothing written; `--dry-run` lists
+/// the curves and pages and writes nothing.
 #[test]
-fn page_set_refuses_what_does_not_apply() {
+fn page_set_refuses_shards_and_dry_run_writes_nothing() {
     let out = tmp("refuse");
     let o = generate(&out, &["--shard", "1/2"]);
     assert_eq!(o.status.code(), Some(2));

@@ -110,17 +110,7 @@ fn plan_grid(
     args: &JobArgs,
     jobs: usize,
 ) -> Result<(Job, Box<dyn Renderer>)> {
-    let out = args
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("output").join(&spec.name));
-    if out.exists() && !out.is_dir() {
-        return Err(UsageError(format!(
-            "--out {} exists and is not a folder",
-            out.display()
-        ))
-        .into());
-    }
+    let out = out_dir(args, &spec.name)?;
     let mut job = Job::new(spec, source, out, jobs);
     job.force = args.force;
     let renderer: Box<dyn Renderer> = if args.no_pages {
@@ -129,6 +119,37 @@ fn plan_grid(
         Box::new(page_renderer(&job.spec, args)?)
     };
     Ok((job, renderer))
+}
+
+/// A progress bar of `total` curves on stderr (hidden with `--quiet`).
+fn progress_bar(quiet: bool, total: u64) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} curves ({per_sec}, eta {eta})",
+        )
+        .expect("valid template"),
+    );
+    bar
+}
+
+/// `--out`, or `output/<atlas name>`; refused if it exists and is not a folder.
+fn out_dir(args: &JobArgs, name: &str) -> Result<PathBuf> {
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("output").join(name));
+    if out.exists() && !out.is_dir() {
+        return Err(UsageError(format!(
+            "--out {} exists and is not a folder",
+            out.display()
+        ))
+        .into());
+    }
+    Ok(out)
 }
 
 /// The page renderer from the spec's `[pages]` and the page flags.
@@ -219,18 +240,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         });
     }
     let total = job.curves();
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} curves ({per_sec}, eta {eta})",
-            )
-            .expect("valid template"),
-        );
-        bar
-    };
+    let bar = progress_bar(args.quiet, total);
     let start = Instant::now();
     let result = generate::run(&job, renderer.as_ref(), &|n| bar.inc(n), &interrupt);
     bar.finish_and_clear();
@@ -312,18 +322,7 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
         ))
         .into());
     }
-    let out = args
-        .job
-        .out
-        .clone()
-        .unwrap_or_else(|| curve_set::default_out(&list));
-    if out.exists() && !out.is_dir() {
-        return Err(UsageError(format!(
-            "--out {} exists and is not a folder",
-            out.display()
-        ))
-        .into());
-    }
+    let out = out_dir(&args.job, &list.name)?;
     let pages = if args.job.no_pages {
         None
     } else {
@@ -344,10 +343,7 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
                 c.point.u,
                 c.point.v,
                 c.linkage.class().code(),
-                match c.trace {
-                    coupler_atlas::classics::TraceMode::Full => "full",
-                    coupler_atlas::classics::TraceMode::Circuit(c) => c.name(),
-                }
+                c.trace.name()
             );
         }
         println!(
@@ -372,21 +368,7 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
         jobs,
         force: args.job.force,
     };
-    let bar = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        let bar = ProgressBar::with_draw_target(
-            Some(job.list.curves.len() as u64),
-            ProgressDrawTarget::stderr(),
-        );
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} curves",
-            )
-            .expect("valid template"),
-        );
-        bar
-    };
+    let bar = progress_bar(args.quiet, job.list.curves.len() as u64);
     let start = Instant::now();
     // No SIGINT handler here: a page set takes well under a second, and Ctrl-C leaves
     // only complete files (every file is renamed into place when written).

@@ -13,13 +13,13 @@ use super::{
     Artifact, FileEntry, GenerateError, STATE_DIR, check_out_dir, io_err, remove_stale_temporaries,
     write_artifact, write_atomically, write_manifest,
 };
-use crate::classics::{ClassicCurve, CurveList, StraightMeasure, TraceMode};
+use crate::classics::{ClassicCurve, CurveList, StraightMeasure};
 use crate::layout::classic::ClassicPage;
 use crate::render::pages::{BufferPool, PageOptions, PageTimings, render_classic};
 use crate::trace::InputRange;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Schema version of `curves.json` (documented in `docs/index-schema.md`).
 pub const CURVES_SCHEMA_VERSION: u32 = 1;
@@ -110,10 +110,7 @@ fn record(id: usize, c: &crate::classics::NamedCurve, m: &ClassicCurve) -> Curve
         linkage: crate::index::LinkageLengths::from(&c.linkage),
         point: c.point,
         class: c.linkage.class(),
-        trace: match c.trace {
-            TraceMode::Full => "full".into(),
-            TraceMode::Circuit(circ) => circ.name().into(),
-        },
+        trace: c.trace.name().into(),
         input: m.range.clone(),
         branches: m.branches.len(),
         samples: m.branches.iter().map(|b| b.samples.len()).collect(),
@@ -203,11 +200,13 @@ pub fn run(
     let mut records = Vec::with_capacity(count);
     let mut entries: Vec<FileEntry> = Vec::new();
     let mut n_pages = 0;
-    let pages_dir = job.out.join("pages");
+    if pages.is_some() {
+        let pages_dir = job.out.join("pages");
+        std::fs::create_dir_all(&pages_dir).map_err(io_err(&pages_dir))?;
+    }
     for r in done {
         let (rec, files) = r?;
         if !files.is_empty() {
-            std::fs::create_dir_all(&pages_dir).map_err(io_err(&pages_dir))?;
             n_pages += 1;
         }
         for a in &files {
@@ -239,9 +238,4 @@ pub fn run(
         pages: n_pages,
         record_path,
     })
-}
-
-/// Where a job's output goes by default: `output/<name>`.
-pub fn default_out(list: &CurveList) -> PathBuf {
-    Path::new("output").join(&list.name)
 }

@@ -298,7 +298,8 @@ pub fn layout_classic(
             bbox = union(bbox, start_marker(&mut dl, &t, start, end, dir));
         }
     }
-    // Toggles: small open squares where the input reverses.
+    // Toggles: small open squares where the input reverses (a rocking branch starts and
+    // ends at the same toggle: its closing sample stands for both).
     for b in &page.measured.branches {
         for s in b.samples.iter().filter(|s| s.toggle).skip(1) {
             let q = t.map(s.point.x, s.point.y);
@@ -307,15 +308,6 @@ pub fn layout_classic(
             occ.mark_point(q, 2);
         }
     }
-    // The first toggle of a rocking branch is its start (the dot); mark it too.
-    for b in &page.measured.branches {
-        if let Some(s) = b.samples.first().filter(|s| s.toggle) {
-            let q = t.map(s.point.x, s.point.y);
-            let r = 2.6;
-            dl.rect([q[0] - r, q[1] - r, q[0] + r, q[1] + r], style::THIN + 0.2);
-        }
-    }
-
     // Input path: the crank circle, or the arc of each rocking interval.
     for (a0, a1) in input_arcs(&page.measured.range) {
         let arc: Vec<PagePoint> = arc_points(a0, a1)
