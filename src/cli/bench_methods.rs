@@ -184,18 +184,8 @@ pub fn methods(out: &Path, reps: usize) -> Result<ExitCode> {
     }
     // Feature accuracy.
     let feats = feature_rows();
-    let mut fcsv = format!("# coupler-atlas bench methods (features); {machine}\nsamples_per_dash");
-    for (name, _) in &feats.series {
-        write!(fcsv, ",{name}")?;
-    }
-    fcsv.push('\n');
-    for (i, &n) in FEATURE_DENSITIES.iter().enumerate() {
-        write!(fcsv, "{n}")?;
-        for (_, vals) in &feats.series {
-            write!(fcsv, ",{:.3e}", vals[i])?;
-        }
-        fcsv.push('\n');
-    }
+    let mut fcsv = format!("# coupler-atlas bench methods (features); {machine}\n");
+    feature_table(&mut fcsv, &feats.series, false)?;
     std::fs::write(out.join("features.csv"), &fcsv)?;
     feature_chart(&out.join("features.png"), &feats)?;
     // Markdown summary.
@@ -248,22 +238,7 @@ pub fn methods(out: &Path, reps: usize) -> Result<ExitCode> {
         md,
         "\n### Feature accuracy against samples per dash (relative error against the converged value: 100,000 samples/dash for ε_S, 10,000 for the arc)\n"
     )?;
-    write!(md, "| samples/dash |")?;
-    for (name, _) in &feats.series {
-        write!(md, " {name} |")?;
-    }
-    write!(md, "\n|---|")?;
-    for _ in &feats.series {
-        write!(md, "---|")?;
-    }
-    md.push('\n');
-    for (i, &n) in FEATURE_DENSITIES.iter().enumerate() {
-        write!(md, "| {n} |")?;
-        for (_, vals) in &feats.series {
-            write!(md, " {:.1e} |", vals[i])?;
-        }
-        md.push('\n');
-    }
+    feature_table(&mut md, &feats.series, true)?;
     writeln!(md, "\n{}", feats.notes)?;
     std::fs::write(out.join("methods.md"), &md)?;
     print!("{md}");
@@ -369,6 +344,44 @@ fn speed_chart(
         .label_font(("sans-serif", 14))
         .draw()?;
     root.present()?;
+    Ok(())
+}
+
+/// The feature-accuracy table, one row per density of [`FEATURE_DENSITIES`]: CSV
+/// (`samples_per_dash,NAME…`, values to 4 digits) or Markdown (values to 2 digits).
+fn feature_table(
+    out: &mut String,
+    series: &[(String, Vec<f64>)],
+    markdown: bool,
+) -> std::fmt::Result {
+    let (open, sep, close) = if markdown {
+        ("| ", " | ", " |")
+    } else {
+        ("", ",", "")
+    };
+    write!(
+        out,
+        "{open}samples{}dash",
+        if markdown { "/" } else { "_per_" }
+    )?;
+    for (name, _) in series {
+        write!(out, "{sep}{name}")?;
+    }
+    writeln!(out, "{close}")?;
+    if markdown {
+        writeln!(out, "|---|{}", "---|".repeat(series.len()))?;
+    }
+    for (i, &n) in FEATURE_DENSITIES.iter().enumerate() {
+        write!(out, "{open}{n}")?;
+        for (_, vals) in series {
+            if markdown {
+                write!(out, "{sep}{:.1e}", vals[i])?;
+            } else {
+                write!(out, "{sep}{:.3e}", vals[i])?;
+            }
+        }
+        writeln!(out, "{close}")?;
+    }
     Ok(())
 }
 
