@@ -136,3 +136,15 @@ pub(crate) fn anchored_x(x: f64, width: f64, anchor: Anchor) -> f64 {
         Anchor::End => x - width,
     }
 }
+
+/// A coordinate for a vector format: at most 3 decimals, no trailing zeros, never `-0`
+/// (deterministic and compact).
+fn num(x: f64) -> String {
+    let s = format!("{x:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" || s.is_empty() {
+        "0".into()
+    } else {
+        s.to_string()
+    }
+}

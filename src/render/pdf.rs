@@ -3,7 +3,7 @@
 //! points; text is filled glyph outlines of the embedded font, so no font is embedded or
 //! needed. The content stream is uncompressed (a page is a few hundred KB).
 
-use super::{Canvas, anchored_x, font};
+use super::{Canvas, anchored_x, font, num};
 use crate::layout::{Anchor, PagePoint};
 use std::fmt::Write;
 
@@ -18,22 +18,26 @@ pub struct PdfPage {
     height: f64,
 }
 
-fn num(x: f64) -> String {
-    let s = format!("{x:.3}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" || s.is_empty() {
-        "0".into()
-    } else {
-        s.to_string()
-    }
-}
-
 impl PdfPage {
     /// An empty page of `width × height` points.
     pub fn new(width: f64, height: f64) -> PdfPage {
         let mut ops = String::with_capacity(1 << 16);
         let _ = writeln!(ops, "1 0 0 -1 0 {} cm 0 g 0 G", num(height));
         PdfPage { ops, width, height }
+    }
+
+    /// A cubic Bézier segment to `p` with control points `a`, `b`.
+    fn curve_to(&mut self, a: PagePoint, b: PagePoint, p: PagePoint) {
+        let _ = write!(
+            self.ops,
+            "{} {} {} {} {} {} c ",
+            num(a[0]),
+            num(a[1]),
+            num(b[0]),
+            num(b[1]),
+            num(p[0]),
+            num(p[1])
+        );
     }
 
     fn path(&mut self, points: &[PagePoint]) {
@@ -137,16 +141,7 @@ impl Canvas for PdfPage {
             ([x + k, y - r], [x + r, y - k], [x + r, y]),
         ];
         for (a, b, e) in quads {
-            let _ = write!(
-                self.ops,
-                "{} {} {} {} {} {} c ",
-                num(a[0]),
-                num(a[1]),
-                num(b[0]),
-                num(b[1]),
-                num(e[0]),
-                num(e[1])
-            );
+            self.curve_to(a, b, e);
         }
         match width {
             None => self.ops.push_str("h f\n"),
@@ -182,29 +177,11 @@ impl Canvas for PdfPage {
                         p[0] + 2.0 / 3.0 * (q[0] - p[0]),
                         p[1] + 2.0 / 3.0 * (q[1] - p[1]),
                     ];
-                    let _ = write!(
-                        self.ops,
-                        "{} {} {} {} {} {} c ",
-                        num(c1[0]),
-                        num(c1[1]),
-                        num(c2[0]),
-                        num(c2[1]),
-                        num(p[0]),
-                        num(p[1])
-                    );
+                    self.curve_to(c1, c2, p);
                     cur = p;
                 }
                 font::OutlineCmd::CubicTo(a, b, p) => {
-                    let _ = write!(
-                        self.ops,
-                        "{} {} {} {} {} {} c ",
-                        num(a[0]),
-                        num(a[1]),
-                        num(b[0]),
-                        num(b[1]),
-                        num(p[0]),
-                        num(p[1])
-                    );
+                    self.curve_to(a, b, p);
                     cur = p;
                 }
                 font::OutlineCmd::Close => self.ops.push_str("h "),

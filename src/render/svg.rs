@@ -1,7 +1,7 @@
 //! Vector backend: SVG of the display list. Dashes are exact polylines in page points;
 //! text is drawn as the embedded font's glyph outlines (no font needed to view it).
 
-use super::{Canvas, anchored_x, font};
+use super::{Canvas, anchored_x, font, num};
 use crate::layout::{Anchor, PagePoint};
 use std::fmt::Write;
 
@@ -10,17 +10,6 @@ pub struct SvgPage {
     body: String,
     width: f64,
     height: f64,
-}
-
-/// A number with at most 3 decimals, no trailing zeros (deterministic, compact).
-fn num(x: f64) -> String {
-    let s = format!("{x:.3}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" || s.is_empty() {
-        "0".into()
-    } else {
-        s.to_string()
-    }
 }
 
 fn xml_escape(s: &str) -> String {
