@@ -30,6 +30,7 @@ mod window;
 
 pub mod features;
 pub mod search;
+pub mod shape;
 
 pub mod reference;
 pub mod trace;
