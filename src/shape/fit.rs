@@ -176,18 +176,23 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec
     starts
 }
 
-/// Open target: scan windows of the curve (every start and length on a grid in arc
-/// length) for the best similarity fit of the resampled target, then polish the best
-/// window per variant by a pattern search.
+/// Open target: scan windows of the curve for the best similarity fit of the resampled
+/// target. Windows are placed by their centre `c` and length `f` (fractions of the loop's
+/// arc length): lengths on a geometric grid (ratio [`OPEN_LENGTH_RATIO`]) from 2 % to the
+/// whole loop, centres every `f/6`. Along each length's centres, every local minimum of
+/// the misfit is refined by a parabola through it and its neighbours; the best distinct
+/// ones (per reflection and direction) are polished by a pattern search on `(c, ln f)`.
 pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
     const M: usize = 24;
+    const POLISHED: usize = 10;
     let Some(t) = super::geom::resample(p, false, M) else {
         return Vec::new();
     };
     let len = traced.length();
     let big = 512;
     let zc = traced.resample_closed(big);
-    let window = |s0: f64, f: f64| -> Option<Vec<C64>> {
+    let window = |c: f64, f: f64| -> Option<Vec<C64>> {
+        let s0 = c - 0.5 * f;
         let w: Vec<C64> = (0..M)
             .map(|j| {
                 let s = (s0 + f * j as f64 / (M - 1) as f64).rem_euclid(1.0) * big as f64;
@@ -216,57 +221,91 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
         }
         1.0 - s.norm_sqr()
     };
-    // best[(variant)] = (misfit, s0, f)
-    let mut best = vec![(f64::INFINITY, 0.0, 0.0); vars.len()];
-    let ratio: f64 = 1.2;
+    // Refined local minima along the centres of each length: (misfit, variant, c, f).
+    let mut minima: Vec<(f64, usize, f64, f64)> = Vec::new();
     let mut f: f64 = 0.02;
     while f <= 1.0 + 1e-9 {
-        let starts = ((6.0 / f).ceil() as usize).clamp(12, 192);
-        for i in 0..starts {
-            let s0 = i as f64 / starts as f64;
-            let Some(w) = window(s0, f) else { continue };
-            for (vi, (_, _, v)) in vars.iter().enumerate() {
-                let m = score(&w, v);
-                if m < best[vi].0 {
-                    best[vi] = (m, s0, f);
+        let count = ((6.0 / f).ceil() as usize).clamp(12, 192);
+        let h = 1.0 / count as f64;
+        let wins: Vec<Option<Vec<C64>>> = (0..count).map(|i| window(i as f64 * h, f)).collect();
+        for (vi, (_, _, v)) in vars.iter().enumerate() {
+            let m: Vec<f64> = wins
+                .iter()
+                .map(|w| w.as_ref().map_or(f64::INFINITY, |w| score(w, v)))
+                .collect();
+            for i in 0..count {
+                let (l, r) = (m[(i + count - 1) % count], m[(i + 1) % count]);
+                if !(m[i] <= l && m[i] < r && m[i].is_finite()) {
+                    continue;
                 }
+                let curvature = l - 2.0 * m[i] + r;
+                let shift = if curvature > 0.0 {
+                    (0.5 * (l - r) / curvature).clamp(-0.5, 0.5)
+                } else {
+                    0.0
+                };
+                let c = (i as f64 + shift) * h;
+                let refined = window(c, f).map_or(f64::INFINITY, |w| score(&w, v));
+                let (best, c) = if refined < m[i] { (refined, c) } else { (m[i], i as f64 * h) };
+                minima.push((best, vi, c, f));
             }
         }
-        f *= ratio;
+        f *= OPEN_LENGTH_RATIO;
+    }
+    minima.sort_by(|a, b| {
+        a.0.total_cmp(&b.0)
+            .then(a.1.cmp(&b.1))
+            .then(a.2.total_cmp(&b.2))
+            .then(a.3.total_cmp(&b.3))
+    });
+    let mut picked: Vec<(f64, usize, f64, f64)> = Vec::new();
+    for &g in &minima {
+        if picked.len() >= POLISHED {
+            break;
+        }
+        let distinct = picked.iter().all(|q| {
+            q.1 != g.1 || {
+                let dc = (q.2 - g.2).rem_euclid(1.0);
+                let dc = dc.min(1.0 - dc);
+                dc > 0.25 * q.3.min(g.3) || (q.3 / g.3).ln().abs() > 2.5 * OPEN_LENGTH_RATIO.ln()
+            }
+        });
+        if distinct {
+            picked.push(g);
+        }
     }
     let tau = arc_fractions(p, false);
     let mut out = Vec::new();
-    for (vi, (rev, mir, v)) in vars.iter().enumerate() {
-        let (mut m, mut s0, mut f) = best[vi];
-        if !m.is_finite() {
-            continue;
-        }
-        // Pattern search on (s0, log f).
-        let mut ds = f / 8.0;
-        let mut dl = (ratio.ln()) / 2.0;
-        for _ in 0..40 {
+    for (m, vi, c, f) in picked {
+        let (rev, mir, v) = &vars[vi];
+        let (mut m, mut c, mut f) = (m, c, f);
+        // Pattern search on (c, ln f).
+        let mut dc = f / 12.0;
+        let mut dl = OPEN_LENGTH_RATIO.ln() / 2.0;
+        for _ in 0..60 {
             let mut moved = false;
             for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
-                let (s1, f1) = (s0 + a * ds, f * libm::exp(b * dl));
+                let (c1, f1) = (c + a * dc, f * libm::exp(b * dl));
                 if !(f1 > 0.0 && f1 <= 1.0) {
                     continue;
                 }
-                if let Some(w) = window(s1, f1) {
+                if let Some(w) = window(c1, f1) {
                     let m1 = score(&w, v);
                     if m1 < m {
-                        (m, s0, f) = (m1, s1, f1);
+                        (m, c, f) = (m1, c1, f1);
                         moved = true;
                     }
                 }
             }
             if !moved {
-                ds /= 2.0;
+                dc /= 2.0;
                 dl /= 2.0;
-                if ds < 1e-5 * f {
+                if dc < 1e-5 * f {
                     break;
                 }
             }
         }
+        let s0 = c - 0.5 * f;
         let theta = tau
             .iter()
             .map(|&x| {
@@ -283,6 +322,9 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     out.sort_by(|a, b| a.score.total_cmp(&b.score));
     out
 }
+
+/// Ratio between consecutive window lengths of the open scan.
+const OPEN_LENGTH_RATIO: f64 = 1.2;
 
 /// Makes consecutive angles differ by less than 180° (adding whole turns).
 fn unwrap_sequence(mut t: Vec<f64>) -> Vec<f64> {
@@ -531,6 +573,9 @@ pub fn fit_curve(target: &Target, curve: &CouplerCurve, options: &FitOptions) ->
     fit_with(target, curve, &traced, options)
 }
 
+/// Iterations each start gets before the best two are fitted to convergence.
+const RACE_ITERATIONS: usize = 4;
+
 pub(crate) fn fit_with(
     target: &Target,
     curve: &CouplerCurve,
@@ -543,9 +588,24 @@ pub(crate) fn fit_with(
     } else {
         scan_open(&p, traced, options.allow_mirror)
     };
+    // Race the starts: a few iterations each, then the two best to convergence.
+    let quick = FitOptions {
+        max_iterations: RACE_ITERATIONS,
+        ..*options
+    };
+    let mut raced: Vec<CurveFit> = starts
+        .iter()
+        .filter_map(|s| fit_untimed(&p, curve, s, &quick))
+        .collect();
+    raced.sort_by(|a, b| a.rms.total_cmp(&b.rms));
     let mut best: Option<CurveFit> = None;
-    for s in starts.iter().take(2) {
-        if let Some(f) = fit_untimed(&p, curve, s, options) {
+    for f in raced.iter().take(2) {
+        let start = Start {
+            mirrored: f.mirrored,
+            theta: f.theta_deg.clone(),
+            score: 0.0,
+        };
+        if let Some(f) = fit_untimed(&p, curve, &start, options) {
             if best.as_ref().is_none_or(|b| f.rms < b.rms) {
                 best = Some(f);
             }
@@ -555,4 +615,92 @@ pub(crate) fn fit_with(
         return fit_timed(target, curve, traced, best.as_ref(), options);
     }
     best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Circuit, CouplerPoint, FourBar};
+
+    fn curve() -> CouplerCurve {
+        CouplerCurve {
+            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap(),
+            circuit: Circuit::Open,
+            point: CouplerPoint::new(1.25, 1.0),
+        }
+    }
+
+    /// Points of `c` at the angles, placed by `p = a·M̃ + b`.
+    fn placed(c: &CouplerCurve, angles: &[f64], a: C64, b: C64, mirrored: bool) -> Vec<[f64; 2]> {
+        angles
+            .iter()
+            .map(|&t| {
+                let z = a * tilde(mirrored, c.at(t).unwrap().m) + b;
+                [z.re, z.im]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn exact_targets_fit_to_rounding() {
+        let c = curve();
+        let (a, b) = (C64::new(3.0, -4.0), C64::new(10.0, 20.0));
+        for (closed, timing, mirrored) in [
+            (true, Timing::Untimed, false),
+            (true, Timing::Untimed, true),
+            (false, Timing::Untimed, false),
+            (false, Timing::Untimed, true),
+            (true, Timing::EqualSteps, false),
+            (false, Timing::EqualSteps, true),
+        ] {
+            let angles: Vec<f64> = if closed {
+                (0..40).map(|k| 33.0 + 9.0 * k as f64).collect()
+            } else {
+                (0..30).map(|k| 100.0 + 5.0 * k as f64).collect()
+            };
+            let pts = placed(&c, &angles, a, b, mirrored);
+            let t = Target::new(pts, closed, timing.clone()).unwrap();
+            let f = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
+            assert!(f.rms < 1e-9 * t.size(), "{closed} {timing:?} {mirrored}: {f:?}");
+            assert_eq!(f.mirrored, mirrored);
+        }
+        // Timing by angles, crank turning the other way.
+        let angles: Vec<f64> = (0..25).map(|k| 300.0 - 7.0 * k as f64).collect();
+        let given: Vec<f64> = (0..25).map(|k| 7.0 * k as f64).collect();
+        let t = Target::new(placed(&c, &angles, a, b, false), false, Timing::Angles(given)).unwrap();
+        let f = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
+        assert!(f.rms < 1e-9 * t.size(), "{f:?}");
+        assert_eq!(f.timing_rate, Some(-1.0));
+    }
+}
+#[cfg(test)]
+mod debug {
+    use super::*;
+    use crate::{Circuit, CouplerPoint, FourBar};
+    #[test]
+    fn dbg_open() {
+        let c = CouplerCurve {
+            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap(),
+            circuit: Circuit::Open,
+            point: CouplerPoint::new(1.25, 1.0),
+        };
+        let (a, b) = (C64::new(3.0, -4.0), C64::new(10.0, 20.0));
+        let angles: Vec<f64> = (0..30).map(|k| 100.0 + 5.0 * k as f64).collect();
+        let p: Vec<C64> = angles.iter().map(|&t| a * c.at(t).unwrap().m + b).collect();
+        let traced = Traced::new(&c, 720).unwrap();
+        let starts = scan_open(&p, &traced, true);
+        for s in &starts {
+            println!("start mir={} score={:e} theta {:.1}..{:.1}", s.mirrored, s.score, s.theta[0], s.theta[29]);
+            let q = FitOptions { max_iterations: 4, ..FitOptions::DEFAULT };
+            if let Some(f) = fit_untimed(&p, &c, s, &q) {
+                println!("   quick rms {:e}", f.rms);
+            }
+            if let Some(f) = fit_untimed(&p, &c, s, &FitOptions::DEFAULT) {
+                println!("   full rms {:e} theta {:.1}..{:.1}", f.rms, f.theta_deg[0], f.theta_deg[29]);
+            }
+        }
+        let truth = Start { mirrored: false, theta: angles.clone(), score: 0.0 };
+        let f = fit_untimed(&p, &c, &truth, &FitOptions::DEFAULT).unwrap();
+        println!("truth rms {:e}", f.rms);
+    }
 }

@@ -11,6 +11,7 @@ mod lm;
 
 pub use kin::{CouplerCurve, PointAt, PointSensitivity};
 mod fit;
+pub mod smooth;
 mod traced;
 
 pub use fit::{CurveFit, FitOptions, fit_curve};
