@@ -192,7 +192,9 @@ fn twiddles(h: usize, nb: usize) -> Vec<Vec<C64>> {
     (0..nb)
         .map(|j| {
             let beta = std::f64::consts::TAU * j as f64 / nb as f64;
-            (0..2 * h + 1).map(|i| cis((i as f64 - h as f64) * beta)).collect()
+            (0..2 * h + 1)
+                .map(|i| cis((i as f64 - h as f64) * beta))
+                .collect()
         })
         .collect()
 }
@@ -410,10 +412,15 @@ fn open_window_bank() {
         .collect();
     println!("traced + resampled {:.2?}", t0.elapsed());
     let mut rng = Rng(7);
-    let noise: f64 = std::env::var("NOISE").ok().and_then(|x| x.parse().ok()).unwrap_or(0.01);
+    let noise: f64 = std::env::var("NOISE")
+        .ok()
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(0.01);
     let smooth = std::env::var("NOSMOOTH").is_err();
     let only: Option<usize> = std::env::var("ONLY").ok().and_then(|x| x.parse().ok());
-    let cases: Vec<Case> = (0..200).map(|_| make_case(&mut rng, &curves, false, noise)).collect();
+    let cases: Vec<Case> = (0..200)
+        .map(|_| make_case(&mut rng, &curves, false, noise))
+        .collect();
     // Arc fraction the cases cover (how long are 90–270° crank windows in arc length?).
     let mut fr: Vec<f64> = cases
         .iter()
@@ -578,7 +585,10 @@ fn bank_debug() {
         let srcs = scores[src].0;
         scores.sort_by(|a, b| a.0.total_cmp(&b.0));
         let rank = scores.iter().position(|x| x.1 == src).unwrap();
-        println!("window ({s0},{f}): source misfit {srcs:e}, rank {rank}, best {:?}", &scores[..3]);
+        println!(
+            "window ({s0},{f}): source misfit {srcs:e}, rank {rank}, best {:?}",
+            &scores[..3]
+        );
     }
 }
 
@@ -591,8 +601,14 @@ fn open_oracle() {
     use rayon::prelude::*;
     let spec = Spec::default_atlas();
     let curves = atlas(&spec);
-    let noise: f64 = std::env::var("NOISE").ok().and_then(|x| x.parse().ok()).unwrap_or(0.01);
-    let count: usize = std::env::var("COUNT").ok().and_then(|x| x.parse().ok()).unwrap_or(10);
+    let noise: f64 = std::env::var("NOISE")
+        .ok()
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(0.01);
+    let count: usize = std::env::var("COUNT")
+        .ok()
+        .and_then(|x| x.parse().ok())
+        .unwrap_or(10);
     let closed = std::env::var("CLOSED").is_ok();
     let mut rng = Rng(7);
     for _ in 0..count {
@@ -624,5 +640,102 @@ fn open_oracle() {
             100.0 * sorted[4] / target.size(),
             t0.elapsed()
         );
+    }
+}
+
+/// Level-1 open scan: best misfit of an m-point target over windows of a 256-point
+/// arc-length loop (lengths ratio `ratio` from 0.04, centres clamp(k/f, lo, hi)).
+fn quick_scan(
+    zc: &[C64],
+    vars: &[Vec<C64>],
+    m: usize,
+    ratio: f64,
+    k: f64,
+    lo: usize,
+    hi: usize,
+) -> f64 {
+    let big = zc.len();
+    let mut best = f64::INFINITY;
+    let mut f: f64 = 0.04;
+    let mut w = vec![C64::new(0.0, 0.0); m];
+    while f <= 1.0 + 1e-9 {
+        let count = ((k / f).ceil() as usize).clamp(lo, hi);
+        for i in 0..count {
+            let s0 = i as f64 / count as f64;
+            let mut mean = C64::new(0.0, 0.0);
+            for (j, wj) in w.iter_mut().enumerate() {
+                let s = (s0 + f * j as f64 / (m - 1) as f64) * big as f64;
+                let kk = s as usize;
+                let u = s - kk as f64;
+                let (a, b) = (zc[kk % big], zc[(kk + 1) % big]);
+                *wj = a + (b - a) * u;
+                mean += *wj;
+            }
+            mean /= m as f64;
+            let mut n2 = 0.0;
+            for wj in w.iter_mut() {
+                *wj -= mean;
+                n2 += wj.norm_sqr();
+            }
+            for v in vars {
+                let mut s = C64::new(0.0, 0.0);
+                for (a, b) in w.iter().zip(v) {
+                    s += a.conj() * b;
+                }
+                let mis = 1.0 - s.norm_sqr() / n2;
+                if mis < best {
+                    best = mis;
+                }
+            }
+        }
+        f *= ratio;
+    }
+    best
+}
+
+#[test]
+#[ignore]
+fn open_quick_scan() {
+    let spec = Spec::default_atlas();
+    let curves = atlas(&spec);
+    let table = CrankTable::new(1.0).unwrap();
+    let zcs: Vec<Vec<C64>> = curves
+        .iter()
+        .map(|c| resample(&trace(c, &table), true, 256).unwrap())
+        .collect();
+    let mut rng = Rng(7);
+    let cases: Vec<Case> = (0..200)
+        .map(|_| make_case(&mut rng, &curves, false, 0.01))
+        .collect();
+    for (m, ratio, k, lo, hi) in [
+        (8, 1.4, 4.0, 8, 48),
+        (12, 1.3, 5.0, 10, 64),
+        (16, 1.25, 8.0, 12, 128),
+    ] {
+        let mut ranks = vec![];
+        let t0 = Instant::now();
+        for case in &cases {
+            let vars: Vec<Vec<C64>> = variants(&case.points)
+                .iter()
+                .filter_map(|v| {
+                    let terms = (v.len() / 8).clamp(2, 24);
+                    let r = coupler_atlas::shape::smooth::smooth_resample(v, false, terms, m)?.0;
+                    let mu = mean(&r);
+                    let c: Vec<C64> = r.iter().map(|z| z - mu).collect();
+                    let n = c.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+                    Some(c.iter().map(|z| z / n).collect())
+                })
+                .collect();
+            let scores: Vec<f64> = zcs
+                .iter()
+                .map(|zc| quick_scan(zc, &vars, m, ratio, k, lo, hi))
+                .collect();
+            ranks.push(rank_of(&scores, case.source));
+        }
+        report(
+            &format!("quick m={m} ratio={ratio} k={k} [{lo},{hi}]"),
+            &ranks,
+        );
+        println!("   {:.1?} per query", t0.elapsed() / 200);
     }
 }

@@ -42,15 +42,6 @@ pub struct CurveFit {
     pub timing_rate: Option<f64>,
 }
 
-impl CurveFit {
-    pub(crate) fn a(&self) -> C64 {
-        C64::new(self.a[0], self.a[1])
-    }
-    pub(crate) fn b(&self) -> C64 {
-        C64::new(self.b[0], self.b[1])
-    }
-}
-
 /// Settings of the exact fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FitOptions {
@@ -246,7 +237,11 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
                 };
                 let c = (i as f64 + shift) * h;
                 let refined = window(c, f).map_or(f64::INFINITY, |w| score(&w, v));
-                let (best, c) = if refined < m[i] { (refined, c) } else { (m[i], i as f64 * h) };
+                let (best, c) = if refined < m[i] {
+                    (refined, c)
+                } else {
+                    (m[i], i as f64 * h)
+                };
                 minima.push((best, vi, c, f));
             }
         }
@@ -661,46 +656,23 @@ mod tests {
             let pts = placed(&c, &angles, a, b, mirrored);
             let t = Target::new(pts, closed, timing.clone()).unwrap();
             let f = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
-            assert!(f.rms < 1e-9 * t.size(), "{closed} {timing:?} {mirrored}: {f:?}");
+            assert!(
+                f.rms < 1e-9 * t.size(),
+                "{closed} {timing:?} {mirrored}: {f:?}"
+            );
             assert_eq!(f.mirrored, mirrored);
         }
         // Timing by angles, crank turning the other way.
         let angles: Vec<f64> = (0..25).map(|k| 300.0 - 7.0 * k as f64).collect();
         let given: Vec<f64> = (0..25).map(|k| 7.0 * k as f64).collect();
-        let t = Target::new(placed(&c, &angles, a, b, false), false, Timing::Angles(given)).unwrap();
+        let t = Target::new(
+            placed(&c, &angles, a, b, false),
+            false,
+            Timing::Angles(given),
+        )
+        .unwrap();
         let f = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
         assert!(f.rms < 1e-9 * t.size(), "{f:?}");
         assert_eq!(f.timing_rate, Some(-1.0));
-    }
-}
-#[cfg(test)]
-mod debug {
-    use super::*;
-    use crate::{Circuit, CouplerPoint, FourBar};
-    #[test]
-    fn dbg_open() {
-        let c = CouplerCurve {
-            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap(),
-            circuit: Circuit::Open,
-            point: CouplerPoint::new(1.25, 1.0),
-        };
-        let (a, b) = (C64::new(3.0, -4.0), C64::new(10.0, 20.0));
-        let angles: Vec<f64> = (0..30).map(|k| 100.0 + 5.0 * k as f64).collect();
-        let p: Vec<C64> = angles.iter().map(|&t| a * c.at(t).unwrap().m + b).collect();
-        let traced = Traced::new(&c, 720).unwrap();
-        let starts = scan_open(&p, &traced, true);
-        for s in &starts {
-            println!("start mir={} score={:e} theta {:.1}..{:.1}", s.mirrored, s.score, s.theta[0], s.theta[29]);
-            let q = FitOptions { max_iterations: 4, ..FitOptions::DEFAULT };
-            if let Some(f) = fit_untimed(&p, &c, s, &q) {
-                println!("   quick rms {:e}", f.rms);
-            }
-            if let Some(f) = fit_untimed(&p, &c, s, &FitOptions::DEFAULT) {
-                println!("   full rms {:e} theta {:.1}..{:.1}", f.rms, f.theta_deg[0], f.theta_deg[29]);
-            }
-        }
-        let truth = Start { mirrored: false, theta: angles.clone(), score: 0.0 };
-        let f = fit_untimed(&p, &c, &truth, &FitOptions::DEFAULT).unwrap();
-        println!("truth rms {:e}", f.rms);
     }
 }

@@ -1,17 +1,35 @@
 //! Shape search: find the atlas curves that look like a target path, then fit one exactly.
-//! Pure: no I/O, no threads; see `docs/shape-search.md`.
+//! Pure: no I/O, no threads; the method and the matching contract are in
+//! `docs/shape-search.md`.
+//!
+//! - [`Target`]: the user's points (open or closed, optionally timed); [`parse`] reads
+//!   CSV and JSON target files from text.
+//! - [`ShapeCode`]: the compact shape code of a closed atlas curve (normalised elliptic
+//!   Fourier descriptors, [`code::CODE_BYTES`] bytes).
+//! - [`find_matches`]: coarse retrieval, then the exact fit ([`fit_curve`]) of the best
+//!   candidates, ranked by RMS error, each with its [`Placement`] in the user's frame.
+//! - [`refine`]: Levenberg–Marquardt over the linkage's dimensions, the coupler point, the
+//!   transform and the crank angles, off the atlas grid.
 
+pub mod code;
+mod fit;
 pub mod geom;
-pub mod parse;
-mod target;
-
-pub use target::{Target, TargetError, Timing};
 mod kin;
 mod lm;
-
-pub use kin::{CouplerCurve, PointAt, PointSensitivity};
-mod fit;
+mod matching;
+pub mod parse;
+mod placement;
+mod refine;
 pub mod smooth;
+mod target;
 mod traced;
 
+pub use code::{ClosedQuery, ShapeCode};
 pub use fit::{CurveFit, FitOptions, fit_curve};
+pub use kin::{CouplerCurve, PointAt, PointSensitivity};
+pub use matching::{
+    AtlasCurve, Match, MatchError, MatchOptions, coarse_distances, find_matches, rank_candidates,
+};
+pub use placement::Placement;
+pub use refine::{Refined, refine};
+pub use target::{Target, TargetError, Timing};

@@ -67,7 +67,11 @@ fn fit(z: &[C64], t: &[f64], closed: bool, h: usize) -> Option<Vec<C64>> {
     // keeps the fit well posed where the parameters leave gaps.
     let scale = z.len() as f64;
     for k in 0..nb {
-        let freq = if closed { k as f64 - h as f64 } else { k as f64 };
+        let freq = if closed {
+            k as f64 - h as f64
+        } else {
+            k as f64
+        };
         let w = 1e-6 * scale * (freq * freq / (h * h).max(1) as f64).powi(2);
         ata[(2 * k, 2 * k)] += w;
         ata[(2 * k + 1, 2 * k + 1)] += w;
@@ -77,7 +81,11 @@ fn fit(z: &[C64], t: &[f64], closed: bool, h: usize) -> Option<Vec<C64>> {
 }
 
 fn eval(c: &[C64], closed: bool, t: f64, phi: &mut Vec<C64>) -> C64 {
-    let h = if closed { (c.len() - 1) / 2 } else { c.len() - 1 };
+    let h = if closed {
+        (c.len() - 1) / 2
+    } else {
+        c.len() - 1
+    };
     basis(closed, h, t, phi);
     let mut s = C64::new(0.0, 0.0);
     for (a, b) in c.iter().zip(phi.iter()) {
