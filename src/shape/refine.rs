@@ -128,7 +128,7 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
         Some(e)
     };
     let lm = LmOptions {
-        max_iterations: options.max_iterations.max(200),
+        max_iterations: options.max_iterations.max(REFINE_ITERATIONS),
         relative_decrease: 1e-15,
         ..LmOptions::DEFAULT
     };
@@ -170,3 +170,7 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
         iterations: res.iterations,
     })
 }
+
+/// Iteration cap of the refinement (an open window constrains the linkage less than a
+/// whole curve, and its valley is long: hundreds of steps are common).
+pub const REFINE_ITERATIONS: usize = 5000;
