@@ -137,7 +137,10 @@ fn closed_targets_find_their_source() {
             (src, t)
         })
         .collect();
-    let options = MatchOptions::DEFAULT;
+    let options = MatchOptions {
+        candidates: 32,
+        ..MatchOptions::DEFAULT
+    };
     let results: Vec<(bool, f64)> = cases
         .par_iter()
         .map(|(src, t)| {

@@ -739,3 +739,59 @@ fn open_quick_scan() {
         println!("   {:.1?} per query", t0.elapsed() / 200);
     }
 }
+
+#[test]
+#[ignore]
+fn closed_timing() {
+    use coupler_atlas::shape::*;
+    let spec = Spec::default_atlas();
+    let ac = atlas(&spec);
+    let curves: Vec<AtlasCurve> = ac
+        .iter()
+        .enumerate()
+        .map(|(i, c)| AtlasCurve {
+            id: i as u64,
+            curve: CouplerCurve {
+                linkage: c.linkage,
+                circuit: c.circuit,
+                point: c.point,
+            },
+        })
+        .collect();
+    let t0 = Instant::now();
+    let codes: Vec<ShapeCode> = curves
+        .iter()
+        .map(|c| ShapeCode::of_curve(&c.curve).unwrap())
+        .collect();
+    println!(
+        "codes: {:.2?} for {} ({:.1?} each)",
+        t0.elapsed(),
+        codes.len(),
+        t0.elapsed() / codes.len() as u32
+    );
+    let mut rng = Rng(3);
+    for _ in 0..5 {
+        let case = make_case(&mut rng, &ac, true, 0.01);
+        let pts: Vec<[f64; 2]> = case.points.iter().map(|z| [z.re, z.im]).collect();
+        let t = Target::new(pts, true, Timing::Untimed).unwrap();
+        let t0 = Instant::now();
+        let q = ClosedQuery::new(&t.complex_points(), true).unwrap();
+        let t1 = t0.elapsed();
+        let d: Vec<f64> = codes.iter().map(|c| q.distance(c)).collect();
+        let t2 = t0.elapsed();
+        let opts = MatchOptions {
+            candidates: 32,
+            ..MatchOptions::DEFAULT
+        };
+        let m = rank_candidates(&t, &curves, &d, &opts);
+        let t3 = t0.elapsed();
+        println!(
+            "n {} query {:.1?} coarse {:.1?} exact {:.1?} best {:.3}%",
+            t.len(),
+            t1,
+            t2 - t1,
+            t3 - t2,
+            m[0].rms_pct
+        );
+    }
+}

@@ -73,12 +73,14 @@ impl ShapeCode {
 /// from exact degree reduction, so deterministic).
 pub(crate) fn fourier(z: &[C64]) -> Vec<C64> {
     let m = z.len() as i64;
+    let roots: Vec<C64> = (0..m)
+        .map(|j| cis_deg(360.0 * j as f64 / m as f64))
+        .collect();
     (-(HARMONICS as i64)..=(HARMONICS as i64))
         .map(|k| {
             let mut s = C64::new(0.0, 0.0);
             for (j, &p) in z.iter().enumerate() {
-                let turn = (-k * j as i64).rem_euclid(m);
-                s += p * cis_deg(360.0 * turn as f64 / m as f64);
+                s += p * roots[(-k * j as i64).rem_euclid(m) as usize];
             }
             s / m as f64
         })

@@ -338,10 +338,11 @@ pub(crate) fn fit_untimed(
     options: &FitOptions,
 ) -> Option<CurveFit> {
     let mir = start.mirrored;
+    let gaps = crate::ToggleGaps::of(&curve.linkage);
     let m0: Vec<C64> = start
         .theta
         .iter()
-        .map(|&t| curve.at(t).map(|x| tilde(mir, x.m)))
+        .map(|&t| curve.at_with(&gaps, t).map(|x| tilde(mir, x.m)))
         .collect::<Option<_>>()?;
     let (a, b, _) = fit_similarity(&m0, p)?;
     let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
@@ -352,7 +353,7 @@ pub(crate) fn fit_untimed(
             jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
         };
         for (k, &pk) in p.iter().enumerate() {
-            let at = curve.at(l[k])?;
+            let at = curve.at_with(&gaps, l[k])?;
             let m = tilde(mir, at.m);
             e.r.push(a * m + b - pk);
             if jac {
@@ -384,10 +385,11 @@ fn finish_fit(
     step: Option<f64>,
 ) -> Option<CurveFit> {
     let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+    let gaps = crate::ToggleGaps::of(&curve.linkage);
     let mut sum = 0.0;
     let mut max = 0.0f64;
     for (k, &pk) in p.iter().enumerate() {
-        let m = tilde(mirrored, curve.at(theta[k])?.m);
+        let m = tilde(mirrored, curve.at_with(&gaps, theta[k])?.m);
         let d = abs(a * m + b - pk);
         sum += d * d;
         max = max.max(d);
@@ -512,9 +514,10 @@ fn timed_lm(
     free_step: bool,
     options: &FitOptions,
 ) -> Option<CurveFit> {
+    let gaps = crate::ToggleGaps::of(&curve.linkage);
     let m0: Vec<C64> = o
         .iter()
-        .map(|&x| curve.at(t0 + step * x).map(|a| tilde(mir, a.m)))
+        .map(|&x| curve.at_with(&gaps, t0 + step * x).map(|a| tilde(mir, a.m)))
         .collect::<Option<_>>()?;
     let (a, b, _) = fit_similarity(&m0, p)?;
     let eval = |g: &[f64], _: &[f64], jac: bool| -> Option<Eval> {
@@ -526,7 +529,7 @@ fn timed_lm(
             jl: Vec::new(),
         };
         for (k, &pk) in p.iter().enumerate() {
-            let at = curve.at(t0 + s * o[k])?;
+            let at = curve.at_with(&gaps, t0 + s * o[k])?;
             let m = tilde(mir, at.m);
             e.r.push(a * m + b - pk);
             if jac {

@@ -2,7 +2,7 @@
 //! `dM/dθ`, and the sensitivities `∂M/∂(A, B, C, u, v)` of the closed-form pose.
 
 use super::geom::C64;
-use crate::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose};
+use crate::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose, ToggleGaps};
 
 /// A coupler point on one circuit of a linkage: the curve a candidate traces.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -39,7 +39,18 @@ impl CouplerCurve {
     /// The position and velocity at `deg`; `None` where the linkage does not assemble or
     /// is at a toggle (infinite velocity).
     pub fn at(&self, deg: f64) -> Option<PointAt> {
-        let pose = Pose::solve(&self.linkage, self.circuit, &CrankAngle::from_degrees(deg))?;
+        self.at_with(&ToggleGaps::of(&self.linkage), deg)
+    }
+
+    /// [`CouplerCurve::at`] with the linkage's constants computed once
+    /// (`ToggleGaps::of(&self.linkage)`), for many angles.
+    pub fn at_with(&self, gaps: &ToggleGaps, deg: f64) -> Option<PointAt> {
+        let pose = Pose::solve_with(
+            &self.linkage,
+            gaps,
+            self.circuit,
+            &CrankAngle::from_degrees(deg),
+        )?;
         if !pose.is_finite() {
             return None;
         }
@@ -58,7 +69,17 @@ impl CouplerCurve {
     /// toggle, where `q ∥ w`). Then `e = q/A`, `de = dPb/A − q·dA/A²`, and
     /// `dM = u·de + v·J·de`; `∂M/∂u = e`, `∂M/∂v = J·e`.
     pub fn sensitivity(&self, deg: f64) -> Option<PointSensitivity> {
-        let pose = Pose::solve(&self.linkage, self.circuit, &CrankAngle::from_degrees(deg))?;
+        self.sensitivity_with(&ToggleGaps::of(&self.linkage), deg)
+    }
+
+    /// [`CouplerCurve::sensitivity`] with the linkage's constants computed once.
+    pub fn sensitivity_with(&self, gaps: &ToggleGaps, deg: f64) -> Option<PointSensitivity> {
+        let pose = Pose::solve_with(
+            &self.linkage,
+            gaps,
+            self.circuit,
+            &CrankAngle::from_degrees(deg),
+        )?;
         if !pose.is_finite() {
             return None;
         }

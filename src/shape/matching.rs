@@ -120,6 +120,11 @@ pub fn coarse_distances(
     }
 }
 
+/// Points of the target used to rank the candidates (the final fits use them all).
+const RANK_POINTS: usize = 40;
+/// Iterations of each ranking fit.
+const RANK_ITERATIONS: usize = 30;
+
 /// Crank samples of the trace an open target's coarse scan uses.
 const OPEN_SCAN_TRACE: usize = 360;
 
@@ -159,10 +164,31 @@ pub fn rank_candidates(
         allow_mirror: options.allow_mirror,
         ..options.fit
     };
-    let size = target.size();
-    let mut matches: Vec<Match> = order
+    // Every candidate gets a quick fit on at most RANK_POINTS of the target's points;
+    // the best few get the full fit on every point.
+    let thin = target.thinned(RANK_POINTS);
+    let quick_options = FitOptions {
+        max_iterations: RANK_ITERATIONS,
+        ..fit_options
+    };
+    let mut quick: Vec<(f64, usize)> = order
         .iter()
         .filter_map(|&i| {
+            let c = &curves[i];
+            let traced = Traced::new(&c.curve, fit_options.trace_samples)?;
+            fit_with(&thin, &c.curve, &traced, &quick_options).map(|f| (f.rms, i))
+        })
+        .collect();
+    quick.sort_by(|a, b| {
+        a.0.total_cmp(&b.0)
+            .then(coarse[a.1].total_cmp(&coarse[b.1]))
+            .then(curves[a.1].id.cmp(&curves[b.1].id))
+    });
+    quick.truncate((2 * options.top).max(options.top + 4));
+    let size = target.size();
+    let mut matches: Vec<Match> = quick
+        .iter()
+        .filter_map(|&(_, i)| {
             let c = &curves[i];
             let traced = Traced::new(&c.curve, fit_options.trace_samples)?;
             let fit = fit_with(target, &c.curve, &traced, &fit_options)?;

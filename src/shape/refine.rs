@@ -90,6 +90,7 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
     };
     let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
         let curve = make(g)?;
+        let gaps = crate::ToggleGaps::of(&curve.linkage);
         let (a, b) = (C64::new(g[5], g[6]), C64::new(g[7], g[8]));
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
@@ -99,11 +100,11 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
         for (k, &pk) in p.iter().enumerate() {
             let t = theta_of(g, l, k);
             if !jac {
-                let m = tilde(curve.at(t)?.m);
+                let m = tilde(curve.at_with(&gaps, t)?.m);
                 e.r.push(a * m + b - pk);
                 continue;
             }
-            let s = curve.sensitivity(t)?;
+            let s = curve.sensitivity_with(&gaps, t)?;
             let m = tilde(s.at.m);
             e.r.push(a * m + b - pk);
             for d in s.d {

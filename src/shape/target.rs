@@ -186,6 +186,28 @@ impl Target {
         self.points.is_empty()
     }
 
+    /// At most `max` of the points, evenly by index (always the first; for an open target
+    /// also the last), for quick fits while ranking. Timed targets are returned whole.
+    pub fn thinned(&self, max: usize) -> Target {
+        let n = self.points.len();
+        if self.timing.is_timed() || n <= max || max < 2 {
+            return self.clone();
+        }
+        let last = if self.closed { n } else { n - 1 };
+        let keep = if self.closed { max } else { max - 1 };
+        let mut idx: Vec<usize> = (0..keep).map(|j| j * last / keep).collect();
+        if !self.closed {
+            idx.push(n - 1);
+        }
+        idx.dedup();
+        Target {
+            points: idx.iter().map(|&i| self.points[i]).collect(),
+            closed: self.closed,
+            timing: Timing::Untimed,
+            size: self.size,
+        }
+    }
+
     /// The diameter: the largest distance between two points, in user units.
     pub fn size(&self) -> f64 {
         self.size
