@@ -1,3 +1,4 @@
+#![allow(dead_code)]
 //! Shape-search lab: retrieval rates of candidate descriptors on the default atlas.
 //! Measurement only (ignored): `cargo test --release --test shape_lab -- --ignored --nocapture`.
 

@@ -395,7 +395,7 @@ fn finish_fit(
         max = max.max(d);
     }
     let rms = (sum / p.len() as f64).sqrt();
-    (rms.is_finite() && abs(a) > 0.0).then(|| CurveFit {
+    (rms.is_finite() && abs(a) > 0.0).then_some(CurveFit {
         mirrored,
         a: [a.re, a.im],
         b: [b.re, b.im],
@@ -488,12 +488,7 @@ pub(crate) fn fit_timed(
     let mut best: Option<CurveFit> = None;
     starts.sort_by(|a, b| a.0.total_cmp(&b.0));
     let keep = if free_step { 1 } else { 2 };
-    let mut tried = 0;
-    for &(_, mir, t0, step) in &starts {
-        if tried >= keep + usize::from(hint.is_some()) {
-            break;
-        }
-        tried += 1;
+    for &(_, mir, t0, step) in starts.iter().take(keep + usize::from(hint.is_some())) {
         if let Some(f) = timed_lm(&p, &o, curve, mir, t0, step, free_step, options) {
             if best.as_ref().is_none_or(|b| f.rms < b.rms) {
                 best = Some(f);

@@ -78,7 +78,7 @@ pub fn parse_csv(text: &str) -> Result<TargetFile, ParseError> {
             continue;
         }
         let fields: Vec<&str> = trimmed
-            .split(|c: char| c == ',' || c == ';' || c == '\t' || c == ' ')
+            .split([',', ';', '\t', ' '])
             .filter(|f| !f.is_empty())
             .collect();
         if columns.is_none()

@@ -124,7 +124,7 @@ pub fn smooth_resample(
     let n = z.len();
     let cum = cumulative_length(z, closed);
     let total = *cum.last()?;
-    if !(total > 0.0) {
+    if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let mut t: Vec<f64> = cum[..n].iter().map(|c| c / total).collect();
