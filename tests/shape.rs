@@ -267,3 +267,61 @@ fn placement_reproduces_the_target() {
         assert_eq!(p.crank_deg[0], sign * fit.theta_deg[0]);
     }
 }
+
+/// The classic straight-line curves (`atlas-spec/classics.toml`) as closed targets find
+/// the expected families in the default atlas: Hoeken's D (not on the atlas grid: its
+/// point is at twice the coupler) finds curves with a long straight segment; Watt's
+/// figure-eight (a triple rocker, traced in full across its toggles) finds curves that
+/// cross themselves.
+#[test]
+fn classics_find_their_families() {
+    use coupler_atlas::classics::CurveList;
+    use coupler_atlas::trace::trace_full;
+    use coupler_atlas::{FeatureExtractor, FeatureTolerances};
+    let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "classics").unwrap();
+    let (curves, codes) = default_atlas();
+    let features = |m: &Match| {
+        FeatureExtractor::new(&m.curve.linkage, m.curve.circuit, &FeatureTolerances::DEFAULT)
+            .unwrap()
+            .extract(m.curve.point)
+    };
+    for name in ["Hoeken", "Watt"] {
+        let c = list.curves.iter().find(|c| c.name == name).unwrap();
+        let full = trace_full(&c.linkage, c.point, 2.0);
+        let branch = &full.branches[0];
+        let mut pts: Vec<[f64; 2]> = branch.points().iter().map(|p| [p.x, p.y]).collect();
+        pts.pop(); // the branch repeats its first sample
+        let t = Target::new(pts, true, Timing::Untimed).unwrap();
+        let m = find_matches(&t, &curves, &codes, &MatchOptions::DEFAULT).unwrap();
+        assert_eq!(m.len(), 5);
+        for x in &m {
+            let f = features(x);
+            println!(
+                "{name}: curve {} {} ({}, {}) rms {:.2}% max {:.2}% straight {:?} crunodes {}",
+                x.id,
+                x.curve.linkage,
+                x.curve.point.u,
+                x.curve.point.v,
+                x.rms_pct,
+                x.max_pct,
+                f.straight_segments.iter().map(|s| s.span_deg).collect::<Vec<_>>(),
+                f.double_points.crunodes.len()
+            );
+        }
+        let best = &m[0];
+        let f = features(best);
+        if name == "Hoeken" {
+            // Measured: A=2 B=2.5 C=2, point (3, 0) (on the coupler line, 1.5 A out), a
+            // 65° straight segment, 0.37 % RMS.
+            assert!(best.rms_pct < 1.0, "{best:?}");
+            assert_eq!(best.curve.point.v, 0.0, "{best:?}");
+            assert!(f.straight_segments.iter().any(|s| s.span_deg >= 60.0), "{f:?}");
+        } else {
+            // Measured: figure-eights, 1.5–2.4 % RMS, each with one crossing.
+            assert!(best.rms_pct < 3.0, "{best:?}");
+            for x in &m {
+                assert_eq!(features(x).double_points.crunodes.len(), 1, "{x:?}");
+            }
+        }
+    }
+}

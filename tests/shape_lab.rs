@@ -796,3 +796,35 @@ fn closed_timing() {
         );
     }
 }
+
+/// An open target through the whole pipeline (refined window scan of every curve), and
+/// Chebyshev's straight run as an open path: time and result.
+#[test]
+#[ignore]
+fn open_query_time() {
+    use coupler_atlas::classics::{ClassicCurve, CurveList};
+    use coupler_atlas::shape::*;
+    let spec = Spec::default_atlas();
+    let ac = atlas(&spec);
+    let curves: Vec<AtlasCurve> = ac
+        .iter()
+        .enumerate()
+        .map(|(i, c)| AtlasCurve { id: i as u64, curve: CouplerCurve { linkage: c.linkage, circuit: c.circuit, point: c.point } })
+        .collect();
+    let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "c").unwrap();
+    let cheb = list.curves.iter().find(|c| c.name == "Chebyshev").unwrap();
+    let m = ClassicCurve::compute(cheb, 1.0);
+    let run = m.straight[0].unwrap();
+    let b = &m.branches[run.branch];
+    let pts: Vec<[f64; 2]> = b.samples[run.samples[0]..run.samples[0] + run.samples[1]]
+        .iter()
+        .map(|s| [s.point.x, s.point.y])
+        .collect();
+    let t = Target::new(pts, false, Timing::Untimed).unwrap();
+    let t0 = Instant::now();
+    let found = find_matches(&t, &curves, &[], &MatchOptions::DEFAULT).unwrap();
+    println!("Chebyshev straight run ({} points, {:.0}° of input): {:.1?}", t.len(), run.input_span_deg, t0.elapsed());
+    for x in &found {
+        println!("  curve {} {} ({}, {}) rms {:.3}% crank {:?}", x.id, x.curve.linkage, x.curve.point.u, x.curve.point.v, x.rms_pct, x.placement.crank_deg);
+    }
+}
