@@ -281,9 +281,13 @@ fn classics_find_their_families() {
     let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "classics").unwrap();
     let (curves, codes) = default_atlas();
     let features = |m: &Match| {
-        FeatureExtractor::new(&m.curve.linkage, m.curve.circuit, &FeatureTolerances::DEFAULT)
-            .unwrap()
-            .extract(m.curve.point)
+        FeatureExtractor::new(
+            &m.curve.linkage,
+            m.curve.circuit,
+            &FeatureTolerances::DEFAULT,
+        )
+        .unwrap()
+        .extract(m.curve.point)
     };
     for name in ["Hoeken", "Watt"] {
         let c = list.curves.iter().find(|c| c.name == name).unwrap();
@@ -304,7 +308,10 @@ fn classics_find_their_families() {
                 x.curve.point.v,
                 x.rms_pct,
                 x.max_pct,
-                f.straight_segments.iter().map(|s| s.span_deg).collect::<Vec<_>>(),
+                f.straight_segments
+                    .iter()
+                    .map(|s| s.span_deg)
+                    .collect::<Vec<_>>(),
                 f.double_points.crunodes.len()
             );
         }
@@ -315,7 +322,10 @@ fn classics_find_their_families() {
             // 65° straight segment, 0.37 % RMS.
             assert!(best.rms_pct < 1.0, "{best:?}");
             assert_eq!(best.curve.point.v, 0.0, "{best:?}");
-            assert!(f.straight_segments.iter().any(|s| s.span_deg >= 60.0), "{f:?}");
+            assert!(
+                f.straight_segments.iter().any(|s| s.span_deg >= 60.0),
+                "{f:?}"
+            );
         } else {
             // Measured: figure-eights, 1.5–2.4 % RMS, each with one crossing.
             assert!(best.rms_pct < 3.0, "{best:?}");

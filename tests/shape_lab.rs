@@ -809,7 +809,14 @@ fn open_query_time() {
     let curves: Vec<AtlasCurve> = ac
         .iter()
         .enumerate()
-        .map(|(i, c)| AtlasCurve { id: i as u64, curve: CouplerCurve { linkage: c.linkage, circuit: c.circuit, point: c.point } })
+        .map(|(i, c)| AtlasCurve {
+            id: i as u64,
+            curve: CouplerCurve {
+                linkage: c.linkage,
+                circuit: c.circuit,
+                point: c.point,
+            },
+        })
         .collect();
     let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "c").unwrap();
     let cheb = list.curves.iter().find(|c| c.name == "Chebyshev").unwrap();
@@ -823,8 +830,21 @@ fn open_query_time() {
     let t = Target::new(pts, false, Timing::Untimed).unwrap();
     let t0 = Instant::now();
     let found = find_matches(&t, &curves, &[], &MatchOptions::DEFAULT).unwrap();
-    println!("Chebyshev straight run ({} points, {:.0}° of input): {:.1?}", t.len(), run.input_span_deg, t0.elapsed());
+    println!(
+        "Chebyshev straight run ({} points, {:.0}° of input): {:.1?}",
+        t.len(),
+        run.input_span_deg,
+        t0.elapsed()
+    );
     for x in &found {
-        println!("  curve {} {} ({}, {}) rms {:.3}% crank {:?}", x.id, x.curve.linkage, x.curve.point.u, x.curve.point.v, x.rms_pct, x.placement.crank_deg);
+        println!(
+            "  curve {} {} ({}, {}) rms {:.3}% crank {:?}",
+            x.id,
+            x.curve.linkage,
+            x.curve.point.u,
+            x.curve.point.v,
+            x.rms_pct,
+            x.placement.crank_deg
+        );
     }
 }
