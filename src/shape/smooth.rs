@@ -6,7 +6,7 @@
 //! size off a path sampled every 3 % of it stretch the local length by half), and
 //! arc-length descriptors inherit the distortion; the smooth fit removes most of it.
 
-use super::geom::{C64, abs, cis_deg, cumulative_length};
+use super::geom::{C64, cis_deg, cumulative_length};
 use nalgebra::{DMatrix, DVector};
 
 /// Basis functions at parameter `t ∈ [0, 1]`: for a closed curve `e^{2πikt}`,
@@ -170,6 +170,5 @@ pub fn smooth_resample(
             (arc[k] + (arc[k + 1] - arc[k]) * u) / len
         })
         .collect();
-    let _ = abs;
     Some((out, frac))
 }

@@ -74,7 +74,8 @@ pub enum TargetError {
 ///
 /// ```
 /// use coupler_atlas::shape::{Target, Timing};
-/// let t = Target::new(vec![[0.0, 0.0], [3.0, 0.0], [3.0, 4.0]], false, Timing::Untimed).unwrap();
+/// let pts = vec![[0.0, 0.0], [3.0, 0.0], [3.0, 4.0], [0.0, 4.0]];
+/// let t = Target::new(pts, false, Timing::Untimed).unwrap();
 /// assert_eq!(t.size(), 5.0);
 /// ```
 #[derive(Clone, Debug, PartialEq)]
