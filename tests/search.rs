@@ -1,8 +1,8 @@
 //! `search`: every result satisfies its filters according to the index itself, no curve
 //! that satisfies them is missed, and the Hoeken linkage is found by `--straight`.
 
-use coupler_atlas::search::{Query, SearchTable, SortKey, SpanFilter};
 use coupler_atlas::{Circuit, Class, IndexCurve};
+use coupler_atlas::{Query, SearchTable, SortKey, SpanFilter};
 use proptest::prelude::*;
 use std::path::PathBuf;
 use std::process::Command;
@@ -175,7 +175,7 @@ fn cache_round_trip() {
     assert!(SearchTable::from_bytes(&bytes[..bytes.len() - 1], [1, 2]).is_err());
 }
 
-/// domain.md §7: `search --straight` finds the Hoeken linkage, point (5, 0).
+/// docs/conventions.md §7: `search --straight` finds the Hoeken linkage, point (5, 0).
 #[test]
 fn hoeken_is_found_by_straight() {
     let (index, _, _) = atlas();

@@ -6,7 +6,7 @@
 
 use super::UsageError;
 use anyhow::Result;
-use coupler_atlas::diff;
+use coupler_atlas::render as diff;
 use std::path::PathBuf;
 use std::process::ExitCode;
 

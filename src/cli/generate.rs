@@ -3,11 +3,11 @@
 
 use super::UsageError;
 use anyhow::{Context, Result};
-use coupler_atlas::classics::CurveList;
-use coupler_atlas::generate::curves::{self as curve_set, CurveJob};
+use coupler_atlas::CurveList;
 use coupler_atlas::generate::{self, GenerateError, Job, NoPages, Renderer, Shard};
+use coupler_atlas::generate::{CurveJob, run_curve_set};
+use coupler_atlas::generate::{PageOptions, PageRenderer};
 use coupler_atlas::render::PageFormat;
-use coupler_atlas::render::pages::{PageOptions, PageRenderer};
 use coupler_atlas::{AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
@@ -372,7 +372,7 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
     let start = Instant::now();
     // No SIGINT handler here: a page set takes well under a second, and Ctrl-C leaves
     // only complete files (every file is renamed into place when written).
-    let result = curve_set::run(&job, pages.as_ref(), &|n| bar.inc(n));
+    let result = run_curve_set(&job, pages.as_ref(), &|n| bar.inc(n));
     bar.finish_and_clear();
     let report = result
         .map_err(classify)

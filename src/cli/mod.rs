@@ -2,7 +2,6 @@
 //! code: 0 success, 1 failure while working, 2 bad usage or input (clap uses 2 too).
 
 mod bench;
-mod bench_methods;
 mod cognates;
 mod curve;
 mod curve_full;

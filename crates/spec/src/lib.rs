@@ -1,0 +1,17 @@
+//! # coupler-spec
+//!
+//! Atlas specs: TOML files that say which linkages, coupler points, circuits, sampling
+//! and pages make an atlas (`docs/spec-format.md`), or list named curves for a full-curve
+//! page set. Parsing validates everything before any work starts; every error names the
+//! file, the line, the column and the key.
+
+mod curves;
+mod features;
+mod spec;
+
+pub use curves::CurveList;
+pub use features::FeatureSettings;
+pub use spec::{
+    AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
+    MAX_RANGE_VALUES, PAGE_SIZES, PageSettings, PointGrid, Sampling, Spec, SpecError,
+};
