@@ -2,7 +2,7 @@
 
 use super::fit::{Circle, CircleFitOptions, fit_circle, kasa_circle};
 use super::{FeatureTolerances, PseudoArc, Side, dash_count, grow_windows, pick_disjoint};
-use coupler_kinematics::Curve;
+use coupler_kinematics::{Curve, DashPattern};
 
 /// The samples of the periodic window `[i, j]`, or `None` if one is invalid.
 fn gather(c: &Curve, i: usize, j: usize, xs: &mut Vec<f64>, ys: &mut Vec<f64>) -> Option<()> {
@@ -68,7 +68,7 @@ fn turn(c: &Curve, i: usize, j: usize, center: [f64; 2], sign: f64) -> f64 {
 /// the centre, span at least `arc_min_span_deg` and turn at least `arc_min_turn_deg`.
 /// The reported circle is the geometric fit ([`fit_circle`], started from Kåsa's), or
 /// Kåsa's own if that has the smaller largest deviation, so `deviation_pct ≤ arc_pct`.
-pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances) -> Vec<PseudoArc> {
+pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Vec<PseudoArc> {
     let n = c.len();
     if n < 4 {
         return Vec::new();
@@ -129,7 +129,7 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances) -> Vec<PseudoArc> {
             Some(PseudoArc {
                 start_deg: i as f64 * tol.step_deg,
                 span_deg: span,
-                dashes: dash_count(span, tol.dash_deg),
+                dashes: dash_count(span, dash),
                 center: circle.center,
                 radius: circle.radius,
                 deviation_pct: circle.max_deviation(&xs, &ys) / circle.radius * 100.0,

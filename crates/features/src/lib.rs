@@ -44,20 +44,21 @@ pub use window::{
 };
 
 use coupler_kinematics::{
+    DashPattern, divides_turn,
     Circuit, Cognate, CouplerPoint, CrankTable, Curve, FourBar, PoseTable, cognates,
 };
 use serde::{Deserialize, Serialize};
 
 /// Tolerances and settings of feature extraction, settable in a spec's `[features]` table.
-/// Every field has a default ([`FeatureTolerances::DEFAULT`]).
+/// Every field has a default ([`FeatureTolerances::DEFAULT`]). The dash angle by which
+/// `dashes` are counted is not one of them: it is the pages' ([`DashPattern`], from
+/// `[sampling] dash_deg`), passed beside the tolerances.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct FeatureTolerances {
     /// Crank step of the samples features are found on, degrees (5, the 1951 atlas's dash
     /// spacing; 2 is finer and ~4× slower).
     pub step_deg: f64,
-    /// Crank angle per dash, for the `dashes` counts, degrees (10).
-    pub dash_deg: f64,
     /// Largest straightness error ε_S of a straight segment, percent (0.5).
     pub straight_pct: f64,
     /// Shortest straight segment, crank degrees (30).
@@ -80,7 +81,6 @@ impl FeatureTolerances {
     /// The defaults (documented in `docs/features.md`).
     pub const DEFAULT: FeatureTolerances = FeatureTolerances {
         step_deg: 5.0,
-        dash_deg: 10.0,
         straight_pct: 0.5,
         straight_min_span_deg: 30.0,
         arc_pct: 0.5,
@@ -102,13 +102,12 @@ impl FeatureTolerances {
             }
         };
         pos("step_deg", self.step_deg)?;
-        if self.step_deg > 30.0 || (360.0 / self.step_deg).fract() != 0.0 {
+        if self.step_deg > 30.0 || !divides_turn(self.step_deg) {
             return Err(format!(
                 "features.step_deg must divide 360 and be at most 30, got {}",
                 self.step_deg
             ));
         }
-        pos("dash_deg", self.dash_deg)?;
         pos("straight_pct", self.straight_pct)?;
         pos("straight_min_span_deg", self.straight_min_span_deg)?;
         pos("arc_pct", self.arc_pct)?;
@@ -135,7 +134,7 @@ pub struct StraightSegment {
     pub start_deg: f64,
     /// Crank duration, degrees (the segment ends at `start_deg + span_deg`, maybe past 360).
     pub span_deg: f64,
-    /// Whole dashes in it: ⌊span / dash⌋.
+    /// Whole dashes in it: ⌊span / dash⌋, at the pages' dash angle.
     pub dashes: u32,
     /// Its length: extent Δx along the fitted line.
     pub length: f64,
@@ -245,25 +244,30 @@ pub struct FeatureExtractor {
     linkage: FourBar,
     circuit: Circuit,
     tolerances: FeatureTolerances,
+    dash: DashPattern,
     poses: PoseTable,
     curve: Curve,
 }
 
 impl FeatureExtractor {
-    /// `None` if the tolerances are invalid or the linkage does not assemble at every
+    /// Features counted in dashes of `dash` (the pages' pattern). `None` if the
+    /// tolerances or the pattern are invalid, or the linkage does not assemble at every
     /// sampled angle (features are defined for full-revolution curves).
     pub fn new(
         linkage: &FourBar,
         circuit: Circuit,
         tolerances: &FeatureTolerances,
+        dash: &DashPattern,
     ) -> Option<FeatureExtractor> {
         tolerances.validate().ok()?;
+        dash.validate().ok()?;
         let table = CrankTable::new(tolerances.step_deg)?;
         let poses = PoseTable::new(linkage, circuit, &table);
         poses.all_valid().then(|| FeatureExtractor {
             linkage: *linkage,
             circuit,
             tolerances: *tolerances,
+            dash: *dash,
             poses,
             curve: Curve::default(),
         })
@@ -277,8 +281,8 @@ impl FeatureExtractor {
             .map(|[_, a, b]| vec![a, b])
             .unwrap_or_default();
         CurveFeatures {
-            straight_segments: straight_segments(curve, t),
-            pseudo_arcs: pseudo_arcs(curve, t),
+            straight_segments: straight_segments(curve, t, &self.dash),
+            pseudo_arcs: pseudo_arcs(curve, t, &self.dash),
             double_points: DoublePoints {
                 crunodes: crunodes(l, c, point, curve, t),
                 cusps: cusps(l, c, point, curve, t),
@@ -289,9 +293,9 @@ impl FeatureExtractor {
     }
 }
 
-/// Whole dashes in a span: ⌊span / dash⌋ (with a 1e-9 allowance for rounding).
-pub(crate) fn dash_count(span_deg: f64, dash_deg: f64) -> u32 {
-    (span_deg / dash_deg + 1e-9).floor().max(0.0) as u32
+/// Whole dashes of `dash` in a span: ⌊span / Δ⌋ (with a 1e-9 allowance for rounding).
+pub(crate) fn dash_count(span_deg: f64, dash: &DashPattern) -> u32 {
+    (span_deg / dash.step_deg + 1e-9).floor().max(0.0) as u32
 }
 
 /// Picks non-overlapping windows greedily, longest first (ties: smaller error, then

@@ -2,7 +2,7 @@
 
 use super::fit::LineSums;
 use super::{FeatureTolerances, StraightSegment, dash_count, grow_windows, pick_disjoint};
-use coupler_kinematics::Curve;
+use coupler_kinematics::{Curve, DashPattern};
 
 /// The line measures of the periodic window `[i, j]` of a curve (see
 /// [`crate::WindowMeasures`]): fitted line, then one pass for Cx, Cy and Vx.
@@ -66,7 +66,11 @@ pub(crate) fn window_line(c: &Curve, i: usize, j: usize) -> Option<WindowLine> {
 /// maximal windows (grown by a two-pointer sweep, then chosen longest first without
 /// overlap) with ε_S ≤ `straight_pct`, moving one way along the line (every Vx > 0) and
 /// spanning at least `straight_min_span_deg`. Windows never include an invalid sample.
-pub fn straight_segments(c: &Curve, tol: &FeatureTolerances) -> Vec<StraightSegment> {
+pub fn straight_segments(
+    c: &Curve,
+    tol: &FeatureTolerances,
+    dash: &DashPattern,
+) -> Vec<StraightSegment> {
     let n = c.len();
     if n < 4 {
         return Vec::new();
@@ -94,7 +98,7 @@ pub fn straight_segments(c: &Curve, tol: &FeatureTolerances) -> Vec<StraightSegm
             let seg = StraightSegment {
                 start_deg: i as f64 * tol.step_deg,
                 span_deg: (j - i) as f64 * tol.step_deg,
-                dashes: dash_count((j - i) as f64 * tol.step_deg, tol.dash_deg),
+                dashes: dash_count((j - i) as f64 * tol.step_deg, dash),
                 length: w.extent,
                 straightness_pct: w.width / w.extent * 100.0,
                 velocity_variation_pct: w.vx_range / w.mean_vx * 100.0,

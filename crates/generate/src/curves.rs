@@ -242,3 +242,42 @@ pub fn run(
         record_path,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The run keys of the shipped page set and of the quick atlas (default page
+    /// settings) are those earlier versions wrote into `manifest.json`: a key that changes
+    /// needlessly makes a run redo a complete atlas.
+    #[test]
+    fn run_keys_are_stable() {
+        let text = include_str!("../../../atlas-spec/classics.toml");
+        let list = CurveList::parse(text, "classics").unwrap();
+        let opts = PageOptions::from_settings(&list.name, &list.sampling, &list.pages).unwrap();
+        let job = CurveJob {
+            list,
+            source: "classics".into(),
+            out: PathBuf::from("unused"),
+            jobs: 1,
+            force: false,
+        };
+        assert_eq!(
+            run_key(&job, Some(&opts)),
+            "e71d7df2e5221a3889568b19bfb50904"
+        );
+        let spec = coupler_spec::Spec::parse(
+            include_str!("../../../atlas-spec/quick.toml"),
+            "quick",
+        )
+        .unwrap();
+        let mut opts = PageOptions::from_spec(&spec).unwrap();
+        // As `generate atlas-spec/quick.toml --format png,svg` writes it.
+        opts.formats = vec![coupler_render::PageFormat::Png, coupler_render::PageFormat::Svg];
+        let job = crate::Job::new(spec, "quick", "unused", 1);
+        assert_eq!(
+            crate::run_key(&job, &crate::PageRenderer::new(opts)),
+            "ab1f908ebfd263eff5c718a1fa27eb15"
+        );
+    }
+}

@@ -6,7 +6,8 @@ use crate::GenerateError;
 use coupler_features::{CurveFlags, FeatureExtractor, FeatureTolerances, FlagTolerances};
 use coupler_index::{IndexCurve, IndexSummary, LinkageLengths};
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankTable, CurveSummary, FourBar, PoseTable, transmission_range,
+    Circuit, CouplerPoint, CrankTable, CurveSummary, DashPattern, FourBar, PoseTable,
+    transmission_range,
 };
 use coupler_spec::{Enumeration, Spec};
 use std::fmt::Write as _;
@@ -272,14 +273,15 @@ impl Job {
 }
 
 /// Computes the index records of one group (pure: no I/O), with each curve's features
-/// when `features` is given.
+/// when `features` is given, their dashes counted in `dash` (the pages' pattern).
 pub fn compute_group(
     table: &CrankTable,
     group: &Group,
     features: Option<&FeatureTolerances>,
+    dash: &DashPattern,
 ) -> Result<Vec<IndexCurve>, GenerateError> {
     let mut extractor =
-        features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t));
+        features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t, dash));
     let poses = PoseTable::new(&group.linkage, group.circuit, table);
     if !poses.all_valid() {
         return Err(GenerateError::NotAssembled {
@@ -354,7 +356,7 @@ mod tests {
             first_id: 5,
             first_page: 1,
         };
-        let c = compute_group(&table, &g, None).unwrap();
+        let c = compute_group(&table, &g, None, &DashPattern::default()).unwrap();
         assert_eq!(c[0].id, 5);
         // Point (0, 0) is the crank pin: the unit circle.
         assert!((c[0].length - std::f64::consts::TAU).abs() < 1e-12);

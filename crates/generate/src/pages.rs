@@ -8,7 +8,6 @@
 use crate::{Artifact, GenerateError, Group, Job, Renderer};
 use coupler_index::{IndexCurve, PageRef};
 use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
-use coupler_kinematics::{DEFAULT_DASH_FRACTION, DashPattern};
 use coupler_layout::{
     ContentsEntry, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page, layout_contents,
     layout_page,
@@ -45,12 +44,15 @@ impl PageOptions {
         sampling: &Sampling,
         p: &PageSettings,
     ) -> Result<PageOptions, LayoutError> {
-        let size: coupler_layout::PageSize = format!("{}-{}", p.size, p.orientation).parse()?;
+        let size = coupler_layout::PageSize {
+            paper: p.size,
+            orientation: p.orientation,
+        };
         let setup = PageSetup {
             size,
             dpi: f64::from(p.dpi),
             curves_per_page: p.curves_per_page as usize,
-            dash: DashPattern::new(sampling.dash_deg, DEFAULT_DASH_FRACTION)?,
+            dash: sampling.dash_pattern(),
             spec_name: name.to_string(),
             settings: format!("spec {name}"),
             ..PageSetup::default()

@@ -112,6 +112,7 @@ pub fn run(
     std::fs::create_dir_all(&chunks_dir).map_err(io_err(&chunks_dir))?;
     remove_stale_temporaries(&job.out);
     let key = run_key(job, renderer);
+    let dash = job.spec.sampling.dash_pattern();
     let groups = job.groups();
     let chunks: Vec<&[Group]> = groups.chunks(CHUNK_GROUPS).collect();
     let mine: Vec<usize> = (0..chunks.len()).filter(|&c| job.shard.owns(c)).collect();
@@ -145,7 +146,7 @@ pub fn run(
                         .features
                         .enabled
                         .then_some(&job.spec.features.tolerances);
-                    let mut curves = compute_group(&table, g, features)?;
+                    let mut curves = compute_group(&table, g, features, &dash)?;
                     let artifacts = renderer.render_group(job, g, &mut curves)?;
                     let mut files = Vec::with_capacity(artifacts.len());
                     for a in artifacts {

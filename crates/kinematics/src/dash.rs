@@ -9,11 +9,13 @@
 //!
 //! Pure: no I/O, no global state. A renderer only strokes what comes out of here.
 
+use crate::exact::divides_turn;
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
 use crate::pose::{CrankAngle, Pose};
 use nalgebra::{Point2, Vector2};
 
-/// Default dash step Δ in crank degrees (Hartenberg & Denavit's redrawn atlas).
+/// Default dash step Δ in crank degrees (Hartenberg & Denavit's redrawn atlas): the one
+/// default of `[sampling] dash_deg`, by which pages draw and the index counts dashes.
 pub const DEFAULT_DASH_STEP_DEG: f64 = 10.0;
 /// Default drawn fraction `f` of each step.
 pub const DEFAULT_DASH_FRACTION: f64 = 0.6;
@@ -77,16 +79,10 @@ impl DashPattern {
         Ok(p)
     }
 
-    /// Checks `0 < Δ ≤ 360`, `360/Δ` a whole number, `0 < f < 1`.
+    /// Checks that Δ divides 360 ([`divides_turn`]: `0 < Δ ≤ 360`, `360/Δ` a whole
+    /// number, exactly) and `0 < f < 1`.
     pub fn validate(&self) -> Result<(), DashError> {
-        let n = 360.0 / self.step_deg;
-        let ok = self.step_deg.is_finite()
-            && self.step_deg > 0.0
-            && n.is_finite()
-            && (n - n.round()).abs() < 1e-9
-            && n.round() >= 1.0
-            && self.fraction > 0.0
-            && self.fraction < 1.0;
+        let ok = divides_turn(self.step_deg) && self.fraction > 0.0 && self.fraction < 1.0;
         if ok {
             Ok(())
         } else {

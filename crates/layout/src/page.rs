@@ -20,6 +20,9 @@ use coupler_kinematics::{
 pub const PT_PER_INCH: f64 = 72.0;
 /// Default resolution for raster pages (print quality).
 pub const DEFAULT_DPI: f64 = 300.0;
+/// Resolutions accepted for raster pages, dots per inch (spec `[pages] dpi` and
+/// `--dpi` alike): a 1200 dpi tabloid page is a 269 MB buffer per worker.
+pub const DPI_RANGE: std::ops::RangeInclusive<u32> = 36..=1200;
 /// Default number of curves on a page.
 pub const DEFAULT_CURVES_PER_PAGE: usize = 10;
 /// Default page margin in points (0.5 in).
@@ -67,6 +70,26 @@ pub enum PaperSize {
 }
 
 impl PaperSize {
+    /// Every paper size, in the order they are listed to users.
+    pub const ALL: [PaperSize; 4] = [
+        PaperSize::Tabloid,
+        PaperSize::Letter,
+        PaperSize::A4,
+        PaperSize::A3,
+    ];
+
+    /// The names of [`PaperSize::ALL`] as a list for messages, the last joined by
+    /// `conjunction`: `"tabloid, letter, a4 or a3"`.
+    pub fn names(conjunction: &str) -> String {
+        let names: Vec<&str> = PaperSize::ALL.iter().map(|p| p.name()).collect();
+        match names.split_last() {
+            Some((last, rest)) if !rest.is_empty() => {
+                format!("{} {conjunction} {last}", rest.join(", "))
+            }
+            _ => names.join(", "),
+        }
+    }
+
     /// (width, height) in portrait, points.
     pub fn portrait_pt(self) -> (f64, f64) {
         let mm = PT_PER_INCH / 25.4;
@@ -89,6 +112,27 @@ impl PaperSize {
     }
 }
 
+impl std::fmt::Display for PaperSize {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for PaperSize {
+    type Err = LayoutError;
+    /// A paper size by name, any case: `tabloid` (also `ledger`, `11x17`), `letter`,
+    /// `a4`, `a3`.
+    fn from_str(s: &str) -> Result<PaperSize, LayoutError> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "tabloid" | "ledger" | "11x17" => Ok(PaperSize::Tabloid),
+            "letter" => Ok(PaperSize::Letter),
+            "a4" => Ok(PaperSize::A4),
+            "a3" => Ok(PaperSize::A3),
+            _ => Err(LayoutError::UnknownPageSize(s.to_string())),
+        }
+    }
+}
+
 /// Portrait or landscape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Orientation {
@@ -96,6 +140,34 @@ pub enum Orientation {
     Portrait,
     /// Long side horizontal.
     Landscape,
+}
+
+impl Orientation {
+    /// `"portrait"` or `"landscape"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Orientation::Portrait => "portrait",
+            Orientation::Landscape => "landscape",
+        }
+    }
+}
+
+impl std::fmt::Display for Orientation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Orientation {
+    type Err = String;
+    /// `portrait` or `landscape`.
+    fn from_str(s: &str) -> Result<Orientation, String> {
+        match s {
+            "portrait" => Ok(Orientation::Portrait),
+            "landscape" => Ok(Orientation::Landscape),
+            _ => Err(format!("must be `portrait` or `landscape`, got `{s}`")),
+        }
+    }
 }
 
 /// A page size: paper and orientation. Parses from `tabloid`, `letter`, `a4`, `a3`,
@@ -113,7 +185,8 @@ pub struct PageSize {
 pub enum LayoutError {
     /// Unknown page size name.
     #[error(
-        "unknown page size {0:?} (expected tabloid, letter, a4 or a3, optionally with -landscape)"
+        "unknown page size {0:?} (expected {names}, optionally with -landscape)",
+        names = PaperSize::names("or")
     )]
     UnknownPageSize(String),
     /// A setting out of range.
@@ -144,13 +217,9 @@ impl std::str::FromStr for PageSize {
         } else {
             (lower.as_str(), Orientation::Portrait)
         };
-        let paper = match name {
-            "tabloid" | "ledger" | "11x17" => PaperSize::Tabloid,
-            "letter" => PaperSize::Letter,
-            "a4" => PaperSize::A4,
-            "a3" => PaperSize::A3,
-            _ => return Err(LayoutError::UnknownPageSize(s.to_string())),
-        };
+        let paper: PaperSize = name
+            .parse()
+            .map_err(|_| LayoutError::UnknownPageSize(s.to_string()))?;
         Ok(PageSize { paper, orientation })
     }
 }
@@ -212,13 +281,16 @@ impl Default for PageSetup {
 }
 
 impl PageSetup {
-    /// Checks ranges (DPI 36–1200, as in specs: a 1200 dpi tabloid page is a 269 MB buffer per worker; margin, curves per page ≥ 1, dash pattern).
+    /// Checks ranges (DPI in [`DPI_RANGE`], margin, curves per page ≥ 1, dash pattern).
     pub fn validate(&self) -> Result<(), LayoutError> {
         let (w, h) = self.size.size_pt();
-        if !(self.dpi.is_finite() && (36.0..=1200.0).contains(&self.dpi)) {
+        let dpi = f64::from(*DPI_RANGE.start())..=f64::from(*DPI_RANGE.end());
+        if !(self.dpi.is_finite() && dpi.contains(&self.dpi)) {
             return Err(LayoutError::BadSetting(format!(
-                "dpi {} not in 36..=1200",
-                self.dpi
+                "dpi {} not in {}..={}",
+                self.dpi,
+                DPI_RANGE.start(),
+                DPI_RANGE.end()
             )));
         }
         if !(self.margin_pt.is_finite()

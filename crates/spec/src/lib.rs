@@ -13,5 +13,5 @@ pub use curves::CurveList;
 pub use features::FeatureSettings;
 pub use spec::{
     AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
-    MAX_RANGE_VALUES, PAGE_SIZES, PageSettings, PointGrid, Sampling, Spec, SpecError,
+    MAX_RANGE_VALUES, PageSettings, PointGrid, Sampling, Spec, SpecError,
 };

@@ -6,7 +6,11 @@
 
 use crate::{CurveList, FeatureSettings};
 use coupler_features::{NamedCurve, TraceMode};
-use coupler_kinematics::{Circuit, Class, CouplerPoint, Decimal, FourBar};
+use coupler_kinematics::{
+    Circuit, Class, CouplerPoint, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, DashPattern,
+    Decimal, FourBar, divides_turn,
+};
+use coupler_layout::{DPI_RANGE, Orientation, PaperSize};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -37,7 +41,7 @@ pub struct SpecError {
 }
 
 /// A validated atlas spec.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Spec {
     /// Short name (used in page headers and file names).
     pub name: String,
@@ -55,6 +59,54 @@ pub struct Spec {
     pub pages: PageSettings,
     /// Feature extraction for the index (`[features]`, see `docs/features.md`).
     pub features: FeatureSettings,
+}
+
+/// The spec as the index echoes it (`docs/index-schema.md`): every section as parsed,
+/// and in `features` the dash angle its `dashes` were counted at, which is
+/// `sampling.dash_deg` (one setting for pages and index; the echo keeps the index's
+/// schema as it was).
+impl Serialize for Spec {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let t = &self.features.tolerances;
+        let features = FeaturesEcho {
+            enabled: self.features.enabled,
+            step_deg: t.step_deg,
+            dash_deg: self.sampling.dash_deg,
+            straight_pct: t.straight_pct,
+            straight_min_span_deg: t.straight_min_span_deg,
+            arc_pct: t.arc_pct,
+            arc_min_span_deg: t.arc_min_span_deg,
+            arc_min_turn_deg: t.arc_min_turn_deg,
+            cusp_speed_ratio: t.cusp_speed_ratio,
+            symmetry_tol: t.symmetry_tol,
+        };
+        let mut st = s.serialize_struct("Spec", 8)?;
+        st.serialize_field("name", &self.name)?;
+        st.serialize_field("title", &self.title)?;
+        st.serialize_field("linkages", &self.linkages)?;
+        st.serialize_field("circuits", &self.circuits)?;
+        st.serialize_field("points", &self.points)?;
+        st.serialize_field("sampling", &self.sampling)?;
+        st.serialize_field("pages", &self.pages)?;
+        st.serialize_field("features", &features)?;
+        st.end()
+    }
+}
+
+/// `[features]` as echoed in the index (see [`Spec`]'s `Serialize`).
+#[derive(Serialize)]
+struct FeaturesEcho {
+    enabled: bool,
+    step_deg: f64,
+    dash_deg: f64,
+    straight_pct: f64,
+    straight_min_span_deg: f64,
+    arc_pct: f64,
+    arc_min_span_deg: f64,
+    arc_min_turn_deg: f64,
+    cusp_speed_ratio: f64,
+    symmetry_tol: f64,
 }
 
 /// `start..=end` by `step`, exact decimals.
@@ -158,25 +210,60 @@ impl PointGrid {
 pub struct Sampling {
     /// Crank step for the index's measures, degrees (divides 360).
     pub crank_step_deg: f64,
-    /// Crank angle per dash, degrees (divides 360; 10 by default, 5 as in 1951).
+    /// Crank angle per dash, degrees (divides 360; [`DEFAULT_DASH_STEP_DEG`] by default,
+    /// 5 as in 1951): the dashes the pages draw and the index counts.
     pub dash_deg: f64,
 }
 
+impl Sampling {
+    /// The defaults: 1° steps, [`DEFAULT_DASH_STEP_DEG`] per dash.
+    pub const DEFAULT: Sampling = Sampling {
+        crank_step_deg: 1.0,
+        dash_deg: DEFAULT_DASH_STEP_DEG,
+    };
+
+    /// The dash pattern of the pages and of the index's dash counts: one dash per
+    /// `dash_deg`, [`DEFAULT_DASH_FRACTION`] of it drawn.
+    pub fn dash_pattern(&self) -> DashPattern {
+        DashPattern {
+            step_deg: self.dash_deg,
+            fraction: DEFAULT_DASH_FRACTION,
+        }
+    }
+}
+
 /// Page settings.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, PartialEq, Serialize)]
 pub struct PageSettings {
     /// Curves per page.
     pub curves_per_page: u32,
-    /// Paper: `tabloid`, `letter`, `a4`, `a3`.
-    pub size: String,
-    /// `portrait` or `landscape`.
-    pub orientation: String,
-    /// Raster resolution, dots per inch.
+    /// Paper (written by name: `tabloid`, `letter`, `a4`, `a3`).
+    #[serde(serialize_with = "by_name")]
+    pub size: PaperSize,
+    /// Portrait or landscape (written by name).
+    #[serde(serialize_with = "by_name")]
+    pub orientation: Orientation,
+    /// Raster resolution, dots per inch (in [`DPI_RANGE`]).
     pub dpi: u32,
 }
 
-/// Paper sizes accepted in `[pages] size`.
-pub const PAGE_SIZES: [&str; 4] = ["tabloid", "letter", "a4", "a3"];
+/// Paper and orientation by name (`size: "tabloid"`), as the manifest's run key of a
+/// page set has printed them (it hashes the page set's `Debug` text): a run resumed over
+/// an older run's output keeps its key.
+impl std::fmt::Debug for PageSettings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PageSettings")
+            .field("curves_per_page", &self.curves_per_page)
+            .field("size", &self.size.name())
+            .field("orientation", &self.orientation.name())
+            .field("dpi", &self.dpi)
+            .finish()
+    }
+}
+
+fn by_name<T: std::fmt::Display, S: serde::Serializer>(x: &T, s: S) -> Result<S::Ok, S::Error> {
+    s.collect_str(x)
+}
 
 // ---- raw TOML shape -------------------------------------------------------------------
 
@@ -296,6 +383,28 @@ impl Ctx<'_> {
         }
     }
 
+    /// Where `key` is assigned in the table that starts at `table` (the key's first
+    /// character), searching down to the next table header; the table's span when it is
+    /// not found (e.g. a key inside an inline table).
+    fn key_in(&self, table: Range<usize>, key: &str) -> Range<usize> {
+        let start = table.start.min(self.text.len());
+        let mut at = start;
+        for (k, line) in self.text[start..].split_inclusive('\n').enumerate() {
+            let t = line.trim_start();
+            if k > 0 && t.starts_with('[') {
+                break;
+            }
+            if t.strip_prefix(key)
+                .is_some_and(|rest| rest.trim_start().starts_with('='))
+            {
+                let col = line.len() - t.len();
+                return at + col..at + col;
+            }
+            at += line.len();
+        }
+        table
+    }
+
     fn number(&self, x: &Spanned<f64>, key: &str) -> Result<Decimal, SpecError> {
         Decimal::from_f64(*x.get_ref()).map_err(|_| {
             self.error(
@@ -367,14 +476,8 @@ impl Ctx<'_> {
     }
 
     fn divides_360(&self, x: &Spanned<f64>, key: &str) -> Result<f64, SpecError> {
-        let d = self.number(x, key)?;
-        let full = Decimal::new(360, 0);
-        let ok = d.signum() > 0
-            && d <= full
-            && Decimal::steps_in_range(Decimal::ZERO, full, d)
-                .map(|n| d.checked_mul_int(n as i128 - 1) == Some(full))
-                .unwrap_or(false);
-        if !ok {
+        self.number(x, key)?;
+        if !divides_turn(*x.get_ref()) {
             return Err(self.error(
                 x.span(),
                 Some(key),
@@ -438,8 +541,17 @@ impl AtlasSpec {
                 let pages = cx.pages(raw.pages.as_ref(), true)?;
                 let features = match &raw.features {
                     None => FeatureSettings::DEFAULT,
-                    Some(t) => FeatureSettings::from_table(t.get_ref())
-                        .map_err(|m| cx.error(t.span(), Some("features"), m))?,
+                    Some(t) => {
+                        if t.get_ref().contains_key("dash_deg") {
+                            return Err(cx.error(
+                                cx.key_in(t.span(), "dash_deg"),
+                                Some("features.dash_deg"),
+                                "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
+                            ));
+                        }
+                        FeatureSettings::from_table(t.get_ref())
+                            .map_err(|m| cx.error(t.span(), Some("features"), m))?
+                    }
                 };
                 let (linkages, circuits) = cx.linkages(l.get_ref())?;
                 let pr = p.get_ref();
@@ -534,10 +646,7 @@ impl Ctx<'_> {
     }
 
     fn sampling(&self, raw: Option<&Spanned<RawSampling>>) -> Result<Sampling, SpecError> {
-        let mut sampling = Sampling {
-            crank_step_deg: 1.0,
-            dash_deg: 10.0,
-        };
+        let mut sampling = Sampling::DEFAULT;
         if let Some(s) = raw {
             let s = s.get_ref();
             if let Some(x) = &s.crank_step_deg {
@@ -559,8 +668,8 @@ impl Ctx<'_> {
     ) -> Result<PageSettings, SpecError> {
         let mut pages = PageSettings {
             curves_per_page: if per_page { 10 } else { 1 },
-            size: "tabloid".into(),
-            orientation: "portrait".into(),
+            size: PaperSize::Tabloid,
+            orientation: Orientation::Portrait,
             dpi: 300,
         };
         let Some(raw_pages) = raw else {
@@ -585,39 +694,41 @@ impl Ctx<'_> {
             pages.curves_per_page = *n.get_ref() as u32;
         }
         if let Some(s) = &rp.size {
-            let lower = s.get_ref().to_ascii_lowercase();
-            if !PAGE_SIZES.contains(&lower.as_str()) {
-                return Err(self.error(
+            pages.size = s.get_ref().parse().map_err(|_| {
+                self.error(
                     s.span(),
                     Some("pages.size"),
                     format!(
                         "unknown page size `{}` (expected one of {})",
                         s.get_ref(),
-                        PAGE_SIZES.join(", ")
+                        PaperSize::ALL.map(|p| p.name()).join(", ")
                     ),
-                ));
-            }
-            pages.size = lower;
+                )
+            })?;
         }
         if let Some(o) = &rp.orientation {
-            if !matches!(o.get_ref().as_str(), "portrait" | "landscape") {
-                return Err(self.error(
-                    o.span(),
-                    Some("pages.orientation"),
-                    format!("must be `portrait` or `landscape`, got `{}`", o.get_ref()),
-                ));
-            }
-            pages.orientation = o.get_ref().clone();
+            pages.orientation = o
+                .get_ref()
+                .parse()
+                .map_err(|m| self.error(o.span(), Some("pages.orientation"), m))?;
         }
         if let Some(d) = &rp.dpi {
-            if !(36..=1200).contains(d.get_ref()) {
-                return Err(self.error(
-                    d.span(),
-                    Some("pages.dpi"),
-                    format!("must be from 36 to 1200, got {}", d.get_ref()),
-                ));
-            }
-            pages.dpi = *d.get_ref() as u32;
+            let dpi = u32::try_from(*d.get_ref())
+                .ok()
+                .filter(|x| DPI_RANGE.contains(x))
+                .ok_or_else(|| {
+                    self.error(
+                        d.span(),
+                        Some("pages.dpi"),
+                        format!(
+                            "must be from {} to {}, got {}",
+                            DPI_RANGE.start(),
+                            DPI_RANGE.end(),
+                            d.get_ref()
+                        ),
+                    )
+                })?;
+            pages.dpi = dpi;
         }
         Ok(pages)
     }
