@@ -1,15 +1,20 @@
 //! Feature extraction against exact cases (docs/conventions.md §5, §7).
 
 use coupler_atlas::{
-    Circuit, CouplerPoint, CurveFeatures, DashPattern, FeatureExtractor, FeatureTolerances, FourBar, Side,
-    cognates,
+    Circuit, CouplerPoint, CurveFeatures, DashPattern, FeatureExtractor, FeatureTolerances,
+    FourBar, Side, cognates,
 };
 
 fn features(a: f64, b: f64, c: f64, u: f64, v: f64, circuit: Circuit) -> CurveFeatures {
     let l = FourBar::new(a, b, c).unwrap();
-    FeatureExtractor::new(&l, circuit, &FeatureTolerances::DEFAULT, &DashPattern::default())
-        .unwrap()
-        .extract(CouplerPoint::new(u, v))
+    FeatureExtractor::new(
+        &l,
+        circuit,
+        &FeatureTolerances::DEFAULT,
+        &DashPattern::default(),
+    )
+    .unwrap()
+    .extract(CouplerPoint::new(u, v))
 }
 
 /// Hoeken (docs/conventions.md §7): a long straight segment around θ = 180°, within tolerance.

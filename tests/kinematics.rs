@@ -41,7 +41,12 @@ fn sextic_residual(l: &FourBar, p: CouplerPoint, x: f64, y: f64) -> (f64, f64) {
 }
 
 fn default_atlas_linkages() -> Vec<FourBar> {
-    Spec::default_atlas().enumerate().linkages
+    Spec::default_atlas()
+        .enumerate()
+        .linkages
+        .iter()
+        .filter_map(|l| l.four_bar().copied())
+        .collect()
 }
 
 #[test]

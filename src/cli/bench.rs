@@ -52,14 +52,14 @@ pub fn run(args: Args) -> Result<ExitCode> {
 }
 
 fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
-    println!(
+    outln!(
         "## Kinematic core\n\nMachine: {}; load average {}\n",
         machine(),
         std::fs::read_to_string("/proc/loadavg")
             .ok()
             .and_then(|l| l.split_whitespace().next().map(str::to_string))
             .unwrap_or_else(|| "?".into())
-    );
+    )?;
     let linkage = FourBar::new(2.5, 3.0, 3.5)?;
     let table = CrankTable::new(0.5).expect("valid step");
     let spec = Spec::default_atlas();
@@ -120,23 +120,23 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
     } else {
         (f64::NAN, f64::NAN)
     };
-    println!("| measure | median | target |\n|---|---|---|");
+    outln!("| measure | median | target |\n|---|---|---|")?;
     if has_cpu_clock {
-        println!(
+        outln!(
             "| cost per sample (position + velocity), 50 points × {} samples, 1 core, thread CPU time, curves streamed through one buffer (as `generate` uses them) | {cpu_streamed:.2} ns | ≤ 2 ns |",
             table.len()
-        );
-        println!(
+        )?;
+        outln!(
             "| the same with all 50 curves kept in memory (1.15 MB written per grid: memory-bandwidth bound) | {cpu_kept:.2} ns | |"
-        );
+        )?;
     }
-    println!(
+    outln!(
         "| all 50 curves kept, wall time (inflated when the machine is shared) | {per_sample:.2} ns | |"
-    );
-    println!(
+    )?;
+    outln!(
         "| of which the shared pose, per crank angle (amortised over 50 points: {:.2} ns/sample) | {pose:.1} ns | |",
         pose / 50.0
-    );
+    )?;
 
     for jobs in [1usize, 2] {
         let mut times = Vec::new();
@@ -156,19 +156,19 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
             let _ = std::fs::remove_dir_all(&dir);
         }
         let job = generate::Job::new(spec.clone(), "built-in", "unused", jobs);
-        println!(
+        outln!(
             "| `generate` default spec ({} curves), index only, {jobs} thread{} | {:.3} s | |",
             job.curves(),
             if jobs > 1 { "s" } else { "" },
             median(times)
-        );
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }
 
 fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<ExitCode> {
     use coupler_atlas::generate::{PageOptions, PageRenderer};
-    println!("## Pages\n\nMachine: {}\n", machine());
+    outln!("## Pages\n\nMachine: {}\n", machine())?;
     let spec = Spec::default_atlas();
     let keep = out.is_some();
     let dir = out.unwrap_or_else(|| {
@@ -200,12 +200,12 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
     secs[4] = (wall * jobs as f64 - secs[..4].iter().sum::<f64>()).max(0.0);
     let per = |s: f64| s / pages.max(1) as f64 * 1e3;
     let busy: f64 = secs.iter().sum();
-    println!("| measure | value | target |\n|---|---|---|");
-    println!(
+    outln!("| measure | value | target |\n|---|---|---|")?;
+    outln!(
         "| `generate` default spec with pages ({curves} curves, {pages} pages, 300 dpi tabloid 8-bit gray PNG), {jobs} threads, wall | {:.2} s | ≤ 15 s |",
         median(times)
-    );
-    println!("| pages written | {:.0} MB | |", bytes as f64 / 1e6);
+    )?;
+    outln!("| pages written | {:.0} MB | |", bytes as f64 / 1e6)?;
     let names = [
         "compute (dash sampling)",
         "layout",
@@ -214,12 +214,12 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
         "write + index (the rest of the workers' time)",
     ];
     for (name, s) in names.iter().zip(secs) {
-        println!(
+        outln!(
             "| per page: {name} | {:.2} ms ({:.0} %) | |",
             per(s),
             100.0 * s / busy.max(1e-12)
-        );
+        )?;
     }
-    println!("| per page: total (one worker) | {:.2} ms | |", per(busy));
+    outln!("| per page: total (one worker) | {:.2} ms | |", per(busy))?;
     Ok(ExitCode::SUCCESS)
 }

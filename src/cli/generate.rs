@@ -211,7 +211,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         job.shard = shard;
     }
     if args.dry_run {
-        println!("{}", job.describe());
+        outln!("{}", job.describe())?;
         return Ok(ExitCode::SUCCESS);
     }
     if job.curves() > CONFIRM_OVER && !args.yes {
@@ -331,9 +331,9 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
         Some(page_options(opts, &args.job)?)
     };
     if args.dry_run {
-        println!("spec:     {} ({source}), a full-curve page set", list.name);
+        outln!("spec:     {} ({source}), a full-curve page set", list.name)?;
         for (i, c) in list.curves.iter().enumerate() {
-            println!(
+            outln!(
                 "curve {}: {} (A = {}, B = {}, C = {}, point ({}, {}), class {}, trace {})",
                 i + 1,
                 c.name,
@@ -344,21 +344,21 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
                 c.point.v,
                 c.linkage.class().code(),
                 c.trace.name()
-            );
+            )?;
         }
-        println!(
+        outln!(
             "samples:  every {}° of input, plus the toggles",
             list.sampling.crank_step_deg
-        );
-        println!(
+        )?;
+        outln!(
             "pages:    {}",
             if pages.is_some() {
                 list.curves.len()
             } else {
                 0
             }
-        );
-        println!("output:   {}", out.display());
+        )?;
+        outln!("output:   {}", out.display())?;
         return Ok(ExitCode::SUCCESS);
     }
     let job = CurveJob {
@@ -372,7 +372,8 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
     let start = Instant::now();
     // No SIGINT handler here: a page set takes well under a second, and Ctrl-C leaves
     // only complete files (every file is renamed into place when written).
-    let result = run_curve_set(&job, pages.as_ref(), &|n| bar.inc(n));
+    let renderer = pages.map(PageRenderer::new);
+    let result = run_curve_set(&job, renderer.as_ref(), &|n| bar.inc(n));
     bar.finish_and_clear();
     let report = result
         .map_err(classify)

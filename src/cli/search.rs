@@ -2,7 +2,7 @@
 
 use super::UsageError;
 use anyhow::Result;
-use coupler_atlas::{Circuit, Class};
+use coupler_atlas::{Circuit, LinkageClass};
 use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -103,7 +103,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let class = match &args.class {
         None => None,
         Some(c) => Some(
-            Class::ALL
+            LinkageClass::ALL
                 .iter()
                 .copied()
                 .find(|k| k.code().eq_ignore_ascii_case(c))

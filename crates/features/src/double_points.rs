@@ -1,18 +1,16 @@
 //! Double points (docs/conventions.md §5): crunodes (self-crossings) and cusps (speed zero).
 
 use super::{Crunode, Cusp, FeatureTolerances};
-use coupler_kinematics::Curve;
-use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
-use coupler_kinematics::{CrankAngle, Pose};
+use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, Curve, Mechanism};
 
 /// Position and velocity (per radian) of the coupler point at θ degrees.
-pub(crate) fn at(
-    l: &FourBar,
+pub(crate) fn at<M: Mechanism>(
+    l: &M,
     circuit: Circuit,
     p: CouplerPoint,
     deg: f64,
 ) -> Option<([f64; 2], [f64; 2])> {
-    let pose = Pose::solve(l, circuit, &CrankAngle::from_degrees(deg))?;
+    let pose = l.frame(circuit, &CrankAngle::from_degrees(deg))?;
     let (m, v) = (pose.point(p), pose.velocity(p));
     (m.x.is_finite() && v.x.is_finite() && v.y.is_finite()).then_some(([m.x, m.y], [v.x, v.y]))
 }
@@ -41,8 +39,8 @@ fn segment_cross(p0: [f64; 2], p1: [f64; 2], q0: [f64; 2], q1: [f64; 2]) -> Opti
 /// closed-form pose (Jacobian `[V(θ1), −V(θ2)]`) to ~1e-13, then de-duplicated. A
 /// crossing that the polyline misses (two branches touching within the sampling's chord
 /// error) is missed; a tangency (Jacobian singular) is dropped.
-pub fn crunodes(
-    l: &FourBar,
+pub fn crunodes<M: Mechanism>(
+    l: &M,
     circuit: Circuit,
     p: CouplerPoint,
     c: &Curve,
@@ -142,8 +140,8 @@ pub fn crunodes(
 /// The cusps of a closed curve: local minima of the sampled speed, refined by
 /// golden-section search on |V(θ)| over the two neighbouring steps, kept when the minimum
 /// is at most `cusp_speed_ratio` × the mean sampled speed.
-pub fn cusps(
-    l: &FourBar,
+pub fn cusps<M: Mechanism>(
+    l: &M,
     circuit: Circuit,
     p: CouplerPoint,
     c: &Curve,

@@ -1,7 +1,7 @@
 //! Explicit flags for the conditions the shipped closed form cannot fully resolve, and its
 //! documented error bound. Meant for the `curve` JSON and the index: never silent.
 
-use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+use coupler_kinematics::{Circuit, CouplerPoint, FourBar, Linkage};
 use coupler_kinematics::{CrankAngle, Pose, ToggleGaps};
 use serde::{Deserialize, Serialize};
 
@@ -242,5 +242,19 @@ impl CurveFlags {
     /// The flags' names, for printing.
     pub fn names(&self) -> Vec<&'static str> {
         self.flags.iter().map(|f| f.name()).collect()
+    }
+}
+
+/// The flags of a curve of an atlas mechanism whose input turns fully, without sampling
+/// ([`CurveFlags::for_full_turn`] for a four-bar): what the index records as `flags`.
+/// `transmission` is `[min, max]` over the turn, radians.
+pub fn curve_flags(
+    linkage: &Linkage,
+    point: CouplerPoint,
+    transmission: [f64; 2],
+    tol: &FlagTolerances,
+) -> Vec<CurveFlag> {
+    match linkage {
+        Linkage::FourBar(l) => CurveFlags::for_full_turn(l, point, transmission, tol),
     }
 }

@@ -34,7 +34,7 @@ pub use dwell::{
     best_double_dwell_arcs, double_dwell_arcs, double_dwell_lines, single_dwell,
 };
 pub use fit::{Circle, CircleFitOptions, LineSums, angle_deg, fit_circle, kasa_circle};
-pub use flags::{CurveFlag, CurveFlags, FlagTolerances};
+pub use flags::{CurveFlag, CurveFlags, FlagTolerances, curve_flags};
 pub use run::{StraightRun, longest_straight_run, straightness_fitted};
 pub use straight::straight_segments;
 pub use symmetry::symmetry;
@@ -44,8 +44,8 @@ pub use window::{
 };
 
 use coupler_kinematics::{
-    DashPattern, divides_turn,
-    Circuit, Cognate, CouplerPoint, CrankTable, Curve, FourBar, PoseTable, cognates,
+    Circuit, Cognate, CouplerPoint, CrankTable, Curve, DashPattern, Mechanism, PoseTable,
+    divides_turn,
 };
 use serde::{Deserialize, Serialize};
 
@@ -233,15 +233,16 @@ pub struct CurveFeatures {
     /// The axis, if the curve is symmetric.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub symmetry: Option<Symmetry>,
-    /// The two other four-bars tracing the same curve (Roberts–Chebyshev).
+    /// The two other four-bars tracing the same curve (Roberts–Chebyshev;
+    /// [`Mechanism::cognates`]).
     pub cognates: Vec<Cognate>,
 }
 
-/// Extracts features of every coupler point of one linkage and circuit, sharing one pose
-/// table (at [`FeatureTolerances::step_deg`]) across the points.
+/// Extracts features of every coupler point of one mechanism and circuit, sharing one
+/// pose table (at [`FeatureTolerances::step_deg`]) across the points.
 #[derive(Clone, Debug)]
-pub struct FeatureExtractor {
-    linkage: FourBar,
+pub struct FeatureExtractor<M: Mechanism> {
+    linkage: M,
     circuit: Circuit,
     tolerances: FeatureTolerances,
     dash: DashPattern,
@@ -249,22 +250,22 @@ pub struct FeatureExtractor {
     curve: Curve,
 }
 
-impl FeatureExtractor {
+impl<M: Mechanism> FeatureExtractor<M> {
     /// Features counted in dashes of `dash` (the pages' pattern). `None` if the
     /// tolerances or the pattern are invalid, or the linkage does not assemble at every
     /// sampled angle (features are defined for full-revolution curves).
     pub fn new(
-        linkage: &FourBar,
+        linkage: &M,
         circuit: Circuit,
         tolerances: &FeatureTolerances,
         dash: &DashPattern,
-    ) -> Option<FeatureExtractor> {
+    ) -> Option<FeatureExtractor<M>> {
         tolerances.validate().ok()?;
         dash.validate().ok()?;
         let table = CrankTable::new(tolerances.step_deg)?;
-        let poses = PoseTable::new(linkage, circuit, &table);
+        let poses = linkage.pose_table(circuit, &table);
         poses.all_valid().then(|| FeatureExtractor {
-            linkage: *linkage,
+            linkage: linkage.clone(),
             circuit,
             tolerances: *tolerances,
             dash: *dash,
@@ -277,9 +278,7 @@ impl FeatureExtractor {
     pub fn extract(&mut self, point: CouplerPoint) -> CurveFeatures {
         self.poses.trace_into(point, &mut self.curve);
         let (l, c, t, curve) = (&self.linkage, self.circuit, &self.tolerances, &self.curve);
-        let cogs = cognates(l, c, point)
-            .map(|[_, a, b]| vec![a, b])
-            .unwrap_or_default();
+        let cogs = l.cognates(c, point);
         CurveFeatures {
             straight_segments: straight_segments(curve, t, &self.dash),
             pseudo_arcs: pseudo_arcs(curve, t, &self.dash),

@@ -2,8 +2,7 @@
 
 use super::double_points::at;
 use super::{FeatureTolerances, Symmetry};
-use coupler_kinematics::Curve;
-use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+use coupler_kinematics::{Circuit, CouplerPoint, Curve, Mechanism};
 
 /// Finds an axis of mirror symmetry of a closed curve, if any.
 ///
@@ -16,8 +15,8 @@ use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
 /// most `symmetry_tol` × the curve's size (bounding-box diagonal). A circle (isotropic
 /// moment) reports one of its axes. This finds the symmetric curves of docs/conventions.md §5
 /// (A = B, M on the circle about Pb through Pa, axis through O4) and any other.
-pub fn symmetry(
-    l: &FourBar,
+pub fn symmetry<M: Mechanism>(
+    l: &M,
     circuit: Circuit,
     p: CouplerPoint,
     c: &Curve,

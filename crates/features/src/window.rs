@@ -2,7 +2,7 @@
 //! (Norton, *Design of Machinery*, §3.8; docs/conventions.md §5).
 
 use crate::fit::{Circle, CircleFitOptions, LineSums, angle_deg, fit_circle};
-use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose};
+use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, Mechanism};
 use serde::Serialize;
 
 /// A crank window `[start, end]` in degrees (`end > start`; it may run past 360°, e.g.
@@ -150,15 +150,16 @@ pub struct WindowSamples {
 impl WindowSamples {
     /// Solves the pose at every angle of the window. Errors where the linkage does not
     /// assemble or sits at a toggle.
-    pub fn sample(
-        linkage: &FourBar,
+    pub fn sample<M: Mechanism>(
+        linkage: &M,
         circuit: Circuit,
         point: CouplerPoint,
         window: &CrankWindow,
     ) -> Result<WindowSamples, WindowError> {
         let mut s = WindowSamples::default();
         for t in window.angles() {
-            let pose = Pose::solve(linkage, circuit, &CrankAngle::from_degrees(t))
+            let pose = linkage
+                .frame(circuit, &CrankAngle::from_degrees(t))
                 .ok_or(WindowError::NotAssembled(t))?;
             let (m, v) = (pose.point(point), pose.velocity(point));
             if !(v.x.is_finite() && v.y.is_finite()) {
@@ -233,8 +234,8 @@ impl WindowMeasures {
     /// let m = WindowMeasures::measure(&l, Circuit::Open, CouplerPoint::new(0.0, 0.0), &w, LineDirection::Fitted).unwrap();
     /// assert!((m.arc_radius.unwrap() - 1.0).abs() < 1e-9); // the crank pin moves on the unit circle
     /// ```
-    pub fn measure(
-        linkage: &FourBar,
+    pub fn measure<M: Mechanism>(
+        linkage: &M,
         circuit: Circuit,
         point: CouplerPoint,
         window: &CrankWindow,
@@ -398,6 +399,7 @@ impl LineMeasures {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use coupler_kinematics::FourBar;
 
     /// Rounds to `sig` significant digits.
     fn sig(x: f64, digits: i32) -> f64 {

@@ -10,14 +10,15 @@
 //! is recomputed whole on every run rather than resumed.
 
 use crate::error::io_err;
-use crate::files::{remove_stale_temporaries, write_artifact, write_manifest};
+use crate::files::{remove_stale_temporaries, write_manifest};
+use crate::run::write_rendered;
 use crate::{
-    Artifact, BufferPool, FileEntry, GenerateError, PageOptions, PageTimings, STATE_DIR,
-    check_out_dir, render_classic, write_atomically,
+    FileEntry, GenerateError, PageFailure, PageOptions, PageRenderer, Rendered, STATE_DIR,
+    check_out_dir, write_atomically,
 };
 use coupler_features::{ClassicCurve, NamedCurve, StraightMeasure};
-use coupler_index::{LinkageLengths, PageRef};
-use coupler_kinematics::{Class, CouplerPoint, InputRange};
+use coupler_index::PageRef;
+use coupler_kinematics::{Class, CouplerPoint, FourBar, InputRange};
 use coupler_layout::ClassicPage;
 use coupler_spec::{CurveList, Sampling};
 use rayon::prelude::*;
@@ -61,7 +62,7 @@ pub struct CurveRecord {
     /// Name.
     pub name: String,
     /// Lengths (input = 1).
-    pub linkage: LinkageLengths,
+    pub linkage: FourBar,
     /// Coupler point.
     pub point: CouplerPoint,
     /// Barker class.
@@ -110,7 +111,7 @@ fn record(id: usize, c: &NamedCurve, m: &ClassicCurve) -> CurveRecord {
     CurveRecord {
         id,
         name: c.name.clone(),
-        linkage: LinkageLengths::from(&c.linkage),
+        linkage: c.linkage,
         point: c.point,
         class: c.linkage.class(),
         trace: c.trace.name().into(),
@@ -138,9 +139,13 @@ fn run_key(job: &CurveJob, pages: Option<&PageOptions>) -> String {
 /// `pages` is given, then writes the pages, `curves.json` and `manifest.json` (each
 /// atomically, so a run stopped at any point leaves only complete files). `progress` is
 /// called once per finished curve.
+///
+/// A page that cannot be made or written does not stop the run: every other page is
+/// written, then the run ends with [`GenerateError::PagesFailed`] naming every failed
+/// page, and writes no `curves.json` or manifest (the set is incomplete).
 pub fn run(
     job: &CurveJob,
-    pages: Option<&PageOptions>,
+    pages: Option<&PageRenderer>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<CurveRunReport, GenerateError> {
     check_out_dir(&job.out, job.force)?;
@@ -154,11 +159,9 @@ pub fn run(
             path: job.out.clone(),
             source: std::io::Error::other(e),
         })?;
-    let buffers = BufferPool::new();
-    let timings = PageTimings::default();
     let step = job.list.sampling.crank_step_deg;
     let count = job.list.curves.len();
-    let done: Vec<Result<(CurveRecord, Vec<Artifact>), GenerateError>> = pool.install(|| {
+    let done: Vec<(CurveRecord, Rendered)> = pool.install(|| {
         job.list
             .curves
             .par_iter()
@@ -166,8 +169,8 @@ pub fn run(
             .map(|(i, c)| {
                 let measured = ClassicCurve::compute(c, step);
                 let mut rec = record(i, c, &measured);
-                let mut files = Vec::new();
-                if let Some(opts) = pages {
+                let mut files: Rendered = Vec::new();
+                if let Some(renderer) = pages {
                     let page = ClassicPage {
                         curve: c.clone(),
                         measured,
@@ -175,47 +178,41 @@ pub fn run(
                         page_count: count,
                         step_deg: step,
                     };
-                    let rendered =
-                        render_classic(opts, &buffers, &timings, &page).map_err(|e| {
-                            GenerateError::Render {
-                                what: format!("page {} ({})", i + 1, c.name),
-                                message: e.to_string(),
-                            }
-                        })?;
-                    if let (Some(first), Some(b)) =
-                        (rendered.files.first(), rendered.bbox_px.first())
-                    {
-                        rec.page = Some(PageRef {
-                            file: format!("pages/{}", first.0),
-                            bbox_px: b.map(f64::from),
-                        });
+                    match renderer.classic_page(&page) {
+                        Ok((artifacts, place)) => {
+                            rec.page = place;
+                            files.extend(artifacts.into_iter().map(Ok));
+                        }
+                        Err(f) => files.push(Err(f)),
                     }
-                    files.extend(rendered.files.into_iter().map(|(name, bytes)| Artifact {
-                        name: format!("pages/{name}"),
-                        bytes,
-                    }));
                 }
                 progress(1);
-                Ok((rec, files))
+                (rec, files)
             })
             .collect()
     });
     let mut records = Vec::with_capacity(count);
     let mut entries: Vec<FileEntry> = Vec::new();
+    let mut failed: Vec<PageFailure> = Vec::new();
     let mut n_pages = 0;
     if pages.is_some() {
         let pages_dir = job.out.join("pages");
         std::fs::create_dir_all(&pages_dir).map_err(io_err(&pages_dir))?;
     }
-    for r in done {
-        let (rec, files) = r?;
-        if !files.is_empty() {
+    for (rec, rendered) in done {
+        if !rendered.is_empty() {
             n_pages += 1;
         }
-        for a in &files {
-            entries.push(write_artifact(&job.out, a)?);
-        }
+        let (files, page_failed) = write_rendered(&job.out, rendered);
+        entries.extend(files);
+        failed.extend(page_failed);
         records.push(rec);
+    }
+    if !failed.is_empty() {
+        return Err(GenerateError::PagesFailed {
+            failed,
+            dir: job.out.clone(),
+        });
     }
     let record_path = job.out.join("curves.json");
     let doc = CurvesFile {
@@ -235,7 +232,7 @@ pub fn run(
         std::io::Write::write_all(w, b"\n")
     })?;
     entries.push(FileEntry::of_file(&job.out, "curves.json").map_err(io_err(&record_path))?);
-    write_manifest(&job.out, &run_key(job, pages), entries)?;
+    write_manifest(&job.out, &run_key(job, pages.map(|r| &r.opts)), entries)?;
     Ok(CurveRunReport {
         curves: records.len(),
         pages: n_pages,
@@ -266,14 +263,15 @@ mod tests {
             run_key(&job, Some(&opts)),
             "e71d7df2e5221a3889568b19bfb50904"
         );
-        let spec = coupler_spec::Spec::parse(
-            include_str!("../../../atlas-spec/quick.toml"),
-            "quick",
-        )
-        .unwrap();
+        let spec =
+            coupler_spec::Spec::parse(include_str!("../../../atlas-spec/quick.toml"), "quick")
+                .unwrap();
         let mut opts = PageOptions::from_spec(&spec).unwrap();
         // As `generate atlas-spec/quick.toml --format png,svg` writes it.
-        opts.formats = vec![coupler_render::PageFormat::Png, coupler_render::PageFormat::Svg];
+        opts.formats = vec![
+            coupler_render::PageFormat::Png,
+            coupler_render::PageFormat::Svg,
+        ];
         let job = crate::Job::new(spec, "quick", "unused", 1);
         assert_eq!(
             crate::run_key(&job, &crate::PageRenderer::new(opts)),

@@ -1,6 +1,6 @@
 //! Why a run fails.
 
-use coupler_kinematics::{Circuit, FourBar};
+use coupler_kinematics::{Circuit, Linkage};
 use std::path::{Path, PathBuf};
 
 /// Why a run failed.
@@ -19,7 +19,7 @@ pub enum GenerateError {
     #[error("internal error: linkage {linkage} ({circuit}) did not assemble over a full turn")]
     NotAssembled {
         /// The linkage.
-        linkage: FourBar,
+        linkage: Linkage,
         /// The circuit.
         circuit: Circuit,
     },
@@ -47,13 +47,14 @@ pub enum GenerateError {
     /// Shard folders that do not make one atlas.
     #[error("cannot merge: {0}")]
     Merge(String),
-    /// Page rendering failed.
-    #[error("rendering {what}: {message}")]
-    Render {
-        /// The page or file.
-        what: String,
-        /// What went wrong.
-        message: String,
+    /// Pages could not be made or written; every other page was (no index or manifest
+    /// is written for an incomplete atlas). The same command again redoes what is missing.
+    #[error("{} failed (every other page is written; once the cause is fixed, run the same command again to redo only what is missing):{}", pages(failed.len()), failed.iter().map(|f| format!("\n  {}: {}", f.page, f.message)).collect::<String>())]
+    PagesFailed {
+        /// Every failed page.
+        failed: Vec<crate::PageFailure>,
+        /// The output folder.
+        dir: PathBuf,
     },
 }
 
@@ -72,5 +73,14 @@ pub(crate) fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> GenerateErro
     move |source| GenerateError::Io {
         path: path.to_path_buf(),
         source,
+    }
+}
+
+/// "1 page" or "N pages".
+fn pages(n: usize) -> String {
+    if n == 1 {
+        "1 page".into()
+    } else {
+        format!("{n} pages")
     }
 }

@@ -3,11 +3,10 @@
 //! computation of a group's index records.
 
 use crate::GenerateError;
-use coupler_features::{CurveFlags, FeatureExtractor, FeatureTolerances, FlagTolerances};
-use coupler_index::{IndexCurve, IndexSummary, LinkageLengths};
+use coupler_features::{FeatureExtractor, FeatureTolerances, FlagTolerances, curve_flags};
+use coupler_index::{IndexCurve, IndexSummary};
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankTable, CurveSummary, DashPattern, FourBar, PoseTable,
-    transmission_range,
+    Circuit, CouplerPoint, CrankTable, CurveSummary, DashPattern, Linkage, Mechanism,
 };
 use coupler_spec::{Enumeration, Spec};
 use std::fmt::Write as _;
@@ -77,19 +76,29 @@ pub struct Artifact {
     pub bytes: Vec<u8>,
 }
 
+/// A page that could not be made or written: its file (relative to the atlas folder)
+/// and why. A run records it and goes on with the other pages.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PageFailure {
+    /// E.g. `pages/hrones-nelson-0003.png`.
+    pub page: String,
+    /// What went wrong.
+    pub message: String,
+}
+
+/// What a renderer makes of one group or of the atlas: each page's files, or why a page
+/// failed (the others are still made).
+pub type Rendered = Vec<Result<Artifact, PageFailure>>;
+
 /// Renders pages: the hook between the curve pipeline and page output. It is called on
 /// worker threads, one group at a time, and returns finished files; the pipeline writes
-/// them (atomically) and drops them, so memory stays bounded.
+/// them (atomically) and drops them, so memory stays bounded. A page that fails is
+/// returned as a [`PageFailure`] in its place, and the other pages go on.
 pub trait Renderer: Sync {
     /// The pages of one group; may record each curve's place (`curves[i].page`).
-    fn render_group(
-        &self,
-        job: &Job,
-        group: &Group,
-        curves: &mut [IndexCurve],
-    ) -> Result<Vec<Artifact>, GenerateError>;
+    fn render_group(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered;
     /// Files made once per atlas after all groups (e.g. a contents page).
-    fn render_atlas(&self, job: &Job) -> Result<Vec<Artifact>, GenerateError>;
+    fn render_atlas(&self, job: &Job) -> Rendered;
     /// Number of pages it makes for `job` (0 for none), for the summary.
     fn pages(&self, job: &Job) -> u64;
     /// Everything about it that changes output bytes (formats, resolution…): part of the
@@ -102,16 +111,11 @@ pub trait Renderer: Sync {
 pub struct NoPages;
 
 impl Renderer for NoPages {
-    fn render_group(
-        &self,
-        _: &Job,
-        _: &Group,
-        _: &mut [IndexCurve],
-    ) -> Result<Vec<Artifact>, GenerateError> {
-        Ok(Vec::new())
+    fn render_group(&self, _: &Job, _: &Group, _: &mut [IndexCurve]) -> Rendered {
+        Vec::new()
     }
-    fn render_atlas(&self, _: &Job) -> Result<Vec<Artifact>, GenerateError> {
-        Ok(Vec::new())
+    fn render_atlas(&self, _: &Job) -> Rendered {
+        Vec::new()
     }
     fn pages(&self, _: &Job) -> u64 {
         0
@@ -125,8 +129,8 @@ impl Renderer for NoPages {
 /// shares one pose table (one pose per crank angle) across all its points.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Group {
-    /// The linkage.
-    pub linkage: FourBar,
+    /// The mechanism.
+    pub linkage: Linkage,
     /// The circuit.
     pub circuit: Circuit,
     /// Its coupler points, in atlas order.
@@ -158,7 +162,7 @@ impl Job {
         let mut groups = Vec::new();
         let (mut id, mut page) = (0u64, 1u64);
         for l in &self.enumeration.linkages {
-            let points = self.spec.points.points(l.coupler);
+            let points = self.spec.points.points(l.coupler_length());
             for &circuit in &self.spec.circuits {
                 let n = points.len() as u64;
                 groups.push(Group {
@@ -282,14 +286,15 @@ pub fn compute_group(
 ) -> Result<Vec<IndexCurve>, GenerateError> {
     let mut extractor =
         features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t, dash));
-    let poses = PoseTable::new(&group.linkage, group.circuit, table);
+    let poses = group.linkage.pose_table(group.circuit, table);
     if !poses.all_valid() {
         return Err(GenerateError::NotAssembled {
             linkage: group.linkage,
             circuit: group.circuit,
         });
     }
-    let [tmin, tmax] = transmission_range(&group.linkage).ok_or(GenerateError::NotAssembled {
+    let range = group.linkage.transmission_range(group.circuit);
+    let [tmin, tmax] = range.ok_or(GenerateError::NotAssembled {
         linkage: group.linkage,
         circuit: group.circuit,
     })?;
@@ -307,7 +312,7 @@ pub fn compute_group(
             })?;
         out.push(IndexCurve {
             id: group.first_id + k as u64,
-            linkage: LinkageLengths::from(&group.linkage),
+            linkage: group.linkage,
             point,
             circuit: group.circuit,
             class,
@@ -315,7 +320,7 @@ pub fn compute_group(
             transmission_deg,
             speed: summary.speed,
             length: summary.length,
-            flags: CurveFlags::for_full_turn(&group.linkage, point, [tmin, tmax], &flag_tol),
+            flags: curve_flags(&group.linkage, point, [tmin, tmax], &flag_tol),
             page: None,
             features: extractor.as_mut().map(|x| x.extract(point)),
         });
@@ -348,7 +353,9 @@ mod tests {
     #[test]
     fn group_measures_are_finite_and_plausible() {
         let table = CrankTable::new(1.0).unwrap();
-        let l = FourBar::new(3.0, 3.0, 3.0).unwrap();
+        let l = coupler_kinematics::FourBar::new(3.0, 3.0, 3.0)
+            .unwrap()
+            .into();
         let g = Group {
             linkage: l,
             circuit: Circuit::Open,

@@ -28,7 +28,9 @@ pub use curves::{
 };
 pub use error::GenerateError;
 pub use files::{FileEntry, STATE_DIR, check_out_dir, write_atomically};
-pub use job::{Artifact, Group, Job, NoPages, Renderer, Shard, compute_group};
+pub use job::{
+    Artifact, Group, Job, NoPages, PageFailure, Rendered, Renderer, Shard, compute_group,
+};
 pub use measure::{machine, median, thread_cpu_seconds};
 pub use pages::{
     BufferPool, PageError, PageOptions, PageRenderer, PageTimings, RenderedPage, render_classic,

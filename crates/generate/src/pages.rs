@@ -5,9 +5,9 @@
 //! is a pure function of its linkage, points and settings, so files are byte-identical
 //! for any thread count.
 
-use crate::{Artifact, GenerateError, Group, Job, Renderer};
+use crate::{Artifact, Group, Job, PageFailure, Rendered, Renderer};
 use coupler_index::{IndexCurve, PageRef};
-use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+use coupler_kinematics::{Circuit, CouplerPoint, Linkage};
 use coupler_layout::{
     ContentsEntry, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page, layout_contents,
     layout_page,
@@ -250,7 +250,7 @@ pub fn render_page(
     opts: &PageOptions,
     pool: &BufferPool,
     timings: &PageTimings,
-    linkage: FourBar,
+    linkage: Linkage,
     circuit: Circuit,
     points: &[CouplerPoint],
     grid: &[CouplerPoint],
@@ -334,26 +334,60 @@ impl PageRenderer {
     }
 }
 
-fn render_error(what: String, e: PageError) -> GenerateError {
-    GenerateError::Render {
-        what,
-        message: e.to_string(),
+impl PageRenderer {
+    /// The format whose file names a page in messages and in the index.
+    fn first_format(&self) -> PageFormat {
+        self.opts
+            .formats
+            .first()
+            .copied()
+            .unwrap_or(PageFormat::Png)
+    }
+
+    /// A page that could not be made: `file` in the pages folder.
+    fn failure(&self, file: String, e: PageError) -> PageFailure {
+        PageFailure {
+            page: format!("pages/{file}"),
+            message: e.to_string(),
+        }
+    }
+
+    /// Renders page `page.page_number` of a full-curve page set: its files (names
+    /// relative to the atlas folder) and its curve's box, or why it failed.
+    pub fn classic_page(
+        &self,
+        page: &coupler_layout::ClassicPage,
+    ) -> Result<(Vec<Artifact>, Option<PageRef>), PageFailure> {
+        let number = page.page_number as u64;
+        let rendered = render_classic(&self.opts, &self.pool, &self.timings, page)
+            .map_err(|e| self.failure(self.opts.page_file(number, self.first_format()), e))?;
+        let place = match (rendered.files.first(), rendered.bbox_px.first()) {
+            (Some(first), Some(b)) => Some(PageRef {
+                file: format!("pages/{}", first.0),
+                bbox_px: b.map(f64::from),
+            }),
+            _ => None,
+        };
+        let files = rendered
+            .files
+            .into_iter()
+            .map(|(name, bytes)| Artifact {
+                name: format!("pages/{name}"),
+                bytes,
+            })
+            .collect();
+        Ok((files, place))
     }
 }
 
 impl Renderer for PageRenderer {
-    fn render_group(
-        &self,
-        job: &Job,
-        group: &Group,
-        curves: &mut [IndexCurve],
-    ) -> Result<Vec<Artifact>, GenerateError> {
+    fn render_group(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered {
         let per = self.opts.setup.curves_per_page.max(1);
         let page_count = job.pages();
         let mut out = Vec::new();
         for (k, chunk) in group.points.chunks(per).enumerate() {
             let number = group.first_page + k as u64;
-            let page = render_page(
+            let page = match render_page(
                 &self.opts,
                 &self.pool,
                 &self.timings,
@@ -363,8 +397,15 @@ impl Renderer for PageRenderer {
                 &group.points,
                 number,
                 page_count,
-            )
-            .map_err(|e| render_error(format!("page {number}"), e))?;
+            ) {
+                Ok(page) => page,
+                Err(e) => {
+                    out.push(Err(
+                        self.failure(self.opts.page_file(number, self.first_format()), e)
+                    ));
+                    continue;
+                }
+            };
             let first = page
                 .files
                 .first()
@@ -378,15 +419,17 @@ impl Renderer for PageRenderer {
                     });
                 }
             }
-            out.extend(page.files.into_iter().map(|(name, bytes)| Artifact {
-                name: format!("pages/{name}"),
-                bytes,
+            out.extend(page.files.into_iter().map(|(name, bytes)| {
+                Ok(Artifact {
+                    name: format!("pages/{name}"),
+                    bytes,
+                })
             }));
         }
-        Ok(out)
+        out
     }
 
-    fn render_atlas(&self, job: &Job) -> Result<Vec<Artifact>, GenerateError> {
+    fn render_atlas(&self, job: &Job) -> Rendered {
         let per = self.opts.setup.curves_per_page.max(1) as u64;
         let entries: Vec<ContentsEntry> = job
             .groups()
@@ -400,15 +443,20 @@ impl Renderer for PageRenderer {
                     as usize,
             })
             .collect();
-        let files = render_contents(&self.opts, &self.pool, &entries)
-            .map_err(|e| render_error("contents".into(), e))?;
-        Ok(files
-            .into_iter()
-            .map(|(name, bytes)| Artifact {
-                name: format!("pages/{name}"),
-                bytes,
-            })
-            .collect())
+        match render_contents(&self.opts, &self.pool, &entries) {
+            Ok(files) => files
+                .into_iter()
+                .map(|(name, bytes)| {
+                    Ok(Artifact {
+                        name: format!("pages/{name}"),
+                        bytes,
+                    })
+                })
+                .collect(),
+            Err(e) => vec![Err(
+                self.failure(self.opts.contents_file(1, self.first_format()), e)
+            )],
+        }
     }
 
     fn pages(&self, job: &Job) -> u64 {

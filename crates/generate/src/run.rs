@@ -7,8 +7,8 @@
 use crate::error::io_err;
 use crate::files::{remove_stale_temporaries, write_artifact, write_manifest};
 use crate::{
-    Artifact, FileEntry, GenerateError, Group, Job, Renderer, STATE_DIR, check_out_dir,
-    compute_group, write_atomically,
+    Artifact, FileEntry, GenerateError, Group, Job, PageFailure, Rendered, Renderer, STATE_DIR,
+    check_out_dir, compute_group, write_atomically,
 };
 use coupler_index::{
     IndexCurve, IndexSummary, curve_line, write_curve_line, write_index_footer, write_index_header,
@@ -91,13 +91,48 @@ fn read_chunk_lines(dir: &Path, chunk: usize, key: &str) -> Option<Vec<String>> 
         .then_some(curves)
 }
 
-/// A group's index records and the files it wrote.
-type GroupOutput = (Vec<IndexCurve>, Vec<FileEntry>);
+/// A group's index records, the files it wrote, and the pages that failed.
+type GroupOutput = (Vec<IndexCurve>, Vec<FileEntry>, Vec<PageFailure>);
+
+/// Writes what a renderer made: each file atomically; a page that failed, or a file that
+/// could not be written, becomes a [`PageFailure`] and the others go on.
+pub(crate) fn write_rendered(dir: &Path, rendered: Rendered) -> (Vec<FileEntry>, Vec<PageFailure>) {
+    let (mut files, mut failed) = (Vec::new(), Vec::new());
+    for r in rendered {
+        match r.and_then(|a| {
+            write_artifact(dir, &a).map_err(|e| PageFailure {
+                page: a.name.clone(),
+                message: error_chain(&e),
+            })
+        }) {
+            Ok(f) => files.push(f),
+            Err(f) => failed.push(f),
+        }
+    }
+    (files, failed)
+}
+
+/// An error and its causes, joined by `: `.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut source = e.source();
+    while let Some(c) = source {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        source = c.source();
+    }
+    s
+}
 
 /// Runs the job (its shard of it): computes the chunks not already complete, on
 /// `job.jobs` threads, writing pages as they finish; for a whole job (shard 1/1) then
 /// assembles `index.json` and `manifest.json`. `progress` is called with the number of
 /// curves finished, from any thread; `interrupt` is polled before each group.
+///
+/// A page that fails (cannot be made or written) does not stop the run: it is recorded,
+/// its chunk is not recorded as complete (so the same command redoes it), every other
+/// page is written, and the run ends with [`GenerateError::PagesFailed`] naming every
+/// failed page (no index or manifest is written for an incomplete atlas).
 pub fn run(
     job: &Job,
     renderer: &dyn Renderer,
@@ -124,6 +159,7 @@ pub fn run(
             source: std::io::Error::other(e),
         })?;
     let (mut computed, mut reused) = (0, 0);
+    let mut failed: Vec<PageFailure> = Vec::new();
     for (done, &c) in mine.iter().enumerate() {
         if let Some((header, _)) = read_valid_chunk(&job.out, c, &key) {
             progress(header.curves as u64);
@@ -147,13 +183,10 @@ pub fn run(
                         .enabled
                         .then_some(&job.spec.features.tolerances);
                     let mut curves = compute_group(&table, g, features, &dash)?;
-                    let artifacts = renderer.render_group(job, g, &mut curves)?;
-                    let mut files = Vec::with_capacity(artifacts.len());
-                    for a in artifacts {
-                        files.push(write_artifact(&job.out, &a)?);
-                    }
+                    let rendered = renderer.render_group(job, g, &mut curves);
+                    let (files, failed) = write_rendered(&job.out, rendered);
                     progress(curves.len() as u64);
-                    Ok((curves, files))
+                    Ok((curves, files, failed))
                 })
                 .collect()
         });
@@ -165,6 +198,13 @@ pub fn run(
             },
             other => other,
         })?;
+        let chunk_failed: Vec<PageFailure> =
+            results.iter().flat_map(|r| r.2.iter().cloned()).collect();
+        if !chunk_failed.is_empty() {
+            // Not recorded as complete: the same command redoes this chunk.
+            failed.extend(chunk_failed);
+            continue;
+        }
         let curves: Vec<&IndexCurve> = results.iter().flat_map(|r| &r.0).collect();
         let files: Vec<FileEntry> = results.iter().flat_map(|r| r.1.iter().cloned()).collect();
         let header = ChunkHeader {
@@ -183,6 +223,17 @@ pub fn run(
             w.write_all(b"\n")
         })?;
         computed += 1;
+    }
+    if !failed.is_empty() {
+        if job.shard.count == 1 {
+            // The atlas-level pages (contents) do not depend on the failed ones.
+            let (_, atlas_failed) = write_rendered(&job.out, renderer.render_atlas(job));
+            failed.extend(atlas_failed);
+        }
+        return Err(GenerateError::PagesFailed {
+            failed,
+            dir: job.out.clone(),
+        });
     }
     let summary = job.summary(renderer.pages(job));
     let index_path = if job.shard.count == 1 {
@@ -215,9 +266,14 @@ fn assemble(
         })?;
         files.extend(header.files);
     }
-    for a in renderer.render_atlas(job)? {
-        files.push(write_artifact(&job.out, &a)?);
+    let (atlas_files, failed) = write_rendered(&job.out, renderer.render_atlas(job));
+    if !failed.is_empty() {
+        return Err(GenerateError::PagesFailed {
+            failed,
+            dir: job.out.clone(),
+        });
     }
+    files.extend(atlas_files);
     let summary = job.summary(renderer.pages(job));
     let index_path = job.out.join("index.json");
     write_atomically(&index_path, |w| {

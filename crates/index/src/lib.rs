@@ -11,8 +11,8 @@ mod search;
 
 pub use cache::{LoadError, TableSource, cache_path, load_table};
 pub use schema::{
-    Index, IndexCurve, IndexError, IndexSummary, LinkageLengths, PageRef, SCHEMA_VERSION,
-    curve_line, write_curve_line, write_index, write_index_footer, write_index_header,
+    Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
+    write_curve_line, write_index, write_index_footer, write_index_header,
 };
 pub use search::{
     ArcRow, CurveRow, DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchError, SearchTable, SegmentRow,

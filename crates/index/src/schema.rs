@@ -1,34 +1,13 @@
 //! The JSON index of an atlas: one record per curve with its measures, written with a
 //! stable key order and number format, never NaN or infinity. Schema: `docs/index-schema.md`.
 
-use coupler_kinematics::{Circuit, Class, CouplerPoint, FourBar};
+use coupler_kinematics::{Circuit, CouplerPoint, Linkage, LinkageClass};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::io::{self, Write};
 
 /// The index format's version. Readers refuse other versions.
 pub const SCHEMA_VERSION: u32 = 1;
-
-/// The link lengths of a curve's linkage (crank = 1).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct LinkageLengths {
-    /// Coupler A.
-    pub coupler: f64,
-    /// Rocker B.
-    pub rocker: f64,
-    /// Ground C.
-    pub ground: f64,
-}
-
-impl From<&FourBar> for LinkageLengths {
-    fn from(l: &FourBar) -> Self {
-        LinkageLengths {
-            coupler: l.coupler,
-            rocker: l.rocker,
-            ground: l.ground,
-        }
-    }
-}
 
 /// Where a curve is drawn: its page file (relative to the atlas folder) and its bounding
 /// box on that page in pixels `[x_min, y_min, x_max, y_max]` (origin top-left).
@@ -45,14 +24,14 @@ pub struct PageRef {
 pub struct IndexCurve {
     /// Position in atlas order (linkage, circuit, coupler point), from 0.
     pub id: u64,
-    /// The linkage.
-    pub linkage: LinkageLengths,
+    /// The mechanism (a four-bar: `{coupler, rocker, ground}`, crank = 1).
+    pub linkage: Linkage,
     /// The coupler point (u, v), absolute (crank units).
     pub point: CouplerPoint,
     /// The circuit.
     pub circuit: Circuit,
-    /// Barker class.
-    pub class: Class,
+    /// Its class (Barker's for a four-bar).
+    pub class: LinkageClass,
     /// `[x_min, y_min, x_max, y_max]` of the sampled curve, crank units.
     pub bbox: [f64; 4],
     /// `[min, max]` transmission angle over the revolution, degrees.
@@ -200,18 +179,15 @@ pub fn write_index_footer<W: Write>(mut w: W) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use coupler_kinematics::{Class, FourBar};
 
     fn curve(id: u64) -> IndexCurve {
         IndexCurve {
             id,
-            linkage: LinkageLengths {
-                coupler: 2.5,
-                rocker: 3.0,
-                ground: 3.5,
-            },
+            linkage: Linkage::FourBar(FourBar::new(2.5, 3.0, 3.5).unwrap()),
             point: CouplerPoint::new(1.25, -0.5),
             circuit: Circuit::Open,
-            class: Class::Gcrr,
+            class: Class::Gcrr.into(),
             bbox: [-1.0, -2.0, 3.0, 4.0],
             transmission_deg: [40.0, 120.5],
             speed: [0.1, 2.0],

@@ -10,7 +10,7 @@
 
 use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
 use coupler_features::{CurveFeatures, Side};
-use coupler_kinematics::{Circuit, Class};
+use coupler_kinematics::{Circuit, Linkage, LinkageClass};
 use serde::Serialize;
 
 /// One straight segment, as searched.
@@ -58,8 +58,8 @@ pub struct CurveRow {
     pub point: [f64; 2],
     /// Circuit.
     pub circuit: Circuit,
-    /// Barker class.
-    pub class: Class,
+    /// Class (Barker's for a four-bar).
+    pub class: LinkageClass,
     /// Transmission angle range, degrees.
     pub transmission_deg: [f64; 2],
     /// Index into [`SearchTable::pages`], or `u32::MAX`.
@@ -139,7 +139,9 @@ impl SearchTable {
         let f = c.features.as_ref().unwrap_or(&empty);
         let row = CurveRow {
             id: c.id,
-            linkage: [c.linkage.coupler, c.linkage.rocker, c.linkage.ground],
+            linkage: match c.linkage {
+                Linkage::FourBar(l) => [l.coupler, l.rocker, l.ground],
+            },
             point: [c.point.u, c.point.v],
             circuit: c.circuit,
             class: c.class,
@@ -293,7 +295,10 @@ impl SearchTable {
             ] {
                 u(&mut w, x);
             }
-            let class = Class::ALL.iter().position(|&c| c == r.class).unwrap_or(0) as u8;
+            let class = LinkageClass::ALL
+                .iter()
+                .position(|&c| c == r.class)
+                .unwrap_or(0) as u8;
             w.extend_from_slice(&[
                 (r.circuit == Circuit::Crossed) as u8,
                 class,
@@ -373,7 +378,7 @@ impl SearchTable {
                 } else {
                     Circuit::Open
                 },
-                class: *Class::ALL
+                class: *LinkageClass::ALL
                     .get(flags[1] as usize)
                     .ok_or(SearchError::Cache)?,
                 symmetric: flags[2] == 1,
@@ -580,8 +585,8 @@ pub struct Query {
     pub radius_tol_pct: f64,
     /// Transmission angle within [DEG, 180 − DEG] over the whole revolution.
     pub min_transmission_deg: Option<f64>,
-    /// Barker class.
-    pub class: Option<Class>,
+    /// Class (Barker's for a four-bar).
+    pub class: Option<LinkageClass>,
     /// Linkage (coupler, rocker, ground), matched to 1e-9.
     pub linkage: Option<[f64; 3]>,
     /// Circuit.

@@ -4,14 +4,15 @@
 //! drawn fraction, the rest a gap), so counting dashes along a stretch of curve reads its
 //! crank duration, and a dash's length is the coupler point's mean speed over it times
 //! `f·Δ`. Each interval becomes a polyline in curve units by sampling the coupler point
-//! with [`Pose::solve`] adaptively: an interval is split until every chord lies within a
+//! with its frame ([`Mechanism::frame`], the closed form for a four-bar) adaptively: an interval is split until every chord lies within a
 //! tolerance of the curve (chosen by the page so that it is well under a pixel).
 //!
 //! Pure: no I/O, no global state. A renderer only strokes what comes out of here.
 
 use crate::exact::divides_turn;
-use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use crate::pose::{CrankAngle, Pose};
+use crate::linkage::{Circuit, CouplerPoint};
+use crate::mechanism::{CouplerFrame, Mechanism};
+use crate::pose::CrankAngle;
 use nalgebra::{Point2, Vector2};
 
 /// Default dash step Δ in crank degrees (Hartenberg & Denavit's redrawn atlas): the one
@@ -59,11 +60,11 @@ pub enum DashError {
     /// The tolerance is not a finite positive number.
     #[error("chord tolerance must be finite and > 0, got {0}")]
     BadTolerance(f64),
-    /// The linkage cannot be assembled at this crank angle (not a crank-rocker).
-    #[error("linkage {linkage:?} ({circuit}) does not assemble at θ = {theta_deg}°")]
+    /// The mechanism cannot be assembled at this crank angle (not a crank-rocker).
+    #[error("linkage {linkage} ({circuit}) does not assemble at θ = {theta_deg}°")]
     NotAssembled {
-        /// The linkage.
-        linkage: FourBar,
+        /// The mechanism (its `Debug` text).
+        linkage: String,
         /// The circuit.
         circuit: Circuit,
         /// The crank angle in degrees.
@@ -187,22 +188,22 @@ pub fn distance_to_segment(p: Point2<f64>, a: Point2<f64>, b: Point2<f64>) -> f6
 /// Samples coupler point M over crank angles, bisecting in a parameter σ with
 /// θ = `warp(σ)` (the identity for a crank; near a toggle a square map that makes the
 /// curve regular in σ: [`dash_leg`]).
-struct Sampler<'a> {
-    linkage: &'a FourBar,
+struct Sampler<'a, M: Mechanism> {
+    linkage: &'a M,
     circuit: Circuit,
     point: CouplerPoint,
     warp: &'a dyn Fn(f64) -> f64,
 }
 
-impl Sampler<'_> {
-    fn pose(&self, deg: f64) -> Result<Pose, DashError> {
-        Pose::solve(self.linkage, self.circuit, &CrankAngle::from_degrees(deg)).ok_or(
-            DashError::NotAssembled {
-                linkage: *self.linkage,
+impl<M: Mechanism> Sampler<'_, M> {
+    fn pose(&self, deg: f64) -> Result<CouplerFrame, DashError> {
+        self.linkage
+            .frame(self.circuit, &CrankAngle::from_degrees(deg))
+            .ok_or_else(|| DashError::NotAssembled {
+                linkage: format!("{:?}", self.linkage),
                 circuit: self.circuit,
                 theta_deg: deg,
-            },
-        )
+            })
     }
 
     fn at(&self, deg: f64) -> Result<Point2<f64>, DashError> {
@@ -258,8 +259,8 @@ impl Sampler<'_> {
 /// assert_eq!(c.dashes.len(), 36);
 /// assert!((c.dashes[5].span_deg() - 6.0).abs() < 1e-12);
 /// ```
-pub fn dash_curve(
-    linkage: &FourBar,
+pub fn dash_curve<M: Mechanism>(
+    linkage: &M,
     circuit: Circuit,
     point: CouplerPoint,
     pattern: &DashPattern,
@@ -329,8 +330,8 @@ pub fn dash_curve(
 ///
 /// Errors as [`dash_curve`]; also if the linkage does not assemble inside the leg (the
 /// ends must be within the input's range: use the toggle angles `trace_full` reports).
-pub fn dash_leg(
-    linkage: &FourBar,
+pub fn dash_leg<M: Mechanism>(
+    linkage: &M,
     circuit: Circuit,
     point: CouplerPoint,
     pattern: &DashPattern,
@@ -399,6 +400,7 @@ pub fn dash_leg(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{FourBar, Pose};
 
     fn distance_to_polyline(p: Point2<f64>, pts: &[Point2<f64>]) -> f64 {
         pts.windows(2)

@@ -127,6 +127,10 @@ pub trait Mechanism: Clone + fmt::Debug + fmt::Display + Send + Sync {
     /// Its dimensions as printed on a page: name and value, e.g. `[("A", 2.5), …]`.
     fn dimensions(&self) -> Vec<(&'static str, f64)>;
 
+    /// The length of the coupler body's link from Pa along `e` (the coupler A of a
+    /// four-bar): pages draw the coupler plate over it.
+    fn coupler_length(&self) -> f64;
+
     /// The naming convention of its links, for page headers, e.g.
     /// `"crank = 1, coupler A, rocker B, ground C"`.
     fn convention(&self) -> &'static str;
@@ -179,6 +183,10 @@ impl Mechanism for FourBar {
 
     fn dimensions(&self) -> Vec<(&'static str, f64)> {
         vec![("A", self.coupler), ("B", self.rocker), ("C", self.ground)]
+    }
+
+    fn coupler_length(&self) -> f64 {
+        self.coupler
     }
 
     fn convention(&self) -> &'static str {
@@ -299,6 +307,12 @@ impl Mechanism for Linkage {
     fn dimensions(&self) -> Vec<(&'static str, f64)> {
         match self {
             Linkage::FourBar(l) => l.dimensions(),
+        }
+    }
+
+    fn coupler_length(&self) -> f64 {
+        match self {
+            Linkage::FourBar(l) => l.coupler_length(),
         }
     }
 

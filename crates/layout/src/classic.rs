@@ -17,7 +17,9 @@ use crate::page::{
     rects_overlap, start_marker, style, union,
 };
 use coupler_features::{ClassicCurve, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure};
-use coupler_kinematics::{Circuit, CrankAngle, Dash, InputRange, Pose, dash_curve, dash_leg};
+use coupler_kinematics::{
+    Circuit, CrankAngle, Dash, InputRange, Mechanism, Pose, dash_curve, dash_leg,
+};
 use nalgebra::Vector2;
 
 /// Inches per input unit offered for the page scale: the atlas's list, continued for the
@@ -318,7 +320,12 @@ pub fn layout_classic(
     let mut segments = Vec::new();
     let mut taken: Vec<[f64; 4]> = Vec::new();
     if let Some(pose) = drawn_pose(page, geometry.drawn) {
-        let [o2, o4, pa, pb] = draw_links(&mut dl, &t, &l, &pose, &mut segments);
+        let drawing = l.drawing(
+            geometry.drawn.1,
+            &CrankAngle::from_degrees(geometry.drawn.0),
+        );
+        let mut pins = draw_links(&mut dl, &t, &drawing, &mut segments);
+        let (pa, pb) = (pins[2].0, pins[3].0);
         let mq = pose.point(p);
         let mp = t.map(mq.x, mq.y);
         for a in [pa, pb] {
@@ -328,10 +335,8 @@ pub fn layout_classic(
             }
         }
         dl.circle(mp, style::GRID_RADIUS + 0.5, Some(style::THIN + 0.3));
-        taken.extend(pivot_labels(
-            &mut dl,
-            [(o2, "O2"), (o4, "O4"), (pa, "Pa"), (pb, "Pb"), (mp, "M")],
-        ));
+        pins.push((mp, "M"));
+        taken.extend(pivot_labels(&mut dl, pins));
     }
     for (a, b) in &segments {
         occ.mark_segment(*a, *b, 4);

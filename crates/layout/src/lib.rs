@@ -20,8 +20,8 @@ pub use font::{
 };
 pub use page::{
     Anchor, ContentsEntry, CurvePlacement, DEFAULT_CHORD_TOLERANCE_PX, DEFAULT_CURVES_PER_PAGE,
-    DEFAULT_DPI, DEFAULT_MARGIN_PT, DPI_RANGE, DRAWN_CRANK_ANGLE_DEG, DisplayList, LayoutError, LinkagePage,
-    Orientation, PT_PER_INCH, PageGeometry, PageLayout, PagePoint, PageSetup, PageSize, PaperSize,
-    Primitive, WorldToPage, clip_segment, compute_page, fmt_num, footer_settings, layout_contents,
-    layout_page,
+    DEFAULT_DPI, DEFAULT_MARGIN_PT, DPI_RANGE, DRAWN_CRANK_ANGLE_DEG, DisplayList, LayoutError,
+    LinkagePage, Orientation, PT_PER_INCH, PageGeometry, PageLayout, PagePoint, PageSetup,
+    PageSize, PaperSize, Primitive, WorldToPage, clip_segment, compute_page, fmt_num,
+    footer_settings, layout_contents, layout_page,
 };

@@ -13,7 +13,7 @@
 use crate::font;
 use coupler_kinematics::{
     Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, DashError, DashPattern, DashedCurve,
-    FourBar, Pose, PoseTable, dash_curve,
+    Drawing, Linkage, Mechanism, dash_curve,
 };
 
 /// Points per inch.
@@ -456,9 +456,9 @@ impl DisplayList {
 
 /// What one linkage page shows.
 #[derive(Clone, Debug, PartialEq)]
-pub struct LinkagePage {
-    /// The linkage.
-    pub linkage: FourBar,
+pub struct LinkagePage<M: Mechanism = Linkage> {
+    /// The mechanism.
+    pub linkage: M,
     /// Its circuit.
     pub circuit: Circuit,
     /// Coupler points whose curves are on this page (in order).
@@ -529,34 +529,29 @@ pub(crate) fn union(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
     ]
 }
 
-/// The linkage at the drawn angle (crank-rockers assemble everywhere).
-fn drawn_pose(page: &LinkagePage) -> Option<Pose> {
-    Pose::solve(
-        &page.linkage,
+/// The mechanism at the drawn angle (crank-rockers assemble everywhere).
+fn drawn<M: Mechanism>(page: &LinkagePage<M>) -> Drawing {
+    page.linkage.drawing(
         page.circuit,
         &CrankAngle::from_degrees(DRAWN_CRANK_ANGLE_DEG),
     )
 }
 
-/// World bounding box of what must be on the page besides the curves: ground pivots,
-/// crank circle, the rocker pin and this page's coupler points at the drawn angle. The
-/// rest of the grid is context: it is drawn where it falls inside the frame.
-fn linkage_bbox(page: &LinkagePage) -> [f64; 4] {
-    let c = page.linkage.ground;
-    // Crank circle and both pivots; the rocker pin and the grid at the drawn angle.
-    let mut b = [-1.0, -1.0, c.max(1.0), 1.0];
-    if let Some(p) = drawn_pose(page) {
-        b = union(
-            b,
-            [
-                p.rocker_pin.x,
-                p.rocker_pin.y,
-                p.rocker_pin.x,
-                p.rocker_pin.y,
-            ],
-        );
+/// World bounding box of what must be on the page besides the curves: the crank paths,
+/// the ground pivots, and, at the drawn angle, the moving joints and this page's coupler
+/// points. The rest of the grid is context: it is drawn where it falls inside the frame.
+fn linkage_bbox<M: Mechanism>(page: &LinkagePage<M>) -> [f64; 4] {
+    let drawing = drawn(page);
+    let mut b = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+    for (c, r) in &drawing.paths {
+        b = union(b, [c.x - r, c.y - r, c.x + r, c.y + r]);
+    }
+    for j in &drawing.joints {
+        b = union(b, [j.position.x, j.position.y, j.position.x, j.position.y]);
+    }
+    if let Some(f) = drawing.coupler {
         for q in &page.points {
-            let m = p.point(*q);
+            let m = f.point(*q);
             b = union(b, [m.x, m.y, m.x, m.y]);
         }
     }
@@ -611,10 +606,13 @@ pub(crate) fn fit_transform(
 /// shared by every point), picks the largest round scale at which the linkage and all
 /// curves fit in the frame, then dashes every curve with a chord tolerance of
 /// `setup.chord_tolerance_px` pixels at that scale.
-pub fn compute_page(page: &LinkagePage, setup: &PageSetup) -> Result<PageGeometry, LayoutError> {
+pub fn compute_page<M: Mechanism>(
+    page: &LinkagePage<M>,
+    setup: &PageSetup,
+) -> Result<PageGeometry, LayoutError> {
     setup.validate()?;
     let table = CrankTable::new(2.0).expect("valid step");
-    let poses = PoseTable::new(&page.linkage, page.circuit, &table);
+    let poses = page.linkage.pose_table(page.circuit, &table);
     let mut world = linkage_bbox(page);
     let mut curve = Curve::default();
     for p in &page.points {
@@ -893,20 +891,20 @@ pub(crate) fn start_marker(
     bbox
 }
 
-/// Draws the four-bar in `pose`: links stopping at the pin circles, the four pins, the
-/// ground symbols at O2 and O4; records the link strokes (and ground symbols) in
-/// `segments` for label placement. Returns O2, O4, Pa, Pb on the page.
+/// Draws a mechanism: its links stopping at the pin circles, its pins, the ground
+/// symbols at its ground pivots; records the link strokes (and ground symbols) in
+/// `segments` for label placement. Returns each joint on the page with its name.
 pub(crate) fn draw_links(
     dl: &mut DisplayList,
     t: &WorldToPage,
-    l: &FourBar,
-    pose: &Pose,
+    drawing: &Drawing,
     segments: &mut Vec<(PagePoint, PagePoint)>,
-) -> [PagePoint; 4] {
-    let o2 = t.map(0.0, 0.0);
-    let o4 = t.map(l.ground, 0.0);
-    let pa = t.map(pose.crank_pin.x, pose.crank_pin.y);
-    let pb = t.map(pose.rocker_pin.x, pose.rocker_pin.y);
+) -> Vec<(PagePoint, &'static str)> {
+    let pins: Vec<(PagePoint, &'static str)> = drawing
+        .joints
+        .iter()
+        .map(|j| (t.map(j.position.x, j.position.y), j.name))
+        .collect();
     let r = style::PIN_RADIUS;
     // Links stop at the pin circles (ink only: nothing is painted white).
     let mut link = |a: PagePoint, b: PagePoint, dl: &mut DisplayList| {
@@ -919,17 +917,19 @@ pub(crate) fn draw_links(
             segments.push((a2, b2));
         }
     };
-    link(o2, pa, dl);
-    link(pa, pb, dl);
-    link(o4, pb, dl);
-    for p in [o2, o4, pa, pb] {
-        dl.circle(p, r, Some(0.9));
+    for [a, b] in &drawing.links {
+        link(pins[*a].0, pins[*b].0, dl);
     }
-    for p in [o2, o4] {
-        ground_symbol(dl, p, r);
-        segments.push(([p[0] - 8.0, p[1] + r], [p[0] + 8.0, p[1] + 12.0]));
+    for (p, _) in &pins {
+        dl.circle(*p, r, Some(0.9));
     }
-    [o2, o4, pa, pb]
+    for (j, (p, _)) in drawing.joints.iter().zip(&pins) {
+        if j.ground {
+            ground_symbol(dl, *p, r);
+            segments.push(([p[0] - 8.0, p[1] + r], [p[0] + 8.0, p[1] + 12.0]));
+        }
+    }
+    pins
 }
 
 /// Small names beside pins (up and to the right); returns their boxes (labels avoid them).
@@ -991,30 +991,29 @@ pub(crate) fn header(
 }
 
 /// Lays out a linkage page from its computed geometry.
-pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetup) -> PageLayout {
+pub fn layout_page<M: Mechanism>(
+    page: &LinkagePage<M>,
+    geometry: &PageGeometry,
+    setup: &PageSetup,
+) -> PageLayout {
     let (w, h) = setup.size_pt();
     let mut dl = DisplayList::new(w, h);
     let t = geometry.transform;
     let frame = geometry.frame;
-    let l = page.linkage;
+    let l = &page.linkage;
 
     // Header.
-    let title = format!(
-        "A = {}   B = {}   C = {}",
-        fmt_num(l.coupler),
-        fmt_num(l.rocker),
-        fmt_num(l.ground)
-    );
-    let class = l.class();
+    let title = l
+        .dimensions()
+        .iter()
+        .map(|(name, x)| format!("{name} = {}", fmt_num(*x)))
+        .collect::<Vec<_>>()
+        .join("   ");
     let subtitle = format!(
-        "class {} ({})   {} circuit   crank = 1, coupler A, rocker B, ground C",
-        class.code(),
-        if l.is_crank_rocker() {
-            "crank-rocker"
-        } else {
-            "not a crank-rocker"
-        },
-        page.circuit.name()
+        "class {}   {} circuit   {}",
+        l.class_description(),
+        page.circuit.name(),
+        l.convention()
     );
     header(
         &mut dl,
@@ -1064,19 +1063,22 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
     let mut link_segments: Vec<(PagePoint, PagePoint)> = Vec::new();
     // Boxes of text already on the frame (pivot names): curve labels avoid them.
     let mut taken: Vec<[f64; 4]> = Vec::new();
-    if let Some(pose) = drawn_pose(page) {
-        let [o2, o4, pa, pb] = draw_links(&mut dl, &t, &l, &pose, &mut link_segments);
-        // Crank circle (path of Pa), thin.
-        let circle: Vec<PagePoint> = (0..=120)
-            .map(|k| {
-                let (s, c) = coupler_kinematics::sincos_deg(3.0 * k as f64);
-                t.map(c, s)
-            })
-            .collect();
-        dl.line(circle, style::THIN);
+    let drawing = drawn(page);
+    if let Some(pose) = drawing.coupler {
+        let pins = draw_links(&mut dl, &t, &drawing, &mut link_segments);
+        // Crank circles (paths of the crank pins), thin.
+        for (c, r) in &drawing.paths {
+            let circle: Vec<PagePoint> = (0..=120)
+                .map(|k| {
+                    let (s, co) = coupler_kinematics::sincos_deg(3.0 * k as f64);
+                    t.map(c.x + r * co, c.y + r * s)
+                })
+                .collect();
+            dl.line(circle, style::THIN);
+        }
         // The coupler plate: the outline of the grid's extent in the coupler frame.
         if !page.grid.is_empty() {
-            let (mut u0, mut v0, mut u1, mut v1) = (0.0f64, 0.0f64, page.linkage.coupler, 0.0f64);
+            let (mut u0, mut v0, mut u1, mut v1) = (0.0f64, 0.0f64, l.coupler_length(), 0.0f64);
             for q in &page.grid {
                 (u0, v0, u1, v1) = (u0.min(q.u), v0.min(q.v), u1.max(q.u), v1.max(q.v));
             }
@@ -1108,10 +1110,7 @@ pub fn layout_page(page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetu
                 occ.mark_point(p, 2);
             }
         }
-        taken.extend(pivot_labels(
-            &mut dl,
-            [(o2, "O2"), (o4, "O4"), (pa, "Pa"), (pb, "Pb")],
-        ));
+        taken.extend(pivot_labels(&mut dl, pins));
     }
     for (a, b) in &link_segments {
         occ.mark_segment(*a, *b, 4);
@@ -1212,7 +1211,12 @@ fn ground_symbol(dl: &mut DisplayList, p: PagePoint, r: f64) {
 
 /// Legend and footer: dash meaning, θ = 0 mark, crank sense, circuit, scale bar,
 /// generation settings.
-fn legend(dl: &mut DisplayList, page: &LinkagePage, geometry: &PageGeometry, setup: &PageSetup) {
+fn legend<M: Mechanism>(
+    dl: &mut DisplayList,
+    page: &LinkagePage<M>,
+    geometry: &PageGeometry,
+    setup: &PageSetup,
+) {
     let m = setup.margin_pt;
     let ts = style::SMALL_SIZE;
     let unit = 12.0;
@@ -1354,8 +1358,8 @@ pub fn footer_settings(setup: &PageSetup) -> String {
 /// One line of the contents: a linkage and the pages it occupies.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ContentsEntry {
-    /// The linkage.
-    pub linkage: FourBar,
+    /// The mechanism.
+    pub linkage: Linkage,
     /// Its circuit.
     pub circuit: Circuit,
     /// Number of coupler points (curves).
@@ -1401,31 +1405,28 @@ pub fn layout_contents(entries: &[ContentsEntry], setup: &PageSetup) -> Vec<Disp
             let (c, r) = (i / rows, i % rows);
             let x = m + c as f64 * col_w;
             let y = top + r as f64 * row;
+            // The mechanism's dimensions, then circuit, curves and pages.
+            let dims = e.linkage.dimensions();
             if r == 0 {
-                for (dx, head) in CONTENTS_COLUMNS
+                let heads = dims
                     .iter()
-                    .zip(["A", "B", "C", "circuit", "curves", "pages"])
-                {
+                    .map(|(name, _)| *name)
+                    .chain(["circuit", "curves", "pages"]);
+                for (dx, head) in CONTENTS_COLUMNS.iter().zip(heads) {
                     dl.text([x + dx, top - row], style::SMALL_SIZE, Anchor::Start, head);
                 }
             }
-            let l = e.linkage;
-            let cells = [
-                (CONTENTS_COLUMNS[0], fmt_num(l.coupler)),
-                (CONTENTS_COLUMNS[1], fmt_num(l.rocker)),
-                (CONTENTS_COLUMNS[2], fmt_num(l.ground)),
-                (CONTENTS_COLUMNS[3], e.circuit.name().to_string()),
-                (CONTENTS_COLUMNS[4], e.curves.to_string()),
-                (
-                    CONTENTS_COLUMNS[5],
-                    if e.first_page == e.last_page {
-                        e.first_page.to_string()
-                    } else {
-                        format!("{}–{}", e.first_page, e.last_page)
-                    },
-                ),
-            ];
-            for (dx, s) in cells {
+            let pages = if e.first_page == e.last_page {
+                e.first_page.to_string()
+            } else {
+                format!("{}–{}", e.first_page, e.last_page)
+            };
+            let cells = dims.iter().map(|(_, v)| fmt_num(*v)).chain([
+                e.circuit.name().to_string(),
+                e.curves.to_string(),
+                pages,
+            ]);
+            for (dx, s) in CONTENTS_COLUMNS.iter().zip(cells) {
                 dl.text([x + dx, y], style::SMALL_SIZE, Anchor::Start, s);
             }
         }
@@ -1438,8 +1439,9 @@ pub fn layout_contents(entries: &[ContentsEntry], setup: &PageSetup) -> Vec<Disp
 #[cfg(test)]
 mod tests {
     use super::*;
+    use coupler_kinematics::{FourBar, Pose};
 
-    fn page() -> LinkagePage {
+    fn page() -> LinkagePage<FourBar> {
         let grid: Vec<CouplerPoint> = (0..4)
             .flat_map(|i| (0..3).map(move |j| CouplerPoint::new(i as f64, j as f64 - 1.0)))
             .collect();
@@ -1606,7 +1608,7 @@ mod tests {
     #[test]
     fn contents_paginates() {
         let e = ContentsEntry {
-            linkage: FourBar::new(3.0, 2.0, 3.0).unwrap(),
+            linkage: FourBar::new(3.0, 2.0, 3.0).unwrap().into(),
             circuit: Circuit::Open,
             curves: 40,
             first_page: 1,

@@ -8,7 +8,7 @@ use crate::{CurveList, FeatureSettings};
 use coupler_features::{NamedCurve, TraceMode};
 use coupler_kinematics::{
     Circuit, Class, CouplerPoint, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, DashPattern,
-    Decimal, FourBar, divides_turn,
+    Decimal, FourBar, Linkage, divides_turn,
 };
 use coupler_layout::{DPI_RANGE, Orientation, PaperSize};
 use serde::{Deserialize, Serialize};
@@ -867,7 +867,7 @@ impl Spec {
                     };
                     let class = l.class();
                     if class == Class::Gcrr {
-                        linkages.push(l);
+                        linkages.push(Linkage::FourBar(l));
                     } else {
                         *skipped.entry(class.code().to_string()).or_default() += 1;
                     }
@@ -882,7 +882,7 @@ impl Spec {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Enumeration {
     /// The strict crank-rockers, in atlas order.
-    pub linkages: Vec<FourBar>,
+    pub linkages: Vec<Linkage>,
     /// Combinations skipped because they are not strict crank-rockers, by Barker class.
     pub skipped: BTreeMap<String, u64>,
 }
@@ -984,7 +984,11 @@ mod tests {
         let curves = e.linkages.len() as u64 * spec.points.len() * spec.circuits.len() as u64;
         assert!(curves >= 7000, "{curves}");
         assert_eq!(e.linkages.len(), 175);
-        assert!(e.linkages.iter().all(|l| l.is_crank_rocker()));
+        assert!(
+            e.linkages
+                .iter()
+                .all(|l| l.four_bar().unwrap().is_crank_rocker())
+        );
     }
 
     #[test]
@@ -994,7 +998,11 @@ mod tests {
             .enumerate()
             .linkages
             .iter()
-            .map(|l| (l.coupler, l.rocker, l.ground))
+            .map(|l| {
+                l.four_bar()
+                    .map(|l| (l.coupler, l.rocker, l.ground))
+                    .unwrap()
+            })
             .collect();
         let mut want = Vec::new();
         for a in [2.0_f64, 3.0, 4.0] {
