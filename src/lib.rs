@@ -31,9 +31,9 @@ pub use coupler_index as index;
 pub use coupler_kinematics as kinematics;
 pub use coupler_layout as layout;
 pub use coupler_render as render;
-pub use coupler_spec as spec;
+pub use coupler_specs as spec;
 
 pub use coupler_features::*;
 pub use coupler_index::*;
 pub use coupler_kinematics::*;
-pub use coupler_spec::*;
+pub use coupler_specs::*;

@@ -20,7 +20,7 @@ use coupler_features::{ClassicCurve, NamedCurve, StraightMeasure};
 use coupler_index::PageRef;
 use coupler_kinematics::{Class, CouplerPoint, FourBar, InputRange};
 use coupler_layout::ClassicPage;
-use coupler_spec::{CurveList, Sampling};
+use coupler_specs::{CurveList, Sampling};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -264,7 +264,7 @@ mod tests {
             "e71d7df2e5221a3889568b19bfb50904"
         );
         let spec =
-            coupler_spec::Spec::parse(include_str!("../../../atlas-spec/quick.toml"), "quick")
+            coupler_specs::Spec::parse(include_str!("../../../atlas-spec/quick.toml"), "quick")
                 .unwrap();
         let mut opts = PageOptions::from_spec(&spec).unwrap();
         // As `generate atlas-spec/quick.toml --format png,svg` writes it.

@@ -8,7 +8,7 @@ use coupler_index::{IndexCurve, IndexSummary};
 use coupler_kinematics::{
     Circuit, CouplerPoint, CrankTable, CurveSummary, DashPattern, Linkage, Mechanism,
 };
-use coupler_spec::{Enumeration, Spec};
+use coupler_specs::{Enumeration, Spec};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 

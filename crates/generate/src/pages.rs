@@ -13,7 +13,7 @@ use coupler_layout::{
     layout_page,
 };
 use coupler_render::{PageFormat, RasterPage, SvgPage, draw};
-use coupler_spec::{PageSettings, Sampling, Spec};
+use coupler_specs::{PageSettings, Sampling, Spec};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;

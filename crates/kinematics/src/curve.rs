@@ -1,7 +1,7 @@
 //! Coupler curves: sampled positions and velocities of coupler points over a crank turn.
 
+use crate::frame::CouplerFrame;
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use crate::mechanism::CouplerFrame;
 use crate::pose::{CrankAngle, Pose, PoseCore, ToggleGaps};
 
 /// Evenly spaced crank angles `θ_k = k·step` for `k = 0 .. n`, `n = ⌈360/step⌉` (all

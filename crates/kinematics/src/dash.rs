@@ -10,8 +10,9 @@
 //! Pure: no I/O, no global state. A renderer only strokes what comes out of here.
 
 use crate::exact::divides_turn;
+use crate::frame::CouplerFrame;
 use crate::linkage::{Circuit, CouplerPoint};
-use crate::mechanism::{CouplerFrame, Mechanism};
+use crate::mechanism::Mechanism;
 use crate::pose::CrankAngle;
 use nalgebra::{Point2, Vector2};
 

@@ -18,6 +18,7 @@ mod curve;
 mod dash;
 mod dd;
 mod exact;
+mod frame;
 mod linkage;
 mod mechanism;
 mod pose;
@@ -31,8 +32,9 @@ pub use dash::{
 };
 pub use dd::Dd;
 pub use exact::{Decimal, DecimalError, divides_turn};
+pub use frame::{CouplerFrame, Drawing, Joint};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use mechanism::{CouplerFrame, Drawing, Joint, Linkage, LinkageClass, Mechanism};
+pub use mechanism::{Linkage, LinkageClass, Mechanism};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
 pub use trace::{
     Branch, FullCurve, InputRange, Toggle, ToggleKind, TraceSample, circle_intersections,

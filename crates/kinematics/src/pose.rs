@@ -1,7 +1,7 @@
 //! Closed-form position and velocity of the four-bar at one crank angle.
 
+use crate::frame::CouplerFrame;
 use crate::linkage::{Circuit, CouplerPoint, FourBar};
-use crate::mechanism::CouplerFrame;
 use nalgebra::{Point2, Vector2};
 
 /// A crank angle θ in degrees, with its sine and cosine (crank pin Pa = (cos θ, sin θ)).

@@ -731,7 +731,7 @@ pub fn stability(out: Option<&Path>) -> Result<ExitCode> {
 /// (on any branch of the full curve) moving one way with ε_S below each tolerance.
 pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
     use coupler_features::{ClassicCurve, STRAIGHTNESS_TOLERANCES};
-    use coupler_spec::CurveList;
+    use coupler_specs::CurveList;
     let text =
         std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
     let list =

@@ -4,12 +4,11 @@
 //!
 //! The format is documented in `docs/spec-format.md`.
 
-use crate::{CurveList, FeatureSettings};
+use crate::curves::CurveList;
+use crate::features::FeatureSettings;
+use crate::settings::{PageSettings, Sampling};
 use coupler_features::{NamedCurve, TraceMode};
-use coupler_kinematics::{
-    Circuit, Class, CouplerPoint, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, DashPattern,
-    Decimal, FourBar, Linkage, divides_turn,
-};
+use coupler_kinematics::{Circuit, Class, CouplerPoint, Decimal, FourBar, Linkage, divides_turn};
 use coupler_layout::{DPI_RANGE, Orientation, PaperSize};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -203,66 +202,6 @@ impl PointGrid {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-}
-
-/// Sampling of the crank revolution.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Sampling {
-    /// Crank step for the index's measures, degrees (divides 360).
-    pub crank_step_deg: f64,
-    /// Crank angle per dash, degrees (divides 360; [`DEFAULT_DASH_STEP_DEG`] by default,
-    /// 5 as in 1951): the dashes the pages draw and the index counts.
-    pub dash_deg: f64,
-}
-
-impl Sampling {
-    /// The defaults: 1° steps, [`DEFAULT_DASH_STEP_DEG`] per dash.
-    pub const DEFAULT: Sampling = Sampling {
-        crank_step_deg: 1.0,
-        dash_deg: DEFAULT_DASH_STEP_DEG,
-    };
-
-    /// The dash pattern of the pages and of the index's dash counts: one dash per
-    /// `dash_deg`, [`DEFAULT_DASH_FRACTION`] of it drawn.
-    pub fn dash_pattern(&self) -> DashPattern {
-        DashPattern {
-            step_deg: self.dash_deg,
-            fraction: DEFAULT_DASH_FRACTION,
-        }
-    }
-}
-
-/// Page settings.
-#[derive(Clone, PartialEq, Serialize)]
-pub struct PageSettings {
-    /// Curves per page.
-    pub curves_per_page: u32,
-    /// Paper (written by name: `tabloid`, `letter`, `a4`, `a3`).
-    #[serde(serialize_with = "by_name")]
-    pub size: PaperSize,
-    /// Portrait or landscape (written by name).
-    #[serde(serialize_with = "by_name")]
-    pub orientation: Orientation,
-    /// Raster resolution, dots per inch (in [`DPI_RANGE`]).
-    pub dpi: u32,
-}
-
-/// Paper and orientation by name (`size: "tabloid"`), as the manifest's run key of a
-/// page set has printed them (it hashes the page set's `Debug` text): a run resumed over
-/// an older run's output keeps its key.
-impl std::fmt::Debug for PageSettings {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PageSettings")
-            .field("curves_per_page", &self.curves_per_page)
-            .field("size", &self.size.name())
-            .field("orientation", &self.orientation.name())
-            .field("dpi", &self.dpi)
-            .finish()
-    }
-}
-
-fn by_name<T: std::fmt::Display, S: serde::Serializer>(x: &T, s: S) -> Result<S::Ok, S::Error> {
-    s.collect_str(x)
 }
 
 // ---- raw TOML shape -------------------------------------------------------------------
@@ -581,6 +520,29 @@ impl AtlasSpec {
                     format!("missing field `{missing}` (a spec needs [linkages] and [points], or a list of [[curve]] entries)"),
                 ))
             }
+        }
+    }
+}
+
+impl CurveList {
+    /// Parses and validates a full-curve page set.
+    ///
+    /// ```
+    /// let text = include_str!("../../../atlas-spec/classics.toml");
+    /// let list = coupler_specs::CurveList::parse(text, "classics.toml").unwrap();
+    /// assert_eq!(list.curves.len(), 5);
+    /// ```
+    pub fn parse(text: &str, source_name: &str) -> Result<CurveList, SpecError> {
+        match AtlasSpec::parse(text, source_name)? {
+            AtlasSpec::Curves(list) => Ok(list),
+            AtlasSpec::Grid(_) => Err(SpecError {
+                source_name: source_name.to_string(),
+                line: 1,
+                column: 1,
+                key: Some("curve".into()),
+                message: "this spec is a grid ([linkages] and [points]); a list of [[curve]] entries is needed here".into(),
+                snippet: None,
+            }),
         }
     }
 }
@@ -1114,5 +1076,82 @@ mod tests {
 
         let e = err(&format!("{GOOD}[plots]\nx = 1\n"));
         assert_eq!((e.line, e.key.as_deref()), (10, Some("plots")), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod curve_list_tests {
+    use super::*;
+    use coupler_features::ClassicCurve;
+
+    fn parse(text: &str) -> Result<CurveList, SpecError> {
+        CurveList::parse(text, "t.toml")
+    }
+
+    const BASE: &str = "[atlas]\nname = \"x\"\n[[curve]]\nname = \"a\"\ncoupler = 1.0\nrocker = 1.0\nground = 1.5\nu = 0.0\nv = 0.0\n";
+
+    #[test]
+    fn rejects_bad_entries_with_their_line_and_key() {
+        assert!(parse(BASE).is_ok());
+        let e = parse(&BASE.replace("coupler = 1.0", "coupler = -1.0")).unwrap_err();
+        assert_eq!(
+            (e.line, e.key.as_deref()),
+            (5, Some("curve.coupler")),
+            "{e}"
+        );
+        let e = parse(&format!("{BASE}trace = \"sideways\"\n")).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("curve.trace"), "{e}");
+        let e = parse(&format!("{BASE}colour = 3\n")).unwrap_err();
+        assert!(e.message.contains("unknown field"), "{e}");
+        assert!(parse("[atlas]\nname = \"x\"\ncurve = []\n").is_err());
+        let e = parse(&format!("{BASE}[[curve]]\nname = \"a\"\ncoupler = 1.0\nrocker = 1.0\nground = 1.5\nu = 0.0\nv = 0.0\n")).unwrap_err();
+        assert!(e.message.contains("earlier"), "{e}");
+        // A triple rocker cannot be traced on one circuit over a full turn.
+        let e = parse(&format!("{BASE}trace = \"open\"\n")).unwrap_err();
+        assert!(e.message.contains("cannot turn fully"), "{e}");
+        let e = parse(&format!("[pages]\ncurves_per_page = 4\n{BASE}")).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("pages.curves_per_page"), "{e}");
+        // Grid and list together.
+        let e = parse(&format!("{BASE}[linkages]\ncoupler = {{ start = 1, end = 1, step = 1 }}\nrocker = {{ start = 1, end = 1, step = 1 }}\nground = {{ start = 1, end = 1, step = 1 }}\n")).unwrap_err();
+        assert!(e.message.contains("not both"), "{e}");
+        // A grid spec is not a curve list, and a curve list is not a grid spec.
+        assert!(parse(include_str!("../../../atlas-spec/quick.toml")).is_err());
+        let e = crate::Spec::parse(BASE, "t.toml").unwrap_err();
+        assert!(e.message.contains("[[curve]]"), "{e}");
+    }
+
+    /// The shipped page set's measures: Hoeken's straight run at 1 % spans θ = 180° on
+    /// the open circuit (docs/conventions.md §7), and every classic has one at each tolerance,
+    /// longer at looser tolerances.
+    #[test]
+    fn classics_measure_their_straight_runs() {
+        let list =
+            CurveList::parse(include_str!("../../../atlas-spec/classics.toml"), "c").unwrap();
+        for c in &list.curves {
+            let m = ClassicCurve::compute(c, list.sampling.crank_step_deg);
+            let spans: Vec<f64> = m
+                .straight
+                .iter()
+                .map(|s| s.expect("a straight run").input_span_deg)
+                .collect();
+            assert!(
+                spans[0] > spans[1] && spans[1] > spans[2],
+                "{}: {spans:?}",
+                c.name
+            );
+            for s in m.straight.iter().flatten() {
+                assert!(s.straightness <= s.tolerance, "{}", c.name);
+            }
+            if c.name == "Hoeken" {
+                // The straight part spans θ = 180° on the open circuit (docs/conventions.md §7).
+                let s = m.straight[0].unwrap();
+                let b = &m.branches[s.branch];
+                assert_eq!(
+                    b.samples[s.samples[0]].circuit,
+                    coupler_kinematics::Circuit::Open
+                );
+                assert!(s.input_deg[0] < 180.0 && 180.0 < s.input_deg[1], "{s:?}");
+            }
+        }
     }
 }

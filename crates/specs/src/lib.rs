@@ -1,4 +1,4 @@
-//! # coupler-spec
+//! # coupler-specs
 //!
 //! Atlas specs: TOML files that say which linkages, coupler points, circuits, sampling
 //! and pages make an atlas (`docs/spec-format.md`), or list named curves for a full-curve
@@ -7,11 +7,13 @@
 
 mod curves;
 mod features;
+mod settings;
 mod spec;
 
 pub use curves::CurveList;
 pub use features::FeatureSettings;
+pub use settings::{PageSettings, Sampling};
 pub use spec::{
     AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
-    MAX_RANGE_VALUES, PageSettings, PointGrid, Sampling, Spec, SpecError,
+    MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
 };
