@@ -79,17 +79,20 @@ pub struct PoseTable {
 }
 
 impl PoseTable {
-    /// Solves the pose once per angle (the equations of [`Pose::solve`]).
-    pub fn new(linkage: &FourBar, circuit: Circuit, table: &CrankTable) -> PoseTable {
-        let n = table.len();
-        let mut t = PoseTable {
+    fn with_capacity(n: usize) -> PoseTable {
+        PoseTable {
             pa_x: Vec::with_capacity(n),
             pa_y: Vec::with_capacity(n),
             e_x: Vec::with_capacity(n),
             e_y: Vec::with_capacity(n),
             omega: Vec::with_capacity(n),
             valid: Vec::with_capacity(n),
-        };
+        }
+    }
+
+    /// Solves the pose once per angle (the equations of [`Pose::solve`]).
+    pub fn new(linkage: &FourBar, circuit: Circuit, table: &CrankTable) -> PoseTable {
+        let mut t = PoseTable::with_capacity(table.len());
         let gaps = ToggleGaps::of(linkage);
         for angle in table.angles() {
             let core = PoseCore::solve(linkage, &gaps, circuit, angle);
@@ -119,15 +122,7 @@ impl PoseTable {
         table: &CrankTable,
         mut frame: impl FnMut(&CrankAngle) -> Option<CouplerFrame>,
     ) -> PoseTable {
-        let n = table.len();
-        let mut t = PoseTable {
-            pa_x: Vec::with_capacity(n),
-            pa_y: Vec::with_capacity(n),
-            e_x: Vec::with_capacity(n),
-            e_y: Vec::with_capacity(n),
-            omega: Vec::with_capacity(n),
-            valid: Vec::with_capacity(n),
-        };
+        let mut t = PoseTable::with_capacity(table.len());
         for angle in table.angles() {
             let f = frame(angle);
             debug_assert!(f.is_none_or(|f| f.origin.x == angle.cos && f.origin.y == angle.sin));
