@@ -124,11 +124,11 @@ impl std::str::FromStr for PaperSize {
     /// `a4`, `a3`.
     fn from_str(s: &str) -> Result<PaperSize, LayoutError> {
         match s.trim().to_ascii_lowercase().as_str() {
-            "tabloid" | "ledger" | "11x17" => Ok(PaperSize::Tabloid),
-            "letter" => Ok(PaperSize::Letter),
-            "a4" => Ok(PaperSize::A4),
-            "a3" => Ok(PaperSize::A3),
-            _ => Err(LayoutError::UnknownPageSize(s.to_string())),
+            "ledger" | "11x17" => Ok(PaperSize::Tabloid),
+            name => PaperSize::ALL
+                .into_iter()
+                .find(|p| p.name() == name)
+                .ok_or_else(|| LayoutError::UnknownPageSize(s.to_string())),
         }
     }
 }
