@@ -4,55 +4,39 @@
 //! linkages and coupler points from an atlas spec, compute every coupler curve, render
 //! printable pages, index the curves with measured features, and search them.
 //!
+//! This crate is the `coupler-atlas` command line and a thin facade over the layers it is
+//! built from (as lyon's meta-crate is), so that one `use coupler_atlas::…` reaches them
+//! all. Each layer is a crate of its own, and Cargo enforces that imports only run down:
+//!
+//! - [`kinematics`] (pure): exact decimals, [`FourBar`] and Barker's classes, [`Pose`],
+//!   [`PoseTable`] and [`Curve`], full curves across toggles, cognates, dash intervals;
+//! - [`features`] (pure): straight segments, pseudo-arcs, double points, symmetry, crank
+//!   windows, curve flags, the classics' straight runs, dwell design;
+//! - [`layout`] (pure): paper, display lists, labels, text metrics, the pages;
+//! - [`shape`] (pure): shape search: targets, shape codes, exact fits, placement,
+//!   refinement;
+//! - [`render`]: PNG, SVG and PDF of a display list, page diffs;
+//! - [`index`]: the JSON index, search and its cache;
+//! - [`spec`]: atlas specs (TOML);
+//! - [`generate`]: the job (chunks, resume, shards, merge, page rendering).
+//!
 //! Conventions (a contract, see `docs/conventions.md`): crank = 1, coupler `A`, rocker
 //! `B`, ground `C`; O2 = (0, 0), O4 = (C, 0); θ counter-clockwise from +x; coupler point
 //! `M = Pa + u·e + v·J·e`.
 //!
-//! The pure core ([`FourBar`], [`Pose`], [`PoseTable`], [`Curve`]) does no I/O and holds
-//! no global state; orchestration ([`generate`]) and the command line sit on top.
+//! The items of the pure layers and of the index and spec are also re-exported here,
+//! flat.
 
-pub mod classics;
-mod cognates;
-mod curve;
-mod dash;
-pub mod diff;
-pub mod dwell;
-mod exact;
-pub mod generate;
-pub mod index;
-pub mod layout;
-mod linkage;
-pub mod methods;
-mod pose;
-pub mod render;
-mod spec;
-mod window;
+pub use coupler_features as features;
+pub use coupler_generate as generate;
+pub use coupler_index as index;
+pub use coupler_kinematics as kinematics;
+pub use coupler_layout as layout;
+pub use coupler_render as render;
+pub use coupler_shape as shape;
+pub use coupler_specs as spec;
 
-pub mod features;
-pub mod search;
-pub mod shape;
-
-pub mod reference;
-pub mod trace;
-
-pub use cognates::{Cognate, CognateError, cognates};
-pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
-pub use dash::{
-    DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
-    DashPattern, DashedCurve, dash_curve, dash_leg, distance_to_segment,
-};
-pub use exact::{Decimal, DecimalError};
-pub use features::{
-    CurveFeatures, FeatureExtractor, FeatureTolerances, PseudoArc, Side, StraightSegment, Symmetry,
-};
-pub use index::{Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION};
-pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
-pub use spec::{
-    AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
-    PAGE_SIZES, PageSettings, PointGrid, Sampling, Spec, SpecError,
-};
-pub use window::{
-    CrankWindow, DEFAULT_WINDOW_STEP_DEG, LineDirection, LineMeasures, WindowError, WindowMeasures,
-    WindowSamples, arc_deviation_pct,
-};
+pub use coupler_features::*;
+pub use coupler_index::*;
+pub use coupler_kinematics::*;
+pub use coupler_specs::*;

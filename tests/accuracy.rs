@@ -3,8 +3,8 @@
 //! 1e-9 of a change point, including crank angles right around the fold. Each test
 //! prints its measured maximum (`cargo test --test accuracy -- --nocapture`).
 
-use coupler_atlas::methods::{ClosedForm, measure, uniform_angles};
 use coupler_atlas::{Circuit, CouplerPoint, FourBar};
+use coupler_lab::{ClosedForm, measure, uniform_angles};
 
 /// Target on ordinary linkages, crank lengths, for |u|, |v| ≤ 3.
 const ORDINARY: f64 = 1e-14;

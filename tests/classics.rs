@@ -2,7 +2,7 @@
 //! one page per classic straight-line linkage, traced in full across its toggles, and
 //! writes `curves.json` with the measured straightness and where each curve is drawn.
 
-use coupler_atlas::classics::{ClassicCurve, CurveList};
+use coupler_atlas::{ClassicCurve, CurveList};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -3,18 +3,18 @@
 //! property tests whose generators like nearly equal lengths. Failures found are frozen as
 //! named regression tests at the end.
 
-use coupler_atlas::methods::{
-    ClosedForm, CurveFlag, CurveFlags, FlagTolerances, Newton, PositionMethod, angle_for_d,
-    measure, uniform_angles,
+use coupler_atlas::{
+    Circuit, CouplerPoint, CrankAngle, CurveFlag, CurveFlags, FlagTolerances, FourBar, InputRange,
+    Pose, ToggleGaps, input_range, trace_full,
 };
-use coupler_atlas::reference::coupler_point_dd;
-use coupler_atlas::trace::{InputRange, input_range, trace_full};
-use coupler_atlas::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose, ToggleGaps};
+use coupler_lab::{
+    ClosedForm, Newton, PositionMethod, angle_for_d, coupler_point_dd, measure, uniform_angles,
+};
 use proptest::prelude::*;
 
 const DELTAS: [f64; 3] = [1e-6, 1e-9, 1e-12];
 
-/// The circuit the rocker pin is actually on: sign of (O4 − Pa) × (Pb − Pa) (domain.md §1),
+/// The circuit the rocker pin is actually on: sign of (O4 − Pa) × (Pb − Pa) (docs/conventions.md §1),
 /// 0 when flat.
 fn side(l: &FourBar, pose: &Pose) -> f64 {
     let w = nalgebra::Vector2::new(l.ground - pose.crank_pin.x, -pose.crank_pin.y);

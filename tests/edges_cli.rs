@@ -96,21 +96,3 @@ fn curve_json_carries_flags() {
     ]));
     assert_eq!(v["flags"], serde_json::json!([]));
 }
-
-#[test]
-fn bench_stability_passes_and_classics_measure() {
-    let out = run(&["bench", "stability"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    let t = String::from_utf8_lossy(&out.stdout);
-    assert!(t.contains("no NaN, no circuit jump"), "{t}");
-    let out = run(&["bench", "classics"]);
-    assert!(out.status.success());
-    let t = String::from_utf8_lossy(&out.stdout);
-    for name in ["Hoeken", "Chebyshev", "Watt", "Roberts", "Evans"] {
-        assert!(t.contains(&format!("| {name} |")), "{t}");
-    }
-}

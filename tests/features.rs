@@ -1,18 +1,23 @@
-//! Feature extraction against exact cases (domain.md §5, §7).
+//! Feature extraction against exact cases (docs/conventions.md §5, §7).
 
 use coupler_atlas::{
-    Circuit, CouplerPoint, CurveFeatures, FeatureExtractor, FeatureTolerances, FourBar, Side,
-    cognates,
+    Circuit, CouplerPoint, CurveFeatures, DashPattern, FeatureExtractor, FeatureTolerances,
+    FourBar, Side, cognates,
 };
 
 fn features(a: f64, b: f64, c: f64, u: f64, v: f64, circuit: Circuit) -> CurveFeatures {
     let l = FourBar::new(a, b, c).unwrap();
-    FeatureExtractor::new(&l, circuit, &FeatureTolerances::DEFAULT)
-        .unwrap()
-        .extract(CouplerPoint::new(u, v))
+    FeatureExtractor::new(
+        &l,
+        circuit,
+        &FeatureTolerances::DEFAULT,
+        &DashPattern::default(),
+    )
+    .unwrap()
+    .extract(CouplerPoint::new(u, v))
 }
 
-/// Hoeken (domain.md §7): a long straight segment around θ = 180°, within tolerance.
+/// Hoeken (docs/conventions.md §7): a long straight segment around θ = 180°, within tolerance.
 #[test]
 fn hoeken_has_a_straight_segment_around_180() {
     let f = features(2.5, 2.5, 2.0, 5.0, 0.0, Circuit::Open);
@@ -71,7 +76,7 @@ fn crank_pin_is_the_unit_circle() {
     assert!(f.cognates.is_empty()); // degenerate point: no cognates
 }
 
-/// domain.md §5: A = B and M on the circle centred at Pb through Pa,
+/// docs/conventions.md §5: A = B and M on the circle centred at Pb through Pa,
 /// (u − A)² + v² = A², give a curve symmetric about an axis through O4.
 #[test]
 fn symmetric_curves_are_detected() {
@@ -127,7 +132,7 @@ fn known_crunode_at_o4() {
 }
 
 /// Crunodes lie on the circle of foci through O2, O4 and O_C = C·(u + iv)/A
-/// (Hartenberg & Denavit §6.5; domain.md §5): checked on every crossing of a grid.
+/// (Hartenberg & Denavit §6.5; docs/conventions.md §5): checked on every crossing of a grid.
 #[test]
 fn crunodes_lie_on_the_circle_of_foci() {
     let mut checked = 0;
@@ -205,7 +210,7 @@ fn feature_cost_per_curve() {
     ] {
         for circuit in [Circuit::Open, Circuit::Crossed] {
             let l = FourBar::new(a, b, c).unwrap();
-            let mut x = FeatureExtractor::new(&l, circuit, &tol).unwrap();
+            let mut x = FeatureExtractor::new(&l, circuit, &tol, &DashPattern::default()).unwrap();
             for iu in -4..=12 {
                 for iv in -6..=6 {
                     std::hint::black_box(
@@ -253,10 +258,10 @@ fn feature_cost_breakdown() {
                 let curve = poses.trace(p);
                 n += 1;
                 let t = std::time::Instant::now();
-                std::hint::black_box(straight_segments(&curve, &tol));
+                std::hint::black_box(straight_segments(&curve, &tol, &DashPattern::default()));
                 times[0] += t.elapsed().as_secs_f64();
                 let t = std::time::Instant::now();
-                std::hint::black_box(pseudo_arcs(&curve, &tol));
+                std::hint::black_box(pseudo_arcs(&curve, &tol, &DashPattern::default()));
                 times[1] += t.elapsed().as_secs_f64();
                 let t = std::time::Instant::now();
                 std::hint::black_box(crunodes(&l, Circuit::Open, p, &curve, &tol));

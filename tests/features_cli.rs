@@ -16,7 +16,7 @@ fn run_json(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
-/// Norton Table 3-1 (domain.md §8) through the command line, to the printed digits.
+/// Norton Table 3-1 (docs/conventions.md §8) through the command line, to the printed digits.
 #[test]
 fn curve_window_reproduces_norton() {
     let rows = [

@@ -14,8 +14,8 @@
 
 #![allow(clippy::needless_range_loop)] // pixel rows and columns read best as indices
 
-use coupler_atlas::diff;
 use coupler_atlas::layout::{Anchor, PagePoint};
+use coupler_atlas::render as diff;
 use coupler_atlas::render::{Canvas, RasterPage, SvgPage};
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -2,10 +2,10 @@
 //! sextic, a double-double reference, the mirror identity, loop closure; and near the
 //! edge (change points, toggles) with property tests that like nearly equal lengths.
 
-use coupler_atlas::reference::coupler_point_dd;
 use coupler_atlas::{
     Circuit, CouplerPoint, CrankAngle, CrankTable, FourBar, Pose, PoseTable, Spec,
 };
+use coupler_lab::coupler_point_dd;
 use proptest::prelude::*;
 
 /// The implicit coupler curve (Hartenberg & Denavit §6.1, derived here by elimination):
@@ -41,7 +41,12 @@ fn sextic_residual(l: &FourBar, p: CouplerPoint, x: f64, y: f64) -> (f64, f64) {
 }
 
 fn default_atlas_linkages() -> Vec<FourBar> {
-    Spec::default_atlas().enumerate().linkages
+    Spec::default_atlas()
+        .enumerate()
+        .linkages
+        .iter()
+        .filter_map(|l| l.four_bar().copied())
+        .collect()
 }
 
 #[test]
@@ -142,7 +147,7 @@ fn positions_agree_with_double_double_near_a_change_point() {
 #[test]
 fn mirror_identity_holds_to_the_bit() {
     // Reflecting in the ground line maps the open curve of (u, v) at θ onto the crossed
-    // curve of (u, −v) at −θ (domain.md §1).
+    // curve of (u, −v) at −θ (docs/conventions.md §1).
     for l in default_atlas_linkages().into_iter().step_by(7) {
         for (u, v) in [(1.0, 0.7), (-0.5, -1.3), (l.coupler, 0.0)] {
             for k in 0..36 {
@@ -192,7 +197,7 @@ fn open_circuit_puts_rocker_pin_left_of_pa_to_o4() {
             }
         }
     }
-    // domain.md §1's example: A = B = C = 3 at θ = 90°, open puts Pb above the ground line.
+    // docs/conventions.md §1's example: A = B = C = 3 at θ = 90°, open puts Pb above the ground line.
     let l = FourBar::new(3.0, 3.0, 3.0).unwrap();
     let p = Pose::solve(&l, Circuit::Open, &CrankAngle::from_degrees(90.0)).unwrap();
     assert!(p.rocker_pin.y > 0.0);
@@ -307,11 +312,11 @@ proptest! {
 }
 
 trait IntoDd {
-    fn into_dd(self) -> coupler_atlas::reference::Dd;
+    fn into_dd(self) -> coupler_atlas::Dd;
 }
 
 impl IntoDd for f64 {
-    fn into_dd(self) -> coupler_atlas::reference::Dd {
-        coupler_atlas::reference::Dd::from_f64(self)
+    fn into_dd(self) -> coupler_atlas::Dd {
+        coupler_atlas::Dd::from_f64(self)
     }
 }

@@ -1,8 +1,8 @@
 //! `search`: every result satisfies its filters according to the index itself, no curve
 //! that satisfies them is missed, and the Hoeken linkage is found by `--straight`.
 
-use coupler_atlas::search::{Query, SearchTable, SortKey, SpanFilter};
-use coupler_atlas::{Circuit, Class, IndexCurve};
+use coupler_atlas::{Circuit, Class, IndexCurve, LinkageClass};
+use coupler_atlas::{Query, SearchTable, SortKey, SpanFilter};
 use proptest::prelude::*;
 use std::path::PathBuf;
 use std::process::Command;
@@ -98,9 +98,10 @@ fn satisfies(c: &IndexCurve, q: &Query) -> bool {
     ok &= q.circuit.is_none_or(|k| k == c.circuit);
     ok &= q.symmetric <= f.symmetry.is_some();
     if let Some(l) = q.linkage {
-        ok &= (c.linkage.coupler - l[0]).abs() <= 1e-9
-            && (c.linkage.rocker - l[1]).abs() <= 1e-9
-            && (c.linkage.ground - l[2]).abs() <= 1e-9;
+        let c = c.linkage.four_bar().expect("a four-bar atlas");
+        ok &= (c.coupler - l[0]).abs() <= 1e-9
+            && (c.rocker - l[1]).abs() <= 1e-9
+            && (c.ground - l[2]).abs() <= 1e-9;
     }
     ok
 }
@@ -143,7 +144,7 @@ fn query() -> impl Strategy<Value = Query> {
                 double_dwell,
                 radius_tol_pct: 2.0,
                 min_transmission_deg: mt,
-                class,
+                class: class.map(LinkageClass::from),
                 linkage,
                 circuit,
                 symmetric,
@@ -175,7 +176,7 @@ fn cache_round_trip() {
     assert!(SearchTable::from_bytes(&bytes[..bytes.len() - 1], [1, 2]).is_err());
 }
 
-/// domain.md §7: `search --straight` finds the Hoeken linkage, point (5, 0).
+/// docs/conventions.md §7: `search --straight` finds the Hoeken linkage, point (5, 0).
 #[test]
 fn hoeken_is_found_by_straight() {
     let (index, _, _) = atlas();

@@ -3,11 +3,11 @@
 //! refinement off the atlas grid, and the classic straight-line curves as targets.
 
 use coupler_atlas::generate::Job;
-use coupler_atlas::shape::geom::{C64, cis, diameter};
 use coupler_atlas::shape::{
     AtlasCurve, CouplerCurve, FitOptions, Match, MatchOptions, ShapeCode, Target, Timing,
     find_matches, fit_curve, refine,
 };
+use coupler_atlas::shape::{C64, cis, diameter};
 use coupler_atlas::{Circuit, CouplerPoint, FourBar, Spec};
 use rayon::prelude::*;
 
@@ -20,7 +20,7 @@ fn default_atlas() -> (Vec<AtlasCurve>, Vec<ShapeCode>) {
             curves.push(AtlasCurve {
                 id: g.first_id + k as u64,
                 curve: CouplerCurve {
-                    linkage: g.linkage,
+                    linkage: *g.linkage.four_bar().expect("a four-bar atlas"),
                     circuit: g.circuit,
                     point: p,
                 },
@@ -275,9 +275,9 @@ fn placement_reproduces_the_target() {
 /// cross themselves.
 #[test]
 fn classics_find_their_families() {
-    use coupler_atlas::classics::CurveList;
-    use coupler_atlas::trace::trace_full;
-    use coupler_atlas::{FeatureExtractor, FeatureTolerances};
+    use coupler_atlas::CurveList;
+    use coupler_atlas::trace_full;
+    use coupler_atlas::{DashPattern, FeatureExtractor, FeatureTolerances};
     let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "classics").unwrap();
     let (curves, codes) = default_atlas();
     let features = |m: &Match| {
@@ -285,6 +285,7 @@ fn classics_find_their_families() {
             &m.curve.linkage,
             m.curve.circuit,
             &FeatureTolerances::DEFAULT,
+            &DashPattern::default(),
         )
         .unwrap()
         .extract(m.curve.point)

@@ -1,8 +1,11 @@
-//! `coupler-atlas bench …`: benchmarks that print a markdown report (machine, date,
-//! medians) for `docs/benchmarks.md`. Speed targets live here, not in timed tests.
+//! `coupler-atlas bench core|pages`: benchmarks of the product that print a markdown
+//! report (machine, date, medians) for `docs/benchmarks.md`. Speed targets live here, not
+//! in timed tests. The position-method benchmarks and charts are the lab's
+//! (`cargo run --release -p coupler-lab -- methods|stability|classics|adaptive`).
 
 use anyhow::Result;
-use coupler_atlas::{Circuit, CrankTable, Curve, FourBar, PoseTable, Spec, generate};
+use coupler_atlas::generate::{self, machine, median, thread_cpu_seconds};
+use coupler_atlas::{Circuit, CrankTable, Curve, FourBar, PoseTable, Spec};
 use std::hint::black_box;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -39,132 +42,24 @@ enum Which {
         #[arg(long)]
         out: Option<std::path::PathBuf>,
     },
-    /// Position methods charted: time per curve against max error, and feature accuracy
-    /// against samples per dash (PNG charts, CSV tables, markdown; docs/methods.md).
-    Methods {
-        /// Output folder.
-        #[arg(long, default_value = "docs/methods")]
-        out: std::path::PathBuf,
-        /// Repetitions of each timing (the median is reported).
-        #[arg(long, default_value_t = 15)]
-        reps: usize,
-    },
-    /// Stability sweep: every method near change points, toggles, extreme ratios and far
-    /// coupler points, as a markdown table (also written to `<out>/stability.md`).
-    Stability {
-        /// Output folder for stability.md (none: print only).
-        #[arg(long)]
-        out: Option<std::path::PathBuf>,
-    },
-    /// Adaptive sampling against uniform sampling at equal chord-error tolerance.
-    Adaptive {
-        /// Output folder for adaptive.md (none: print only).
-        #[arg(long)]
-        out: Option<std::path::PathBuf>,
-        /// Repetitions of each timing (the median is reported).
-        #[arg(long, default_value_t = 5)]
-        reps: usize,
-    },
-    /// Measured straightness of the classic straight-line linkages (full curves).
-    Classics {
-        /// The explicit-curve spec.
-        #[arg(long, default_value = "atlas-spec/classics.toml")]
-        spec: std::path::PathBuf,
-        /// Output folder for classics.md (none: print only).
-        #[arg(long)]
-        out: Option<std::path::PathBuf>,
-    },
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
     match args.which {
         Which::Core { reps, atlas_reps } => core(reps.max(1), atlas_reps.max(1)),
         Which::Pages { jobs, reps, out } => pages(jobs.max(1), reps.max(1), out),
-        Which::Methods { out, reps } => super::bench_methods::methods(&out, reps.max(1)),
-        Which::Stability { out } => super::bench_methods::stability(out.as_deref()),
-        Which::Adaptive { out, reps } => {
-            super::bench_methods::adaptive(out.as_deref(), reps.max(1))
-        }
-        Which::Classics { spec, out } => super::bench_methods::classics(&spec, out.as_deref()),
-    }
-}
-
-/// The machine and date, for the report header.
-pub fn machine() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
-    let cores = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1);
-    let secs = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs())
-        .unwrap_or(0);
-    let (y, m, d) = civil_from_days((secs / 86_400) as i64);
-    format!(
-        "{cpu}, {cores} cores; {y:04}-{m:02}-{d:02}; coupler-atlas {} ({} build)",
-        env!("CARGO_PKG_VERSION"),
-        if cfg!(debug_assertions) {
-            "debug"
-        } else {
-            "release"
-        }
-    )
-}
-
-/// Days since 1970-01-01 to (year, month, day) (Howard Hinnant's algorithm).
-fn civil_from_days(z: i64) -> (i64, u32, u32) {
-    let z = z + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    (yoe + era * 400 + i64::from(m <= 2), m, d)
-}
-
-/// CPU time of the calling thread in seconds (user + system, from
-/// `/proc/thread-self/stat`, 10 ms ticks), or `None` where that is not available. Unlike
-/// wall time it excludes time the thread spent waiting for a core, so it measures the
-/// cost on one core even on a busy shared machine.
-pub fn thread_cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
-    // Fields after the command name (which is in parentheses and may hold spaces).
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    // utime and stime are fields 14 and 15 of the whole line: 11 and 12 after the name.
-    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
-}
-
-/// Median of timings in seconds.
-pub fn median(mut xs: Vec<f64>) -> f64 {
-    xs.sort_by(|a, b| a.total_cmp(b));
-    let n = xs.len();
-    if n % 2 == 1 {
-        xs[n / 2]
-    } else {
-        0.5 * (xs[n / 2 - 1] + xs[n / 2])
     }
 }
 
 fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
-    println!(
+    outln!(
         "## Kinematic core\n\nMachine: {}; load average {}\n",
         machine(),
         std::fs::read_to_string("/proc/loadavg")
             .ok()
             .and_then(|l| l.split_whitespace().next().map(str::to_string))
             .unwrap_or_else(|| "?".into())
-    );
+    )?;
     let linkage = FourBar::new(2.5, 3.0, 3.5)?;
     let table = CrankTable::new(0.5).expect("valid step");
     let spec = Spec::default_atlas();
@@ -225,23 +120,23 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
     } else {
         (f64::NAN, f64::NAN)
     };
-    println!("| measure | median | target |\n|---|---|---|");
+    outln!("| measure | median | target |\n|---|---|---|")?;
     if has_cpu_clock {
-        println!(
+        outln!(
             "| cost per sample (position + velocity), 50 points × {} samples, 1 core, thread CPU time, curves streamed through one buffer (as `generate` uses them) | {cpu_streamed:.2} ns | ≤ 2 ns |",
             table.len()
-        );
-        println!(
+        )?;
+        outln!(
             "| the same with all 50 curves kept in memory (1.15 MB written per grid: memory-bandwidth bound) | {cpu_kept:.2} ns | |"
-        );
+        )?;
     }
-    println!(
+    outln!(
         "| all 50 curves kept, wall time (inflated when the machine is shared) | {per_sample:.2} ns | |"
-    );
-    println!(
+    )?;
+    outln!(
         "| of which the shared pose, per crank angle (amortised over 50 points: {:.2} ns/sample) | {pose:.1} ns | |",
         pose / 50.0
-    );
+    )?;
 
     for jobs in [1usize, 2] {
         let mut times = Vec::new();
@@ -261,19 +156,19 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
             let _ = std::fs::remove_dir_all(&dir);
         }
         let job = generate::Job::new(spec.clone(), "built-in", "unused", jobs);
-        println!(
+        outln!(
             "| `generate` default spec ({} curves), index only, {jobs} thread{} | {:.3} s | |",
             job.curves(),
             if jobs > 1 { "s" } else { "" },
             median(times)
-        );
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }
 
 fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<ExitCode> {
-    use coupler_atlas::render::pages::{PageOptions, PageRenderer};
-    println!("## Pages\n\nMachine: {}\n", machine());
+    use coupler_atlas::generate::{PageOptions, PageRenderer};
+    outln!("## Pages\n\nMachine: {}\n", machine())?;
     let spec = Spec::default_atlas();
     let keep = out.is_some();
     let dir = out.unwrap_or_else(|| {
@@ -305,12 +200,12 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
     secs[4] = (wall * jobs as f64 - secs[..4].iter().sum::<f64>()).max(0.0);
     let per = |s: f64| s / pages.max(1) as f64 * 1e3;
     let busy: f64 = secs.iter().sum();
-    println!("| measure | value | target |\n|---|---|---|");
-    println!(
+    outln!("| measure | value | target |\n|---|---|---|")?;
+    outln!(
         "| `generate` default spec with pages ({curves} curves, {pages} pages, 300 dpi tabloid 8-bit gray PNG), {jobs} threads, wall | {:.2} s | ≤ 15 s |",
         median(times)
-    );
-    println!("| pages written | {:.0} MB | |", bytes as f64 / 1e6);
+    )?;
+    outln!("| pages written | {:.0} MB | |", bytes as f64 / 1e6)?;
     let names = [
         "compute (dash sampling)",
         "layout",
@@ -319,12 +214,12 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
         "write + index (the rest of the workers' time)",
     ];
     for (name, s) in names.iter().zip(secs) {
-        println!(
+        outln!(
             "| per page: {name} | {:.2} ms ({:.0} %) | |",
             per(s),
             100.0 * s / busy.max(1e-12)
-        );
+        )?;
     }
-    println!("| per page: total (one worker) | {:.2} ms | |", per(busy));
+    outln!("| per page: total (one worker) | {:.2} ms | |", per(busy))?;
     Ok(ExitCode::SUCCESS)
 }

@@ -90,12 +90,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if args.trace == "full" {
         return super::curve_full::run(&linkage, p, table.step(), &args.format);
     }
-    let flags = coupler_atlas::methods::CurveFlags::assess(
+    let flags = coupler_atlas::CurveFlags::assess(
         &linkage,
         circuit,
         p,
         &table.angles().iter().map(|a| a.degrees).collect::<Vec<_>>(),
-        &coupler_atlas::methods::FlagTolerances::DEFAULT,
+        &coupler_atlas::FlagTolerances::DEFAULT,
     );
     let samples: Vec<Sample> = table
         .angles()

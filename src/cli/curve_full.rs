@@ -2,8 +2,8 @@
 //! by its input across toggles (see `coupler_atlas::trace`).
 
 use anyhow::Result;
-use coupler_atlas::trace::{InputRange, trace_full};
 use coupler_atlas::{CouplerPoint, FourBar};
+use coupler_atlas::{InputRange, trace_full};
 use serde::Serialize;
 use std::io::Write;
 use std::process::ExitCode;

@@ -6,7 +6,7 @@
 
 use super::UsageError;
 use anyhow::Result;
-use coupler_atlas::diff;
+use coupler_atlas::render as diff;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -39,10 +39,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         diff::DiffError::Write { .. } => anyhow::Error::from(e),
         other => UsageError(other.to_string()).into(),
     })?;
-    println!("{}", d.summary());
+    outln!("{}", d.summary())?;
     if let Some(out) = &args.out {
         d.write_image(out)?;
-        println!("diff image: {}", out.display());
+        outln!("diff image: {}", out.display())?;
     }
     if d.score() > args.threshold {
         eprintln!(

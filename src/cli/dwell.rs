@@ -3,7 +3,7 @@
 
 use super::{UsageError, parse_length, parse_number, parse_point};
 use anyhow::{Context, Result};
-use coupler_atlas::dwell::{
+use coupler_atlas::{
     ArcPairSearch, DoubleArcOptions, DwellMechanism, best_double_dwell_arcs, double_dwell_arcs,
     double_dwell_lines, single_dwell,
 };
@@ -63,14 +63,14 @@ pub struct Args {
     swing: Option<f64>,
     /// double-arcs: lower limit of the links 5–6 transmission angle over the whole
     /// revolution, degrees (the angle at D stays within [limit, 180° − limit]).
-    #[arg(long, default_value_t = coupler_atlas::dwell::DEFAULT_MIN_TRANSMISSION_DEG, value_parser = parse_number)]
+    #[arg(long, default_value_t = coupler_atlas::DEFAULT_MIN_TRANSMISSION_DEG, value_parser = parse_number)]
     min_transmission: f64,
     /// double-arcs: largest difference of the two arcs' radii, percent of the larger.
-    #[arg(long, default_value_t = coupler_atlas::dwell::DEFAULT_DOUBLE_ARC_RADIUS_TOL_PCT, value_parser = parse_number)]
+    #[arg(long, default_value_t = coupler_atlas::DEFAULT_DOUBLE_ARC_RADIUS_TOL_PCT, value_parser = parse_number)]
     radius_tol: f64,
     /// double-arcs: refuse a design whose worse dwell jitters more than this percentage
     /// of the swing between the dwells.
-    #[arg(long, default_value_t = 100.0 * coupler_atlas::dwell::DEFAULT_MAX_RELATIVE_JITTER, value_parser = parse_number)]
+    #[arg(long, default_value_t = 100.0 * coupler_atlas::DEFAULT_MAX_RELATIVE_JITTER, value_parser = parse_number)]
     max_jitter_pct: f64,
     /// Simulation step, crank degrees.
     #[arg(long, default_value = "1", value_parser = parse_number)]

@@ -3,11 +3,11 @@
 
 use super::UsageError;
 use anyhow::{Context, Result};
-use coupler_atlas::classics::CurveList;
-use coupler_atlas::generate::curves::{self as curve_set, CurveJob};
+use coupler_atlas::CurveList;
 use coupler_atlas::generate::{self, GenerateError, Job, NoPages, Renderer, Shard};
+use coupler_atlas::generate::{CurveJob, run_curve_set};
+use coupler_atlas::generate::{PageOptions, PageRenderer};
 use coupler_atlas::render::PageFormat;
-use coupler_atlas::render::pages::{PageOptions, PageRenderer};
 use coupler_atlas::{AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
@@ -211,7 +211,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         job.shard = shard;
     }
     if args.dry_run {
-        println!("{}", job.describe());
+        outln!("{}", job.describe())?;
         return Ok(ExitCode::SUCCESS);
     }
     if job.curves() > CONFIRM_OVER && !args.yes {
@@ -331,9 +331,9 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
         Some(page_options(opts, &args.job)?)
     };
     if args.dry_run {
-        println!("spec:     {} ({source}), a full-curve page set", list.name);
+        outln!("spec:     {} ({source}), a full-curve page set", list.name)?;
         for (i, c) in list.curves.iter().enumerate() {
-            println!(
+            outln!(
                 "curve {}: {} (A = {}, B = {}, C = {}, point ({}, {}), class {}, trace {})",
                 i + 1,
                 c.name,
@@ -344,21 +344,21 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
                 c.point.v,
                 c.linkage.class().code(),
                 c.trace.name()
-            );
+            )?;
         }
-        println!(
+        outln!(
             "samples:  every {}° of input, plus the toggles",
             list.sampling.crank_step_deg
-        );
-        println!(
+        )?;
+        outln!(
             "pages:    {}",
             if pages.is_some() {
                 list.curves.len()
             } else {
                 0
             }
-        );
-        println!("output:   {}", out.display());
+        )?;
+        outln!("output:   {}", out.display())?;
         return Ok(ExitCode::SUCCESS);
     }
     let job = CurveJob {
@@ -372,7 +372,8 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
     let start = Instant::now();
     // No SIGINT handler here: a page set takes well under a second, and Ctrl-C leaves
     // only complete files (every file is renamed into place when written).
-    let result = curve_set::run(&job, pages.as_ref(), &|n| bar.inc(n));
+    let renderer = pages.map(PageRenderer::new);
+    let result = run_curve_set(&job, renderer.as_ref(), &|n| bar.inc(n));
     bar.finish_and_clear();
     let report = result
         .map_err(classify)

@@ -1,8 +1,17 @@
 //! Subcommands, one file each. `main` maps errors to `error: …` on stderr and an exit
 //! code: 0 success, 1 failure while working, 2 bad usage or input (clap uses 2 too).
 
+/// Writes a line to stdout (as `println!`), returning the I/O error instead of
+/// panicking: a closed pipe (`coupler-atlas … | head -1`) goes up to [`main`], which ends
+/// quietly with status 0.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
 mod bench;
-mod bench_methods;
 mod cognates;
 mod curve;
 mod curve_full;
@@ -69,6 +78,9 @@ pub fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        // The reader of our output went away (`… | head -1`): nothing is wrong, and
+        // nothing more can be said on stdout. End quietly, as `grep` does.
+        Err(err) if is_broken_pipe(&err) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err:#}");
             if err
@@ -81,6 +93,17 @@ pub fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// Whether the error is a write to a closed pipe.
+fn is_broken_pipe(err: &anyhow::Error) -> bool {
+    use std::io::ErrorKind::BrokenPipe;
+    err.chain().any(|e| {
+        e.downcast_ref::<std::io::Error>()
+            .is_some_and(|e| e.kind() == BrokenPipe)
+            || e.downcast_ref::<serde_json::Error>()
+                .is_some_and(|e| e.io_error_kind() == Some(BrokenPipe))
+    })
 }
 
 /// Parses a length flag exactly (rejects NaN, infinities, text), as an f64.

@@ -2,8 +2,8 @@
 
 use super::UsageError;
 use anyhow::Result;
-use coupler_atlas::search::{DEFAULT_RADIUS_TOL_PCT, Query, SearchTable, SortKey, SpanFilter};
-use coupler_atlas::{Circuit, Class};
+use coupler_atlas::{Circuit, LinkageClass};
+use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -69,45 +69,12 @@ fn parse_min_transmission(s: &str) -> Result<f64, String> {
     }
 }
 
-fn cache_key(path: &Path) -> Result<[u64; 2]> {
-    let meta = std::fs::metadata(path)
-        .map_err(|e| UsageError(format!("cannot read index {}: {e}", path.display())))?;
-    let mtime = meta
-        .modified()
-        .ok()
-        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-        .map(|d| d.as_nanos() as u64)
-        .unwrap_or(0);
-    Ok([meta.len(), mtime])
-}
-
-/// Loads the table from the cache if it matches the index, else parses the index (and
-/// writes the cache, best effort). Returns the table and how it was obtained.
+/// The search table of `index` (from its cache when it matches): a usage error when the
+/// index cannot be read or is not an index.
 pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
-    let key = cache_key(index)?;
-    let mut cache = index.as_os_str().to_owned();
-    cache.push(".search");
-    let cache = PathBuf::from(cache);
-    if use_cache {
-        if let Ok(bytes) = std::fs::read(&cache) {
-            if let Ok(t) = SearchTable::from_bytes(&bytes, key) {
-                return Ok((t, "cache"));
-            }
-        }
-    }
-    // Streamed line by line: memory holds the table and one batch of lines, not the
-    // whole index (2 GB for a million curves with features).
-    let file = std::fs::File::open(index)
-        .map_err(|e| UsageError(format!("cannot read index {}: {e}", index.display())))?;
-    let table = SearchTable::from_index_reader(std::io::BufReader::with_capacity(1 << 20, file))
-        .map_err(|e| UsageError(format!("{}: {e}", index.display())))?;
-    if use_cache {
-        let tmp = cache.with_extension("search.tmp");
-        if std::fs::write(&tmp, table.to_bytes(key)).is_ok() {
-            let _ = std::fs::rename(&tmp, &cache);
-        }
-    }
-    Ok((table, "index"))
+    let (table, source) =
+        coupler_atlas::load_table(index, use_cache).map_err(|e| UsageError(e.to_string()))?;
+    Ok((table, source.name()))
 }
 
 /// A feature as JSON with `"index"`: its 1-based position in the curve's list (what
@@ -136,7 +103,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let class = match &args.class {
         None => None,
         Some(c) => Some(
-            Class::ALL
+            LinkageClass::ALL
                 .iter()
                 .copied()
                 .find(|k| k.code().eq_ignore_ascii_case(c))

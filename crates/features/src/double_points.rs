@@ -1,0 +1,207 @@
+//! Double points (docs/conventions.md §5): crunodes (self-crossings) and cusps (speed zero).
+
+use super::{Crunode, Cusp, FeatureTolerances};
+use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, Curve, Mechanism};
+
+/// Position and velocity (per radian) of the coupler point at θ degrees.
+pub(crate) fn at<M: Mechanism>(
+    l: &M,
+    circuit: Circuit,
+    p: CouplerPoint,
+    deg: f64,
+) -> Option<([f64; 2], [f64; 2])> {
+    let pose = l.frame(circuit, &CrankAngle::from_degrees(deg))?;
+    let (m, v) = (pose.point(p), pose.velocity(p));
+    (m.x.is_finite() && v.x.is_finite() && v.y.is_finite()).then_some(([m.x, m.y], [v.x, v.y]))
+}
+
+fn wrap360(deg: f64) -> f64 {
+    let r = deg.rem_euclid(360.0);
+    if r >= 360.0 { 0.0 } else { r }
+}
+
+/// Where segments `p0→p1` and `q0→q1` cross: parameters `(t, s)` in [0, 1].
+fn segment_cross(p0: [f64; 2], p1: [f64; 2], q0: [f64; 2], q1: [f64; 2]) -> Option<(f64, f64)> {
+    let r = [p1[0] - p0[0], p1[1] - p0[1]];
+    let s = [q1[0] - q0[0], q1[1] - q0[1]];
+    let den = r[0] * s[1] - r[1] * s[0];
+    if den == 0.0 {
+        return None;
+    }
+    let w = [q0[0] - p0[0], q0[1] - p0[1]];
+    let t = (w[0] * s[1] - w[1] * s[0]) / den;
+    let u = (w[0] * r[1] - w[1] * r[0]) / den;
+    ((0.0..=1.0).contains(&t) && (0.0..=1.0).contains(&u)).then_some((t, u))
+}
+
+/// The crunodes of a closed curve: crossings of the sampled polyline (segment pairs
+/// pruned by bounding box), each refined by Newton's method on `M(θ1) = M(θ2)` with the
+/// closed-form pose (Jacobian `[V(θ1), −V(θ2)]`) to ~1e-13, then de-duplicated. A
+/// crossing that the polyline misses (two branches touching within the sampling's chord
+/// error) is missed; a tangency (Jacobian singular) is dropped.
+pub fn crunodes<M: Mechanism>(
+    l: &M,
+    circuit: Circuit,
+    p: CouplerPoint,
+    c: &Curve,
+    tol: &FeatureTolerances,
+) -> Vec<Crunode> {
+    let n = c.len();
+    if n < 4 || (0..n).any(|k| !c.is_valid(k)) {
+        return Vec::new();
+    }
+    let pt = |k: usize| [c.x[k % n], c.y[k % n]];
+    let bb: Vec<[f64; 4]> = (0..n)
+        .map(|k| {
+            let (a, b) = (pt(k), pt(k + 1));
+            [
+                a[0].min(b[0]),
+                a[1].min(b[1]),
+                a[0].max(b[0]),
+                a[1].max(b[1]),
+            ]
+        })
+        .collect();
+    let size = (c.x.iter().cloned().fold(f64::MIN, f64::max)
+        - c.x.iter().cloned().fold(f64::MAX, f64::min))
+    .hypot(
+        c.y.iter().cloned().fold(f64::MIN, f64::max) - c.y.iter().cloned().fold(f64::MAX, f64::min),
+    );
+    let mut out: Vec<Crunode> = Vec::new();
+    for a in 0..n {
+        for b in a + 2..n {
+            if a == 0 && b == n - 1 {
+                continue;
+            }
+            let (ba, bbx) = (&bb[a], &bb[b]);
+            if ba[2] < bbx[0] || bbx[2] < ba[0] || ba[3] < bbx[1] || bbx[3] < ba[1] {
+                continue;
+            }
+            let Some((t, s)) = segment_cross(pt(a), pt(a + 1), pt(b), pt(b + 1)) else {
+                continue;
+            };
+            let mut t1 = (a as f64 + t) * tol.step_deg;
+            let mut t2 = (b as f64 + s) * tol.step_deg;
+            let mut converged = false;
+            for _ in 0..30 {
+                let (Some((m1, v1)), Some((m2, v2))) =
+                    (at(l, circuit, p, t1), at(l, circuit, p, t2))
+                else {
+                    break;
+                };
+                let f = [m1[0] - m2[0], m1[1] - m2[1]];
+                if f[0].hypot(f[1]) <= 1e-13 * size.max(1.0) {
+                    converged = true;
+                    break;
+                }
+                // [v1, −v2]·(d1, d2) = −f, in radians.
+                let det = v1[0] * (-v2[1]) - (-v2[0]) * v1[1];
+                if det.abs() < 1e-300 {
+                    break;
+                }
+                let d1 = (-f[0] * (-v2[1]) - (-v2[0]) * (-f[1])) / det;
+                let d2 = (v1[0] * (-f[1]) - (-f[0]) * v1[1]) / det;
+                let max_step = 2.0 * tol.step_deg.to_radians();
+                let scale = (max_step / d1.abs().max(d2.abs())).min(1.0);
+                t1 += (d1 * scale).to_degrees();
+                t2 += (d2 * scale).to_degrees();
+            }
+            let (t1, t2) = (wrap360(t1), wrap360(t2));
+            let gap = (t1 - t2).abs().min(360.0 - (t1 - t2).abs());
+            if !converged || gap < 1e-6 {
+                continue;
+            }
+            let (Some((m, v1)), Some((_, v2))) = (at(l, circuit, p, t1), at(l, circuit, p, t2))
+            else {
+                continue;
+            };
+            // A true crossing has distinct tangents; a curve that retraces itself (the
+            // rocker pin's arc, run forth and back) meets itself with parallel ones.
+            let sin = (v1[0] * v2[1] - v1[1] * v2[0]) / (v1[0].hypot(v1[1]) * v2[0].hypot(v2[1]));
+            if sin.abs().is_nan() || sin.abs() <= 1e-6 {
+                continue;
+            }
+            if out
+                .iter()
+                .any(|q| (q.position[0] - m[0]).hypot(q.position[1] - m[1]) < 1e-9 * size.max(1.0))
+            {
+                continue;
+            }
+            out.push(Crunode {
+                position: m,
+                angles_deg: [t1.min(t2), t1.max(t2)],
+            });
+        }
+    }
+    out.sort_by(|a, b| a.angles_deg[0].total_cmp(&b.angles_deg[0]));
+    out
+}
+
+/// The cusps of a closed curve: local minima of the sampled speed, refined by
+/// golden-section search on |V(θ)| over the two neighbouring steps, kept when the minimum
+/// is at most `cusp_speed_ratio` × the mean sampled speed.
+pub fn cusps<M: Mechanism>(
+    l: &M,
+    circuit: Circuit,
+    p: CouplerPoint,
+    c: &Curve,
+    tol: &FeatureTolerances,
+) -> Vec<Cusp> {
+    let n = c.len();
+    if n < 3 || (0..n).any(|k| !c.is_valid(k)) {
+        return Vec::new();
+    }
+    let speed: Vec<f64> = (0..n).map(|k| c.vx[k].hypot(c.vy[k])).collect();
+    let mean = speed.iter().sum::<f64>() / n as f64;
+    if !(mean > 0.0 && mean.is_finite()) {
+        return Vec::new();
+    }
+    let sp = |deg: f64| {
+        at(l, circuit, p, deg)
+            .map(|(_, v)| v[0].hypot(v[1]))
+            .unwrap_or(f64::INFINITY)
+    };
+    let mut out = Vec::new();
+    for k in 0..n {
+        let (prev, next) = (speed[(k + n - 1) % n], speed[(k + 1) % n]);
+        if !(speed[k] <= prev && speed[k] < next && speed[k] <= 10.0 * tol.cusp_speed_ratio * mean)
+        {
+            continue;
+        }
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut a, mut b) = (
+            (k as f64 - 1.0) * tol.step_deg,
+            (k as f64 + 1.0) * tol.step_deg,
+        );
+        let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+        let (mut f1, mut f2) = (sp(x1), sp(x2));
+        for _ in 0..60 {
+            if f1 < f2 {
+                b = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = b - g * (b - a);
+                f1 = sp(x1);
+            } else {
+                a = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = a + g * (b - a);
+                f2 = sp(x2);
+            }
+        }
+        let t = 0.5 * (a + b);
+        let Some((m, v)) = at(l, circuit, p, t) else {
+            continue;
+        };
+        let ratio = v[0].hypot(v[1]) / mean;
+        if ratio <= tol.cusp_speed_ratio {
+            out.push(Cusp {
+                position: m,
+                angle_deg: wrap360(t),
+                speed_ratio: ratio,
+            });
+        }
+    }
+    out
+}

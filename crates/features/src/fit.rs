@@ -1,0 +1,337 @@
+//! Least-squares fits of a line and a circle to sampled points, shared by the window
+//! measures ([`crate::WindowMeasures`]) and feature extraction.
+
+use nalgebra::{Matrix3, Vector3};
+
+/// Running sums for an orthogonal (total) least-squares line fit, kept about a fixed
+/// reference point so that adding and removing samples does not lose digits.
+///
+/// The fitted line passes through the centroid `G` with direction `d = (cos φ, sin φ)`,
+/// `φ = ½·atan2(2·Sxy, Sxx − Syy)` (the major axis of the scatter matrix: Pearson 1901).
+/// For points all on one spot (`Sxx = Syy = Sxy = 0`) the direction is `φ = 0`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LineSums {
+    origin: [f64; 2],
+    n: f64,
+    sx: f64,
+    sy: f64,
+    sxx: f64,
+    sxy: f64,
+    syy: f64,
+}
+
+impl LineSums {
+    /// Empty sums about `origin` (pick a point near the data, e.g. the curve's centroid).
+    pub fn new(origin: [f64; 2]) -> LineSums {
+        LineSums {
+            origin,
+            ..LineSums::default()
+        }
+    }
+
+    /// Adds the point (x, y).
+    #[inline]
+    pub fn add(&mut self, x: f64, y: f64) {
+        let (x, y) = (x - self.origin[0], y - self.origin[1]);
+        self.n += 1.0;
+        self.sx += x;
+        self.sy += y;
+        self.sxx += x * x;
+        self.sxy += x * y;
+        self.syy += y * y;
+    }
+
+    /// Removes the point (x, y) (which must have been added).
+    #[inline]
+    pub fn remove(&mut self, x: f64, y: f64) {
+        let (x, y) = (x - self.origin[0], y - self.origin[1]);
+        self.n -= 1.0;
+        self.sx -= x;
+        self.sy -= y;
+        self.sxx -= x * x;
+        self.sxy -= x * y;
+        self.syy -= y * y;
+    }
+
+    /// The number of points.
+    pub fn count(&self) -> usize {
+        self.n as usize
+    }
+
+    /// The centroid and the unit direction of the fitted line. `None` if empty.
+    pub fn line(&self) -> Option<([f64; 2], [f64; 2])> {
+        if self.n < 1.0 {
+            return None;
+        }
+        let (mx, my) = (self.sx / self.n, self.sy / self.n);
+        let cxx = self.sxx - self.n * mx * mx;
+        let cxy = self.sxy - self.n * mx * my;
+        let cyy = self.syy - self.n * my * my;
+        let phi = 0.5 * libm::atan2(2.0 * cxy, cxx - cyy);
+        Some((
+            [mx + self.origin[0], my + self.origin[1]],
+            [libm::cos(phi), libm::sin(phi)],
+        ))
+    }
+}
+
+/// The angle of a vector in degrees, in (−180, 180] (so −0 and the −x axis give 180).
+pub fn angle_deg(d: [f64; 2]) -> f64 {
+    let a = libm::atan2(d[1], d[0]).to_degrees();
+    if a <= -180.0 { a + 360.0 } else { a }
+}
+
+/// A circle: centre and radius.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Circle {
+    /// Centre.
+    pub center: [f64; 2],
+    /// Radius (> 0).
+    pub radius: f64,
+}
+
+impl Circle {
+    /// Largest radial deviation `max |‖p − c‖ − R|` over the points.
+    pub fn max_deviation(&self, xs: &[f64], ys: &[f64]) -> f64 {
+        xs.iter()
+            .zip(ys)
+            .map(|(&x, &y)| ((x - self.center[0]).hypot(y - self.center[1]) - self.radius).abs())
+            .fold(0.0, f64::max)
+    }
+
+    /// True when centre and radius are finite and the radius positive.
+    pub fn is_finite(&self) -> bool {
+        self.center[0].is_finite()
+            && self.center[1].is_finite()
+            && self.radius.is_finite()
+            && self.radius > 0.0
+    }
+}
+
+/// Tolerances of the circle fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CircleFitOptions {
+    /// Iteration cap of the Levenberg–Marquardt refinement.
+    pub max_iterations: usize,
+    /// Stop when the step in (a, b, R) is below this times the radius (or the cost stops
+    /// decreasing by more than 1e-12 of itself).
+    pub relative_step: f64,
+    /// Reject a circle whose radius exceeds this many times the points' spread (the points
+    /// are then on a line, not an arc).
+    pub max_radius_ratio: f64,
+}
+
+impl CircleFitOptions {
+    /// The default: 50 iterations, relative step 1e-12, radius at most 1e6 × spread.
+    pub const DEFAULT: CircleFitOptions = CircleFitOptions {
+        max_iterations: 50,
+        relative_step: 1e-12,
+        max_radius_ratio: 1e6,
+    };
+}
+
+impl Default for CircleFitOptions {
+    fn default() -> Self {
+        CircleFitOptions::DEFAULT
+    }
+}
+
+/// The algebraic circle of Kåsa (1976): minimise `Σ (x² + y² + D·x + E·y + F)²`, a linear
+/// least-squares problem, solved in coordinates centred on the points' mean. Biased
+/// towards small radii on short arcs, so it only starts [`fit_circle`]. `None` for fewer
+/// than three points or collinear points.
+pub fn kasa_circle(xs: &[f64], ys: &[f64]) -> Option<Circle> {
+    let n = xs.len();
+    if n < 3 || ys.len() != n {
+        return None;
+    }
+    let mx = xs.iter().sum::<f64>() / n as f64;
+    let my = ys.iter().sum::<f64>() / n as f64;
+    // Centred, Σx = Σy = 0, so the normal equations split: F = −Σz/n and
+    // [Sxx Sxy; Sxy Syy]·(D, E) = −(Szx, Szy), with z = x² + y².
+    let (mut sxx, mut sxy, mut syy, mut szx, mut szy, mut sz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut spread: f64 = 0.0;
+    for (&x, &y) in xs.iter().zip(ys) {
+        let (x, y) = (x - mx, y - my);
+        spread = spread.max(x.abs()).max(y.abs());
+        let z = x * x + y * y;
+        sxx += x * x;
+        sxy += x * y;
+        syy += y * y;
+        szx += z * x;
+        szy += z * y;
+        sz += z;
+    }
+    let det = sxx * syy - sxy * sxy;
+    if spread == 0.0 || det == 0.0 {
+        return None;
+    }
+    let d = -(szx * syy - szy * sxy) / det;
+    let e = -(sxx * szy - sxy * szx) / det;
+    let f = -sz / n as f64;
+    let (a, b) = (-d / 2.0, -e / 2.0);
+    let r2 = a * a + b * b - f;
+    let c = Circle {
+        center: [a + mx, b + my],
+        radius: r2.max(0.0).sqrt(),
+    };
+    (c.is_finite() && c.radius < 1e12 * spread).then_some(c)
+}
+
+/// The geometric circle: minimise `Σ (‖p_k − c‖ − R)²` by Levenberg–Marquardt on
+/// `(c_x, c_y, R)`, started from `start` (or from [`kasa_circle`]). Chernov, *Circular and
+/// Linear Regression* (2010), ch. 4. Returns `None` for fewer than three points,
+/// (nearly) collinear points (radius beyond `max_radius_ratio` × spread) or a failed start.
+pub fn fit_circle(
+    xs: &[f64],
+    ys: &[f64],
+    start: Option<Circle>,
+    options: &CircleFitOptions,
+) -> Option<Circle> {
+    let n = xs.len();
+    if n < 3 || ys.len() != n {
+        return None;
+    }
+    let start = match start {
+        Some(c) if c.is_finite() => c,
+        _ => kasa_circle(xs, ys)?,
+    };
+    let spread = {
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+        for (&x, &y) in xs.iter().zip(ys) {
+            x0 = x0.min(x);
+            x1 = x1.max(x);
+            y0 = y0.min(y);
+            y1 = y1.max(y);
+        }
+        (x1 - x0).max(y1 - y0)
+    };
+    let cost = |c: &Circle| -> f64 {
+        xs.iter()
+            .zip(ys)
+            .map(|(&x, &y)| {
+                let r = (x - c.center[0]).hypot(y - c.center[1]) - c.radius;
+                r * r
+            })
+            .sum()
+    };
+    let mut c = start;
+    let mut f = cost(&c);
+    let mut lambda = 1e-3;
+    for _ in 0..options.max_iterations {
+        let mut jtj = Matrix3::<f64>::zeros();
+        let mut jtr = Vector3::<f64>::zeros();
+        let (mut a00, mut a01, mut a02, mut a11, mut a12, mut a22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut g0, mut g1, mut g2) = (0.0, 0.0, 0.0);
+        for (&x, &y) in xs.iter().zip(ys) {
+            let (dx, dy) = (x - c.center[0], y - c.center[1]);
+            let d = dx.hypot(dy);
+            if d == 0.0 {
+                continue;
+            }
+            let (j0, j1) = (-dx / d, -dy / d); // j2 = −1
+            let r = d - c.radius;
+            a00 += j0 * j0;
+            a01 += j0 * j1;
+            a02 -= j0;
+            a11 += j1 * j1;
+            a12 -= j1;
+            a22 += 1.0;
+            g0 += j0 * r;
+            g1 += j1 * r;
+            g2 -= r;
+        }
+        jtj[(0, 0)] = a00;
+        jtj[(0, 1)] = a01;
+        jtj[(1, 0)] = a01;
+        jtj[(0, 2)] = a02;
+        jtj[(2, 0)] = a02;
+        jtj[(1, 1)] = a11;
+        jtj[(1, 2)] = a12;
+        jtj[(2, 1)] = a12;
+        jtj[(2, 2)] = a22;
+        jtr[0] = g0;
+        jtr[1] = g1;
+        jtr[2] = g2;
+        let mut accepted = false;
+        for _ in 0..8 {
+            let mut a = jtj;
+            for i in 0..3 {
+                a[(i, i)] *= 1.0 + lambda;
+            }
+            let Some(step) = a.lu().solve(&(-jtr)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let trial = Circle {
+                center: [c.center[0] + step[0], c.center[1] + step[1]],
+                radius: c.radius + step[2],
+            };
+            let ft = cost(&trial);
+            if trial.radius > 0.0 && ft.is_finite() && ft <= f {
+                // Converged: a tiny step, or no real decrease of the cost.
+                let done = step.norm() <= options.relative_step * trial.radius.max(spread)
+                    || f - ft <= 1e-12 * f;
+                c = trial;
+                f = ft;
+                lambda = (lambda * 0.1).max(1e-12);
+                accepted = true;
+                if done {
+                    return finish(c, spread, options);
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !accepted {
+            break;
+        }
+    }
+    finish(c, spread, options)
+}
+
+fn finish(c: Circle, spread: f64, options: &CircleFitOptions) -> Option<Circle> {
+    (c.is_finite() && c.radius <= options.max_radius_ratio * spread.max(f64::MIN_POSITIVE))
+        .then_some(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn circle_through_exact_points() {
+        let (cx, cy, r) = (1.5, -2.0, 3.25);
+        let (xs, ys): (Vec<f64>, Vec<f64>) = (0..20)
+            .map(|k| {
+                let t = 0.05 * k as f64;
+                (cx + r * libm::cos(t), cy + r * libm::sin(t))
+            })
+            .unzip();
+        let c = fit_circle(&xs, &ys, None, &CircleFitOptions::DEFAULT).unwrap();
+        assert!((c.center[0] - cx).abs() < 1e-10 && (c.center[1] - cy).abs() < 1e-10);
+        assert!((c.radius - r).abs() < 1e-10);
+        assert!(
+            fit_circle(
+                &[0.0, 1.0, 2.0],
+                &[0.0, 1.0, 2.0],
+                None,
+                &CircleFitOptions::DEFAULT
+            )
+            .is_none()
+        );
+    }
+
+    #[test]
+    fn line_sums_add_remove() {
+        let mut s = LineSums::new([10.0, 10.0]);
+        for k in 0..10 {
+            s.add(k as f64, 2.0 * k as f64 + 1.0);
+        }
+        s.add(100.0, -50.0);
+        s.remove(100.0, -50.0);
+        let (g, d) = s.line().unwrap();
+        assert!((g[0] - 4.5).abs() < 1e-12 && (g[1] - 10.0).abs() < 1e-12);
+        assert!((d[1] / d[0] - 2.0).abs() < 1e-12);
+    }
+}

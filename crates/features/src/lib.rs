@@ -1,0 +1,389 @@
+//! # coupler-features
+//!
+//! Features of a coupler curve (`docs/conventions.md`, "Features"): straight segments,
+//! pseudo-arcs, double points, symmetry and cognates; measures over a crank window; the
+//! flags for what the numerics cannot fully resolve; the longest straight runs of the
+//! classic full curves; dwell six-bars designed from the features. Pure: no I/O, no
+//! global state.
+//!
+//! Extraction works on the curve sampled every [`FeatureTolerances::step_deg`] (5° by
+//! default) and refines with the closed-form pose where a sampled answer is not enough
+//! (crossings, cusps, symmetry). Windows grow by a two-pointer sweep over the periodic
+//! samples (each start's window extends while it stays within tolerance), so the cost is
+//! O(n·w) per curve (n samples, w the longest window), not O(n³).
+//! Definitions and defaults: `docs/features.md`.
+
+mod arcs;
+mod classic;
+mod double_points;
+mod dwell;
+mod fit;
+mod flags;
+mod run;
+mod straight;
+mod symmetry;
+mod window;
+
+pub use arcs::pseudo_arcs;
+pub use classic::{ClassicCurve, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure, TraceMode};
+pub use double_points::{crunodes, cusps};
+pub use dwell::{
+    ArcPairSearch, CENTRE_SEPARATION_FACTOR, DEFAULT_DOUBLE_ARC_RADIUS_TOL_PCT,
+    DEFAULT_MAX_RELATIVE_JITTER, DEFAULT_MIN_TRANSMISSION_DEG, DoubleArcOptions, Dwell, DwellError,
+    DwellKind, DwellMechanism, MIN_FREE_SWING_DEG, NoDoubleDwell, SWING_TOLERANCE,
+    best_double_dwell_arcs, double_dwell_arcs, double_dwell_lines, single_dwell,
+};
+pub use fit::{Circle, CircleFitOptions, LineSums, angle_deg, fit_circle, kasa_circle};
+pub use flags::{CurveFlag, CurveFlags, FlagTolerances, curve_flags};
+pub use run::{StraightRun, longest_straight_run, straightness_fitted};
+pub use straight::straight_segments;
+pub use symmetry::symmetry;
+pub use window::{
+    CrankWindow, DEFAULT_WINDOW_STEP_DEG, LineDirection, LineMeasures, WindowError, WindowMeasures,
+    WindowSamples, arc_deviation_pct,
+};
+
+use coupler_kinematics::{
+    Circuit, Cognate, CouplerPoint, CrankTable, Curve, DashPattern, Mechanism, PoseTable,
+    divides_turn,
+};
+use serde::{Deserialize, Serialize};
+
+/// Tolerances and settings of feature extraction, settable in a spec's `[features]` table.
+/// Every field has a default ([`FeatureTolerances::DEFAULT`]). The dash angle by which
+/// `dashes` are counted is not one of them: it is the pages' ([`DashPattern`], from
+/// `[sampling] dash_deg`), passed beside the tolerances.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FeatureTolerances {
+    /// Crank step of the samples features are found on, degrees (5, the 1951 atlas's dash
+    /// spacing; 2 is finer and ~4× slower).
+    pub step_deg: f64,
+    /// Largest straightness error ε_S of a straight segment, percent (0.5).
+    pub straight_pct: f64,
+    /// Shortest straight segment, crank degrees (30).
+    pub straight_min_span_deg: f64,
+    /// Largest radial deviation of a pseudo-arc, percent of its radius (0.5).
+    pub arc_pct: f64,
+    /// Shortest pseudo-arc, crank degrees (30).
+    pub arc_min_span_deg: f64,
+    /// Smallest angle a pseudo-arc turns about its centre, degrees (10): flatter
+    /// portions are straight segments of huge radius, not arcs.
+    pub arc_min_turn_deg: f64,
+    /// A cusp: the speed's local minimum is at most this fraction of the mean speed (0.01).
+    pub cusp_speed_ratio: f64,
+    /// A curve is symmetric when every reflected point lies this close to the curve,
+    /// relative to the curve's size (bounding-box diagonal) (1e-7).
+    pub symmetry_tol: f64,
+}
+
+impl FeatureTolerances {
+    /// The defaults (documented in `docs/features.md`).
+    pub const DEFAULT: FeatureTolerances = FeatureTolerances {
+        step_deg: 5.0,
+        straight_pct: 0.5,
+        straight_min_span_deg: 30.0,
+        arc_pct: 0.5,
+        arc_min_span_deg: 30.0,
+        arc_min_turn_deg: 10.0,
+        cusp_speed_ratio: 0.01,
+        symmetry_tol: 1e-7,
+    };
+
+    /// Checks ranges; the message names the offending field.
+    pub fn validate(&self) -> Result<(), String> {
+        let pos = |name: &str, x: f64| {
+            if x.is_finite() && x > 0.0 {
+                Ok(())
+            } else {
+                Err(format!(
+                    "features.{name} must be a finite number > 0, got {x}"
+                ))
+            }
+        };
+        pos("step_deg", self.step_deg)?;
+        if self.step_deg > 30.0 || !divides_turn(self.step_deg) {
+            return Err(format!(
+                "features.step_deg must divide 360 and be at most 30, got {}",
+                self.step_deg
+            ));
+        }
+        pos("straight_pct", self.straight_pct)?;
+        pos("straight_min_span_deg", self.straight_min_span_deg)?;
+        pos("arc_pct", self.arc_pct)?;
+        pos("arc_min_span_deg", self.arc_min_span_deg)?;
+        pos("arc_min_turn_deg", self.arc_min_turn_deg)?;
+        pos("cusp_speed_ratio", self.cusp_speed_ratio)?;
+        pos("symmetry_tol", self.symmetry_tol)?;
+        Ok(())
+    }
+}
+
+impl Default for FeatureTolerances {
+    fn default() -> Self {
+        FeatureTolerances::DEFAULT
+    }
+}
+
+/// A portion of the curve that is nearly straight (Norton §3.8; see [`WindowMeasures`]
+/// for ε_S and ε_V), maximal under [`FeatureTolerances::straight_pct`], moving one way
+/// along its line.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StraightSegment {
+    /// First crank angle, degrees in [0, 360).
+    pub start_deg: f64,
+    /// Crank duration, degrees (the segment ends at `start_deg + span_deg`, maybe past 360).
+    pub span_deg: f64,
+    /// Whole dashes in it: ⌊span / dash⌋, at the pages' dash angle.
+    pub dashes: u32,
+    /// Its length: extent Δx along the fitted line.
+    pub length: f64,
+    /// ε_S, percent.
+    pub straightness_pct: f64,
+    /// ε_V, percent.
+    pub velocity_variation_pct: f64,
+    /// Direction of travel along the line, degrees in (−180, 180].
+    pub direction_deg: f64,
+    /// Positions at its first and last crank angle.
+    pub endpoints: [[f64; 2]; 2],
+}
+
+/// Which side of the direction of travel the arc's centre lies on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    /// Centre to the left (the curve turns counter-clockwise).
+    Left,
+    /// Centre to the right (clockwise).
+    Right,
+}
+
+/// A portion of the curve close to a circle (docs/conventions.md §5), maximal under
+/// [`FeatureTolerances::arc_pct`], running one way round its centre.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PseudoArc {
+    /// First crank angle, degrees in [0, 360).
+    pub start_deg: f64,
+    /// Crank duration, degrees.
+    pub span_deg: f64,
+    /// Whole dashes in it.
+    pub dashes: u32,
+    /// Centre of the circle.
+    pub center: [f64; 2],
+    /// Its radius.
+    pub radius: f64,
+    /// Largest radial deviation / radius, percent.
+    pub deviation_pct: f64,
+    /// Angle turned about the centre, degrees.
+    pub turn_deg: f64,
+    /// The concave side (where the centre is), relative to the direction of travel.
+    pub concave: Side,
+}
+
+/// A crunode: the curve crosses itself.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Crunode {
+    /// Where.
+    pub position: [f64; 2],
+    /// The two crank angles that pass through it, degrees in [0, 360), ascending.
+    pub angles_deg: [f64; 2],
+}
+
+/// A cusp (or near-cusp): the point passes (nearly) through the instant centre, its
+/// speed drops (nearly) to zero.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Cusp {
+    /// Where.
+    pub position: [f64; 2],
+    /// Crank angle, degrees in [0, 360).
+    pub angle_deg: f64,
+    /// The speed there / mean speed.
+    pub speed_ratio: f64,
+}
+
+/// Double points of the curve.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct DoublePoints {
+    /// Self-crossings.
+    pub crunodes: Vec<Crunode>,
+    /// Cusps.
+    pub cusps: Vec<Cusp>,
+}
+
+/// An axis of mirror symmetry of the curve.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Symmetry {
+    /// A point of the axis (the curve's arc-length centroid).
+    pub point: [f64; 2],
+    /// The axis direction, degrees in [0, 180).
+    pub direction_deg: f64,
+    /// Largest distance of a reflected point from the curve, relative to the curve's size.
+    pub error: f64,
+}
+
+/// Everything extracted from one curve.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CurveFeatures {
+    /// Straight segments, by start angle.
+    pub straight_segments: Vec<StraightSegment>,
+    /// Pseudo-arcs, by start angle.
+    pub pseudo_arcs: Vec<PseudoArc>,
+    /// Crunodes and cusps.
+    pub double_points: DoublePoints,
+    /// The axis, if the curve is symmetric.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub symmetry: Option<Symmetry>,
+    /// The two other four-bars tracing the same curve (Roberts–Chebyshev;
+    /// [`Mechanism::cognates`]).
+    pub cognates: Vec<Cognate>,
+}
+
+/// Extracts features of every coupler point of one mechanism and circuit, sharing one
+/// pose table (at [`FeatureTolerances::step_deg`]) across the points.
+#[derive(Clone, Debug)]
+pub struct FeatureExtractor<M: Mechanism> {
+    linkage: M,
+    circuit: Circuit,
+    tolerances: FeatureTolerances,
+    dash: DashPattern,
+    poses: PoseTable,
+    curve: Curve,
+}
+
+impl<M: Mechanism> FeatureExtractor<M> {
+    /// Features counted in dashes of `dash` (the pages' pattern). `None` if the
+    /// tolerances or the pattern are invalid, or the linkage does not assemble at every
+    /// sampled angle (features are defined for full-revolution curves).
+    pub fn new(
+        linkage: &M,
+        circuit: Circuit,
+        tolerances: &FeatureTolerances,
+        dash: &DashPattern,
+    ) -> Option<FeatureExtractor<M>> {
+        tolerances.validate().ok()?;
+        dash.validate().ok()?;
+        let table = CrankTable::new(tolerances.step_deg)?;
+        let poses = linkage.pose_table(circuit, &table);
+        poses.all_valid().then(|| FeatureExtractor {
+            linkage: linkage.clone(),
+            circuit,
+            tolerances: *tolerances,
+            dash: *dash,
+            poses,
+            curve: Curve::default(),
+        })
+    }
+
+    /// The features of the curve of `point`.
+    pub fn extract(&mut self, point: CouplerPoint) -> CurveFeatures {
+        self.poses.trace_into(point, &mut self.curve);
+        let (l, c, t, curve) = (&self.linkage, self.circuit, &self.tolerances, &self.curve);
+        let cogs = l.cognates(c, point);
+        CurveFeatures {
+            straight_segments: straight_segments(curve, t, &self.dash),
+            pseudo_arcs: pseudo_arcs(curve, t, &self.dash),
+            double_points: DoublePoints {
+                crunodes: crunodes(l, c, point, curve, t),
+                cusps: cusps(l, c, point, curve, t),
+            },
+            symmetry: symmetry(l, c, point, curve, t),
+            cognates: cogs,
+        }
+    }
+}
+
+/// Whole dashes of `dash` in a span: ⌊span / Δ⌋ (with a 1e-9 allowance for rounding).
+pub(crate) fn dash_count(span_deg: f64, dash: &DashPattern) -> u32 {
+    (span_deg / dash.step_deg + 1e-9).floor().max(0.0) as u32
+}
+
+/// Picks non-overlapping windows greedily, longest first (ties: smaller error, then
+/// earlier start), from candidate windows `[start, end, error]` (sample indices, `end`
+/// may pass `n`: periodic); windows may share an end sample. Returns the chosen windows
+/// sorted by start.
+pub(crate) fn pick_disjoint(
+    n: usize,
+    mut candidates: Vec<(usize, usize, f64)>,
+) -> Vec<(usize, usize)> {
+    candidates.sort_by(|a, b| {
+        (b.1 - b.0)
+            .cmp(&(a.1 - a.0))
+            .then(a.2.total_cmp(&b.2))
+            .then(a.0.cmp(&b.0))
+    });
+    let mut used = vec![false; n]; // edge k joins samples k and k+1 (mod n)
+    let mut chosen = Vec::new();
+    for (s, e, _) in candidates {
+        if (s..e).any(|k| used[k % n]) {
+            continue;
+        }
+        for k in s..e {
+            used[k % n] = true;
+        }
+        chosen.push((s, e));
+    }
+    chosen.sort();
+    chosen
+}
+
+/// For each start index `i` of a periodic sequence of `n` samples, the largest `j ≥ i`
+/// (`j − i < n`) such that every window grown one sample at a time from `[i, i + min − 1]`
+/// passes `ok`: a two-pointer sweep (the end never moves back), so `ok` runs O(n) times.
+/// `ok(i, j)` gets the window's first and last (unwrapped) indices. A start whose first
+/// window of `min` samples fails gets `j = i`.
+pub(crate) fn grow_windows(
+    n: usize,
+    min: usize,
+    mut ok: impl FnMut(usize, usize) -> bool,
+) -> Vec<usize> {
+    let mut best = vec![0; n];
+    let mut j = 0usize;
+    for (i, b) in best.iter_mut().enumerate() {
+        if j < i + min - 1 {
+            j = i + min - 1;
+            if j - i >= n || !ok(i, j) {
+                *b = i;
+                j = i;
+                continue;
+            }
+        }
+        while j + 1 - i < n && ok(i, j + 1) {
+            j += 1;
+        }
+        *b = j;
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn greedy_pick_and_growth() {
+        let chosen = pick_disjoint(10, vec![(0, 4, 0.0), (2, 9, 0.0), (8, 12, 0.0)]);
+        assert_eq!(chosen, vec![(2, 9)]);
+        let chosen = pick_disjoint(
+            10,
+            vec![(1, 5, 0.2), (0, 4, 0.1), (4, 9, 0.0), (9, 10, 0.0)],
+        );
+        assert_eq!(chosen, vec![(0, 4), (4, 9), (9, 10)]);
+        assert_eq!(
+            pick_disjoint(10, vec![(1, 5, 0.1), (0, 4, 0.2)]),
+            vec![(1, 5)]
+        );
+        // ok when the window stays within 0..=5 (no wrap)
+        let best = grow_windows(10, 2, |_, j| j <= 5);
+        assert_eq!(&best[..7], &[5, 5, 5, 5, 5, 5, 6]);
+    }
+
+    #[test]
+    fn defaults_validate() {
+        FeatureTolerances::DEFAULT.validate().unwrap();
+        let bad = FeatureTolerances {
+            step_deg: 7.0,
+            ..FeatureTolerances::DEFAULT
+        };
+        assert!(bad.validate().is_err());
+    }
+}

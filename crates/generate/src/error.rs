@@ -1,0 +1,86 @@
+//! Why a run fails.
+
+use coupler_kinematics::{Circuit, Linkage};
+use std::path::{Path, PathBuf};
+
+/// Why a run failed.
+#[derive(Debug, thiserror::Error)]
+pub enum GenerateError {
+    /// A file or folder could not be written or read.
+    #[error("cannot write {}", path.display())]
+    Io {
+        /// The path.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A crank-rocker that did not assemble at some angle: an internal invariant failed.
+    #[error("internal error: linkage {linkage} ({circuit}) did not assemble over a full turn")]
+    NotAssembled {
+        /// The linkage.
+        linkage: Linkage,
+        /// The circuit.
+        circuit: Circuit,
+    },
+    /// The crank step is not usable.
+    #[error("crank step {0}° is not usable")]
+    BadStep(f64),
+    /// The output folder holds files this program did not write.
+    #[error("{} holds files that coupler-atlas did not write (e.g. {}); choose an empty or new folder, or pass --force to write beside them (nothing of theirs is deleted)", dir.display(), example)]
+    ForeignFolder {
+        /// The folder.
+        dir: PathBuf,
+        /// One foreign entry.
+        example: String,
+    },
+    /// Stopped by the user (SIGINT) between groups.
+    #[error("interrupted: {done} of {total} chunks are complete in {}; run the same command again to resume", dir.display())]
+    Interrupted {
+        /// Complete chunks.
+        done: usize,
+        /// All chunks of this run.
+        total: usize,
+        /// The output folder.
+        dir: PathBuf,
+    },
+    /// Shard folders that do not make one atlas.
+    #[error("cannot merge: {0}")]
+    Merge(String),
+    /// Pages could not be made or written; every other page was (no index or manifest
+    /// is written for an incomplete atlas). The same command again redoes what is missing.
+    #[error("{} failed (every other page is written; once the cause is fixed, run the same command again to redo only what is missing):{}", pages(failed.len()), failed.iter().map(|f| format!("\n  {}: {}", f.page, f.message)).collect::<String>())]
+    PagesFailed {
+        /// Every failed page.
+        failed: Vec<crate::PageFailure>,
+        /// The output folder.
+        dir: PathBuf,
+    },
+}
+
+impl GenerateError {
+    /// True for errors in what the user gave (exit code 2), as opposed to failures while
+    /// working.
+    pub fn is_user_error(&self) -> bool {
+        matches!(
+            self,
+            GenerateError::ForeignFolder { .. } | GenerateError::Merge(_)
+        )
+    }
+}
+
+pub(crate) fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> GenerateError + '_ {
+    move |source| GenerateError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// "1 page" or "N pages".
+fn pages(n: usize) -> String {
+    if n == 1 {
+        "1 page".into()
+    } else {
+        format!("{n} pages")
+    }
+}

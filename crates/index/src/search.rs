@@ -1,0 +1,715 @@
+//! Searching an index by features: composable filters over a compact columnar table.
+//!
+//! The JSON index of a large atlas is big (≈1.5 KB per curve with features), and parsing
+//! it takes seconds per million curves. So `search` reads it once into a [`SearchTable`]
+//! (one fixed-size row per curve plus flat arrays of segments and arcs), saves that as a
+//! binary cache next to the index (`INDEX.search`, keyed by the index's length and
+//! modification time), and answers queries from the cache: a linear scan with cheap
+//! tests, milliseconds per million curves. The filtered quantities are kept as `f64`,
+//! so a result satisfies its filters exactly as the index's own numbers do.
+
+use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
+use coupler_features::{CurveFeatures, Side};
+use coupler_kinematics::{Circuit, Linkage, LinkageClass};
+use serde::Serialize;
+
+/// One straight segment, as searched.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SegmentRow {
+    /// Start, degrees.
+    pub start_deg: f64,
+    /// Span, degrees.
+    pub span_deg: f64,
+    /// ε_S, percent.
+    pub straightness_pct: f64,
+    /// ε_V, percent.
+    pub velocity_variation_pct: f64,
+    /// Length along the line.
+    pub length: f64,
+    /// Direction of travel, degrees.
+    pub direction_deg: f64,
+}
+
+/// One pseudo-arc, as searched.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ArcRow {
+    /// Start, degrees.
+    pub start_deg: f64,
+    /// Span, degrees.
+    pub span_deg: f64,
+    /// Radius.
+    pub radius: f64,
+    /// Radial deviation, percent.
+    pub deviation_pct: f64,
+    /// Centre.
+    pub center: [f64; 2],
+    /// Concave side.
+    pub concave: Side,
+}
+
+/// One curve, as searched.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurveRow {
+    /// Curve id.
+    pub id: u64,
+    /// Coupler, rocker, ground.
+    pub linkage: [f64; 3],
+    /// Coupler point (u, v).
+    pub point: [f64; 2],
+    /// Circuit.
+    pub circuit: Circuit,
+    /// Class (Barker's for a four-bar).
+    pub class: LinkageClass,
+    /// Transmission angle range, degrees.
+    pub transmission_deg: [f64; 2],
+    /// Index into [`SearchTable::pages`], or `u32::MAX`.
+    pub page: u32,
+    /// Page bounding box, pixels.
+    pub page_bbox: [f64; 4],
+    /// First segment in [`SearchTable::segments`].
+    pub seg_start: u32,
+    /// Number of segments.
+    pub seg_count: u32,
+    /// First arc in [`SearchTable::arcs`].
+    pub arc_start: u32,
+    /// Number of arcs.
+    pub arc_count: u32,
+    /// Whether the curve has an axis of symmetry.
+    pub symmetric: bool,
+    /// Number of crunodes.
+    pub crunodes: u32,
+    /// Number of cusps.
+    pub cusps: u32,
+    /// Whether the index carried features for it.
+    pub has_features: bool,
+}
+
+/// The searchable form of an index.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SearchTable {
+    /// One row per curve, in index order.
+    pub rows: Vec<CurveRow>,
+    /// All straight segments, by curve.
+    pub segments: Vec<SegmentRow>,
+    /// All pseudo-arcs, by curve.
+    pub arcs: Vec<ArcRow>,
+    /// Page file names.
+    pub pages: Vec<String>,
+}
+
+/// Why an index or its cache could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum SearchError {
+    /// A curve line of the index is not valid.
+    #[error("index line {line}: {message}")]
+    Line {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// Not an index of this schema.
+    #[error("not a coupler-atlas index of schema version {SCHEMA_VERSION}: {0}")]
+    Header(String),
+    /// The cache is truncated or of another version (it is rebuilt).
+    #[error("search cache is not valid")]
+    Cache,
+}
+
+impl SearchTable {
+    /// Adds one curve.
+    pub fn push(&mut self, c: &IndexCurve) {
+        let page = match &c.page {
+            Some(PageRef { file, .. }) => match self.pages.iter().rposition(|p| p == file) {
+                Some(i) => i as u32,
+                None => {
+                    self.pages.push(file.clone());
+                    (self.pages.len() - 1) as u32
+                }
+            },
+            None => u32::MAX,
+        };
+        let empty = CurveFeatures {
+            straight_segments: Vec::new(),
+            pseudo_arcs: Vec::new(),
+            double_points: Default::default(),
+            symmetry: None,
+            cognates: Vec::new(),
+        };
+        let f = c.features.as_ref().unwrap_or(&empty);
+        let row = CurveRow {
+            id: c.id,
+            linkage: match c.linkage {
+                Linkage::FourBar(l) => [l.coupler, l.rocker, l.ground],
+            },
+            point: [c.point.u, c.point.v],
+            circuit: c.circuit,
+            class: c.class,
+            transmission_deg: c.transmission_deg,
+            page,
+            page_bbox: c.page.as_ref().map(|p| p.bbox_px).unwrap_or([0.0; 4]),
+            seg_start: self.segments.len() as u32,
+            seg_count: f.straight_segments.len() as u32,
+            arc_start: self.arcs.len() as u32,
+            arc_count: f.pseudo_arcs.len() as u32,
+            symmetric: f.symmetry.is_some(),
+            crunodes: f.double_points.crunodes.len() as u32,
+            cusps: f.double_points.cusps.len() as u32,
+            has_features: c.features.is_some(),
+        };
+        self.segments
+            .extend(f.straight_segments.iter().map(|s| SegmentRow {
+                start_deg: s.start_deg,
+                span_deg: s.span_deg,
+                straightness_pct: s.straightness_pct,
+                velocity_variation_pct: s.velocity_variation_pct,
+                length: s.length,
+                direction_deg: s.direction_deg,
+            }));
+        self.arcs.extend(f.pseudo_arcs.iter().map(|a| ArcRow {
+            start_deg: a.start_deg,
+            span_deg: a.span_deg,
+            radius: a.radius,
+            deviation_pct: a.deviation_pct,
+            center: a.center,
+            concave: a.concave,
+        }));
+        self.rows.push(row);
+    }
+
+    /// Reads the curves of an index written by [`crate::write_index`] (a header,
+    /// then one curve per line), parsing the curve lines in parallel.
+    pub fn from_index_text(text: &str) -> Result<SearchTable, SearchError> {
+        SearchTable::from_index_reader(text.as_bytes())
+    }
+
+    /// Like [`SearchTable::from_index_text`], streaming: lines are read and parsed in
+    /// batches (in parallel), so memory holds one batch of text and records at a time
+    /// besides the table.
+    pub fn from_index_reader<R: std::io::BufRead>(
+        mut reader: R,
+    ) -> Result<SearchTable, SearchError> {
+        use rayon::prelude::*;
+        let io = |e: std::io::Error| SearchError::Header(e.to_string());
+        let mut first = String::new();
+        reader.read_line(&mut first).map_err(io)?;
+        if !first.starts_with(&format!("{{\"schema_version\":{SCHEMA_VERSION},")) {
+            return Err(SearchError::Header(first.chars().take(60).collect()));
+        }
+        let mut t = SearchTable::default();
+        let mut line_no = 1;
+        let mut batch: Vec<(usize, String)> = Vec::with_capacity(1 << 14);
+        let mut done = false;
+        let mut closed = false;
+        while !done {
+            batch.clear();
+            while batch.len() < 1 << 14 {
+                let mut l = String::new();
+                if reader.read_line(&mut l).map_err(io)? == 0 {
+                    done = true;
+                    break;
+                }
+                line_no += 1;
+                if l.starts_with("{\"id\":") {
+                    batch.push((line_no, l));
+                } else if !l.trim().is_empty() {
+                    // The index closes with `]}`; anything after the curves but that
+                    // means the file was cut short or altered.
+                    closed = l.trim() == "]}";
+                }
+            }
+            let parsed: Result<Vec<IndexCurve>, SearchError> = batch
+                .par_iter()
+                .map(|(n, l)| {
+                    let l = l.trim_end();
+                    serde_json::from_str(l.strip_suffix(',').unwrap_or(l)).map_err(|e| {
+                        SearchError::Line {
+                            line: *n,
+                            message: e.to_string(),
+                        }
+                    })
+                })
+                .collect();
+            for c in &parsed? {
+                t.push(c);
+            }
+        }
+        if !closed {
+            return Err(SearchError::Line {
+                line: line_no,
+                message: "the index ends without its closing `]}`: it is truncated".into(),
+            });
+        }
+        Ok(t)
+    }
+
+    /// The segments of a row.
+    pub fn segments_of(&self, r: &CurveRow) -> &[SegmentRow] {
+        &self.segments[r.seg_start as usize..(r.seg_start + r.seg_count) as usize]
+    }
+
+    /// The arcs of a row.
+    pub fn arcs_of(&self, r: &CurveRow) -> &[ArcRow] {
+        &self.arcs[r.arc_start as usize..(r.arc_start + r.arc_count) as usize]
+    }
+
+    /// Serialises the table (little-endian, versioned) with a key identifying its index.
+    pub fn to_bytes(&self, key: [u64; 2]) -> Vec<u8> {
+        let mut w = Vec::with_capacity(64 + self.rows.len() * 160);
+        w.extend_from_slice(MAGIC);
+        for x in [
+            key[0],
+            key[1],
+            self.rows.len() as u64,
+            self.segments.len() as u64,
+            self.arcs.len() as u64,
+        ] {
+            w.extend_from_slice(&x.to_le_bytes());
+        }
+        let f = |w: &mut Vec<u8>, x: f64| w.extend_from_slice(&x.to_le_bytes());
+        let u = |w: &mut Vec<u8>, x: u32| w.extend_from_slice(&x.to_le_bytes());
+        u(&mut w, self.pages.len() as u32);
+        for p in &self.pages {
+            u(&mut w, p.len() as u32);
+            w.extend_from_slice(p.as_bytes());
+        }
+        for r in &self.rows {
+            w.extend_from_slice(&r.id.to_le_bytes());
+            for x in r
+                .linkage
+                .iter()
+                .chain(&r.point)
+                .chain(&r.transmission_deg)
+                .chain(&r.page_bbox)
+            {
+                f(&mut w, *x);
+            }
+            for x in [
+                r.page,
+                r.seg_start,
+                r.seg_count,
+                r.arc_start,
+                r.arc_count,
+                r.crunodes,
+                r.cusps,
+            ] {
+                u(&mut w, x);
+            }
+            let class = LinkageClass::ALL
+                .iter()
+                .position(|&c| c == r.class)
+                .unwrap_or(0) as u8;
+            w.extend_from_slice(&[
+                (r.circuit == Circuit::Crossed) as u8,
+                class,
+                r.symmetric as u8,
+                r.has_features as u8,
+            ]);
+        }
+        for s in &self.segments {
+            for x in [
+                s.start_deg,
+                s.span_deg,
+                s.straightness_pct,
+                s.velocity_variation_pct,
+                s.length,
+                s.direction_deg,
+            ] {
+                f(&mut w, x);
+            }
+        }
+        for a in &self.arcs {
+            for x in [
+                a.start_deg,
+                a.span_deg,
+                a.radius,
+                a.deviation_pct,
+                a.center[0],
+                a.center[1],
+            ] {
+                f(&mut w, x);
+            }
+            w.push((a.concave == Side::Right) as u8);
+        }
+        w
+    }
+
+    /// Reads a table written by [`SearchTable::to_bytes`] if its key matches.
+    pub fn from_bytes(b: &[u8], key: [u64; 2]) -> Result<SearchTable, SearchError> {
+        let mut r = Reader { b, at: 0 };
+        if r.take(MAGIC.len())? != MAGIC || [r.u64()?, r.u64()?] != key {
+            return Err(SearchError::Cache);
+        }
+        let (nrows, nsegs, narcs) = (r.u64()? as usize, r.u64()? as usize, r.u64()? as usize);
+        let npages = r.u32()? as usize;
+        let mut t = SearchTable::default();
+        for _ in 0..npages {
+            let len = r.u32()? as usize;
+            t.pages
+                .push(String::from_utf8(r.take(len)?.to_vec()).map_err(|_| SearchError::Cache)?);
+        }
+        t.rows.reserve_exact(nrows);
+        for _ in 0..nrows {
+            let id = r.u64()?;
+            let mut v = [0.0; 11];
+            for x in &mut v {
+                *x = r.f64()?;
+            }
+            let mut k = [0u32; 7];
+            for x in &mut k {
+                *x = r.u32()?;
+            }
+            let flags = r.take(4)?;
+            t.rows.push(CurveRow {
+                id,
+                linkage: [v[0], v[1], v[2]],
+                point: [v[3], v[4]],
+                transmission_deg: [v[5], v[6]],
+                page_bbox: [v[7], v[8], v[9], v[10]],
+                page: k[0],
+                seg_start: k[1],
+                seg_count: k[2],
+                arc_start: k[3],
+                arc_count: k[4],
+                crunodes: k[5],
+                cusps: k[6],
+                circuit: if flags[0] == 1 {
+                    Circuit::Crossed
+                } else {
+                    Circuit::Open
+                },
+                class: *LinkageClass::ALL
+                    .get(flags[1] as usize)
+                    .ok_or(SearchError::Cache)?,
+                symmetric: flags[2] == 1,
+                has_features: flags[3] == 1,
+            });
+        }
+        t.segments.reserve_exact(nsegs);
+        for _ in 0..nsegs {
+            let mut v = [0.0; 6];
+            for x in &mut v {
+                *x = r.f64()?;
+            }
+            t.segments.push(SegmentRow {
+                start_deg: v[0],
+                span_deg: v[1],
+                straightness_pct: v[2],
+                velocity_variation_pct: v[3],
+                length: v[4],
+                direction_deg: v[5],
+            });
+        }
+        t.arcs.reserve_exact(narcs);
+        for _ in 0..narcs {
+            let mut v = [0.0; 6];
+            for x in &mut v {
+                *x = r.f64()?;
+            }
+            let side = r.take(1)?[0];
+            t.arcs.push(ArcRow {
+                start_deg: v[0],
+                span_deg: v[1],
+                radius: v[2],
+                deviation_pct: v[3],
+                center: [v[4], v[5]],
+                concave: if side == 1 { Side::Right } else { Side::Left },
+            });
+        }
+        if r.at != b.len() {
+            return Err(SearchError::Cache);
+        }
+        Ok(t)
+    }
+
+    /// Runs a query: every row that passes all filters, sorted and limited. Sort keys
+    /// are computed once per hit; with a limit, only the best `limit` hits are sorted
+    /// (partial selection), so a query that matches most of a million curves stays fast.
+    pub fn search(&self, q: &Query) -> Vec<Hit> {
+        let key = |h: &Hit| -> f64 {
+            let r = &self.rows[h.row];
+            match q.sort {
+                SortKey::Id => r.id as f64,
+                SortKey::Straight => -h
+                    .straight
+                    .iter()
+                    .map(|&k| self.segments[k].span_deg)
+                    .fold(0.0, f64::max),
+                SortKey::Arc => -h
+                    .arcs
+                    .iter()
+                    .map(|&k| self.arcs[k].span_deg)
+                    .fold(0.0, f64::max),
+                SortKey::Deviation => h
+                    .arcs
+                    .iter()
+                    .map(|&k| self.arcs[k].deviation_pct)
+                    .fold(f64::INFINITY, f64::min),
+                SortKey::Straightness => h
+                    .straight
+                    .iter()
+                    .map(|&k| self.segments[k].straightness_pct)
+                    .fold(f64::INFINITY, f64::min),
+                SortKey::Transmission => -r.transmission_deg[0],
+            }
+        };
+        let mut keyed: Vec<(f64, u64, Hit)> = self
+            .rows
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| q.matches(self, i, r))
+            .map(|h| (key(&h), self.rows[h.row].id, h))
+            .collect();
+        let order =
+            |a: &(f64, u64, Hit), b: &(f64, u64, Hit)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        if q.limit > 0 && keyed.len() > q.limit {
+            keyed.select_nth_unstable_by(q.limit - 1, order);
+            keyed.truncate(q.limit);
+        }
+        keyed.sort_by(order);
+        keyed.into_iter().map(|(_, _, h)| h).collect()
+    }
+}
+
+const MAGIC: &[u8] = b"coupler-atlas search v1\n";
+
+struct Reader<'a> {
+    b: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], SearchError> {
+        let s = self.b.get(self.at..self.at + n).ok_or(SearchError::Cache)?;
+        self.at += n;
+        Ok(s)
+    }
+    fn u64(&mut self) -> Result<u64, SearchError> {
+        Ok(u64::from_le_bytes(
+            self.take(8)?.try_into().map_err(|_| SearchError::Cache)?,
+        ))
+    }
+    fn u32(&mut self) -> Result<u32, SearchError> {
+        Ok(u32::from_le_bytes(
+            self.take(4)?.try_into().map_err(|_| SearchError::Cache)?,
+        ))
+    }
+    fn f64(&mut self) -> Result<f64, SearchError> {
+        Ok(f64::from_bits(self.u64()?))
+    }
+}
+
+/// How hits are ordered.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum SortKey {
+    /// By curve id (atlas order).
+    #[default]
+    Id,
+    /// Longest matching straight segment first.
+    Straight,
+    /// Straightest matching segment first.
+    Straightness,
+    /// Longest matching arc first.
+    Arc,
+    /// Smallest matching arc deviation first.
+    Deviation,
+    /// Largest minimum transmission angle first.
+    Transmission,
+}
+
+impl std::str::FromStr for SortKey {
+    type Err = String;
+    fn from_str(s: &str) -> Result<SortKey, String> {
+        Ok(match s {
+            "id" => SortKey::Id,
+            "straight" => SortKey::Straight,
+            "straightness" => SortKey::Straightness,
+            "arc" => SortKey::Arc,
+            "deviation" => SortKey::Deviation,
+            "transmission" => SortKey::Transmission,
+            _ => {
+                return Err(format!(
+                    "unknown sort key `{s}` (expected id, straight, straightness, arc, deviation, transmission)"
+                ));
+            }
+        })
+    }
+}
+
+/// A feature filter: span at least `min_span_deg`, error at most `max_error_pct`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpanFilter {
+    /// Smallest span, crank degrees.
+    pub min_span_deg: f64,
+    /// Largest error (ε_S for segments, radial deviation for arcs), percent.
+    pub max_error_pct: f64,
+}
+
+impl std::str::FromStr for SpanFilter {
+    type Err = String;
+    /// `SPAN` or `SPAN:TOL` (degrees, percent).
+    fn from_str(s: &str) -> Result<SpanFilter, String> {
+        let num = |t: &str| -> Result<f64, String> {
+            let x: f64 = t
+                .trim()
+                .parse()
+                .map_err(|_| format!("expected SPAN[:TOL] (degrees[:percent]), got `{s}`"))?;
+            if x.is_finite() && x >= 0.0 {
+                Ok(x)
+            } else {
+                Err(format!("SPAN and TOL must be finite and ≥ 0, got `{s}`"))
+            }
+        };
+        let (span, tol) = match s.split_once(':') {
+            Some((a, b)) => (num(a)?, num(b)?),
+            None => (num(s)?, f64::INFINITY),
+        };
+        Ok(SpanFilter {
+            min_span_deg: span,
+            max_error_pct: tol,
+        })
+    }
+}
+
+/// A search query: every filter given must hold.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Query {
+    /// Some straight segment passes.
+    pub straight: Option<SpanFilter>,
+    /// Some pseudo-arc passes.
+    pub arc: Option<SpanFilter>,
+    /// Two straight segments (passing `straight`, if given), or two arcs (passing `arc`,
+    /// if given) of equal radius (within `radius_tol_pct`) and the same concave side.
+    pub double_dwell: bool,
+    /// Relative radius tolerance of the two arcs of a double dwell, percent.
+    pub radius_tol_pct: f64,
+    /// Transmission angle within [DEG, 180 − DEG] over the whole revolution.
+    pub min_transmission_deg: Option<f64>,
+    /// Class (Barker's for a four-bar).
+    pub class: Option<LinkageClass>,
+    /// Linkage (coupler, rocker, ground), matched to 1e-9.
+    pub linkage: Option<[f64; 3]>,
+    /// Circuit.
+    pub circuit: Option<Circuit>,
+    /// Symmetric curves only.
+    pub symmetric: bool,
+    /// Order.
+    pub sort: SortKey,
+    /// At most this many hits (0: all).
+    pub limit: usize,
+}
+
+/// Default relative radius tolerance of a double dwell's two arcs, percent.
+pub const DEFAULT_RADIUS_TOL_PCT: f64 = 2.0;
+
+/// A search result: the row and the features that matched.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Hit {
+    /// Row index in the table.
+    pub row: usize,
+    /// Indices (into [`SearchTable::segments`]) of the matching straight segments.
+    pub straight: Vec<usize>,
+    /// Indices (into [`SearchTable::arcs`]) of the matching arcs.
+    pub arcs: Vec<usize>,
+}
+
+impl Query {
+    fn matches(&self, t: &SearchTable, i: usize, r: &CurveRow) -> Option<Hit> {
+        if let Some(c) = self.class {
+            if r.class != c {
+                return None;
+            }
+        }
+        if let Some(c) = self.circuit {
+            if r.circuit != c {
+                return None;
+            }
+        }
+        if let Some(l) = self.linkage {
+            if (0..3).any(|k| (r.linkage[k] - l[k]).abs() > 1e-9) {
+                return None;
+            }
+        }
+        if let Some(m) = self.min_transmission_deg {
+            if r.transmission_deg[0] < m || r.transmission_deg[1] > 180.0 - m {
+                return None;
+            }
+        }
+        if self.symmetric && !r.symmetric {
+            return None;
+        }
+        let wants_features = self.straight.is_some() || self.arc.is_some() || self.double_dwell;
+        if wants_features && !r.has_features {
+            return None;
+        }
+        let pass = |f: &Option<SpanFilter>, span: f64, err: f64| match f {
+            Some(f) => span >= f.min_span_deg && err <= f.max_error_pct,
+            None => true,
+        };
+        let straight: Vec<usize> = if self.straight.is_some() || self.double_dwell {
+            (r.seg_start as usize..(r.seg_start + r.seg_count) as usize)
+                .filter(|&k| {
+                    pass(
+                        &self.straight,
+                        t.segments[k].span_deg,
+                        t.segments[k].straightness_pct,
+                    )
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let arcs: Vec<usize> = if self.arc.is_some() || self.double_dwell {
+            (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
+                .filter(|&k| pass(&self.arc, t.arcs[k].span_deg, t.arcs[k].deviation_pct))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if self.straight.is_some() && straight.is_empty() {
+            return None;
+        }
+        if self.arc.is_some() && arcs.is_empty() {
+            return None;
+        }
+        if self.double_dwell {
+            let two_lines = straight.len() >= 2;
+            let pair = arcs.iter().enumerate().find_map(|(x, &p)| {
+                arcs[x + 1..].iter().find_map(|&q| {
+                    let (a, b) = (&t.arcs[p], &t.arcs[q]);
+                    let equal = (a.radius - b.radius).abs()
+                        <= self.radius_tol_pct / 100.0 * a.radius.max(b.radius);
+                    (equal && a.concave == b.concave).then_some([p, q])
+                })
+            });
+            match (two_lines, pair) {
+                (true, _) => {
+                    // Show the arcs that passed --arc if it was given, else the equal pair.
+                    let arcs = if self.arc.is_some() {
+                        arcs
+                    } else {
+                        pair.map(|p| p.to_vec()).unwrap_or_default()
+                    };
+                    return Some(Hit {
+                        row: i,
+                        straight,
+                        arcs,
+                    });
+                }
+                (false, Some(p)) => {
+                    return Some(Hit {
+                        row: i,
+                        straight,
+                        arcs: p.to_vec(),
+                    });
+                }
+                (false, None) => return None,
+            }
+        }
+        Some(Hit {
+            row: i,
+            straight,
+            arcs,
+        })
+    }
+}

@@ -1,0 +1,355 @@
+//! What the atlas pipeline (the job, features, page layout, index) needs from a
+//! mechanism, and nothing more: [`Mechanism`]. [`FourBar`] implements it; [`Linkage`] is
+//! the closed set of mechanisms an atlas holds (what its index records), dispatching to
+//! each.
+//!
+//! Every mechanism of the atlas is driven by one input crank of unit length pivoted at
+//! O2 = (0, 0), turning counter-clockwise by θ (`docs/conventions.md`), and carries its
+//! coupler points on a body whose frame has its origin at the input crank's pin
+//! Pa = (cos θ, sin θ): a coupler point (u, v) is `M = Pa + u·e + v·J·e` with `e` the
+//! body's unit direction ([`CouplerFrame`]). That holds for the four-bar (the coupler
+//! from Pa to the rocker pin) and for the geared five-bar (the link from Pa to the dyad
+//! joint), and it is what lets one pose per input angle serve every coupler point of a
+//! grid ([`PoseTable`]): the hot path.
+//!
+//! A second mechanism plugs in here: implement [`Mechanism`] for it (in a file of its
+//! own beside `linkage.rs`), add it as a variant of [`Linkage`] and [`LinkageClass`], and
+//! the compiler lists every `match` in the layers above that must say what it does (the
+//! spec's enumeration, the index's record, the search row, the curve flags).
+
+use crate::cognates::{Cognate, cognates};
+use crate::curve::{CrankTable, PoseTable, transmission_range};
+use crate::frame::{CouplerFrame, Drawing, Joint};
+use crate::linkage::{Circuit, Class, CouplerPoint, FourBar};
+use crate::pose::{CrankAngle, Pose, PoseCore, ToggleGaps};
+use nalgebra::Point2;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// What the atlas pipeline needs from a mechanism: its coupler curves by input angle,
+/// their velocities, its class and transmission angle, its drawing, its identity.
+///
+/// The contract: [`Mechanism::frame`] and [`Mechanism::pose_table`] agree to the bit
+/// (the table is the frames of its angles, stored as columns); `None` (a NaN row in the
+/// table) where the mechanism cannot be assembled, never a guess.
+pub trait Mechanism: Clone + fmt::Debug + fmt::Display + Send + Sync {
+    /// The coupler body's frame at input angle `angle` on `circuit`, or `None` where the
+    /// mechanism cannot be assembled there.
+    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame>;
+
+    /// The frames at every angle of `table` as columns, shared by every coupler point
+    /// (one pose per angle serves the whole grid). The default solves
+    /// [`Mechanism::frame`] per angle; a mechanism may solve faster (the four-bar does).
+    fn pose_table(&self, circuit: Circuit, table: &CrankTable) -> PoseTable {
+        PoseTable::from_frames(table, |angle| self.frame(circuit, angle))
+    }
+
+    /// The transmission angle (radians, in [0, π]) at `angle` on `circuit`, or `None`
+    /// where the mechanism cannot be assembled.
+    fn transmission(&self, circuit: Circuit, angle: &CrankAngle) -> Option<f64>;
+
+    /// `[min, max]` of the transmission angle over a full turn of the input (radians),
+    /// or `None` unless the mechanism assembles all the way round.
+    fn transmission_range(&self, circuit: Circuit) -> Option<[f64; 2]>;
+
+    /// Its class (Barker's for a four-bar).
+    fn class(&self) -> LinkageClass;
+
+    /// The class with a word on what it means for the input, for page headers, e.g.
+    /// `"GCRR (crank-rocker)"`.
+    fn class_description(&self) -> String;
+
+    /// Its dimensions as printed on a page: name and value, e.g. `[("A", 2.5), …]`.
+    fn dimensions(&self) -> Vec<(&'static str, f64)>;
+
+    /// The length of the coupler body's link from Pa along `e` (the coupler A of a
+    /// four-bar): pages draw the coupler plate over it.
+    fn coupler_length(&self) -> f64;
+
+    /// The naming convention of its links, for page headers, e.g.
+    /// `"crank = 1, coupler A, rocker B, ground C"`.
+    fn convention(&self) -> &'static str;
+
+    /// The mechanism drawn at `angle` on `circuit`.
+    fn drawing(&self, circuit: Circuit, angle: &CrankAngle) -> Drawing;
+
+    /// Other mechanisms tracing the same coupler curve of `point` (the Roberts–Chebyshev
+    /// cognates of a four-bar, as [`cognates`] gives them, without the linkage itself);
+    /// none by default.
+    fn cognates(&self, _circuit: Circuit, _point: CouplerPoint) -> Vec<Cognate> {
+        Vec::new()
+    }
+}
+
+impl Mechanism for FourBar {
+    #[inline]
+    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
+        let core = PoseCore::solve(self, &ToggleGaps::of(self), circuit, angle)?;
+        Some(core.frame(angle))
+    }
+
+    fn pose_table(&self, circuit: Circuit, table: &CrankTable) -> PoseTable {
+        PoseTable::new(self, circuit, table)
+    }
+
+    fn transmission(&self, circuit: Circuit, angle: &CrankAngle) -> Option<f64> {
+        Pose::solve(self, circuit, angle).map(|p| p.transmission)
+    }
+
+    fn transmission_range(&self, _circuit: Circuit) -> Option<[f64; 2]> {
+        transmission_range(self)
+    }
+
+    fn class(&self) -> LinkageClass {
+        LinkageClass::Barker(FourBar::class(self))
+    }
+
+    fn class_description(&self) -> String {
+        format!(
+            "{} ({})",
+            FourBar::class(self).code(),
+            if self.is_crank_rocker() {
+                "crank-rocker"
+            } else {
+                "not a crank-rocker"
+            }
+        )
+    }
+
+    fn dimensions(&self) -> Vec<(&'static str, f64)> {
+        vec![("A", self.coupler), ("B", self.rocker), ("C", self.ground)]
+    }
+
+    fn coupler_length(&self) -> f64 {
+        self.coupler
+    }
+
+    fn convention(&self) -> &'static str {
+        "crank = 1, coupler A, rocker B, ground C"
+    }
+
+    /// O2 and O4 (ground), then Pa and Pb; links crank O2–Pa, coupler Pa–Pb, rocker
+    /// O4–Pb; the crank circle.
+    fn drawing(&self, circuit: Circuit, angle: &CrankAngle) -> Drawing {
+        let ground = |name, x| Joint {
+            name,
+            position: Point2::new(x, 0.0),
+            ground: true,
+        };
+        let mut joints = vec![ground("O2", 0.0), ground("O4", self.ground)];
+        let mut links = Vec::new();
+        let pose = Pose::solve(self, circuit, angle);
+        if let Some(p) = &pose {
+            joints.push(Joint {
+                name: "Pa",
+                position: p.crank_pin,
+                ground: false,
+            });
+            joints.push(Joint {
+                name: "Pb",
+                position: p.rocker_pin,
+                ground: false,
+            });
+            links = vec![[0, 2], [2, 3], [1, 3]];
+        }
+        Drawing {
+            joints,
+            links,
+            paths: vec![(Point2::origin(), 1.0)],
+            coupler: pose.map(|p| p.frame()),
+        }
+    }
+
+    fn cognates(&self, circuit: Circuit, point: CouplerPoint) -> Vec<Cognate> {
+        cognates(self, circuit, point)
+            .map(|[_, a, b]| vec![a, b])
+            .unwrap_or_default()
+    }
+}
+
+/// The mechanisms an atlas holds: what a group of curves is drawn from and what the
+/// index records as a curve's `linkage`. Serialised without a tag, as the mechanism's own
+/// fields (a four-bar is `{"coupler": A, "rocker": B, "ground": C}`), so adding a
+/// mechanism with other fields leaves existing indexes as they are.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Linkage {
+    /// A four-bar (crank = 1, coupler A, rocker B, ground C).
+    FourBar(FourBar),
+}
+
+impl From<FourBar> for Linkage {
+    fn from(l: FourBar) -> Linkage {
+        Linkage::FourBar(l)
+    }
+}
+
+impl Linkage {
+    /// The four-bar, if it is one.
+    pub fn four_bar(&self) -> Option<&FourBar> {
+        match self {
+            Linkage::FourBar(l) => Some(l),
+        }
+    }
+}
+
+impl fmt::Display for Linkage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Linkage::FourBar(l) => l.fmt(f),
+        }
+    }
+}
+
+impl Mechanism for Linkage {
+    #[inline]
+    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
+        match self {
+            Linkage::FourBar(l) => l.frame(circuit, angle),
+        }
+    }
+
+    fn pose_table(&self, circuit: Circuit, table: &CrankTable) -> PoseTable {
+        match self {
+            Linkage::FourBar(l) => l.pose_table(circuit, table),
+        }
+    }
+
+    fn transmission(&self, circuit: Circuit, angle: &CrankAngle) -> Option<f64> {
+        match self {
+            Linkage::FourBar(l) => l.transmission(circuit, angle),
+        }
+    }
+
+    fn transmission_range(&self, circuit: Circuit) -> Option<[f64; 2]> {
+        match self {
+            Linkage::FourBar(l) => l.transmission_range(circuit),
+        }
+    }
+
+    fn class(&self) -> LinkageClass {
+        match self {
+            Linkage::FourBar(l) => Mechanism::class(l),
+        }
+    }
+
+    fn class_description(&self) -> String {
+        match self {
+            Linkage::FourBar(l) => l.class_description(),
+        }
+    }
+
+    fn dimensions(&self) -> Vec<(&'static str, f64)> {
+        match self {
+            Linkage::FourBar(l) => l.dimensions(),
+        }
+    }
+
+    fn coupler_length(&self) -> f64 {
+        match self {
+            Linkage::FourBar(l) => l.coupler_length(),
+        }
+    }
+
+    fn convention(&self) -> &'static str {
+        match self {
+            Linkage::FourBar(l) => l.convention(),
+        }
+    }
+
+    fn drawing(&self, circuit: Circuit, angle: &CrankAngle) -> Drawing {
+        match self {
+            Linkage::FourBar(l) => l.drawing(circuit, angle),
+        }
+    }
+
+    fn cognates(&self, circuit: Circuit, point: CouplerPoint) -> Vec<Cognate> {
+        match self {
+            Linkage::FourBar(l) => l.cognates(circuit, point),
+        }
+    }
+}
+
+/// The class of a mechanism: Barker's for a four-bar. Serialised as its code
+/// (`"GCRR"`), without a tag.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum LinkageClass {
+    /// Barker's class of a four-bar.
+    Barker(Class),
+}
+
+impl LinkageClass {
+    /// Every class, in a fixed order (the search cache stores a class as its position).
+    pub const ALL: [LinkageClass; 14] = {
+        let mut all = [LinkageClass::Barker(Class::Gccc); 14];
+        let mut k = 0;
+        while k < 14 {
+            all[k] = LinkageClass::Barker(Class::ALL[k]);
+            k += 1;
+        }
+        all
+    };
+
+    /// Its code, e.g. `"GCRR"`.
+    pub fn code(self) -> &'static str {
+        match self {
+            LinkageClass::Barker(c) => c.code(),
+        }
+    }
+}
+
+impl From<Class> for LinkageClass {
+    fn from(c: Class) -> LinkageClass {
+        LinkageClass::Barker(c)
+    }
+}
+
+impl fmt::Display for LinkageClass {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.code())
+    }
+}
+
+impl std::str::FromStr for LinkageClass {
+    type Err = String;
+    fn from_str(s: &str) -> Result<LinkageClass, String> {
+        s.parse::<Class>().map(LinkageClass::Barker)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The frame, the pose and the pose table agree to the bit.
+    #[test]
+    fn frame_pose_and_table_agree() {
+        let l = FourBar::new(2.5, 3.0, 3.5).unwrap();
+        let p = CouplerPoint::new(1.25, -0.5);
+        let table = CrankTable::new(7.5).unwrap();
+        for circuit in [Circuit::Open, Circuit::Crossed] {
+            let poses = Mechanism::pose_table(&l, circuit, &table);
+            let generic = PoseTable::from_frames(&table, |a| l.frame(circuit, a));
+            // The table's columns are the frames' (its tracing loop groups the sums its
+            // own way, so its samples may differ from `point` in the last bit).
+            assert_eq!(poses.trace(p), generic.trace(p));
+            for angle in table.angles() {
+                let f = l.frame(circuit, angle).unwrap();
+                let pose = Pose::solve(&l, circuit, angle).unwrap();
+                assert_eq!(f, pose.frame());
+                assert_eq!(f.point(p), pose.point(p));
+                assert_eq!(f.velocity(p), pose.velocity(p));
+            }
+        }
+    }
+
+    #[test]
+    fn linkage_serialises_as_the_four_bar() {
+        let l = FourBar::new(2.5, 3.0, 3.5).unwrap();
+        assert_eq!(
+            serde_json::to_string(&Linkage::from(l)).unwrap(),
+            serde_json::to_string(&l).unwrap()
+        );
+    }
+}

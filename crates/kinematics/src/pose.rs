@@ -1,0 +1,449 @@
+//! Closed-form position and velocity of the four-bar at one crank angle.
+
+use crate::frame::CouplerFrame;
+use crate::linkage::{Circuit, CouplerPoint, FourBar};
+use nalgebra::{Point2, Vector2};
+
+/// A crank angle θ in degrees, with its sine and cosine (crank pin Pa = (cos θ, sin θ)).
+///
+/// The sine and cosine come from the pure-Rust `libm` after an exact reduction of the
+/// degrees to `[−45°, 45°]`, so they are the same bits on every platform, and exact at
+/// multiples of 90° (sin 180° = 0, not 1.2e-16).
+///
+/// ```
+/// use coupler_kinematics::CrankAngle;
+/// let t = CrankAngle::from_degrees(180.0);
+/// assert_eq!((t.cos, t.sin), (-1.0, 0.0));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CrankAngle {
+    /// θ in degrees, as given.
+    pub degrees: f64,
+    /// cos θ.
+    pub cos: f64,
+    /// sin θ.
+    pub sin: f64,
+    /// sin(θ/2): with it, `C − cos θ = (C − 1) + 2·sin²(θ/2)` loses no digits near θ = 0.
+    pub sin_half: f64,
+    /// cos(θ/2): `1 + cos θ = 2·cos²(θ/2)` loses no digits near θ = 180°.
+    pub cos_half: f64,
+}
+
+impl CrankAngle {
+    /// The angle θ (degrees, any finite value).
+    pub fn from_degrees(degrees: f64) -> CrankAngle {
+        let (sin, cos) = sincos_deg(degrees);
+        let (sin_half, cos_half) = sincos_deg(0.5 * degrees);
+        CrankAngle {
+            degrees,
+            cos,
+            sin,
+            sin_half,
+            cos_half,
+        }
+    }
+
+    /// The crank pin Pa = (cos θ, sin θ).
+    pub fn crank_pin(&self) -> Point2<f64> {
+        Point2::new(self.cos, self.sin)
+    }
+
+    /// The crank pin's velocity dPa/dθ = (−sin θ, cos θ) (unit crank speed).
+    pub fn crank_pin_velocity(&self) -> Vector2<f64> {
+        Vector2::new(-self.sin, self.cos)
+    }
+}
+
+/// `(sin, cos)` of an angle in degrees. The degrees are folded exactly (each subtraction
+/// is exact by Sterbenz's lemma) onto `[0°, 45°]` by the symmetries `θ ↔ −θ`,
+/// `θ ↔ 360° − θ`, `θ ↔ 180° − θ`, `θ ↔ 90° − θ`, then rounded once to radians. So the
+/// result is deterministic across platforms (libm), exact at multiples of 90°, and has the
+/// symmetries exactly (`sin(180° − θ) = sin θ` to the bit), which symmetric curves rely on.
+pub fn sincos_deg(degrees: f64) -> (f64, f64) {
+    let negative = degrees < 0.0;
+    let mut r = degrees.abs() % 360.0; // exact
+    let mut sin_sign = if negative { -1.0 } else { 1.0 };
+    let mut cos_sign = 1.0;
+    if r > 180.0 {
+        r = 360.0 - r;
+        sin_sign = -sin_sign;
+    }
+    if r > 90.0 {
+        r = 180.0 - r;
+        cos_sign = -1.0;
+    }
+    let swap = r > 45.0;
+    if swap {
+        r = 90.0 - r;
+    }
+    let x = r * (std::f64::consts::PI / 180.0);
+    let (s, c) = if r == 0.0 {
+        (0.0, 1.0)
+    } else {
+        (libm::sin(x), libm::cos(x))
+    };
+    let (s, c) = if swap { (c, s) } else { (s, c) };
+    // `+ 0.0` turns a −0 into +0 so that sin 180° prints as 0.
+    (sin_sign * s + 0.0, cos_sign * c + 0.0)
+}
+
+/// How far (in ulps of the longest side) the triangle inequality may fail by rounding
+/// and still count as a flat triangle (a toggle).
+pub const TOGGLE_ULPS: f64 = 4.0;
+
+/// Twice the area of the triangle with sides `a`, `b`, `c` (times two: `2·Area`), by
+/// Kahan's formula for needle-like triangles ("Miscalculating Area and Angles of a
+/// Needle-like Triangle", 2014): sort `x ≥ y ≥ z`, then
+/// `4·Area = √((x+(y+z))(z−(x−y))(z+(x−y))(x+(y−z)))`, with the parentheses as written.
+/// Accurate to a few ulps even for triangles that are nearly flat, where Heron's formula
+/// or `√(A² − a²)` lose all their digits.
+///
+/// Returns `None` when the sides violate the triangle inequality by more than
+/// [`TOGGLE_ULPS`] ulps of the longest side (no triangle; the linkage cannot be
+/// assembled), and `Some(0.0)` for a triangle flat to within that (a toggle): the
+/// distance `d` carries a rounding error of about an ulp, so a linkage that just reaches
+/// a toggle must not be declared unassemblable by it.
+pub fn kahan_double_area(a: f64, b: f64, c: f64) -> Option<f64> {
+    let (mut x, mut y, mut z) = (a, b, c);
+    if x < y {
+        std::mem::swap(&mut x, &mut y);
+    }
+    if y < z {
+        std::mem::swap(&mut y, &mut z);
+    }
+    if x < y {
+        std::mem::swap(&mut x, &mut y);
+    }
+    let mut gap = z - (x - y);
+    if gap.is_nan() {
+        return None;
+    }
+    if gap < 0.0 {
+        // Within rounding of flat (a few ulps of the longest side): a toggle, not a
+        // failure to assemble. Further out: no triangle.
+        if gap >= -TOGGLE_ULPS * f64::EPSILON * x {
+            gap = 0.0;
+        } else {
+            return None;
+        }
+    }
+    let p = (x + (y + z)) * gap * (z + (x - y)) * (x + (y - z));
+    Some(0.5 * p.sqrt())
+}
+
+/// The two Grashof gaps of a linkage, the constants of [`Pose::solve`]'s thin factors:
+/// `outer = (A+B)² − (C+1)²` (how far the coupler and rocker are from folding out
+/// straight at θ = 180°) and `inner = (C−1)² − (A−B)²` (from folding onto each other at
+/// θ = 0), each computed with error-free products and sums and rounded once. Both are
+/// positive for a strict crank-rocker and zero at a change point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToggleGaps {
+    /// `(A+B)² − (C+1)²`.
+    pub outer: f64,
+    /// Sum of the magnitudes of its terms (for the rounding tolerance).
+    pub outer_scale: f64,
+    /// `(C−1)² − (A−B)²`.
+    pub inner: f64,
+    /// Sum of the magnitudes of its terms.
+    pub inner_scale: f64,
+}
+
+impl ToggleGaps {
+    /// The gaps of `linkage`.
+    pub fn of(linkage: &FourBar) -> ToggleGaps {
+        use crate::dd::Dd;
+        let (a, b, c) = (
+            Dd::from_f64(linkage.coupler),
+            Dd::from_f64(linkage.rocker),
+            Dd::from_f64(linkage.ground),
+        );
+        let one = Dd::from_f64(1.0);
+        let sq = |x: Dd| x * x;
+        let (ab_sum, ab_diff, c_plus, c_minus) = (a + b, a - b, c + one, c - one);
+        ToggleGaps {
+            outer: (sq(ab_sum) - sq(c_plus)).to_f64(),
+            outer_scale: sq(ab_sum).to_f64() + sq(c_plus).to_f64(),
+            inner: (sq(c_minus) - sq(ab_diff)).to_f64(),
+            inner_scale: sq(c_minus).to_f64() + sq(ab_diff).to_f64(),
+        }
+    }
+}
+
+/// A thin factor that is negative by no more than rounding (relative to the size of its
+/// terms) is a flat triangle, 0; more negative, no triangle.
+#[inline]
+fn flat_or_none(x: f64, scale: f64) -> Option<f64> {
+    if x >= 0.0 {
+        Some(x)
+    } else if x >= -TOGGLE_ULPS * f64::EPSILON * scale {
+        Some(0.0)
+    } else {
+        None
+    }
+}
+
+/// What every coupler point needs from a pose, and nothing more: the hot path of
+/// [`crate::PoseTable`]. Same equations as [`Pose::solve`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct PoseCore {
+    /// Unit coupler direction e3.
+    pub e_x: f64,
+    pub e_y: f64,
+    /// Coupler angular velocity ω3.
+    pub omega: f64,
+    /// Rocker pin.
+    pub pb_x: f64,
+    pub pb_y: f64,
+    /// 4·Area of the triangle (A, B, d) = √(P·Q).
+    pub area4: f64,
+    /// d².
+    pub d2: f64,
+}
+
+impl PoseCore {
+    #[inline]
+    pub(crate) fn solve(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<PoseCore> {
+        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
+        let sh2 = angle.sin_half * angle.sin_half;
+        let ch2 = angle.cos_half * angle.cos_half;
+        let (wx, wy) = ((c_len - 1.0) + 2.0 * sh2, -angle.sin);
+        let d2 = (c_len - 1.0) * (c_len - 1.0) + 4.0 * c_len * sh2;
+        if d2 == 0.0 {
+            return None;
+        }
+        let p = flat_or_none(
+            gaps.outer + 4.0 * c_len * ch2,
+            gaps.outer_scale + 4.0 * c_len * ch2,
+        )?;
+        let q = flat_or_none(
+            gaps.inner + 4.0 * c_len * sh2,
+            gaps.inner_scale + 4.0 * c_len * sh2,
+        )?;
+        let area4 = (p * q).sqrt();
+        let inv_d2 = 1.0 / d2;
+        // Pb − Pa = (a/d)·w + σ(h/d)·J·w with a/d = (A² − B² + d²)/(2d²), h/d = area4/(2d²).
+        let along = 0.5 * ((a_len - b_len) * (a_len + b_len) + d2) * inv_d2;
+        let across = circuit.sign() * 0.5 * area4 * inv_d2;
+        let (cx, cy) = (wx * along - wy * across, wy * along + wx * across);
+        let pb_x = angle.cos + cx;
+        let pb_y = angle.sin + cy;
+        let inv_a = 1.0 / a_len;
+        // ω3 = −(Va·e4)/(A·(e3 × e4)) = −(Va·(Pb − O4)) / (σ·h·d) = −2·(Va·(Pb − O4)) / (σ·area4).
+        let va_dot = -angle.sin * (pb_x - c_len) + angle.cos * pb_y;
+        let omega = -2.0 * va_dot / (circuit.sign() * area4);
+        Some(PoseCore {
+            e_x: cx * inv_a,
+            e_y: cy * inv_a,
+            omega,
+            pb_x,
+            pb_y,
+            area4,
+            d2,
+        })
+    }
+
+    /// The coupler frame: origin Pa = (cos θ, sin θ), direction e3, angular velocity ω3.
+    #[inline]
+    pub(crate) fn frame(&self, angle: &CrankAngle) -> CouplerFrame {
+        CouplerFrame {
+            origin: Point2::new(angle.cos, angle.sin),
+            origin_velocity: Vector2::new(-angle.sin, angle.cos),
+            direction: Vector2::new(self.e_x, self.e_y),
+            omega: self.omega,
+        }
+    }
+}
+
+/// The linkage's pose at one crank angle: everything that depends only on (A, B, C, θ)
+/// and the circuit, shared by every coupler point (docs/conventions.md §3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pose {
+    /// Crank pin Pa.
+    pub crank_pin: Point2<f64>,
+    /// Rocker pin Pb.
+    pub rocker_pin: Point2<f64>,
+    /// Unit vector e3 along the coupler, Pa → Pb.
+    pub coupler_dir: Vector2<f64>,
+    /// Unit vector e4 along the rocker, O4 → Pb.
+    pub rocker_dir: Vector2<f64>,
+    /// Velocity of Pa for unit crank speed.
+    pub crank_pin_velocity: Vector2<f64>,
+    /// Coupler angular velocity ω3 = dφ3/dθ (infinite only at a toggle).
+    pub coupler_omega: f64,
+    /// Rocker angular velocity ω4 = dφ4/dθ.
+    pub rocker_omega: f64,
+    /// Transmission angle μ in radians, in [0, π].
+    pub transmission: f64,
+}
+
+impl Pose {
+    /// Solves the loop closure in closed form (docs/conventions.md §3):
+    /// `w = O4 − Pa`, `d = |w|`, foot `a = (A² − B² + d²)/(2d)`, half-chord `h = 2·Area/d`,
+    /// and `Pb = Pa + (a/d)·w + σ·(h/d)·J·w` (σ = +1 open, −1 crossed).
+    ///
+    /// The area is Kahan's factorisation of the triangle (A, B, d) (Kahan, "Miscalculating
+    /// Area and Angles of a Needle-like Triangle"): `16·Area² = P·Q` with the two thin
+    /// factors `P = (A+B)² − d²` and `Q = d² − (A−B)²`. Forming `d` first and subtracting
+    /// would cost all the digits of a toggle's small gap, so both are taken from the exact
+    /// inputs with the crank half-angle instead:
+    /// `P = [(A+B)² − (C+1)²] + 4C·cos²(θ/2)`, `Q = [(C−1)² − (A−B)²] + 4C·sin²(θ/2)`,
+    /// the brackets evaluated once with error-free products. For a crank-rocker both
+    /// brackets are positive (strict Grashof), so nothing cancels anywhere: positions are
+    /// good to a few ulps even within 1e-9 of a change point. Likewise
+    /// `w = ((C − 1) + 2·sin²(θ/2), −sin θ)` and `d² = (C−1)² + 4C·sin²(θ/2)`.
+    ///
+    /// Velocities (unit crank speed) differentiate `Pa + A·e3 = O4 + B·e4`:
+    /// `ω3 = −(Va·e4) / (A·(e3 × e4))`, `ω4 = −(Va·e3) / (B·(e3 × e4))`, with
+    /// `e3 × e4 = σ·h·d/(A·B)` from the same area. Transmission angle
+    /// `μ = atan2(√(P·Q), A² + B² − d²)` (tan μ = 4·Area/(A² + B² − d²); stable at 0° and
+    /// 180°, unlike `acos`).
+    ///
+    /// Degenerate cases, part of the contract: returns `None` where the linkage cannot be
+    /// assembled (`P` or `Q` negative beyond rounding, see [`TOGGLE_ULPS`]) or where Pa
+    /// lies on O4 (d = 0). At a toggle (h = 0, including a change point) both circuits
+    /// meet; the pose is returned with infinite `coupler_omega`/`rocker_omega`.
+    ///
+    /// ```
+    /// use coupler_kinematics::{FourBar, Circuit, CrankAngle, Pose};
+    /// let l = FourBar::new(3.0, 3.0, 3.0).unwrap();
+    /// let p = Pose::solve(&l, Circuit::Open, &CrankAngle::from_degrees(90.0)).unwrap();
+    /// assert!(p.rocker_pin.y > 0.0); // open puts Pb above the ground line here
+    /// assert!(((p.rocker_pin - p.crank_pin).norm() - 3.0).abs() < 1e-15);
+    /// ```
+    pub fn solve(linkage: &FourBar, circuit: Circuit, angle: &CrankAngle) -> Option<Pose> {
+        Pose::solve_with(linkage, &ToggleGaps::of(linkage), circuit, angle)
+    }
+
+    /// [`Pose::solve`] with the linkage's constants computed once (see [`ToggleGaps`]).
+    pub fn solve_with(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<Pose> {
+        let core = PoseCore::solve(linkage, gaps, circuit, angle)?;
+        let (a_len, b_len) = (linkage.coupler, linkage.rocker);
+        let e4 = Vector2::new(core.pb_x - linkage.ground, core.pb_y) / b_len;
+        let e3 = Vector2::new(core.e_x, core.e_y);
+        let va = Vector2::new(-angle.sin, angle.cos);
+        // ω4 = −(Va·e3) / (B·(e3 × e4)) with e3 × e4 = σ·h·d/(A·B) = σ·area4/(2AB).
+        let cross34 = circuit.sign() * 0.5 * core.area4 / (a_len * b_len);
+        let rocker_omega = -va.dot(&e3) / (b_len * cross34);
+        let transmission = libm::atan2(core.area4, a_len * a_len + b_len * b_len - core.d2);
+        Some(Pose {
+            crank_pin: Point2::new(angle.cos, angle.sin),
+            rocker_pin: Point2::new(core.pb_x, core.pb_y),
+            coupler_dir: e3,
+            rocker_dir: e4,
+            crank_pin_velocity: va,
+            coupler_omega: core.omega,
+            rocker_omega,
+            transmission,
+        })
+    }
+
+    /// The coupler's frame: origin Pa, direction e3, angular velocity ω3.
+    #[inline]
+    pub fn frame(&self) -> CouplerFrame {
+        CouplerFrame {
+            origin: self.crank_pin,
+            origin_velocity: self.crank_pin_velocity,
+            direction: self.coupler_dir,
+            omega: self.coupler_omega,
+        }
+    }
+
+    /// The coupler point M = Pa + u·e3 + v·J·e3 ([`CouplerFrame::point`]).
+    #[inline]
+    pub fn point(&self, p: CouplerPoint) -> Point2<f64> {
+        self.frame().point(p)
+    }
+
+    /// The coupler point's velocity for unit crank speed:
+    /// `V_M = V_Pa + ω3·J·(M − Pa) = V_Pa + ω3·(u·J·e3 − v·e3)` ([`CouplerFrame::velocity`]).
+    #[inline]
+    pub fn velocity(&self, p: CouplerPoint) -> Vector2<f64> {
+        self.frame().velocity(p)
+    }
+
+    /// The loop-closure residual |Pa + A·e3 − O4 − B·e4| (should be a few ulps).
+    pub fn loop_residual(&self, linkage: &FourBar) -> f64 {
+        let o4 = Point2::new(linkage.ground, 0.0);
+        let lhs = self.crank_pin + self.coupler_dir * linkage.coupler;
+        let rhs = o4 + self.rocker_dir * linkage.rocker;
+        (lhs - rhs).norm()
+    }
+
+    /// True when every field is finite (false at a toggle, where velocities blow up).
+    pub fn is_finite(&self) -> bool {
+        self.rocker_pin.coords.iter().all(|x| x.is_finite())
+            && self.coupler_omega.is_finite()
+            && self.rocker_omega.is_finite()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sincos_exact_at_quadrants_and_symmetric() {
+        assert_eq!(sincos_deg(0.0), (0.0, 1.0));
+        assert_eq!(sincos_deg(90.0), (1.0, 0.0));
+        assert_eq!(sincos_deg(180.0), (0.0, -1.0));
+        assert_eq!(sincos_deg(270.0), (-1.0, 0.0));
+        assert_eq!(sincos_deg(360.0), (0.0, 1.0));
+        assert_eq!(sincos_deg(-90.0), (-1.0, 0.0));
+        for k in 0..720 {
+            let t = k as f64 * 0.5;
+            let (s, c) = sincos_deg(t);
+            let (s2, c2) = sincos_deg(-t);
+            assert_eq!((s, c), (-s2, c2), "odd/even at {t}");
+            let (s3, c3) = sincos_deg(360.0 - t);
+            assert_eq!((s, c), (-s3, c3), "reflection at {t}");
+        }
+    }
+
+    #[test]
+    fn kahan_area() {
+        assert_eq!(kahan_double_area(3.0, 4.0, 5.0), Some(12.0));
+        assert_eq!(kahan_double_area(1.0, 2.0, 3.0), Some(0.0));
+        assert_eq!(kahan_double_area(1.0, 2.0, 3.5), None);
+        assert_eq!(
+            kahan_double_area(1.0, 2.0, 3.0 + 2.0 * f64::EPSILON),
+            Some(0.0)
+        );
+        assert_eq!(kahan_double_area(1.0, 2.0, 3.0 + 1e-12), None);
+        assert_eq!(kahan_double_area(1.0, 2.0, f64::NAN), None);
+    }
+
+    #[test]
+    fn velocities_match_finite_differences() {
+        let l = FourBar::new(2.5, 3.0, 3.5).unwrap();
+        let p = CouplerPoint::new(1.2, -0.7);
+        for circuit in [Circuit::Open, Circuit::Crossed] {
+            for k in 0..36 {
+                let t = k as f64 * 10.0 + 3.0;
+                let hdeg = 1e-4;
+                let at =
+                    |deg: f64| Pose::solve(&l, circuit, &CrankAngle::from_degrees(deg)).unwrap();
+                let (m1, m2) = (at(t - hdeg).point(p), at(t + hdeg).point(p));
+                let fd = (m2 - m1) / (2.0 * hdeg.to_radians());
+                let v = at(t).velocity(p);
+                assert!(
+                    (fd - v).norm() < 1e-6 * (1.0 + v.norm()),
+                    "{circuit} {t}: {fd} vs {v}"
+                );
+                let e4 = |deg: f64| at(deg).rocker_dir;
+                let phi = |e: Vector2<f64>| libm::atan2(e.y, e.x);
+                let fd4 = (phi(e4(t + hdeg)) - phi(e4(t - hdeg))) / (2.0 * hdeg.to_radians());
+                assert!((fd4 - at(t).rocker_omega).abs() < 1e-6, "ω4 {circuit} {t}");
+            }
+        }
+    }
+}

@@ -1,0 +1,553 @@
+//! Pages of a full-curve page set (`atlas-spec/classics.toml`): one named four-bar per
+//! page, its complete coupler curve traced across toggles, dashed by input angle.
+//!
+//! The page follows the atlas page (same frame, fonts, dashes, scale rule and footer) with
+//! what a linkage that is not a crank-rocker needs: every branch of the curve, each leg of
+//! a rocking input dashed in the order the point moves (one dash per `Δ` of input, as on
+//! the atlas pages, so counting dashes still reads input time); the toggles, where the
+//! input stops and reverses and the linkage changes circuit, as small squares; the input's
+//! path (crank circle, or the arc between its toggles); the linkage drawn mid-way along its
+//! straight run, with the coupler triangle to M; the longest straight run at ε_S ≤ 0.1 %
+//! bracketed; and the measured straightness at 1 %, 0.1 % and 0.01 % in a box.
+
+use crate::font;
+use crate::page::{
+    Anchor, CurvePlacement, DisplayList, LayoutError, Occupancy, PageLayout, PagePoint, PageSetup,
+    WorldToPage, draw_dashes, draw_links, fit_transform, fmt_num, footer_settings, pivot_labels,
+    rects_overlap, start_marker, style, union,
+};
+use coupler_features::{ClassicCurve, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure};
+use coupler_kinematics::{
+    Circuit, CrankAngle, Dash, InputRange, Mechanism, Pose, dash_curve, dash_leg,
+};
+use nalgebra::Vector2;
+
+/// Inches per input unit offered for the page scale: the atlas's list, continued for the
+/// small linkages of this set (Chebyshev's spans 1.3 units).
+const NICE_INCHES_PER_UNIT: [f64; 33] = [
+    0.1, 0.125, 0.15, 0.175, 0.2, 0.225, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.7, 0.75, 0.8, 0.9,
+    1.0, 1.1, 1.2, 1.25, 1.4, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0, 8.0, 10.0,
+];
+
+/// Index of the tolerance in [`STRAIGHTNESS_TOLERANCES`] whose run is
+/// bracketed on the page and at whose middle the linkage is drawn (0.1 %).
+pub const BRACKETED_TOLERANCE: usize = 1;
+
+/// What one page of a full-curve page set shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClassicPage {
+    /// The named curve.
+    pub curve: NamedCurve,
+    /// Its full trace and measures.
+    pub measured: ClassicCurve,
+    /// Page number (1-based) and pages in the set.
+    pub page_number: usize,
+    /// Pages in the set.
+    pub page_count: usize,
+    /// `[sampling] crank_step_deg` the measures were taken at (printed with them).
+    pub step_deg: f64,
+}
+
+/// One leg of a branch: the input moving one way on one circuit, cut into dashes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Leg {
+    /// The branch it belongs to.
+    pub branch: usize,
+    /// The circuit.
+    pub circuit: Circuit,
+    /// Dashes in the order of travel.
+    pub dashes: Vec<Dash>,
+}
+
+/// A classic page computed for a setup.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClassicGeometry {
+    /// The legs, branch by branch, in the order of motion.
+    pub legs: Vec<Leg>,
+    /// Page transform.
+    pub transform: WorldToPage,
+    /// Plot frame in points.
+    pub frame: [f64; 4],
+    /// Input angle (degrees) and circuit at which the linkage is drawn.
+    pub drawn: (f64, Circuit),
+}
+
+/// The pose the linkage is drawn in: the middle sample of the bracketed straight run (the
+/// position the linkage is used in), else the first sample of the first branch.
+fn drawn_state(page: &ClassicPage) -> Option<(f64, Circuit)> {
+    let m = &page.measured;
+    let pick = |branch: usize, k: usize| {
+        m.branches
+            .get(branch)
+            .and_then(|b| b.samples.get(k))
+            .filter(|s| !s.toggle)
+            .map(|s| (s.degrees, s.circuit))
+    };
+    m.straight
+        .get(BRACKETED_TOLERANCE)
+        .copied()
+        .flatten()
+        .and_then(|s| pick(s.branch, s.samples[0] + s.samples[1] / 2))
+        .or_else(|| pick(0, 1))
+}
+
+fn drawn_pose(page: &ClassicPage, drawn: (f64, Circuit)) -> Option<Pose> {
+    Pose::solve(
+        &page.curve.linkage,
+        drawn.1,
+        &CrankAngle::from_degrees(drawn.0),
+    )
+}
+
+/// Computes the page: the extent of every branch, the linkage and the input's path at the
+/// largest round scale that fits, then each leg dashed to the page's chord tolerance.
+pub fn compute_classic(
+    page: &ClassicPage,
+    setup: &PageSetup,
+) -> Result<ClassicGeometry, LayoutError> {
+    setup.validate()?;
+    let l = page.curve.linkage;
+    let p = page.curve.point;
+    let drawn = drawn_state(page).unwrap_or((0.0, Circuit::Open));
+    // Both pivots, the input's path (its circle, or the arcs it rocks over), the branches.
+    let mut world = [0.0, 0.0, l.ground, 0.0];
+    for (a0, a1) in input_arcs(&page.measured.range) {
+        for q in arc_points(a0, a1) {
+            world = union(world, [q.0, q.1, q.0, q.1]);
+        }
+    }
+    for b in &page.measured.branches {
+        for s in &b.samples {
+            world = union(world, [s.point.x, s.point.y, s.point.x, s.point.y]);
+        }
+    }
+    if let Some(pose) = drawn_pose(page, drawn) {
+        for q in [pose.rocker_pin, pose.point(p)] {
+            world = union(world, [q.x, q.y, q.x, q.y]);
+        }
+    }
+    let (transform, frame) = fit_transform(world, setup, &NICE_INCHES_PER_UNIT);
+    let tol = setup.chord_tolerance_px / setup.px_per_pt() / transform.scale;
+    let mut legs = Vec::new();
+    match &page.measured.range {
+        InputRange::Never => {}
+        InputRange::Full => {
+            for (bi, b) in page.measured.branches.iter().enumerate() {
+                let circuit = b
+                    .samples
+                    .first()
+                    .map(|s| s.circuit)
+                    .unwrap_or(Circuit::Open);
+                let c = dash_curve(&l, circuit, p, &setup.dash, tol)?;
+                legs.push(Leg {
+                    branch: bi,
+                    circuit,
+                    dashes: c.dashes,
+                });
+            }
+        }
+        InputRange::Rocks { intervals } => {
+            for (bi, (lo, hi)) in intervals.iter().enumerate() {
+                for (circuit, from, to) in [
+                    (Circuit::Open, lo.degrees, hi.degrees),
+                    (Circuit::Crossed, hi.degrees, lo.degrees),
+                ] {
+                    let dashes = dash_leg(&l, circuit, p, &setup.dash, tol, from, to)?;
+                    legs.push(Leg {
+                        branch: bi,
+                        circuit,
+                        dashes,
+                    });
+                }
+            }
+        }
+    }
+    Ok(ClassicGeometry {
+        legs,
+        transform,
+        frame,
+        drawn,
+    })
+}
+
+/// The input's path as angle intervals (degrees): the full circle for a crank, else each
+/// rocking interval between its toggles.
+fn input_arcs(range: &InputRange) -> Vec<(f64, f64)> {
+    match range {
+        InputRange::Rocks { intervals } => intervals
+            .iter()
+            .map(|(lo, hi)| (lo.degrees, hi.degrees))
+            .collect(),
+        _ => vec![(0.0, 360.0)],
+    }
+}
+
+/// Points of the unit circle about O2 from `a0` to `a1` degrees, at most 3° apart.
+fn arc_points(a0: f64, a1: f64) -> Vec<(f64, f64)> {
+    let n = ((a1 - a0) / 3.0).ceil().max(2.0) as usize;
+    (0..=n)
+        .map(|k| {
+            let (s, c) = coupler_kinematics::sincos_deg(a0 + (a1 - a0) * k as f64 / n as f64);
+            (c, s)
+        })
+        .collect()
+}
+
+/// In words, how the input moves and which kind of four-bar this is.
+fn kind_text(page: &ClassicPage) -> String {
+    let class = page.curve.linkage.class();
+    let family = if class.is_grashof() {
+        "Grashof"
+    } else if class.is_change_point() {
+        "change point"
+    } else {
+        "non-Grashof"
+    };
+    let input = match &page.measured.range {
+        InputRange::Full => "the input turns fully (a crank)".to_string(),
+        InputRange::Never => "it never assembles".to_string(),
+        InputRange::Rocks { .. } => format!(
+            "the input rocks in {} between its toggles",
+            page.measured.range_text()
+        ),
+    };
+    format!("class {} ({family}): {input}", class.code())
+}
+
+fn straight_text(s: &Option<StraightMeasure>, tolerance: f64) -> String {
+    let tol = fmt_num(tolerance * 100.0);
+    match s {
+        Some(s) => format!(
+            "ε_S ≤ {tol} %:  {:.1}° of input,  Δx = {:.3},  ε_S = {:.3} %",
+            s.input_span_deg,
+            s.extent,
+            s.straightness * 100.0
+        ),
+        None => format!("ε_S ≤ {tol} %:  no run of three samples"),
+    }
+}
+
+/// Lays out a classic page from its geometry. The placement's box covers every branch.
+pub fn layout_classic(
+    page: &ClassicPage,
+    geometry: &ClassicGeometry,
+    setup: &PageSetup,
+) -> PageLayout {
+    let (w, h) = setup.size_pt();
+    let mut dl = DisplayList::new(w, h);
+    let t = geometry.transform;
+    let frame = geometry.frame;
+    let l = page.curve.linkage;
+    let p = page.curve.point;
+
+    // Header.
+    crate::page::header(
+        &mut dl,
+        setup,
+        format!(
+            "{}    A = {}   B = {}   C = {}   M = ({}, {})",
+            page.curve.name,
+            fmt_num(l.coupler),
+            fmt_num(l.rocker),
+            fmt_num(l.ground),
+            fmt_num(p.u),
+            fmt_num(p.v)
+        ),
+        format!(
+            "{};  input = 1, coupler A, rocker B, ground C",
+            kind_text(page)
+        ),
+        [page.page_number, page.page_count],
+    );
+    dl.rect(frame, style::FRAME);
+
+    // Curve: every leg; the first dash of each branch bold, with the start marker.
+    let mut occ = Occupancy::new(frame, 3.0);
+    let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+    let mut centroid = [0.0, 0.0, 0.0];
+    let mut branch_started = Vec::new();
+    for leg in &geometry.legs {
+        let pts: Vec<Vec<PagePoint>> = leg
+            .dashes
+            .iter()
+            .map(|d| d.points.iter().map(|q| t.map(q.x, q.y)).collect())
+            .collect();
+        for d in &pts {
+            for s in d.windows(2) {
+                occ.mark_segment(s[0], s[1], 1);
+            }
+            for q in d {
+                centroid = [centroid[0] + q[0], centroid[1] + q[1], centroid[2] + 1.0];
+            }
+        }
+        let first = !branch_started.contains(&leg.branch);
+        let bold = (first && !leg.dashes.is_empty()).then_some(0);
+        bbox = union(bbox, draw_dashes(&mut dl, &t, &leg.dashes, &pts, bold));
+        if let (true, Some(d0)) = (first, leg.dashes.first()) {
+            branch_started.push(leg.branch);
+            // The dot at the branch's true start (θ = 0, or the lower toggle, which may
+            // fall in a gap), the arrowhead at the end of its first dash.
+            let start = page.measured.branches[leg.branch]
+                .samples
+                .first()
+                .map(|s| s.point)
+                .unwrap_or(d0.points[0]);
+            let end = d0.points[d0.points.len() - 1];
+            let dir = travel_direction(page, leg.circuit, d0);
+            bbox = union(bbox, start_marker(&mut dl, &t, start, end, dir));
+        }
+    }
+    // Toggles: small open squares where the input reverses (a rocking branch starts and
+    // ends at the same toggle: its closing sample stands for both).
+    for b in &page.measured.branches {
+        for s in b.samples.iter().filter(|s| s.toggle).skip(1) {
+            let q = t.map(s.point.x, s.point.y);
+            let r = 2.6;
+            dl.rect([q[0] - r, q[1] - r, q[0] + r, q[1] + r], style::THIN + 0.2);
+            occ.mark_point(q, 2);
+        }
+    }
+    // Input path: the crank circle, or the arc of each rocking interval.
+    for (a0, a1) in input_arcs(&page.measured.range) {
+        let arc: Vec<PagePoint> = arc_points(a0, a1)
+            .into_iter()
+            .map(|(x, y)| t.map(x, y))
+            .collect();
+        dl.line(arc, style::THIN);
+    }
+
+    // Linkage, with the coupler triangle to M.
+    let mut segments = Vec::new();
+    let mut taken: Vec<[f64; 4]> = Vec::new();
+    if let Some(pose) = drawn_pose(page, geometry.drawn) {
+        let drawing = l.drawing(
+            geometry.drawn.1,
+            &CrankAngle::from_degrees(geometry.drawn.0),
+        );
+        let mut pins = draw_links(&mut dl, &t, &drawing, &mut segments);
+        let (pa, pb) = (pins[2].0, pins[3].0);
+        let mq = pose.point(p);
+        let mp = t.map(mq.x, mq.y);
+        for a in [pa, pb] {
+            if libm::hypot(mp[0] - a[0], mp[1] - a[1]) > 2.0 * style::PIN_RADIUS {
+                dl.line(vec![a, mp], style::THIN);
+                segments.push((a, mp));
+            }
+        }
+        dl.circle(mp, style::GRID_RADIUS + 0.5, Some(style::THIN + 0.3));
+        pins.push((mp, "M"));
+        taken.extend(pivot_labels(&mut dl, pins));
+    }
+    for (a, b) in &segments {
+        occ.mark_segment(*a, *b, 4);
+    }
+    occ.build();
+
+    // The bracketed straight run.
+    let centroid = if centroid[2] > 0.0 {
+        [centroid[0] / centroid[2], centroid[1] / centroid[2]]
+    } else {
+        [0.5 * (frame[0] + frame[2]), 0.5 * (frame[1] + frame[3])]
+    };
+    if let Some(s) = page
+        .measured
+        .straight
+        .get(BRACKETED_TOLERANCE)
+        .copied()
+        .flatten()
+    {
+        let r = bracket(&mut dl, &t, &s, centroid, &taken, &occ);
+        taken.push(r);
+    }
+
+    // The measures, in the frame corner with the least ink.
+    let lines: Vec<String> = std::iter::once(format!(
+        "Longest straight run (moving one way along its fitted line; {}° input steps):",
+        fmt_num(page.step_deg)
+    ))
+    .chain(
+        page.measured
+            .straight
+            .iter()
+            .zip(STRAIGHTNESS_TOLERANCES)
+            .enumerate()
+            .map(|(i, (s, tol))| {
+                let mut text = straight_text(s, tol);
+                if i == BRACKETED_TOLERANCE && s.is_some() {
+                    text.push_str("   (bracketed)");
+                }
+                text
+            }),
+    )
+    .collect();
+    let size = style::SMALL_SIZE + 0.5;
+    let row = size + 3.5;
+    let bw = lines
+        .iter()
+        .map(|s| font::text_width(size, s))
+        .fold(0.0, f64::max)
+        + 12.0;
+    let bh = row * lines.len() as f64 + 8.0;
+    let inset = 6.0;
+    let corners = [
+        [frame[0] + inset, frame[1] + inset],
+        [frame[2] - inset - bw, frame[1] + inset],
+        [frame[0] + inset, frame[3] - inset - bh],
+        [frame[2] - inset - bw, frame[3] - inset - bh],
+    ];
+    let best = corners
+        .iter()
+        .map(|c| [c[0], c[1], c[0] + bw, c[1] + bh])
+        .min_by_key(|r| {
+            occ.cost(*r).unwrap_or(u64::MAX / 2)
+                + 1_000_000 * taken.iter().filter(|q| rects_overlap(**q, *r)).count() as u64
+        })
+        .unwrap_or([frame[0], frame[1], frame[0] + bw, frame[1] + bh]);
+    dl.rect(best, style::THIN);
+    for (i, s) in lines.into_iter().enumerate() {
+        dl.text(
+            [best[0] + 6.0, best[1] + 4.0 + row * (i as f64 + 1.0) - 3.0],
+            size,
+            Anchor::Start,
+            s,
+        );
+    }
+
+    let rocks = matches!(page.measured.range, InputRange::Rocks { .. });
+    legend(&mut dl, geometry, setup, rocks);
+    PageLayout {
+        display: dl,
+        curves: vec![CurvePlacement {
+            point: p,
+            bbox_pt: bbox,
+            label_pt: best,
+        }],
+        scale_pt_per_unit: t.scale,
+    }
+}
+
+/// Direction of travel (world, unit) at the end of dash `d` on `circuit`: the velocity for
+/// the way the input moves on this leg, else the chord.
+fn travel_direction(page: &ClassicPage, circuit: Circuit, d: &Dash) -> Vector2<f64> {
+    let sign = if d.theta_end >= d.theta_start {
+        1.0
+    } else {
+        -1.0
+    };
+    let v = Pose::solve(
+        &page.curve.linkage,
+        circuit,
+        &CrankAngle::from_degrees(d.theta_end),
+    )
+    .map(|pose| pose.velocity(page.curve.point) * sign)
+    .filter(|v| v.norm() > 1e-12 && v.iter().all(|x| x.is_finite()));
+    let chord = d.points[d.points.len() - 1] - d.points[0];
+    match v {
+        Some(v) => v / v.norm(),
+        None if chord.norm() > 0.0 => chord / chord.norm(),
+        None => Vector2::zeros(),
+    }
+}
+
+/// A bracket beside the straight run, on the side away from the curve's centroid, with
+/// ticks at its ends and the run's input span; returns the label's box.
+fn bracket(
+    dl: &mut DisplayList,
+    t: &WorldToPage,
+    s: &StraightMeasure,
+    centroid: PagePoint,
+    taken: &[[f64; 4]],
+    occ: &Occupancy,
+) -> [f64; 4] {
+    let a = t.map(s.ends[0][0], s.ends[0][1]);
+    let b = t.map(s.ends[1][0], s.ends[1][1]);
+    let len = libm::hypot(b[0] - a[0], b[1] - a[1]).max(1e-9);
+    let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
+    let mut n = [-u[1], u[0]];
+    let mid = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
+    if n[0] * (centroid[0] - mid[0]) + n[1] * (centroid[1] - mid[1]) > 0.0 {
+        n = [-n[0], -n[1]];
+    }
+    let off = |p: PagePoint, d: f64| [p[0] + n[0] * d, p[1] + n[1] * d];
+    dl.line(vec![off(a, 5.0), off(a, 13.0)], 0.6);
+    dl.line(vec![off(b, 5.0), off(b, 13.0)], 0.6);
+    dl.line(vec![off(a, 10.0), off(b, 10.0)], 0.6);
+    let text = format!(
+        "ε_S ≤ {} %: {:.1}° of input",
+        fmt_num(s.tolerance * 100.0),
+        s.input_span_deg
+    );
+    let size = style::LABEL_SIZE;
+    let tw = font::text_width(size, &text);
+    let (asc, desc) = (font::ascent(size), font::descent(size));
+    // Horizontal text beside the bracket's middle, on its outer side: the nearest of a
+    // few distances out that covers no pivot label, then the least ink.
+    let mut best: Option<(u64, [f64; 4])> = None;
+    for (k, d) in [16.0, 26.0, 38.0, 52.0].into_iter().enumerate() {
+        let at = off(mid, d);
+        let x0 = if n[0] > 0.35 {
+            at[0]
+        } else if n[0] < -0.35 {
+            at[0] - tw
+        } else {
+            at[0] - 0.5 * tw
+        };
+        let y0 = if n[1] > 0.0 {
+            at[1]
+        } else {
+            at[1] - asc - desc
+        };
+        let r = [x0 - 1.0, y0 - 1.0, x0 + tw + 1.0, y0 + asc + desc + 1.0];
+        let clash = taken.iter().filter(|q| rects_overlap(**q, r)).count() as u64;
+        let cost = clash * 1_000_000 + occ.cost(r).unwrap_or(500_000) * 10 + k as u64;
+        if best.is_none_or(|b| cost < b.0) {
+            best = Some((cost, r));
+        }
+    }
+    let r = best
+        .map(|b| b.1)
+        .unwrap_or([mid[0], mid[1], mid[0], mid[1]]);
+    dl.text([r[0] + 1.0, r[1] + 1.0 + asc], size, Anchor::Start, text);
+    r
+}
+
+/// Legend and footer of a classic page.
+fn legend(dl: &mut DisplayList, geometry: &ClassicGeometry, setup: &PageSetup, rocks: bool) {
+    let m = setup.margin_pt;
+    let ts = style::SMALL_SIZE;
+    let y = crate::page::dash_legend(
+        dl,
+        setup,
+        "one dash = {step}° of input ({drawn}° drawn); dot: start of a branch (θ = 0 for a crank, the lower toggle for a rocking input); bold: its first dash; arrowhead: direction of travel",
+    );
+    let y2 = y + 14.0;
+    let (deg, circuit) = geometry.drawn;
+    let drawn = format!(
+        "linkage drawn at θ = {}° ({} circuit), mid-way along the bracketed run",
+        fmt_num((deg * 100.0).round() / 100.0),
+        circuit.name()
+    );
+    let text = if rocks {
+        let r = 2.6;
+        dl.rect(
+            [m + 8.0 - r, y2 - r, m + 8.0 + r, y2 + r],
+            style::THIN + 0.2,
+        );
+        format!("toggle: the input stops and reverses, the linkage changes circuit;  {drawn}")
+    } else {
+        drawn
+    };
+    dl.text([m + 3.0 * 12.0 + 4.0, y2 + 2.5], ts, Anchor::Start, text);
+    crate::page::scale_bar(
+        dl,
+        m,
+        y2 + 14.0,
+        geometry.transform.scale,
+        "input link 1 = {} in on this page",
+    );
+    crate::page::footer(
+        dl,
+        setup,
+        footer_settings(setup).replacen("of crank", "of input", 1),
+    );
+}

@@ -1,0 +1,152 @@
+//! The embedded page font: DejaVu Sans 2.37 (Bitstream Vera licence, see
+//! `assets/fonts/LICENSE-DejaVu.txt`), compiled into the binary so that pages never
+//! depend on fonts installed on the machine (no fontconfig).
+//!
+//! Text sizes are em sizes in page points. Measuring is pure (font tables only), so the
+//! layout can place labels without a renderer.
+
+use ab_glyph::{Font, FontRef, GlyphId, OutlineCurve, PxScale};
+
+/// The font file, shipped in the repository.
+pub static FONT_BYTES: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
+
+/// The family name, for SVG metadata.
+pub const FONT_FAMILY: &str = "DejaVu Sans";
+
+/// The embedded font, parsed (a few table look-ups; cheap).
+pub fn embedded_font() -> FontRef<'static> {
+    FontRef::try_from_slice(FONT_BYTES).expect("embedded DejaVu Sans parses")
+}
+
+/// ab_glyph's [`PxScale`] (ascent − descent height) for an em size `em` (any unit).
+pub fn px_scale(font: &FontRef<'_>, em: f32) -> PxScale {
+    let upem = font.units_per_em().unwrap_or(2048.0);
+    PxScale::from(em * font.height_unscaled() / upem)
+}
+
+/// One glyph placed on a line of text: its id and pen x offset (em-relative units times
+/// size, i.e. in the same unit as the size).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacedGlyph {
+    /// Glyph id.
+    pub id: GlyphId,
+    /// Pen position along the baseline, from the text's start.
+    pub x: f64,
+}
+
+/// Lays out one line of text at em size `size` (advances and kerning), returning the
+/// glyphs and the total advance width. Same unit in and out (points on a page).
+pub fn shape_line(font: &FontRef<'_>, size: f64, text: &str) -> (Vec<PlacedGlyph>, f64) {
+    let upem = f64::from(font.units_per_em().unwrap_or(2048.0));
+    let k = size / upem;
+    let mut out = Vec::with_capacity(text.len());
+    let mut x = 0.0;
+    let mut prev: Option<GlyphId> = None;
+    for ch in text.chars() {
+        let id = font.glyph_id(ch);
+        if let Some(p) = prev {
+            x += f64::from(font.kern_unscaled(p, id)) * k;
+        }
+        out.push(PlacedGlyph { id, x });
+        x += f64::from(font.h_advance_unscaled(id)) * k;
+        prev = Some(id);
+    }
+    (out, x)
+}
+
+/// Advance width of `text` at em size `size`.
+pub fn text_width(size: f64, text: &str) -> f64 {
+    shape_line(&embedded_font(), size, text).1
+}
+
+/// Ascender height above the baseline at em size `size` (for boxes around text).
+pub fn ascent(size: f64) -> f64 {
+    let f = embedded_font();
+    let upem = f64::from(f.units_per_em().unwrap_or(2048.0));
+    f64::from(f.ascent_unscaled()) * size / upem
+}
+
+/// Descender depth below the baseline at em size `size` (positive).
+pub fn descent(size: f64) -> f64 {
+    let f = embedded_font();
+    let upem = f64::from(f.units_per_em().unwrap_or(2048.0));
+    -f64::from(f.descent_unscaled()) * size / upem
+}
+
+/// One contour command of a glyph outline, in page units, y down.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OutlineCmd {
+    /// Start a contour.
+    MoveTo([f64; 2]),
+    /// Straight line.
+    LineTo([f64; 2]),
+    /// Quadratic Bézier (control, end).
+    QuadTo([f64; 2], [f64; 2]),
+    /// Cubic Bézier (control 1, control 2, end).
+    CubicTo([f64; 2], [f64; 2], [f64; 2]),
+    /// Close the contour.
+    Close,
+}
+
+/// Outline of `text` at em size `size` with its baseline start at `origin` (page units,
+/// y down), for vector output. Contours are closed when a curve does not start where the
+/// previous one ended.
+pub fn text_outline(size: f64, origin: [f64; 2], text: &str) -> Vec<OutlineCmd> {
+    let font = embedded_font();
+    let upem = f64::from(font.units_per_em().unwrap_or(2048.0));
+    let k = size / upem;
+    let (glyphs, _) = shape_line(&font, size, text);
+    let mut cmds = Vec::new();
+    for g in glyphs {
+        let Some(outline) = font.outline(g.id) else {
+            continue;
+        };
+        let map = |p: ab_glyph::Point| {
+            [
+                origin[0] + g.x + f64::from(p.x) * k,
+                origin[1] - f64::from(p.y) * k,
+            ]
+        };
+        let mut last: Option<ab_glyph::Point> = None;
+        let mut open = false;
+        for c in &outline.curves {
+            let (start, end) = match *c {
+                OutlineCurve::Line(a, b) => (a, b),
+                OutlineCurve::Quad(a, _, b) => (a, b),
+                OutlineCurve::Cubic(a, _, _, b) => (a, b),
+            };
+            if last != Some(start) {
+                if open {
+                    cmds.push(OutlineCmd::Close);
+                }
+                cmds.push(OutlineCmd::MoveTo(map(start)));
+                open = true;
+            }
+            cmds.push(match *c {
+                OutlineCurve::Line(_, b) => OutlineCmd::LineTo(map(b)),
+                OutlineCurve::Quad(_, q, b) => OutlineCmd::QuadTo(map(q), map(b)),
+                OutlineCurve::Cubic(_, q, r, b) => OutlineCmd::CubicTo(map(q), map(r), map(b)),
+            });
+            last = Some(end);
+        }
+        if open {
+            cmds.push(OutlineCmd::Close);
+        }
+    }
+    cmds
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn widths_scale_linearly_and_kern() {
+        let w10 = text_width(10.0, "A = 3.5");
+        let w20 = text_width(20.0, "A = 3.5");
+        assert!(w10 > 20.0 && w10 < 50.0, "{w10}");
+        assert!((w20 - 2.0 * w10).abs() < 1e-9);
+        assert!(ascent(10.0) > 7.0 && descent(10.0) > 1.0);
+        assert!(!text_outline(10.0, [0.0, 0.0], "θ (u, v)").is_empty());
+    }
+}

@@ -1,0 +1,152 @@
+//! # coupler-render
+//!
+//! Rendering: strokes what the layout gives, nothing more.
+//!
+//! The drawing interface ([`Canvas`]) takes f64 page points (1/72 in, y down), never
+//! integer pixels, so sub-pixel geometry survives to the rasteriser (plotters' backend
+//! trait rounds to whole pixels at the boundary; we don't). Two backends:
+//!
+//! - [`RasterPage`]: tiny-skia anti-aliased coverage into an 8-bit ink buffer (one buffer
+//!   per worker, reused page after page), text rasterised with ab_glyph from the embedded
+//!   font, written as 8-bit grayscale PNG with the DPI in a `pHYs` chunk ([`encode_png`]);
+//! - [`SvgPage`]: the same display list as exact vector paths (text as glyph outlines, so
+//!   the page looks the same without the font installed).
+
+mod diff;
+#[cfg(feature = "pdf")]
+mod pdf;
+mod raster;
+mod svg;
+
+pub use diff::{DiffError, ImageDiff, diff_files, diff_images, read_image};
+#[cfg(feature = "pdf")]
+pub use pdf::PdfPage;
+pub use raster::{RasterPage, encode_png};
+pub use svg::SvgPage;
+
+use coupler_layout::{Anchor, DisplayList, PagePoint, Primitive};
+
+/// A surface that can draw the layout's primitives, in page points.
+pub trait Canvas {
+    /// Strokes an open polyline (round caps and joins) of `width` points.
+    fn stroke_polyline(&mut self, points: &[PagePoint], width: f64);
+    /// Strokes several open polylines of one width; the ink is the union of the strokes.
+    fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
+        for l in lines {
+            self.stroke_polyline(l, width);
+        }
+    }
+    /// Outlines an axis-aligned rectangle `[x0, y0, x1, y1]` with a stroke of `width`
+    /// centred on its edges, mitred corners.
+    fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
+        let [x0, y0, x1, y1] = rect;
+        let h = 0.5 * width;
+        // Four bands as filled polygons: exact mitred corners.
+        for band in [
+            [x0 - h, y0 - h, x1 + h, y0 + h],
+            [x0 - h, y1 - h, x1 + h, y1 + h],
+            [x0 - h, y0 + h, x0 + h, y1 - h],
+            [x1 - h, y0 + h, x1 + h, y1 - h],
+        ] {
+            let [a, b, c, d] = band;
+            self.fill_polygon(&[[a, b], [c, b], [c, d], [a, d]]);
+        }
+    }
+    /// Fills a closed polygon (non-zero rule).
+    fn fill_polygon(&mut self, points: &[PagePoint]);
+    /// A circle outline of `width` points, or a filled disc when `width` is `None`.
+    fn circle(&mut self, center: PagePoint, radius: f64, width: Option<f64>);
+    /// One line of text, baseline through `pos`, em size `size` points.
+    fn text(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str);
+}
+
+/// Draws a display list on a canvas, in order.
+pub fn draw(display: &DisplayList, canvas: &mut impl Canvas) {
+    for item in &display.items {
+        match item {
+            Primitive::Polyline { points, width } => canvas.stroke_polyline(points, *width),
+            Primitive::Polylines { lines, width } => canvas.stroke_polylines(lines, *width),
+            Primitive::Rect { rect, width } => canvas.stroke_rect(*rect, *width),
+            Primitive::Polygon { points } => canvas.fill_polygon(points),
+            Primitive::Circle {
+                center,
+                radius,
+                width,
+            } => canvas.circle(*center, *radius, *width),
+            Primitive::Text {
+                pos,
+                size,
+                anchor,
+                text,
+            } => canvas.text(*pos, *size, *anchor, text),
+        }
+    }
+}
+
+/// Output formats for pages.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum PageFormat {
+    /// 8-bit grayscale PNG with DPI.
+    Png,
+    /// SVG (vector).
+    Svg,
+    /// PDF (vector; built with the `pdf` cargo feature).
+    #[cfg(feature = "pdf")]
+    Pdf,
+}
+
+impl PageFormat {
+    /// File extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            PageFormat::Png => "png",
+            PageFormat::Svg => "svg",
+            #[cfg(feature = "pdf")]
+            PageFormat::Pdf => "pdf",
+        }
+    }
+}
+
+#[cfg(feature = "pdf")]
+const FORMATS_MORE: &str = " or pdf";
+#[cfg(not(feature = "pdf"))]
+const FORMATS_MORE: &str = "; pdf needs a build with --features pdf";
+
+/// An unknown page format name.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("unknown page format {0:?} (expected png, svg{more})", more = FORMATS_MORE)]
+pub struct UnknownFormat(pub String);
+
+impl std::str::FromStr for PageFormat {
+    type Err = UnknownFormat;
+    fn from_str(s: &str) -> Result<PageFormat, UnknownFormat> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "png" => Ok(PageFormat::Png),
+            "svg" => Ok(PageFormat::Svg),
+            #[cfg(feature = "pdf")]
+            "pdf" => Ok(PageFormat::Pdf),
+            _ => Err(UnknownFormat(s.to_string())),
+        }
+    }
+}
+
+/// Text start x for an anchor, given its advance width.
+pub(crate) fn anchored_x(x: f64, width: f64, anchor: Anchor) -> f64 {
+    match anchor {
+        Anchor::Start => x,
+        Anchor::Middle => x - 0.5 * width,
+        Anchor::End => x - width,
+    }
+}
+
+/// A coordinate for a vector format: at most 3 decimals, no trailing zeros, never `-0`
+/// (deterministic and compact).
+fn num(x: f64) -> String {
+    let s = format!("{x:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" || s.is_empty() {
+        "0".into()
+    } else {
+        s.to_string()
+    }
+}

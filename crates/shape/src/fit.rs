@@ -1,0 +1,676 @@
+//! The exact fit of a target to one coupler curve: the similarity transform (with or
+//! without reflection) and the crank angle at which the curve passes each target point,
+//! by Levenberg–Marquardt on the closed-form kinematics, from a global initial guess
+//! (cyclic correlation for closed targets, a window scan for open ones, a phase scan for
+//! timed ones).
+//!
+//! The model: target point `p_k ≈ a·M̃(θ_k) + b` with `a` complex (scale and rotation),
+//! `b` complex (translation), and `M̃ = M` or, for a reflected match, `M̃ = conj(M)`
+//! (the curve mirrored in the atlas frame's x-axis, the ground line). Untimed: every `θ_k`
+//! is free, so at the optimum each residual is perpendicular to the curve and `|r_k|` is
+//! the distance from `p_k` to the curve near its match. Timed: `θ_k = θ₀ + σ·(t_k − t₀)`
+//! or `θ₀ + ω·k`.
+
+use crate::geom::{C64, abs, fit_similarity, mean};
+use crate::kin::CouplerCurve;
+use crate::lm::{Eval, LmOptions, solve};
+use crate::target::{Target, Timing};
+use crate::traced::Traced;
+
+/// How a target's points sit on a curve: what the fit found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CurveFit {
+    /// The curve is reflected (the target matches the mirror image; see
+    /// [`super::Placement`] for the four-bar that traces it unreflected).
+    pub mirrored: bool,
+    /// `a` of `p ≈ a·M̃(θ) + b`: `|a|` is the scale (user units per crank length), `arg a`
+    /// the rotation.
+    pub a: [f64; 2],
+    /// `b`: where the crank pivot O2 lands in the user's frame.
+    pub b: [f64; 2],
+    /// The crank angle (degrees, atlas frame, unwrapped so consecutive points differ by
+    /// less than a turn) at which the curve passes each target point.
+    pub theta_deg: Vec<f64>,
+    /// Root-mean-square distance from the target points to their matched curve points,
+    /// user units.
+    pub rms: f64,
+    /// Largest such distance, user units.
+    pub max: f64,
+    /// For a timed target, the rate `s` of `θ_k = θ_0 + s·o_k`, where `o_k = t_k − t_0`
+    /// for angles (so `s = ±1`, the sense the crank turns) and `o_k = k` for equal steps
+    /// (so `s` is the crank step between points, degrees, signed); `None` when untimed.
+    pub timing_rate: Option<f64>,
+}
+
+/// Settings of the exact fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FitOptions {
+    /// Allow reflected matches.
+    pub allow_mirror: bool,
+    /// Crank samples of the dense trace used by the initial scans.
+    pub trace_samples: usize,
+    /// Iteration cap of Levenberg–Marquardt.
+    pub max_iterations: usize,
+}
+
+impl FitOptions {
+    /// Reflection allowed, 720 samples (0.5°), 100 iterations.
+    pub const DEFAULT: FitOptions = FitOptions {
+        allow_mirror: true,
+        trace_samples: 720,
+        max_iterations: 100,
+    };
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions::DEFAULT
+    }
+}
+
+/// A starting point: reflection and one crank angle per target point.
+#[derive(Clone, Debug)]
+pub(crate) struct Start {
+    pub mirrored: bool,
+    pub theta: Vec<f64>,
+    /// The scan's normalised misfit (lower is better), for ordering starts.
+    pub score: f64,
+}
+
+#[inline]
+fn tilde(mirrored: bool, z: C64) -> C64 {
+    if mirrored { z.conj() } else { z }
+}
+
+/// Arc-length fraction of each point along the target polyline (0 at the first point;
+/// for a closed target the loop's length is 1, for an open one the path's).
+fn arc_fractions(p: &[C64], closed: bool) -> Vec<f64> {
+    let cum = super::geom::cumulative_length(p, closed);
+    let total = *cum.last().unwrap_or(&1.0);
+    cum[..p.len()].iter().map(|c| c / total).collect()
+}
+
+/// Centres a vector and scales it to unit norm; `None` if it is a single point.
+fn unit(mut w: Vec<C64>) -> Option<Vec<C64>> {
+    let m = mean(&w);
+    let mut n2 = 0.0;
+    for z in &mut w {
+        *z -= m;
+        n2 += z.norm_sqr();
+    }
+    if n2 <= 0.0 {
+        return None;
+    }
+    let s = 1.0 / n2.sqrt();
+    for z in &mut w {
+        *z *= s;
+    }
+    Some(w)
+}
+
+/// The target variants the scans try: (reversed, mirrored), each resampled by `resample`.
+fn variants(allow_mirror: bool) -> Vec<(bool, bool)> {
+    let mut v = vec![(false, false), (true, false)];
+    if allow_mirror {
+        v.extend([(false, true), (true, true)]);
+    }
+    v
+}
+
+/// Closed target: cyclic correlation of the arc-length resampled target against the
+/// resampled curve, every shift and every variant; the best shift per variant becomes a
+/// start.
+pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
+    const M: usize = 128;
+    let Some(t) = super::geom::resample(p, true, M) else {
+        return Vec::new();
+    };
+    let Some(c) = unit(traced.resample_closed(M)) else {
+        return Vec::new();
+    };
+    let tau = arc_fractions(p, true);
+    let len = traced.length();
+    let mut starts = Vec::new();
+    for (rev, mir) in variants(allow_mirror) {
+        let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
+        if rev {
+            v.reverse();
+            v.rotate_right(1); // keep the first point first
+        }
+        let Some(v) = unit(v) else { continue };
+        let mut best = (-1.0, 0usize);
+        for k in 0..M {
+            let mut s = C64::new(0.0, 0.0);
+            for j in 0..M {
+                s += c[(j + k) % M].conj() * v[j];
+            }
+            let q = s.norm_sqr();
+            if q > best.0 {
+                best = (q, k);
+            }
+        }
+        let s0 = len * best.1 as f64 / M as f64;
+        let theta = tau
+            .iter()
+            .map(|&f| {
+                let along = if rev { -f } else { f };
+                traced.theta_at(s0 + along * len)
+            })
+            .collect();
+        starts.push(Start {
+            mirrored: mir,
+            theta: unwrap_sequence(theta),
+            score: 1.0 - best.0,
+        });
+    }
+    starts.sort_by(|a, b| a.score.total_cmp(&b.score));
+    starts
+}
+
+/// Open target: scan windows of the curve for the best similarity fit of the resampled
+/// target. Windows are placed by their centre `c` and length `f` (fractions of the loop's
+/// arc length): lengths on a geometric grid (ratio [`OPEN_LENGTH_RATIO`]) from 2 % to the
+/// whole loop, centres every `f/6`. Along each length's centres, every local minimum of
+/// the misfit is refined by a parabola through it and its neighbours; the best distinct
+/// ones (per reflection and direction) are polished by a pattern search on `(c, ln f)`.
+pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
+    const M: usize = 24;
+    const POLISHED: usize = 10;
+    let Some(t) = super::geom::resample(p, false, M) else {
+        return Vec::new();
+    };
+    let len = traced.length();
+    let big = 512;
+    let zc = traced.resample_closed(big);
+    let window = |c: f64, f: f64| -> Option<Vec<C64>> {
+        let s0 = c - 0.5 * f;
+        let w: Vec<C64> = (0..M)
+            .map(|j| {
+                let s = (s0 + f * j as f64 / (M - 1) as f64).rem_euclid(1.0) * big as f64;
+                let k = (s.floor() as usize).min(big - 1);
+                let u = s - k as f64;
+                let (a, b) = (zc[k], zc[(k + 1) % big]);
+                a + (b - a) * u
+            })
+            .collect();
+        unit(w)
+    };
+    let vars: Vec<(bool, bool, Vec<C64>)> = variants(allow_mirror)
+        .into_iter()
+        .filter_map(|(rev, mir)| {
+            let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
+            if rev {
+                v.reverse();
+            }
+            unit(v).map(|v| (rev, mir, v))
+        })
+        .collect();
+    let score = |w: &[C64], v: &[C64]| -> f64 {
+        let mut s = C64::new(0.0, 0.0);
+        for (a, b) in w.iter().zip(v) {
+            s += a.conj() * b;
+        }
+        1.0 - s.norm_sqr()
+    };
+    // Refined local minima along the centres of each length: (misfit, variant, c, f).
+    let mut minima: Vec<(f64, usize, f64, f64)> = Vec::new();
+    let mut f: f64 = 0.02;
+    while f <= 1.0 + 1e-9 {
+        let count = ((6.0 / f).ceil() as usize).clamp(12, 192);
+        let h = 1.0 / count as f64;
+        let wins: Vec<Option<Vec<C64>>> = (0..count).map(|i| window(i as f64 * h, f)).collect();
+        for (vi, (_, _, v)) in vars.iter().enumerate() {
+            let m: Vec<f64> = wins
+                .iter()
+                .map(|w| w.as_ref().map_or(f64::INFINITY, |w| score(w, v)))
+                .collect();
+            for i in 0..count {
+                let (l, r) = (m[(i + count - 1) % count], m[(i + 1) % count]);
+                if !(m[i] <= l && m[i] < r && m[i].is_finite()) {
+                    continue;
+                }
+                let curvature = l - 2.0 * m[i] + r;
+                let shift = if curvature > 0.0 {
+                    (0.5 * (l - r) / curvature).clamp(-0.5, 0.5)
+                } else {
+                    0.0
+                };
+                let c = (i as f64 + shift) * h;
+                let refined = window(c, f).map_or(f64::INFINITY, |w| score(&w, v));
+                let (best, c) = if refined < m[i] {
+                    (refined, c)
+                } else {
+                    (m[i], i as f64 * h)
+                };
+                minima.push((best, vi, c, f));
+            }
+        }
+        f *= OPEN_LENGTH_RATIO;
+    }
+    minima.sort_by(|a, b| {
+        a.0.total_cmp(&b.0)
+            .then(a.1.cmp(&b.1))
+            .then(a.2.total_cmp(&b.2))
+            .then(a.3.total_cmp(&b.3))
+    });
+    let mut picked: Vec<(f64, usize, f64, f64)> = Vec::new();
+    for &g in &minima {
+        if picked.len() >= POLISHED {
+            break;
+        }
+        let distinct = picked.iter().all(|q| {
+            q.1 != g.1 || {
+                let dc = (q.2 - g.2).rem_euclid(1.0);
+                let dc = dc.min(1.0 - dc);
+                dc > 0.25 * q.3.min(g.3) || (q.3 / g.3).ln().abs() > 2.5 * OPEN_LENGTH_RATIO.ln()
+            }
+        });
+        if distinct {
+            picked.push(g);
+        }
+    }
+    let tau = arc_fractions(p, false);
+    let mut out = Vec::new();
+    for (m, vi, c, f) in picked {
+        let (rev, mir, v) = &vars[vi];
+        let (mut m, mut c, mut f) = (m, c, f);
+        // Pattern search on (c, ln f).
+        let mut dc = f / 12.0;
+        let mut dl = OPEN_LENGTH_RATIO.ln() / 2.0;
+        for _ in 0..60 {
+            let mut moved = false;
+            for (a, b) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)] {
+                let (c1, f1) = (c + a * dc, f * libm::exp(b * dl));
+                if !(f1 > 0.0 && f1 <= 1.0) {
+                    continue;
+                }
+                if let Some(w) = window(c1, f1) {
+                    let m1 = score(&w, v);
+                    if m1 < m {
+                        (m, c, f) = (m1, c1, f1);
+                        moved = true;
+                    }
+                }
+            }
+            if !moved {
+                dc /= 2.0;
+                dl /= 2.0;
+                if dc < 1e-5 * f {
+                    break;
+                }
+            }
+        }
+        let s0 = c - 0.5 * f;
+        let theta = tau
+            .iter()
+            .map(|&x| {
+                let along = if *rev { 1.0 - x } else { x };
+                traced.theta_at((s0 + along * f) * len)
+            })
+            .collect();
+        out.push(Start {
+            mirrored: *mir,
+            theta: unwrap_sequence(theta),
+            score: m,
+        });
+    }
+    out.sort_by(|a, b| a.score.total_cmp(&b.score));
+    out
+}
+
+/// Ratio between consecutive window lengths of the open scan.
+const OPEN_LENGTH_RATIO: f64 = 1.2;
+
+/// Makes consecutive angles differ by less than 180° (adding whole turns).
+fn unwrap_sequence(mut t: Vec<f64>) -> Vec<f64> {
+    for k in 1..t.len() {
+        let d = t[k] - t[k - 1];
+        t[k] -= 360.0 * (d / 360.0).round();
+    }
+    t
+}
+
+/// Least-squares untimed fit from a start: LM on (a, b) and every θ_k.
+pub(crate) fn fit_untimed(
+    p: &[C64],
+    curve: &CouplerCurve,
+    start: &Start,
+    options: &FitOptions,
+) -> Option<CurveFit> {
+    let mir = start.mirrored;
+    let gaps = coupler_kinematics::ToggleGaps::of(&curve.linkage);
+    let m0: Vec<C64> = start
+        .theta
+        .iter()
+        .map(|&t| curve.at_with(&gaps, t).map(|x| tilde(mir, x.m)))
+        .collect::<Option<_>>()?;
+    let (a, b, _) = fit_similarity(&m0, p)?;
+    let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
+        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+        let mut e = Eval {
+            r: Vec::with_capacity(p.len()),
+            jg: Vec::with_capacity(if jac { 4 * p.len() } else { 0 }),
+            jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
+        };
+        for (k, &pk) in p.iter().enumerate() {
+            let at = curve.at_with(&gaps, l[k])?;
+            let m = tilde(mir, at.m);
+            e.r.push(a * m + b - pk);
+            if jac {
+                e.jg.extend([
+                    m,
+                    C64::new(0.0, 1.0) * m,
+                    C64::new(1.0, 0.0),
+                    C64::new(0.0, 1.0),
+                ]);
+                e.jl.push(a * tilde(mir, at.dm_dtheta));
+            }
+        }
+        Some(e)
+    };
+    let lm = LmOptions {
+        max_iterations: options.max_iterations,
+        ..LmOptions::DEFAULT
+    };
+    let res = solve(vec![a.re, a.im, b.re, b.im], start.theta.clone(), eval, &lm)?;
+    finish_fit(p, curve, mir, &res.global, unwrap_sequence(res.local), None)
+}
+
+fn finish_fit(
+    p: &[C64],
+    curve: &CouplerCurve,
+    mirrored: bool,
+    g: &[f64],
+    theta: Vec<f64>,
+    step: Option<f64>,
+) -> Option<CurveFit> {
+    let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+    let gaps = coupler_kinematics::ToggleGaps::of(&curve.linkage);
+    let mut sum = 0.0;
+    let mut max = 0.0f64;
+    for (k, &pk) in p.iter().enumerate() {
+        let m = tilde(mirrored, curve.at_with(&gaps, theta[k])?.m);
+        let d = abs(a * m + b - pk);
+        sum += d * d;
+        max = max.max(d);
+    }
+    let rms = (sum / p.len() as f64).sqrt();
+    (rms.is_finite() && abs(a) > 0.0).then_some(CurveFit {
+        mirrored,
+        a: [a.re, a.im],
+        b: [b.re, b.im],
+        theta_deg: theta,
+        rms,
+        max,
+        timing_rate: step,
+    })
+}
+
+/// The crank angles of a timed target relative to its first point, before the sense and
+/// offset: for angles `t_k − t₀`; for equal steps `k` (times the step).
+fn timed_offsets(target: &Target) -> Vec<f64> {
+    match target.timing() {
+        Timing::Angles(t) => t.iter().map(|x| x - t[0]).collect(),
+        _ => (0..target.len()).map(|k| k as f64).collect(),
+    }
+}
+
+/// Timed fit: `θ_k = θ₀ + s·o_k` with `o_k` from [`timed_offsets`] and the step `s`
+/// fixed (±1 for angles, ±360°/n for a closed target of equal steps) or fitted (an open
+/// target of equal steps). Starts: every θ₀ on a 2° grid for each sense and reflection
+/// (Procrustes on the dense trace), and, when `hint` is given (an untimed fit), the
+/// regression of its angles on the offsets.
+pub(crate) fn fit_timed(
+    target: &Target,
+    curve: &CouplerCurve,
+    traced: &Traced,
+    hint: Option<&CurveFit>,
+    options: &FitOptions,
+) -> Option<CurveFit> {
+    let p = target.complex_points();
+    let o = timed_offsets(target);
+    let n = p.len();
+    let free_step = matches!(target.timing(), Timing::EqualSteps) && !target.is_closed();
+    let unit_step = match target.timing() {
+        Timing::Angles(_) => 1.0,
+        _ if target.is_closed() => 360.0 / n as f64,
+        _ => 0.0,
+    };
+    // Candidate (mirrored, θ₀, step) starts.
+    let mut starts: Vec<(f64, bool, f64, f64)> = Vec::new();
+    let mirrors: &[bool] = if options.allow_mirror {
+        &[false, true]
+    } else {
+        &[false]
+    };
+    if !free_step {
+        for &mir in mirrors {
+            for sense in [1.0, -1.0] {
+                let step = sense * unit_step;
+                let mut best = (f64::INFINITY, 0.0);
+                for i in 0..180 {
+                    let t0 = 2.0 * i as f64;
+                    let m: Vec<C64> = o
+                        .iter()
+                        .map(|&x| tilde(mir, traced.point_at_theta(t0 + step * x)))
+                        .collect();
+                    if let Some((_, _, rss)) = fit_similarity(&m, &p) {
+                        if rss < best.0 {
+                            best = (rss, t0);
+                        }
+                    }
+                }
+                starts.push((best.0, mir, best.1, step));
+            }
+        }
+    }
+    if let Some(h) = hint.filter(|h| options.allow_mirror || !h.mirrored) {
+        // Regression θ_k ≈ θ₀ + s·o_k (s fixed in magnitude unless free).
+        let (om, tm) = (
+            o.iter().sum::<f64>() / n as f64,
+            h.theta_deg.iter().sum::<f64>() / n as f64,
+        );
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for (x, y) in o.iter().zip(&h.theta_deg) {
+            sxy += (x - om) * (y - tm);
+            sxx += (x - om) * (x - om);
+        }
+        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+        let step = if free_step {
+            slope
+        } else {
+            unit_step * slope.signum()
+        };
+        if step != 0.0 {
+            starts.push((f64::INFINITY, h.mirrored, tm - step * om, step));
+        }
+    }
+    let mut best: Option<CurveFit> = None;
+    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let keep = if free_step { 1 } else { 2 };
+    for &(_, mir, t0, step) in starts.iter().take(keep + usize::from(hint.is_some())) {
+        if let Some(f) = timed_lm(&p, &o, curve, mir, t0, step, free_step, options) {
+            if best.as_ref().is_none_or(|b| f.rms < b.rms) {
+                best = Some(f);
+            }
+        }
+    }
+    best
+}
+
+#[allow(clippy::too_many_arguments)]
+fn timed_lm(
+    p: &[C64],
+    o: &[f64],
+    curve: &CouplerCurve,
+    mir: bool,
+    t0: f64,
+    step: f64,
+    free_step: bool,
+    options: &FitOptions,
+) -> Option<CurveFit> {
+    let gaps = coupler_kinematics::ToggleGaps::of(&curve.linkage);
+    let m0: Vec<C64> = o
+        .iter()
+        .map(|&x| curve.at_with(&gaps, t0 + step * x).map(|a| tilde(mir, a.m)))
+        .collect::<Option<_>>()?;
+    let (a, b, _) = fit_similarity(&m0, p)?;
+    let eval = |g: &[f64], _: &[f64], jac: bool| -> Option<Eval> {
+        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+        let (t0, s) = (g[4], if free_step { g[5] } else { step });
+        let mut e = Eval {
+            r: Vec::with_capacity(p.len()),
+            jg: Vec::new(),
+            jl: Vec::new(),
+        };
+        for (k, &pk) in p.iter().enumerate() {
+            let at = curve.at_with(&gaps, t0 + s * o[k])?;
+            let m = tilde(mir, at.m);
+            e.r.push(a * m + b - pk);
+            if jac {
+                let dv = a * tilde(mir, at.dm_dtheta);
+                e.jg.extend([
+                    m,
+                    C64::new(0.0, 1.0) * m,
+                    C64::new(1.0, 0.0),
+                    C64::new(0.0, 1.0),
+                    dv,
+                ]);
+                if free_step {
+                    e.jg.push(dv * o[k]);
+                }
+            }
+        }
+        Some(e)
+    };
+    let mut g = vec![a.re, a.im, b.re, b.im, t0];
+    if free_step {
+        g.push(step);
+    }
+    let lm = LmOptions {
+        max_iterations: options.max_iterations,
+        ..LmOptions::DEFAULT
+    };
+    let res = solve(g, Vec::new(), eval, &lm)?;
+    let s = if free_step { res.global[5] } else { step };
+    let theta = o.iter().map(|&x| res.global[4] + s * x).collect();
+    finish_fit(p, curve, mir, &res.global, theta, Some(s))
+}
+
+/// Fits `target` to `curve`: the global scans, then Levenberg–Marquardt from the best
+/// starts (two per fit), keeping the lowest RMS error. Timed targets are fitted untimed
+/// first (to find the shape's placement), then with their timing. `None` if the curve
+/// does not assemble all round.
+pub fn fit_curve(target: &Target, curve: &CouplerCurve, options: &FitOptions) -> Option<CurveFit> {
+    let traced = Traced::new(curve, options.trace_samples)?;
+    fit_with(target, curve, &traced, options)
+}
+
+/// Iterations each start gets before the best two are fitted to convergence.
+const RACE_ITERATIONS: usize = 4;
+
+pub(crate) fn fit_with(
+    target: &Target,
+    curve: &CouplerCurve,
+    traced: &Traced,
+    options: &FitOptions,
+) -> Option<CurveFit> {
+    let p = target.complex_points();
+    let starts = if target.is_closed() {
+        scan_closed(&p, traced, options.allow_mirror)
+    } else {
+        scan_open(&p, traced, options.allow_mirror)
+    };
+    // Race the starts: a few iterations each, then the two best to convergence.
+    let quick = FitOptions {
+        max_iterations: RACE_ITERATIONS,
+        ..*options
+    };
+    let mut raced: Vec<CurveFit> = starts
+        .iter()
+        .filter_map(|s| fit_untimed(&p, curve, s, &quick))
+        .collect();
+    raced.sort_by(|a, b| a.rms.total_cmp(&b.rms));
+    let mut best: Option<CurveFit> = None;
+    for f in raced.iter().take(2) {
+        let start = Start {
+            mirrored: f.mirrored,
+            theta: f.theta_deg.clone(),
+            score: 0.0,
+        };
+        if let Some(f) = fit_untimed(&p, curve, &start, options) {
+            if best.as_ref().is_none_or(|b| f.rms < b.rms) {
+                best = Some(f);
+            }
+        }
+    }
+    if target.timing().is_timed() {
+        return fit_timed(target, curve, traced, best.as_ref(), options);
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+
+    fn curve() -> CouplerCurve {
+        CouplerCurve {
+            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap(),
+            circuit: Circuit::Open,
+            point: CouplerPoint::new(1.25, 1.0),
+        }
+    }
+
+    /// Points of `c` at the angles, placed by `p = a·M̃ + b`.
+    fn placed(c: &CouplerCurve, angles: &[f64], a: C64, b: C64, mirrored: bool) -> Vec<[f64; 2]> {
+        angles
+            .iter()
+            .map(|&t| {
+                let z = a * tilde(mirrored, c.at(t).unwrap().m) + b;
+                [z.re, z.im]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn exact_targets_fit_to_rounding() {
+        let c = curve();
+        let (a, b) = (C64::new(3.0, -4.0), C64::new(10.0, 20.0));
+        for (closed, timing, mirrored) in [
+            (true, Timing::Untimed, false),
+            (true, Timing::Untimed, true),
+            (false, Timing::Untimed, false),
+            (false, Timing::Untimed, true),
+            (true, Timing::EqualSteps, false),
+            (false, Timing::EqualSteps, true),
+        ] {
+            let angles: Vec<f64> = if closed {
+                (0..40).map(|k| 33.0 + 9.0 * k as f64).collect()
+            } else {
+                (0..30).map(|k| 100.0 + 5.0 * k as f64).collect()
+            };
+            let pts = placed(&c, &angles, a, b, mirrored);
+            let t = Target::new(pts, closed, timing.clone()).unwrap();
+            let f = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
+            assert!(
+                f.rms < 1e-9 * t.size(),
+                "{closed} {timing:?} {mirrored}: {f:?}"
+            );
+            assert_eq!(f.mirrored, mirrored);
+        }
+        // Timing by angles, crank turning the other way.
+        let angles: Vec<f64> = (0..25).map(|k| 300.0 - 7.0 * k as f64).collect();
+        let given: Vec<f64> = (0..25).map(|k| 7.0 * k as f64).collect();
+        let t = Target::new(
+            placed(&c, &angles, a, b, false),
+            false,
+            Timing::Angles(given),
+        )
+        .unwrap();
+        let f = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
+        assert!(f.rms < 1e-9 * t.size(), "{f:?}");
+        assert_eq!(f.timing_rate, Some(-1.0));
+    }
+}

@@ -1,0 +1,37 @@
+//! # coupler-shape
+//!
+//! Shape search: find the atlas curves that look like a target path, then fit one
+//! exactly. Pure: no I/O, no threads; the method and the matching contract are in
+//! `docs/shape-search.md`.
+//!
+//! - [`Target`]: the user's points (open or closed, optionally timed).
+//! - [`ShapeCode`]: the compact shape code of a closed atlas curve (normalised elliptic
+//!   Fourier descriptors, [`CODE_BYTES`] bytes).
+//! - [`find_matches`]: coarse retrieval, then the exact fit ([`fit_curve`]) of the best
+//!   candidates, ranked by RMS error, each with its [`Placement`] in the user's frame.
+//! - [`refine`]: Levenberg–Marquardt over the linkage's dimensions, the coupler point, the
+//!   transform and the crank angles, off the atlas grid.
+
+mod code;
+mod fit;
+mod geom;
+mod kin;
+mod lm;
+mod matching;
+mod placement;
+mod refine;
+mod smooth;
+mod target;
+mod traced;
+
+pub use code::{CODE_BYTES, CODE_LEN, ClosedQuery, HARMONICS, ShapeCode};
+pub use fit::{CurveFit, FitOptions, fit_curve};
+pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
+pub use kin::{CouplerCurve, PointAt, PointSensitivity};
+pub use matching::{
+    AtlasCurve, Match, MatchError, MatchOptions, coarse_distances, find_matches, rank_candidates,
+};
+pub use placement::Placement;
+pub use refine::{Refined, refine};
+pub use smooth::{default_terms, smooth_resample};
+pub use target::{Target, TargetError, Timing};

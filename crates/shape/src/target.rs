@@ -1,0 +1,295 @@
+//! A target path: the ordered points a designer wants a coupler point to follow.
+
+use crate::geom::{C64, diameter};
+
+/// How the points of a target are timed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Timing {
+    /// Only the path counts: any crank motion that passes the points in order.
+    Untimed,
+    /// Each point has an input (crank) angle in degrees. The crank reaches point `k` at
+    /// `θ_k = θ₀ + σ·(t_k − t₀)`: the offset `θ₀` and the sense `σ = ±1` are free (a motor
+    /// turns either way), the travel between points is as given. The angles must be
+    /// strictly monotone and span at most 360°.
+    Angles(Vec<f64>),
+    /// The points are equally spaced in time, so in crank angle: `θ_k = θ₀ + ω·k` with
+    /// a common step `ω` (degrees, either sign). For a closed target the points divide one
+    /// turn (`|ω| = 360°/n`); for an open one `ω` is fitted.
+    EqualSteps,
+}
+
+impl Timing {
+    /// True unless [`Timing::Untimed`].
+    pub fn is_timed(&self) -> bool {
+        !matches!(self, Timing::Untimed)
+    }
+}
+
+/// Why a target is unusable. Point indices count from 0.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TargetError {
+    /// Too few points to define a shape.
+    #[error("a target needs at least {min} points, got {found}")]
+    TooFewPoints {
+        /// The minimum for this kind of target.
+        min: usize,
+        /// Points given.
+        found: usize,
+    },
+    /// A coordinate or angle is NaN or infinite.
+    #[error("point {index}: {field} is not a finite number")]
+    NotFinite {
+        /// The point.
+        index: usize,
+        /// `x`, `y` or `angle`.
+        field: &'static str,
+    },
+    /// Every point is the same (the target has no size).
+    #[error("all points coincide: the target has no size")]
+    NoSize,
+    /// Timing by angles with a count that differs from the points'.
+    #[error("{angles} angles for {points} points")]
+    AngleCount {
+        /// Angles given.
+        angles: usize,
+        /// Points given.
+        points: usize,
+    },
+    /// Angles that do not move one way, or span more than one turn.
+    #[error(
+        "angles must be strictly monotone and span at most 360° (a closed target: less than 360°): {detail}"
+    )]
+    BadAngles {
+        /// What is wrong, naming the point.
+        detail: String,
+    },
+}
+
+/// An ordered list of points in the user's units, open or closed, optionally timed.
+///
+/// A closed target is a loop: its last point joins its first (do not repeat the first
+/// point at the end; [`Target::new`] drops such a repeat). Its **size** is its diameter,
+/// the largest distance between two of its points ([`Target::size`]): fit errors are
+/// quoted in user units and as a percentage of it.
+///
+/// ```
+/// use coupler_shape::{Target, Timing};
+/// let pts = vec![[0.0, 0.0], [3.0, 0.0], [3.0, 4.0], [0.0, 4.0]];
+/// let t = Target::new(pts, false, Timing::Untimed).unwrap();
+/// assert_eq!(t.size(), 5.0);
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct Target {
+    points: Vec<[f64; 2]>,
+    closed: bool,
+    timing: Timing,
+    size: f64,
+}
+
+impl Target {
+    /// The smallest number of points of an open target.
+    pub const MIN_OPEN: usize = 4;
+    /// The smallest number of points of a closed target.
+    pub const MIN_CLOSED: usize = 6;
+
+    /// Validates a target: finite coordinates, enough points (at least
+    /// [`Target::MIN_OPEN`] open, [`Target::MIN_CLOSED`] closed), a non-zero size, and
+    /// for timing by angles one angle per point, strictly monotone, spanning at most 360°
+    /// (less than 360° when closed). A closed target whose last point repeats its first
+    /// (and, when timed by angles, whose last angle is a full turn from its first) loses
+    /// that repeat.
+    pub fn new(
+        mut points: Vec<[f64; 2]>,
+        closed: bool,
+        mut timing: Timing,
+    ) -> Result<Target, TargetError> {
+        for (index, p) in points.iter().enumerate() {
+            for (field, v) in [("x", p[0]), ("y", p[1])] {
+                if !v.is_finite() {
+                    return Err(TargetError::NotFinite { index, field });
+                }
+            }
+        }
+        if let Timing::Angles(a) = &timing {
+            if a.len() != points.len() {
+                return Err(TargetError::AngleCount {
+                    angles: a.len(),
+                    points: points.len(),
+                });
+            }
+            if let Some(index) = a.iter().position(|v| !v.is_finite()) {
+                return Err(TargetError::NotFinite {
+                    index,
+                    field: "angle",
+                });
+            }
+        }
+        if closed && points.len() > 1 && points.first() == points.last() {
+            points.pop();
+            if let Timing::Angles(a) = &mut timing {
+                a.pop();
+            }
+        }
+        let min = if closed {
+            Target::MIN_CLOSED
+        } else {
+            Target::MIN_OPEN
+        };
+        if points.len() < min {
+            return Err(TargetError::TooFewPoints {
+                min,
+                found: points.len(),
+            });
+        }
+        if let Timing::Angles(a) = &timing {
+            check_angles(a, closed)?;
+        }
+        let z: Vec<C64> = points.iter().map(|p| C64::new(p[0], p[1])).collect();
+        let size = diameter(&z);
+        if !(size > 0.0 && size.is_finite()) {
+            return Err(TargetError::NoSize);
+        }
+        Ok(Target {
+            points,
+            closed,
+            timing,
+            size,
+        })
+    }
+
+    /// The points, in order.
+    pub fn points(&self) -> &[[f64; 2]] {
+        &self.points
+    }
+
+    /// The points as complex numbers.
+    pub fn complex_points(&self) -> Vec<C64> {
+        self.points.iter().map(|p| C64::new(p[0], p[1])).collect()
+    }
+
+    /// Whether the path is a loop.
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// The timing.
+    pub fn timing(&self) -> &Timing {
+        &self.timing
+    }
+
+    /// The number of points.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// Never true for a valid target.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// At most `max` of the points, evenly by index (always the first; for an open target
+    /// also the last), for quick fits while ranking. Timed targets are returned whole.
+    pub fn thinned(&self, max: usize) -> Target {
+        let n = self.points.len();
+        if self.timing.is_timed() || n <= max || max < 2 {
+            return self.clone();
+        }
+        let last = if self.closed { n } else { n - 1 };
+        let keep = if self.closed { max } else { max - 1 };
+        let mut idx: Vec<usize> = (0..keep).map(|j| j * last / keep).collect();
+        if !self.closed {
+            idx.push(n - 1);
+        }
+        idx.dedup();
+        Target {
+            points: idx.iter().map(|&i| self.points[i]).collect(),
+            closed: self.closed,
+            timing: Timing::Untimed,
+            size: self.size,
+        }
+    }
+
+    /// The diameter: the largest distance between two points, in user units.
+    pub fn size(&self) -> f64 {
+        self.size
+    }
+}
+
+fn check_angles(a: &[f64], closed: bool) -> Result<(), TargetError> {
+    let rising = a[1] > a[0];
+    for k in 1..a.len() {
+        let step = a[k] - a[k - 1];
+        if step == 0.0 || (step > 0.0) != rising {
+            return Err(TargetError::BadAngles {
+                detail: format!(
+                    "point {k} ({}°) does not continue the motion from point {} ({}°)",
+                    a[k],
+                    k - 1,
+                    a[k - 1]
+                ),
+            });
+        }
+    }
+    let span = (a[a.len() - 1] - a[0]).abs();
+    if span > 360.0 || (closed && span >= 360.0) {
+        return Err(TargetError::BadAngles {
+            detail: format!("they span {span}°"),
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation() {
+        let sq = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        assert!(Target::new(sq.clone(), false, Timing::Untimed).is_ok());
+        assert_eq!(
+            Target::new(sq.clone(), true, Timing::Untimed),
+            Err(TargetError::TooFewPoints { min: 6, found: 4 })
+        );
+        let mut bad = sq.clone();
+        bad[2][1] = f64::NAN;
+        assert_eq!(
+            Target::new(bad, false, Timing::Untimed),
+            Err(TargetError::NotFinite {
+                index: 2,
+                field: "y"
+            })
+        );
+        assert_eq!(
+            Target::new(vec![[1.0, 1.0]; 5], false, Timing::Untimed),
+            Err(TargetError::NoSize)
+        );
+        let t = Target::new(sq.clone(), false, Timing::Angles(vec![0.0, 10.0, 20.0])).unwrap_err();
+        assert!(matches!(t, TargetError::AngleCount { .. }));
+        let t = Target::new(
+            sq.clone(),
+            false,
+            Timing::Angles(vec![0.0, 10.0, 5.0, 30.0]),
+        )
+        .unwrap_err();
+        assert!(t.to_string().contains("point 2"), "{t}");
+        let t = Target::new(
+            sq.clone(),
+            false,
+            Timing::Angles(vec![0.0, 100.0, 200.0, 400.0]),
+        )
+        .unwrap_err();
+        assert!(t.to_string().contains("400"), "{t}");
+        // A closed loop given with its first point repeated at the end.
+        let mut hexagon: Vec<[f64; 2]> = (0..6)
+            .map(|k| {
+                let (s, c) = coupler_kinematics::sincos_deg(60.0 * k as f64);
+                [c, s]
+            })
+            .collect();
+        hexagon.push(hexagon[0]);
+        let t = Target::new(hexagon, true, Timing::Untimed).unwrap();
+        assert_eq!(t.len(), 6);
+        assert!((t.size() - 2.0).abs() < 1e-15);
+    }
+}
