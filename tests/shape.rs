@@ -336,3 +336,59 @@ fn classics_find_their_families() {
         }
     }
 }
+
+/// The cases of the open retrieval tests: a window of 90°–270° of crank of a random
+/// atlas curve, 20–100 points (evenly or at random crank angles), random similarity
+/// (half reflected), 1 % noise.
+fn open_cases(curves: &[AtlasCurve], seed: u64, count: usize) -> Vec<(usize, Target, Vec<f64>)> {
+    let mut rng = Rng(seed);
+    (0..count)
+        .map(|_| {
+            let src = (rng.next() % curves.len() as u64) as usize;
+            let start = rng.range(0.0, 360.0);
+            let span = rng.range(90.0, 270.0);
+            let n = 20 + (rng.next() % 81) as usize;
+            let mirrored = rng.uniform() < 0.5;
+            let t = make_target(
+                &mut rng,
+                &curves[src].curve,
+                false,
+                start,
+                span,
+                n,
+                mirrored,
+                0.01,
+            );
+            (src, t, vec![start, span])
+        })
+        .collect()
+}
+
+/// Open targets (windows of 90°–270° of crank) from atlas curves under random similarity
+/// transforms (half reflected), random start points and 1 % noise: the source (or a
+/// curve at least as close) is in the top 5 in at least 95 % of 200 seeded cases.
+#[test]
+fn open_targets_find_their_source() {
+    let (curves, codes) = default_atlas();
+    let cases = open_cases(&curves, 77, 200);
+    let t0 = std::time::Instant::now();
+    let results: Vec<(bool, f64, f64)> = cases
+        .par_iter()
+        .map(|(src, t, _)| {
+            let m = find_matches(t, &curves, &codes, &MatchOptions::DEFAULT).unwrap();
+            let own = fit_curve(t, &curves[*src].curve, &FitOptions::DEFAULT).unwrap();
+            (
+                found(&m, curves[*src].id, own.rms),
+                100.0 * own.rms / t.size(),
+                m[0].rms_pct,
+            )
+        })
+        .collect();
+    let hits = results.iter().filter(|r| r.0).count();
+    let misses: Vec<(f64, f64)> = results.iter().filter(|r| !r.0).map(|r| (r.1, r.2)).collect();
+    println!(
+        "open targets: {hits}/200 found in {:.1} s; misses' (own rms %, best rms %): {misses:?}",
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(hits >= 190, "{hits}/200 found");
+}

@@ -18,6 +18,7 @@ mod geom;
 mod kin;
 mod lm;
 mod matching;
+mod open;
 mod placement;
 mod refine;
 mod smooth;
@@ -29,7 +30,8 @@ pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
 pub use kin::{CouplerCurve, PointAt, PointSensitivity};
 pub use matching::{
-    AtlasCurve, Match, MatchError, MatchOptions, coarse_distances, find_matches, rank_candidates,
+    AtlasCurve, Candidate, Match, MatchError, MatchOptions, coarse_candidates, find_matches,
+    rank_candidates,
 };
 pub use placement::Placement;
 pub use refine::{Refined, refine};

@@ -2,8 +2,9 @@
 //! exact fit of the best candidates, ranked by the exact RMS error.
 
 use crate::code::{ClosedQuery, ShapeCode};
-use crate::fit::{CurveFit, FitOptions, fit_with, scan_open};
+use crate::fit::{CurveFit, FitOptions, Start, fit_timed, fit_untimed, fit_with};
 use crate::kin::CouplerCurve;
+use crate::open::{OpenQuery, open_candidates};
 use crate::placement::Placement;
 use crate::target::Target;
 use crate::traced::Traced;
@@ -24,7 +25,8 @@ pub struct MatchOptions {
     pub allow_mirror: bool,
     /// Matches returned.
     pub top: usize,
-    /// Candidates from the coarse stage that get the exact fit.
+    /// Candidates from the coarse stage that get the exact fit (quick fits on at most 40
+    /// points; the best `2·top` then fitted on every point).
     pub candidates: usize,
     /// The exact fit's settings (its `allow_mirror` is overridden by this one's).
     pub fit: FitOptions,
@@ -82,17 +84,38 @@ pub enum MatchError {
     Undescribable,
 }
 
-/// The coarse distance of every curve to `target`, in the curves' order: for a closed
-/// target the shape-code distance ([`ClosedQuery::distance`]); for an open one the
-/// misfit of the best window of the re-traced curve ([`scan_open`], a descriptor-free
-/// stage, see `docs/shape-search.md` for why). `f64::INFINITY` for a curve that cannot be
-/// compared.
-pub fn coarse_distances(
+/// A curve the coarse stage proposes for the exact fit: the curve, its coarse distance
+/// (lower is closer; comparable within one search only) and, for an open target, where
+/// the exact fit starts (the reflection and the crank angle of every target point, from
+/// the per-linkage scan).
+#[derive(Clone, Debug)]
+pub struct Candidate {
+    /// The atlas curve.
+    pub curve: AtlasCurve,
+    /// The coarse distance.
+    pub coarse: f64,
+    start: Option<Start>,
+}
+
+/// The coarse stage over `curves` (with their shape codes, in the same order; open targets
+/// do not use the codes and accept an empty slice): at most `options.candidates`
+/// candidates, best first (ties by id).
+///
+/// - **Closed** target: the shape-code distance ([`ClosedQuery::distance`]) of every curve.
+/// - **Open** target: a scan per linkage (runs of `curves` that share a linkage and
+///   circuit, as an atlas lists them): the coupler point enters the curve linearly, so
+///   one least-squares problem per crank-window hypothesis answers for every coupler point
+///   of the linkage (`docs/shape-search.md`, "Open targets").
+///
+/// To use several threads, split `curves` (at linkage boundaries, for open targets), call
+/// this on each part in parallel and hand all the candidates to [`rank_candidates`].
+pub fn coarse_candidates(
     target: &Target,
     curves: &[AtlasCurve],
     codes: &[ShapeCode],
     options: &MatchOptions,
-) -> Result<Vec<f64>, MatchError> {
+) -> Result<Vec<Candidate>, MatchError> {
+    let keep = options.candidates.max(options.top);
     if target.is_closed() {
         if codes.len() != curves.len() {
             return Err(MatchError::CodeCount {
@@ -102,19 +125,30 @@ pub fn coarse_distances(
         }
         let q = ClosedQuery::new(&target.complex_points(), options.allow_mirror)
             .ok_or(MatchError::Undescribable)?;
-        Ok(codes.iter().map(|c| q.distance(c)).collect())
+        let d: Vec<f64> = codes.iter().map(|c| q.distance(c)).collect();
+        let mut order: Vec<usize> = (0..curves.len()).filter(|&i| d[i].is_finite()).collect();
+        let by = |a: &usize, b: &usize| d[*a].total_cmp(&d[*b]).then(curves[*a].id.cmp(&curves[*b].id));
+        if order.len() > keep {
+            order.select_nth_unstable_by(keep, by);
+            order.truncate(keep);
+        }
+        order.sort_by(by);
+        Ok(order
+            .into_iter()
+            .map(|i| Candidate {
+                curve: curves[i],
+                coarse: d[i],
+                start: None,
+            })
+            .collect())
     } else {
-        let p = target.complex_points();
-        Ok(curves
-            .iter()
-            .map(|c| {
-                Traced::new(&c.curve, OPEN_SCAN_TRACE)
-                    .and_then(|t| {
-                        scan_open(&p, &t, options.allow_mirror)
-                            .first()
-                            .map(|s| s.score)
-                    })
-                    .unwrap_or(f64::INFINITY)
+        let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
+        Ok(open_candidates(&q, curves, keep)
+            .into_iter()
+            .map(|c| Candidate {
+                curve: c.curve,
+                coarse: c.misfit,
+                start: Some(c.start),
             })
             .collect())
     }
@@ -125,78 +159,92 @@ const RANK_POINTS: usize = 40;
 /// Iterations of each ranking fit.
 const RANK_ITERATIONS: usize = 30;
 
-/// Crank samples of the trace an open target's coarse scan uses.
-const OPEN_SCAN_TRACE: usize = 360;
-
-/// Ranked matches of `target` among `curves` (with their shape codes, in the same order):
-/// the `options.candidates` curves nearest by [`coarse_distances`] get the exact fit
-/// ([`super::fit_curve`]), and the best `options.top` by RMS error are returned, ties
-/// broken by coarse distance then id. Deterministic: the same inputs give the same
-/// matches, bit for bit. Sequential; a caller may split `curves` into chunks, run
-/// [`coarse_distances`] on each in parallel and call [`rank_candidates`].
+/// Ranked matches of `target` among `curves` (with their shape codes, in the same order;
+/// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
+/// fit of the candidates ([`rank_candidates`]); the best `options.top` by RMS error,
+/// ties broken by coarse distance then id. Deterministic: the same inputs give the same
+/// matches, bit for bit. Sequential.
 pub fn find_matches(
     target: &Target,
     curves: &[AtlasCurve],
     codes: &[ShapeCode],
     options: &MatchOptions,
 ) -> Result<Vec<Match>, MatchError> {
-    let d = coarse_distances(target, curves, codes, options)?;
-    Ok(rank_candidates(target, curves, &d, options))
+    let c = coarse_candidates(target, curves, codes, options)?;
+    Ok(rank_candidates(target, c, options))
 }
 
-/// The exact stage of [`find_matches`], given every curve's coarse distance.
+/// The exact stage of [`find_matches`]: the best `options.candidates` of `candidates`
+/// (by coarse distance, then id; duplicates of one curve dropped) each get a quick fit,
+/// the best `2·top` the full fit on every point, and the best `options.top` by RMS error
+/// are returned.
 pub fn rank_candidates(
     target: &Target,
-    curves: &[AtlasCurve],
-    coarse: &[f64],
+    mut candidates: Vec<Candidate>,
     options: &MatchOptions,
 ) -> Vec<Match> {
-    let mut order: Vec<usize> = (0..curves.len().min(coarse.len()))
-        .filter(|&i| coarse[i].is_finite())
-        .collect();
-    order.sort_by(|&a, &b| {
-        coarse[a]
-            .total_cmp(&coarse[b])
-            .then(curves[a].id.cmp(&curves[b].id))
-    });
-    order.truncate(options.candidates.max(options.top));
+    candidates.sort_by(|a, b| a.coarse.total_cmp(&b.coarse).then(a.curve.id.cmp(&b.curve.id)));
+    candidates.dedup_by(|a, b| a.curve.id == b.curve.id);
+    candidates.truncate(options.candidates.max(options.top));
     let fit_options = FitOptions {
         allow_mirror: options.allow_mirror,
         ..options.fit
     };
-    // Every candidate gets a quick fit on at most RANK_POINTS of the target's points;
-    // the best few get the full fit on every point.
-    let thin = target.thinned(RANK_POINTS);
     let quick_options = FitOptions {
         max_iterations: RANK_ITERATIONS,
         ..fit_options
     };
-    let mut quick: Vec<(f64, usize)> = order
+    let p = target.complex_points();
+    // Every candidate gets a quick fit: closed targets on at most RANK_POINTS of the
+    // target's points, open ones from their start on every point (the starts are per
+    // point); the best few get the full fit.
+    let thin = target.thinned(RANK_POINTS);
+    let mut quick: Vec<(f64, usize)> = candidates
         .iter()
-        .filter_map(|&i| {
-            let c = &curves[i];
-            let traced = Traced::new(&c.curve, fit_options.trace_samples)?;
-            fit_with(&thin, &c.curve, &traced, &quick_options).map(|f| (f.rms, i))
+        .enumerate()
+        .filter_map(|(i, c)| {
+            let f = match &c.start {
+                Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_options),
+                None => {
+                    let traced = Traced::new(&c.curve.curve, fit_options.trace_samples)?;
+                    fit_with(&thin, &c.curve.curve, &traced, &quick_options)
+                }
+            }?;
+            Some((f.rms, i))
         })
         .collect();
     quick.sort_by(|a, b| {
         a.0.total_cmp(&b.0)
-            .then(coarse[a.1].total_cmp(&coarse[b.1]))
-            .then(curves[a.1].id.cmp(&curves[b.1].id))
+            .then(candidates[a.1].coarse.total_cmp(&candidates[b.1].coarse))
+            .then(candidates[a.1].curve.id.cmp(&candidates[b.1].curve.id))
     });
     quick.truncate((2 * options.top).max(options.top + 4));
     let size = target.size();
     let mut matches: Vec<Match> = quick
         .iter()
         .filter_map(|&(_, i)| {
-            let c = &curves[i];
-            let traced = Traced::new(&c.curve, fit_options.trace_samples)?;
-            let fit = fit_with(target, &c.curve, &traced, &fit_options)?;
+            let c = &candidates[i];
+            let curve = &c.curve.curve;
+            let fit = match &c.start {
+                Some(s) => {
+                    let untimed = fit_untimed(&p, curve, s, &fit_options)?;
+                    if target.timing().is_timed() {
+                        let traced = Traced::new(curve, fit_options.trace_samples)?;
+                        fit_timed(target, curve, &traced, Some(&untimed), &fit_options)?
+                    } else {
+                        untimed
+                    }
+                }
+                None => {
+                    let traced = Traced::new(curve, fit_options.trace_samples)?;
+                    fit_with(target, curve, &traced, &fit_options)?
+                }
+            };
             Some(Match {
-                id: c.id,
-                curve: c.curve,
-                coarse: coarse[i],
-                placement: Placement::of(&c.curve, &fit),
+                id: c.curve.id,
+                curve: *curve,
+                coarse: c.coarse,
+                placement: Placement::of(curve, &fit),
                 rms_pct: 100.0 * fit.rms / size,
                 max_pct: 100.0 * fit.max / size,
                 fit,
