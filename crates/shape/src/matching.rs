@@ -127,7 +127,11 @@ pub fn coarse_candidates(
             .ok_or(MatchError::Undescribable)?;
         let d: Vec<f64> = codes.iter().map(|c| q.distance(c)).collect();
         let mut order: Vec<usize> = (0..curves.len()).filter(|&i| d[i].is_finite()).collect();
-        let by = |a: &usize, b: &usize| d[*a].total_cmp(&d[*b]).then(curves[*a].id.cmp(&curves[*b].id));
+        let by = |a: &usize, b: &usize| {
+            d[*a]
+                .total_cmp(&d[*b])
+                .then(curves[*a].id.cmp(&curves[*b].id))
+        };
         if order.len() > keep {
             order.select_nth_unstable_by(keep, by);
             order.truncate(keep);
@@ -183,7 +187,11 @@ pub fn rank_candidates(
     mut candidates: Vec<Candidate>,
     options: &MatchOptions,
 ) -> Vec<Match> {
-    candidates.sort_by(|a, b| a.coarse.total_cmp(&b.coarse).then(a.curve.id.cmp(&b.curve.id)));
+    candidates.sort_by(|a, b| {
+        a.coarse
+            .total_cmp(&b.coarse)
+            .then(a.curve.id.cmp(&b.curve.id))
+    });
     candidates.dedup_by(|a, b| a.curve.id == b.curve.id);
     candidates.truncate(options.candidates.max(options.top));
     let fit_options = FitOptions {

@@ -29,7 +29,7 @@ use crate::geom::C64;
 use crate::matching::AtlasCurve;
 use crate::smooth::{default_terms, smooth_resample};
 use crate::target::{Target, Timing};
-use coupler_kinematics::{Circuit, CouplerPoint, CrankTable, FourBar, PoseTable};
+use coupler_kinematics::{Circuit, CrankTable, FourBar, PoseTable};
 
 /// Most points of an untimed query (the target's own points, thinned by index).
 const QUERY_POINTS: usize = 32;
@@ -134,7 +134,6 @@ impl Sums {
         let my = r1 + w.conj() * r2;
         ((1.0 - my.norm_sqr() / mm).max(0.0), my / mm)
     }
-
 }
 
 /// How the query's crank angles are laid out.
@@ -187,42 +186,42 @@ impl OpenQuery {
     pub(crate) fn new(target: &Target, allow_mirror: bool) -> Option<OpenQuery> {
         let p = target.complex_points();
         let n = p.len();
-        let (pts, x, target_x, layout): (Vec<C64>, Vec<f64>, Vec<f64>, Layout) = match target.timing() {
-            Timing::Untimed => {
-                // Positions: arc-length fractions along the smoothed path (noise would
-                // stretch the polyline's own length).
-                let (_, tau) =
-                    smooth_resample(&p, false, default_terms(n, 12).min(n / 2), 64)?;
-                let idx = thin(n, QUERY_POINTS);
-                (
-                    idx.iter().map(|&i| p[i]).collect(),
-                    idx.iter().map(|&i| tau[i]).collect(),
-                    tau,
-                    Layout::Untimed,
-                )
-            }
-            Timing::Angles(t) => {
-                let span = (t[n - 1] - t[0]).abs();
-                let tx: Vec<f64> = t.iter().map(|a| (a - t[0]).abs() / span).collect();
-                let idx = thin(n, TIMED_QUERY_POINTS);
-                (
-                    idx.iter().map(|&i| p[i]).collect(),
-                    idx.iter().map(|&i| tx[i]).collect(),
-                    tx,
-                    Layout::Angles { span },
-                )
-            }
-            Timing::EqualSteps => {
-                let tx: Vec<f64> = (0..n).map(|k| k as f64 / (n - 1) as f64).collect();
-                let idx = thin(n, TIMED_QUERY_POINTS);
-                (
-                    idx.iter().map(|&i| p[i]).collect(),
-                    idx.iter().map(|&i| tx[i]).collect(),
-                    tx,
-                    Layout::Steps,
-                )
-            }
-        };
+        let (pts, x, target_x, layout): (Vec<C64>, Vec<f64>, Vec<f64>, Layout) =
+            match target.timing() {
+                Timing::Untimed => {
+                    // Positions: arc-length fractions along the smoothed path (noise would
+                    // stretch the polyline's own length).
+                    let (_, tau) = smooth_resample(&p, false, default_terms(n, 12).min(n / 2), 64)?;
+                    let idx = thin(n, QUERY_POINTS);
+                    (
+                        idx.iter().map(|&i| p[i]).collect(),
+                        idx.iter().map(|&i| tau[i]).collect(),
+                        tau,
+                        Layout::Untimed,
+                    )
+                }
+                Timing::Angles(t) => {
+                    let span = (t[n - 1] - t[0]).abs();
+                    let tx: Vec<f64> = t.iter().map(|a| (a - t[0]).abs() / span).collect();
+                    let idx = thin(n, TIMED_QUERY_POINTS);
+                    (
+                        idx.iter().map(|&i| p[i]).collect(),
+                        idx.iter().map(|&i| tx[i]).collect(),
+                        tx,
+                        Layout::Angles { span },
+                    )
+                }
+                Timing::EqualSteps => {
+                    let tx: Vec<f64> = (0..n).map(|k| k as f64 / (n - 1) as f64).collect();
+                    let idx = thin(n, TIMED_QUERY_POINTS);
+                    (
+                        idx.iter().map(|&i| p[i]).collect(),
+                        idx.iter().map(|&i| tx[i]).collect(),
+                        tx,
+                        Layout::Steps,
+                    )
+                }
+            };
         Some(OpenQuery {
             y: centred_unit(&pts)?,
             x,
@@ -337,9 +336,14 @@ impl OpenQuery {
             _ => {
                 let free_span = matches!(self.layout, Layout::Steps);
                 let eval = |start: f64, span: f64| -> f64 {
-                    Sums::of(table, self.thetas(start, span, hyp.sense), &self.y, hyp.mirror)
-                        .at_point(v, w)
-                        .0
+                    Sums::of(
+                        table,
+                        self.thetas(start, span, hyp.sense),
+                        &self.y,
+                        hyp.mirror,
+                    )
+                    .at_point(v, w)
+                    .0
                 };
                 let (mut start, mut span) = (hyp.start, hyp.span);
                 let mut best = eval(start, span);
@@ -471,7 +475,11 @@ impl OpenQuery {
                     .map(|&t| {
                         let k = x[..last].partition_point(|&a| a <= t).saturating_sub(1);
                         let d = x[k + 1] - x[k];
-                        let f = if d > 0.0 { ((t - x[k]) / d).clamp(0.0, 1.0) } else { 0.0 };
+                        let f = if d > 0.0 {
+                            ((t - x[k]) / d).clamp(0.0, 1.0)
+                        } else {
+                            0.0
+                        };
                         q[k] + (q[k + 1] - q[k]) * f
                     })
                     .collect()
@@ -582,6 +590,7 @@ mod lab {
     use super::*;
     use crate::fit::{FitOptions, fit_untimed};
     use crate::kin::CouplerCurve;
+    use coupler_kinematics::CouplerPoint;
 
     fn atlas() -> Vec<AtlasCurve> {
         let mut out = Vec::new();
@@ -589,16 +598,25 @@ mod lab {
         for &a in &vals {
             for &b in &vals {
                 for &c in &vals {
-                    let Ok(l) = FourBar::new(a, b, c) else { continue };
+                    let Ok(l) = FourBar::new(a, b, c) else {
+                        continue;
+                    };
                     if !l.is_crank_rocker() {
                         continue;
                     }
                     for i in 0..8 {
                         for j in 0..5 {
-                            let p = CouplerPoint::new(a * (-0.25 + 0.25 * i as f64), a * (-1.0 + 0.5 * j as f64));
+                            let p = CouplerPoint::new(
+                                a * (-0.25 + 0.25 * i as f64),
+                                a * (-1.0 + 0.5 * j as f64),
+                            );
                             out.push(AtlasCurve {
                                 id: out.len() as u64,
-                                curve: CouplerCurve { linkage: l, circuit: Circuit::Open, point: p },
+                                curve: CouplerCurve {
+                                    linkage: l,
+                                    circuit: Circuit::Open,
+                                    point: p,
+                                },
                             });
                         }
                     }
@@ -642,24 +660,55 @@ mod lab {
             let even = rng.uniform() < 0.5;
             let mir = rng.uniform() < 0.5;
             let mut ang: Vec<f64> = (0..n)
-                .map(|j| if even || j == 0 || j == n - 1 { start + span * j as f64 / (n - 1) as f64 } else { start + span * rng.uniform() })
+                .map(|j| {
+                    if even || j == 0 || j == n - 1 {
+                        start + span * j as f64 / (n - 1) as f64
+                    } else {
+                        start + span * rng.uniform()
+                    }
+                })
                 .collect();
             ang.sort_by(f64::total_cmp);
-            let mut z: Vec<C64> = ang.iter().map(|&t| { let m = c.at(t).unwrap().m; if mir { m.conj() } else { m } }).collect();
+            let mut z: Vec<C64> = ang
+                .iter()
+                .map(|&t| {
+                    let m = c.at(t).unwrap().m;
+                    if mir { m.conj() } else { m }
+                })
+                .collect();
             let size = crate::geom::diameter(&z);
             for p in &mut z {
-                *p += C64::new(rng.normal(), rng.normal()) * (0.01 * size / std::f64::consts::SQRT_2);
+                *p +=
+                    C64::new(rng.normal(), rng.normal()) * (0.01 * size / std::f64::consts::SQRT_2);
             }
-            let t = Target::new(z.iter().map(|p| [p.re, p.im]).collect(), false, Timing::Untimed).unwrap();
+            let t = Target::new(
+                z.iter().map(|p| [p.re, p.im]).collect(),
+                false,
+                Timing::Untimed,
+            )
+            .unwrap();
             let q = OpenQuery::new(&t, true).unwrap();
             let cands = open_candidates(&q, &curves, 100000);
             let pos = cands.iter().position(|x| x.curve.id == src as u64);
             let p = t.complex_points();
-            let from_start = pos.and_then(|i| fit_untimed(&p, &c, &cands[i].start, &FitOptions::DEFAULT)).map(|f| 100.0 * f.rms / size);
-            let own_fit = crate::fit::fit_curve(&t, &c, &FitOptions::DEFAULT).map(|f| 100.0 * f.rms / size);
+            let from_start = pos
+                .and_then(|i| fit_untimed(&p, &c, &cands[i].start, &FitOptions::DEFAULT))
+                .map(|f| 100.0 * f.rms / size);
+            let own_fit =
+                crate::fit::fit_curve(&t, &c, &FitOptions::DEFAULT).map(|f| 100.0 * f.rms / size);
             let own = own_fit.unwrap();
-            let quick = FitOptions { max_iterations: 30, ..FitOptions::DEFAULT };
-            let fits: Vec<f64> = cands.iter().take(256).map(|x| fit_untimed(&p, &x.curve.curve, &x.start, &quick).map_or(f64::INFINITY, |f| 100.0 * f.rms / size)).collect();
+            let quick = FitOptions {
+                max_iterations: 30,
+                ..FitOptions::DEFAULT
+            };
+            let fits: Vec<f64> = cands
+                .iter()
+                .take(256)
+                .map(|x| {
+                    fit_untimed(&p, &x.curve.curve, &x.start, &quick)
+                        .map_or(f64::INFINITY, |f| 100.0 * f.rms / size)
+                })
+                .collect();
             let first_ok = fits.iter().position(|&f| f <= own * 1.0000001);
             let best = fits.iter().copied().fold(f64::INFINITY, f64::min);
             println!(
