@@ -22,6 +22,7 @@ mod job;
 mod measure;
 mod pages;
 mod run;
+mod shapes;
 
 pub use curves::{
     CURVES_SCHEMA_VERSION, CurveJob, CurveRecord, CurveRunReport, run as run_curve_set,

@@ -293,6 +293,7 @@ fn assemble(
         write_index_footer(&mut *w)
     })?;
     files.push(FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?);
+    files.extend(crate::shapes::write_shapes(job)?);
     write_manifest(&job.out, key, files)?;
     Ok(index_path)
 }

@@ -29,6 +29,11 @@ const TRACE: usize = 720;
 pub struct ShapeCode(pub [i16; CODE_LEN]);
 
 impl ShapeCode {
+    /// Stands for "no code" (a curve that cannot be described): every value at the top
+    /// of the range, which no normalised code can be (their values have unit norm).
+    /// [`ClosedQuery::distance`] to it is infinite.
+    pub const ABSENT: ShapeCode = ShapeCode([i16::MAX; CODE_LEN]);
+
     /// The code's bytes (little-endian), [`CODE_BYTES`] of them: the same on every machine.
     pub fn to_bytes(&self) -> [u8; CODE_BYTES] {
         let mut out = [0u8; CODE_BYTES];
@@ -189,6 +194,9 @@ impl ClosedQuery {
     /// The coarse distance to a code: the least squared Euclidean distance over the query
     /// vectors.
     pub fn distance(&self, code: &ShapeCode) -> f64 {
+        if *code == ShapeCode::ABSENT {
+            return f64::INFINITY;
+        }
         let c = code.values();
         self.vectors
             .iter()

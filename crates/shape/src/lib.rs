@@ -19,8 +19,10 @@ mod kin;
 mod lm;
 mod matching;
 mod open;
+mod overlay;
 mod placement;
 mod refine;
+mod sidecar;
 mod smooth;
 mod target;
 mod traced;
@@ -33,7 +35,12 @@ pub use matching::{
     AtlasCurve, Candidate, Match, MatchError, MatchOptions, coarse_candidates, find_matches,
     rank_candidates,
 };
+pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;
 pub use refine::{Refined, refine};
+pub use sidecar::{
+    RECORD_BYTES, SHAPES_FILE, SIDECAR_VERSION, ShapeAtlas, SidecarError, decode_sidecar,
+    encode_sidecar,
+};
 pub use smooth::{default_terms, smooth_resample};
 pub use target::{Target, TargetError, Timing};

@@ -1,0 +1,219 @@
+//! The shape sidecar of an atlas (`shapes.bin`, beside `index.json`): every curve's
+//! linkage, circuit, coupler point and [`ShapeCode`], in atlas order, so that a shape
+//! search loads one small binary file instead of parsing the index. Pure: bytes in,
+//! bytes out (the caller reads and writes the file, and checks it against the manifest).
+//!
+//! Layout (all little-endian), `docs/shape-search.md` "The sidecar":
+//!
+//! | bytes | what |
+//! |---|---|
+//! | 8 | magic `CASHAPE\0` |
+//! | 4 | format version (1) |
+//! | 4 | harmonics of the codes ([`HARMONICS`]) |
+//! | 4 | bytes per record ([`RECORD_BYTES`]) |
+//! | 4 | zero |
+//! | 8 | curves `n` |
+//! | `n` × [`RECORD_BYTES`] | records, curve `id` = position |
+//!
+//! A record: coupler, rocker, ground, u, v (`f64` each, crank units, exactly as the index
+//! states them), the circuit (`u8`: 0 open, 1 crossed), a flag (`u8`: 1 if the code is
+//! present), then the code ([`CODE_BYTES`]; zeros when absent: a curve that does not
+//! assemble all round or has no length).
+
+use crate::code::{CODE_BYTES, HARMONICS, ShapeCode};
+use crate::kin::CouplerCurve;
+use crate::matching::AtlasCurve;
+use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+
+/// The sidecar's file name in an atlas folder.
+pub const SHAPES_FILE: &str = "shapes.bin";
+/// Format version.
+pub const SIDECAR_VERSION: u32 = 1;
+/// Bytes of one curve's record.
+pub const RECORD_BYTES: usize = 5 * 8 + 2 + CODE_BYTES;
+const MAGIC: &[u8; 8] = b"CASHAPE\0";
+const HEADER_BYTES: usize = 32;
+
+/// Why sidecar bytes could not be read.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SidecarError {
+    /// Not a shape sidecar, or cut short.
+    #[error("not a coupler-atlas shape file ({0})")]
+    Malformed(String),
+    /// Another format version or code length.
+    #[error(
+        "shape file version {version} with {harmonics} harmonics is not supported (this program reads version {SIDECAR_VERSION}, {HARMONICS} harmonics); regenerate the atlas"
+    )]
+    Version {
+        /// Version found.
+        version: u32,
+        /// Harmonics found.
+        harmonics: u32,
+    },
+    /// A record that does not describe a four-bar.
+    #[error("shape file record {id}: {message}")]
+    Record {
+        /// Curve id.
+        id: u64,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// The sidecar's bytes for `curves` (ids must be `0..n` in order) with their codes.
+pub fn encode_sidecar(curves: &[(CouplerCurve, Option<ShapeCode>)]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(HEADER_BYTES + curves.len() * RECORD_BYTES);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&SIDECAR_VERSION.to_le_bytes());
+    out.extend_from_slice(&(HARMONICS as u32).to_le_bytes());
+    out.extend_from_slice(&(RECORD_BYTES as u32).to_le_bytes());
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(curves.len() as u64).to_le_bytes());
+    for (c, code) in curves {
+        let l = &c.linkage;
+        for x in [l.coupler, l.rocker, l.ground, c.point.u, c.point.v] {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+        out.push(match c.circuit {
+            Circuit::Open => 0,
+            Circuit::Crossed => 1,
+        });
+        match code {
+            Some(code) => {
+                out.push(1);
+                out.extend_from_slice(&code.to_bytes());
+            }
+            None => {
+                out.push(0);
+                out.extend_from_slice(&[0u8; CODE_BYTES]);
+            }
+        }
+    }
+    out
+}
+
+/// Curves and codes read from a sidecar.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeAtlas {
+    /// Every curve, by id.
+    pub curves: Vec<AtlasCurve>,
+    /// The code of each (a curve without one gets a code no target is near: it is never a
+    /// closed-target candidate, but open targets still scan it).
+    pub codes: Vec<ShapeCode>,
+    /// Whether each curve has a real code.
+    pub has_code: Vec<bool>,
+}
+
+/// Reads [`encode_sidecar`]'s bytes.
+pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
+    let bad = |m: &str| SidecarError::Malformed(m.to_string());
+    if bytes.len() < HEADER_BYTES || &bytes[..8] != MAGIC {
+        return Err(bad("no CASHAPE header"));
+    }
+    let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().expect("4 bytes"));
+    let (version, harmonics, record) = (u32_at(8), u32_at(12), u32_at(16) as usize);
+    if version != SIDECAR_VERSION || harmonics as usize != HARMONICS || record != RECORD_BYTES {
+        return Err(SidecarError::Version { version, harmonics });
+    }
+    let n = u64::from_le_bytes(bytes[24..32].try_into().expect("8 bytes"));
+    let body = &bytes[HEADER_BYTES..];
+    if (body.len() as u64) != n.saturating_mul(RECORD_BYTES as u64) {
+        return Err(bad(&format!(
+            "{} bytes of records for {n} curves of {RECORD_BYTES} bytes",
+            body.len()
+        )));
+    }
+    let mut out = ShapeAtlas {
+        curves: Vec::with_capacity(n as usize),
+        codes: Vec::with_capacity(n as usize),
+        has_code: Vec::with_capacity(n as usize),
+    };
+    for (id, r) in body.chunks_exact(RECORD_BYTES).enumerate() {
+        let id = id as u64;
+        let f = |k: usize| f64::from_le_bytes(r[8 * k..8 * k + 8].try_into().expect("8 bytes"));
+        let linkage = FourBar::new(f(0), f(1), f(2)).map_err(|e| SidecarError::Record {
+            id,
+            message: e.to_string(),
+        })?;
+        let (u, v) = (f(3), f(4));
+        if !u.is_finite() || !v.is_finite() {
+            return Err(SidecarError::Record {
+                id,
+                message: "coupler point is not finite".into(),
+            });
+        }
+        let circuit = match r[40] {
+            0 => Circuit::Open,
+            1 => Circuit::Crossed,
+            x => {
+                return Err(SidecarError::Record {
+                    id,
+                    message: format!("circuit byte {x}"),
+                });
+            }
+        };
+        let has = match r[41] {
+            0 => false,
+            1 => true,
+            x => {
+                return Err(SidecarError::Record {
+                    id,
+                    message: format!("code flag byte {x}"),
+                });
+            }
+        };
+        out.curves.push(AtlasCurve {
+            id,
+            curve: CouplerCurve {
+                linkage,
+                circuit,
+                point: CouplerPoint::new(u, v),
+            },
+        });
+        out.codes.push(if has {
+            ShapeCode::from_bytes(&r[42..]).expect("CODE_BYTES")
+        } else {
+            ShapeCode::ABSENT
+        });
+        out.has_code.push(has);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_damage() {
+        let c = CouplerCurve {
+            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap(),
+            circuit: Circuit::Crossed,
+            point: CouplerPoint::new(1.25, -0.625),
+        };
+        let code = ShapeCode::of_curve(&c).unwrap();
+        let bytes = encode_sidecar(&[(c, Some(code)), (c, None)]);
+        assert_eq!(bytes.len(), HEADER_BYTES + 2 * RECORD_BYTES);
+        let a = decode_sidecar(&bytes).unwrap();
+        assert_eq!(a.curves[0].curve, c);
+        assert_eq!(a.curves[1].id, 1);
+        assert_eq!(a.codes[0], code);
+        assert_eq!(a.has_code, vec![true, false]);
+        assert!(matches!(
+            decode_sidecar(&bytes[..bytes.len() - 1]),
+            Err(SidecarError::Malformed(_))
+        ));
+        let mut v = bytes.clone();
+        v[8] = 2;
+        assert!(matches!(
+            decode_sidecar(&v),
+            Err(SidecarError::Version { version: 2, .. })
+        ));
+        let mut v = bytes;
+        v[HEADER_BYTES + 40] = 7;
+        assert!(matches!(
+            decode_sidecar(&v),
+            Err(SidecarError::Record { id: 0, .. })
+        ));
+    }
+}
