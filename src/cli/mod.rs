@@ -19,6 +19,7 @@ mod diff;
 mod dwell;
 mod generate;
 mod search;
+mod shape_match;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -46,6 +47,9 @@ enum Command {
     Dwell(dwell::Args),
     /// Search an atlas index by features (straight segments, arcs, dwells, transmission).
     Search(search::Args),
+    /// Which atlas curves look like a target path (CSV/JSON points): ranked fits with the
+    /// linkage placed in your frame, optional refinement off the grid and an overlay picture.
+    Match(shape_match::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
     Bench(bench::Args),
     /// Compare two page images pixel by pixel (score, diff image, exit 1 over threshold).
@@ -72,6 +76,7 @@ pub fn main() -> ExitCode {
         Command::Curve(args) => curve::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Search(args) => search::run(args),
+        Command::Match(args) => shape_match::run(args),
         Command::Cognates(args) => cognates::run(args),
         Command::Dwell(args) => dwell::run(args),
         Command::Diff(args) => diff::run(args),

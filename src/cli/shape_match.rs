@@ -1,0 +1,571 @@
+//! `coupler-atlas match TARGET [--atlas DIR] [--open|--closed] [--timed] [--mirror]
+//! [--top K] [--refine] [--png FILE] [--svg FILE] [--format table|json] [--jobs N]`:
+//! which atlas curves look like the target path, each with its fit, placement and error
+//! (`docs/shape-search.md`).
+
+use super::UsageError;
+use anyhow::{Context, Result};
+use coupler_atlas::generate::FileEntry;
+use coupler_atlas::render::{RasterPage, SvgPage, draw};
+use coupler_atlas::shape::{
+    AtlasCurve, Candidate, CouplerCurve, CurveFit, Match, MatchOptions, OVERLAY_SIZE_PT,
+    OverlayText, Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing, coarse_candidates,
+    decode_sidecar, rank_candidates, refine,
+};
+use coupler_atlas::{Circuit, IndexCurve, TargetFile};
+use rayon::prelude::*;
+use serde_json::{Value, json};
+use std::io::BufRead as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The target path: CSV (`x,y` or `x,y,angle` per line) or JSON (`[[x, y], …]` or
+    /// `{"points": …, "closed": …, "angles_deg": …}`); `-` reads CSV from stdin.
+    target: PathBuf,
+    /// The atlas folder (written by `generate`; it must hold shapes.bin).
+    #[arg(long, default_value = "output/hrones-nelson")]
+    atlas: PathBuf,
+    /// The target is an open path, matched to a stretch of a curve (default unless the
+    /// file says `"closed": true` or repeats its first point at the end).
+    #[arg(long, conflicts_with = "closed")]
+    open: bool,
+    /// The target is a closed loop, matched to a whole curve.
+    #[arg(long)]
+    closed: bool,
+    /// Respect timing: each point's input angle (third column / `angles_deg`), or equal
+    /// crank steps between points if the file gives no angles.
+    #[arg(long)]
+    timed: bool,
+    /// Allow reflected matches (a mirrored curve is traced by another real four-bar,
+    /// which is what is reported).
+    #[arg(long)]
+    mirror: bool,
+    /// Matches to report.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
+    top: u32,
+    /// Candidates from the coarse stage that get an exact fit.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    candidates: u32,
+    /// Refine each match off the atlas grid (Levenberg–Marquardt over A, B, C, the
+    /// coupler point and the transform).
+    #[arg(long)]
+    refine: bool,
+    /// Write the overlay of the best match (refined if --refine) as PNG.
+    #[arg(long, value_name = "FILE")]
+    png: Option<PathBuf>,
+    /// Write the overlay of the best match (refined if --refine) as SVG.
+    #[arg(long, value_name = "FILE")]
+    svg: Option<PathBuf>,
+    /// Output format.
+    #[arg(long, default_value = "table", value_parser = ["table", "json"])]
+    format: String,
+    /// Worker threads (default: all cores).
+    #[arg(long, short = 'j')]
+    jobs: Option<usize>,
+}
+
+/// Reads the target file into a validated target.
+fn read_target(args: &Args) -> Result<Target> {
+    let name = args.target.display().to_string();
+    let text = if name == "-" {
+        std::io::read_to_string(std::io::stdin()).context("reading the target from stdin")?
+    } else {
+        std::fs::read_to_string(&args.target)
+            .map_err(|e| UsageError(format!("cannot read target {name}: {e}")))?
+    };
+    let file =
+        TargetFile::parse(&text, &name).map_err(|e| UsageError(format!("target {name}: {e}")))?;
+    let repeats = file.points.len() > 1 && file.points.first() == file.points.last();
+    let closed = if args.closed {
+        true
+    } else if args.open {
+        false
+    } else {
+        file.closed.unwrap_or(repeats)
+    };
+    let timing = if !args.timed {
+        Timing::Untimed
+    } else if let Some(a) = file.angles_deg.clone() {
+        Timing::Angles(a)
+    } else {
+        Timing::EqualSteps
+    };
+    Target::new(file.points, closed, timing).map_err(|e| UsageError(format!("target {name}: {e}")).into())
+}
+
+/// Reads the atlas's shape sidecar, checked against the manifest.
+pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
+    let manifest_path = dir.join("manifest.json");
+    let text = std::fs::read_to_string(&manifest_path).map_err(|e| {
+        UsageError(format!(
+            "{} is not an atlas folder ({}: {e}); make one with `coupler-atlas generate`",
+            dir.display(),
+            manifest_path.display()
+        ))
+    })?;
+    #[derive(serde::Deserialize)]
+    struct Manifest {
+        files: Vec<FileEntry>,
+    }
+    let manifest: Manifest = serde_json::from_str(&text)
+        .map_err(|e| UsageError(format!("{}: not a manifest: {e}", manifest_path.display())))?;
+    let entry = manifest
+        .files
+        .iter()
+        .find(|f| f.name == SHAPES_FILE)
+        .ok_or_else(|| {
+            UsageError(format!(
+                "the atlas in {} has no shape codes ({SHAPES_FILE} is not in its manifest: it was made by an older version); run `coupler-atlas generate` again for it",
+                dir.display()
+            ))
+        })?;
+    let path = dir.join(SHAPES_FILE);
+    if !entry.verify(dir) {
+        return Err(UsageError(format!(
+            "{} does not match the manifest (size or hash differs): the atlas was changed after it was written; run `coupler-atlas generate` again for it",
+            path.display()
+        ))
+        .into());
+    }
+    let bytes = std::fs::read(&path).map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
+    decode_sidecar(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
+}
+
+/// The coarse stage on `jobs` threads: open targets in parts cut at linkage boundaries
+/// (each part scanned per linkage), closed targets in one pass (the codes are cheap; the
+/// query's description is the cost).
+fn coarse(
+    target: &Target,
+    atlas: &ShapeAtlas,
+    options: &MatchOptions,
+) -> Result<Vec<Candidate>, coupler_atlas::shape::MatchError> {
+    if target.is_closed() {
+        return coarse_candidates(target, &atlas.curves, &atlas.codes, options);
+    }
+    let curves = &atlas.curves;
+    let parts = 8 * rayon::current_num_threads();
+    let want = curves.len().div_ceil(parts).max(1);
+    let mut cuts = vec![0];
+    let mut i = want;
+    while i < curves.len() {
+        let same = |a: &AtlasCurve, b: &AtlasCurve| {
+            a.curve.linkage == b.curve.linkage && a.curve.circuit == b.curve.circuit
+        };
+        while i < curves.len() && same(&curves[i - 1], &curves[i]) {
+            i += 1;
+        }
+        if i < curves.len() {
+            cuts.push(i);
+        }
+        i += want;
+    }
+    cuts.push(curves.len());
+    let parts: Vec<Result<Vec<Candidate>, _>> = cuts
+        .par_windows(2)
+        .map(|w| coarse_candidates(target, &curves[w[0]..w[1]], &[], options))
+        .collect();
+    let mut all = Vec::new();
+    for p in parts {
+        all.extend(p?);
+    }
+    Ok(all)
+}
+
+/// Where each hit is drawn (page file and box), from the index: its curve lines are
+/// streamed and only the wanted ones parsed. Missing pages (an atlas made with
+/// `--no-pages`) give `None`.
+fn page_refs(dir: &Path, ids: &[u64]) -> Result<Vec<Option<coupler_atlas::PageRef>>> {
+    let path = dir.join("index.json");
+    let file = std::fs::File::open(&path)
+        .map_err(|e| UsageError(format!("cannot read {}: {e}", path.display())))?;
+    let mut want: Vec<u64> = ids.to_vec();
+    want.sort_unstable();
+    want.dedup();
+    let mut found: std::collections::HashMap<u64, Option<coupler_atlas::PageRef>> =
+        std::collections::HashMap::new();
+    for line in std::io::BufReader::new(file).lines() {
+        let line = line.with_context(|| format!("reading {}", path.display()))?;
+        let Some(rest) = line.strip_prefix("{\"id\":") else {
+            continue;
+        };
+        let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
+        let Ok(id) = digits.parse::<u64>() else {
+            continue;
+        };
+        if want.binary_search(&id).is_err() {
+            continue;
+        }
+        let json = line.trim_end().trim_end_matches(',');
+        let c: IndexCurve = serde_json::from_str(json)
+            .with_context(|| format!("{}: curve {id}", path.display()))?;
+        found.insert(id, c.page);
+        if found.len() == want.len() {
+            break;
+        }
+    }
+    Ok(ids
+        .iter()
+        .map(|id| found.get(id).cloned().flatten())
+        .collect())
+}
+
+fn circuit_name(c: Circuit) -> &'static str {
+    match c {
+        Circuit::Open => "open",
+        Circuit::Crossed => "crossed",
+    }
+}
+
+fn g(x: f64) -> String {
+    // Six significant digits, no trailing zeros.
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let digits = (5 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    let s = format!("{x:.digits$}");
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    if s == "-0" { "0".into() } else { s }
+}
+
+fn placement_json(p: &Placement) -> Value {
+    json!({
+        "mirrored": p.mirrored,
+        "scale": p.scale,
+        "rotation_deg": p.rotation_deg,
+        "o2": p.o2,
+        "o4": p.o4,
+        "crank": p.crank,
+        "coupler": p.coupler,
+        "rocker": p.rocker,
+        "ground": p.ground,
+        "point": p.point,
+        "circuit": circuit_name(p.circuit),
+        "crank_deg": p.crank_deg,
+    })
+}
+
+fn curve_json(c: &CouplerCurve) -> Value {
+    json!({
+        "linkage": {"coupler": c.linkage.coupler, "rocker": c.linkage.rocker, "ground": c.linkage.ground},
+        "point": {"u": c.point.u, "v": c.point.v},
+        "circuit": circuit_name(c.circuit),
+    })
+}
+
+fn error_json(fit: &CurveFit, size: f64) -> Value {
+    json!({
+        "rms": fit.rms, "max": fit.max,
+        "rms_pct": 100.0 * fit.rms / size, "max_pct": 100.0 * fit.max / size,
+    })
+}
+
+/// The lines of one placement in the table.
+fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<String> {
+    let mut v = vec![
+        format!(
+            "transform: scale {} per crank length, rotation {}°, O2 at ({}, {}){}",
+            g(p.scale),
+            g(p.rotation_deg),
+            g(p.o2[0]),
+            g(p.o2[1]),
+            if p.mirrored {
+                ", reflected (reported as the mirror four-bar)"
+            } else {
+                ""
+            }
+        ),
+        format!(
+            "four-bar in your frame: O2 ({}, {}), O4 ({}, {}); crank {}, coupler {}, rocker {}, ground {}; coupler point (u, v) = ({}, {}), {} circuit",
+            g(p.o2[0]),
+            g(p.o2[1]),
+            g(p.o4[0]),
+            g(p.o4[1]),
+            g(p.crank),
+            g(p.coupler),
+            g(p.rocker),
+            g(p.ground),
+            g(p.point[0]),
+            g(p.point[1]),
+            circuit_name(p.circuit)
+        ),
+    ];
+    let travel = p.crank_deg[1] - p.crank_deg[0];
+    v.push(if closed {
+        format!(
+            "crank: {}° at the first point, a full turn {}",
+            g(p.crank_deg[0]),
+            if travel >= 0.0 {
+                "counter-clockwise"
+            } else {
+                "clockwise"
+            }
+        )
+    } else {
+        format!(
+            "crank interval: {}° → {}° (travel {}°, {})",
+            g(p.crank_deg[0]),
+            g(p.crank_deg[1]),
+            g(travel),
+            if travel >= 0.0 {
+                "counter-clockwise"
+            } else {
+                "clockwise"
+            }
+        )
+    });
+    if let Some(r) = timed_rate {
+        v.push(format!("timing: crank rate {} (per unit of the target's timing)", g(r)));
+    }
+    v
+}
+
+fn warnings(r: &Refined) -> Vec<&'static str> {
+    let mut w = Vec::new();
+    if r.not_crank_rocker {
+        w.push("no longer a crank-rocker: the crank does not turn fully");
+    }
+    if r.crossed_change_point {
+        w.push("crossed a change point (Grashof type changed)");
+    }
+    w
+}
+
+pub fn run(args: Args) -> Result<ExitCode> {
+    let t0 = Instant::now();
+    let target = read_target(&args)?;
+    if let Some(j) = args.jobs {
+        if j == 0 {
+            return Err(UsageError("--jobs must be at least 1".into()).into());
+        }
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.jobs.unwrap_or(0))
+        .build()
+        .context("starting worker threads")?;
+    let atlas = load_shapes(&args.atlas)?;
+    let t_load = t0.elapsed();
+    let options = MatchOptions {
+        allow_mirror: args.mirror,
+        top: args.top as usize,
+        candidates: args.candidates as usize,
+        ..MatchOptions::DEFAULT
+    };
+    let size = target.size();
+    let (matches, refined): (Vec<Match>, Vec<Option<Refined>>) = pool.install(|| {
+        let c = coarse(&target, &atlas, &options)?;
+        let m = rank_candidates(&target, c, &options);
+        let r = if args.refine {
+            m.par_iter()
+                .map(|m| refine(&target, m, &options.fit))
+                .collect()
+        } else {
+            vec![None; m.len()]
+        };
+        Ok::<_, coupler_atlas::shape::MatchError>((m, r))
+    })
+    .map_err(|e| UsageError(format!("target {}: {e}", args.target.display())))?;
+    let t_search = t0.elapsed();
+    let ids: Vec<u64> = matches.iter().map(|m| m.id).collect();
+    let pages = page_refs(&args.atlas, &ids)?;
+    let elapsed = t0.elapsed();
+
+    if let Some(best) = matches.first() {
+        let (curve, fit, label) = match refined.first().cloned().flatten() {
+            Some(r) => (r.curve, r.fit, format!("refined from curve {}", best.id)),
+            None => (best.curve, best.fit.clone(), format!("curve {}", best.id)),
+        };
+        let text = OverlayText {
+            title: format!(
+                "{}: {} A={} B={} C={}, point ({}, {}), {} circuit",
+                args.target.display(),
+                label,
+                g(curve.linkage.coupler),
+                g(curve.linkage.rocker),
+                g(curve.linkage.ground),
+                g(curve.point.u),
+                g(curve.point.v),
+                circuit_name(curve.circuit)
+            ),
+            detail: format!(
+                "{} target, {} points, size {}: RMS error {} ({} %), max {} ({} %){}",
+                if target.is_closed() { "closed" } else { "open" },
+                target.len(),
+                g(size),
+                g(fit.rms),
+                g(100.0 * fit.rms / size),
+                g(fit.max),
+                g(100.0 * fit.max / size),
+                if fit.mirrored { "; reflected" } else { "" }
+            ),
+        };
+        for (path, svg) in [(&args.png, false), (&args.svg, true)] {
+            let Some(path) = path else { continue };
+            write_overlay(path, svg, &target, &curve, &fit, &text)?;
+        }
+    }
+
+    if args.format == "json" {
+        let hits: Vec<Value> = matches
+            .iter()
+            .zip(&refined)
+            .zip(&pages)
+            .enumerate()
+            .map(|(k, ((m, r), page))| {
+                let mut v = json!({
+                    "rank": k + 1,
+                    "id": m.id,
+                    "page": page,
+                    "curve": curve_json(&m.curve),
+                    "transform": {"a": m.fit.a, "b": m.fit.b, "scale": m.placement.scale,
+                        "rotation_deg": m.placement.rotation_deg, "mirrored": m.fit.mirrored},
+                    "placement": placement_json(&m.placement),
+                    "crank_deg": m.placement.crank_deg,
+                    "timing_rate": m.fit.timing_rate,
+                    "error": error_json(&m.fit, size),
+                });
+                if let Some(r) = r {
+                    v["refined"] = json!({
+                        "curve": curve_json(&r.curve),
+                        "class": r.class.code(),
+                        "placement": placement_json(&r.placement),
+                        "error": error_json(&r.fit, size),
+                        "warnings": warnings(r),
+                        "iterations": r.iterations,
+                    });
+                }
+                v
+            })
+            .collect();
+        let out = json!({
+            "target": {"file": args.target.display().to_string(), "points": target.len(),
+                "closed": target.is_closed(), "timed": target.timing().is_timed(), "size": size},
+            "atlas": {"dir": args.atlas.display().to_string(), "curves": atlas.curves.len()},
+            "matches": hits,
+            "seconds": {"load": t_load.as_secs_f64(), "search": (t_search - t_load).as_secs_f64(), "total": elapsed.as_secs_f64()},
+        });
+        outln!("{}", serde_json::to_string_pretty(&out)?)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+
+    outln!(
+        "target {}: {} {}, {} points, size {} (its diameter); atlas {}: {} curves",
+        args.target.display(),
+        if target.is_closed() { "closed" } else { "open" },
+        if target.timing().is_timed() {
+            "timed"
+        } else {
+            "untimed"
+        },
+        target.len(),
+        g(size),
+        args.atlas.display(),
+        atlas.curves.len()
+    )?;
+    for (k, ((m, r), page)) in matches.iter().zip(&refined).zip(&pages).enumerate() {
+        let c = &m.curve;
+        outln!()?;
+        outln!(
+            "#{} curve {}: A={} B={} C={}, point ({}, {}), {} circuit{}",
+            k + 1,
+            m.id,
+            g(c.linkage.coupler),
+            g(c.linkage.rocker),
+            g(c.linkage.ground),
+            g(c.point.u),
+            g(c.point.v),
+            circuit_name(c.circuit),
+            match page {
+                Some(p) => format!(
+                    "; {} at [{}, {}, {}, {}] px",
+                    p.file, p.bbox_px[0], p.bbox_px[1], p.bbox_px[2], p.bbox_px[3]
+                ),
+                None => String::new(),
+            }
+        )?;
+        outln!(
+            "   error: RMS {} ({} %), max {} ({} %)",
+            g(m.fit.rms),
+            g(m.rms_pct),
+            g(m.fit.max),
+            g(m.max_pct)
+        )?;
+        for l in placement_lines(&m.placement, target.is_closed(), m.fit.timing_rate) {
+            outln!("   {l}")?;
+        }
+        if let Some(r) = r {
+            let l = &r.curve.linkage;
+            outln!(
+                "   refined: A={} B={} C={}, point ({}, {}), class {}: RMS {} ({} %), max {} ({} %){}",
+                g(l.coupler),
+                g(l.rocker),
+                g(l.ground),
+                g(r.curve.point.u),
+                g(r.curve.point.v),
+                r.class.code(),
+                g(r.fit.rms),
+                g(r.rms_pct),
+                g(r.fit.max),
+                g(r.max_pct),
+                warnings(r)
+                    .iter()
+                    .map(|w| format!("; WARNING: {w}"))
+                    .collect::<String>()
+            )?;
+            for l in placement_lines(&r.placement, target.is_closed(), r.fit.timing_rate) {
+                outln!("      {l}")?;
+            }
+        }
+    }
+    if matches.is_empty() {
+        outln!("no match: no curve of the atlas could be fitted to the target")?;
+    }
+    eprintln!(
+        "searched {} curves in {:.3} s (load {:.3} s, search {:.3} s)",
+        atlas.curves.len(),
+        elapsed.as_secs_f64(),
+        t_load.as_secs_f64(),
+        (t_search - t_load).as_secs_f64()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn write_overlay(
+    path: &Path,
+    svg: bool,
+    target: &Target,
+    curve: &CouplerCurve,
+    fit: &CurveFit,
+    text: &OverlayText,
+) -> Result<()> {
+    let d = coupler_atlas::shape::overlay(target, curve, fit, text)
+        .context("the matched curve cannot be drawn")?;
+    let bytes = if svg {
+        let mut page = SvgPage::new(OVERLAY_SIZE_PT[0], OVERLAY_SIZE_PT[1]);
+        draw(&d, &mut page);
+        page.finish().into_bytes()
+    } else {
+        let dpi = 150.0;
+        let px = |pt: f64| (pt * dpi / 72.0).round() as u32;
+        let mut page = RasterPage::new(px(OVERLAY_SIZE_PT[0]), px(OVERLAY_SIZE_PT[1]), dpi)
+            .context("overlay size")?;
+        draw(&d, &mut page);
+        let mut v = Vec::new();
+        page.finish_png(&mut v).context("encoding the overlay PNG")?;
+        v
+    };
+    let tmp: PathBuf = {
+        let mut s = path.as_os_str().to_owned();
+        s.push(format!(".tmp-{}", std::process::id()));
+        s.into()
+    };
+    std::fs::write(&tmp, &bytes).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
