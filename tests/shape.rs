@@ -385,7 +385,11 @@ fn open_targets_find_their_source() {
         })
         .collect();
     let hits = results.iter().filter(|r| r.0).count();
-    let misses: Vec<(f64, f64)> = results.iter().filter(|r| !r.0).map(|r| (r.1, r.2)).collect();
+    let misses: Vec<(f64, f64)> = results
+        .iter()
+        .filter(|r| !r.0)
+        .map(|r| (r.1, r.2))
+        .collect();
     println!(
         "open targets: {hits}/200 found in {:.1} s; misses' (own rms %, best rms %): {misses:?}",
         t0.elapsed().as_secs_f64()

@@ -86,6 +86,17 @@ fn read_target(args: &Args) -> Result<Target> {
     } else {
         file.closed.unwrap_or(repeats)
     };
+    if !args.open && !args.closed && file.closed.is_none() && !repeats {
+        // A loop whose last point stops short of the first looks closed; say how it is read.
+        let p = &file.points;
+        let d = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+        let steps: f64 = p.windows(2).map(|w| d(w[0], w[1])).sum();
+        if p.len() > 2 && d(p[0], p[p.len() - 1]) <= 3.0 * steps / (p.len() - 1) as f64 {
+            eprintln!(
+                "note: {name} is matched as an open path (its ends are close: pass --closed if it is a loop)"
+            );
+        }
+    }
     let timing = if !args.timed {
         Timing::Untimed
     } else if let Some(a) = file.angles_deg.clone() {
@@ -93,7 +104,8 @@ fn read_target(args: &Args) -> Result<Target> {
     } else {
         Timing::EqualSteps
     };
-    Target::new(file.points, closed, timing).map_err(|e| UsageError(format!("target {name}: {e}")).into())
+    Target::new(file.points, closed, timing)
+        .map_err(|e| UsageError(format!("target {name}: {e}")).into())
 }
 
 /// Reads the atlas's shape sidecar, checked against the manifest.
@@ -234,6 +246,22 @@ fn g(x: f64) -> String {
     if s == "-0" { "0".into() } else { s }
 }
 
+/// Five significant digits; scientific below 1e-3 (for the picture's heading).
+fn short(x: f64) -> String {
+    if x != 0.0 && x.abs() < 1e-3 {
+        format!("{x:.2e}")
+    } else {
+        let digits = (4 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;
+        let s = format!("{x:.digits$}");
+        let s = if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        };
+        if s == "-0" { "0".into() } else { s }
+    }
+}
+
 fn placement_json(p: &Placement) -> Value {
     json!({
         "mirrored": p.mirrored,
@@ -321,7 +349,10 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
         )
     });
     if let Some(r) = timed_rate {
-        v.push(format!("timing: crank rate {} (per unit of the target's timing)", g(r)));
+        v.push(format!(
+            "timing: crank rate {} (per unit of the target's timing)",
+            g(r)
+        ));
     }
     v
 }
@@ -358,19 +389,20 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ..MatchOptions::DEFAULT
     };
     let size = target.size();
-    let (matches, refined): (Vec<Match>, Vec<Option<Refined>>) = pool.install(|| {
-        let c = coarse(&target, &atlas, &options)?;
-        let m = rank_candidates(&target, c, &options);
-        let r = if args.refine {
-            m.par_iter()
-                .map(|m| refine(&target, m, &options.fit))
-                .collect()
-        } else {
-            vec![None; m.len()]
-        };
-        Ok::<_, coupler_atlas::shape::MatchError>((m, r))
-    })
-    .map_err(|e| UsageError(format!("target {}: {e}", args.target.display())))?;
+    let (matches, refined): (Vec<Match>, Vec<Option<Refined>>) = pool
+        .install(|| {
+            let c = coarse(&target, &atlas, &options)?;
+            let m = rank_candidates(&target, c, &options);
+            let r = if args.refine {
+                m.par_iter()
+                    .map(|m| refine(&target, m, &options.fit))
+                    .collect()
+            } else {
+                vec![None; m.len()]
+            };
+            Ok::<_, coupler_atlas::shape::MatchError>((m, r))
+        })
+        .map_err(|e| UsageError(format!("target {}: {e}", args.target.display())))?;
     let t_search = t0.elapsed();
     let ids: Vec<u64> = matches.iter().map(|m| m.id).collect();
     let pages = page_refs(&args.atlas, &ids)?;
@@ -386,22 +418,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 "{}: {} A={} B={} C={}, point ({}, {}), {} circuit",
                 args.target.display(),
                 label,
-                g(curve.linkage.coupler),
-                g(curve.linkage.rocker),
-                g(curve.linkage.ground),
-                g(curve.point.u),
-                g(curve.point.v),
+                short(curve.linkage.coupler),
+                short(curve.linkage.rocker),
+                short(curve.linkage.ground),
+                short(curve.point.u),
+                short(curve.point.v),
                 circuit_name(curve.circuit)
             ),
             detail: format!(
                 "{} target, {} points, size {}: RMS error {} ({} %), max {} ({} %){}",
                 if target.is_closed() { "closed" } else { "open" },
                 target.len(),
-                g(size),
-                g(fit.rms),
-                g(100.0 * fit.rms / size),
-                g(fit.max),
-                g(100.0 * fit.max / size),
+                short(size),
+                short(fit.rms),
+                short(100.0 * fit.rms / size),
+                short(fit.max),
+                short(100.0 * fit.max / size),
                 if fit.mirrored { "; reflected" } else { "" }
             ),
         };
@@ -557,7 +589,8 @@ fn write_overlay(
             .context("overlay size")?;
         draw(&d, &mut page);
         let mut v = Vec::new();
-        page.finish_png(&mut v).context("encoding the overlay PNG")?;
+        page.finish_png(&mut v)
+            .context("encoding the overlay PNG")?;
         v
     };
     let tmp: PathBuf = {

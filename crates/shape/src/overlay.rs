@@ -85,7 +85,8 @@ pub fn overlay(
     if !(span > 0.0 && span.is_finite()) {
         return None;
     }
-    let s = ((right - left) / (x1 - x0).max(1e-12 * span)).min((bottom - top) / (y1 - y0).max(1e-12 * span));
+    let s = ((right - left) / (x1 - x0).max(1e-12 * span))
+        .min((bottom - top) / (y1 - y0).max(1e-12 * span));
     let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
     let (px, py) = (0.5 * (left + right), 0.5 * (top + bottom));
     let page = |z: C64| -> PagePoint { [px + s * (z.re - cx), py - s * (z.im - cy)] };
@@ -94,7 +95,7 @@ pub fn overlay(
     // Heading.
     d.items.push(Primitive::Text {
         pos: [36.0, 34.0],
-        size: 12.0,
+        size: 10.5,
         anchor: Anchor::Start,
         text: text.title.clone(),
     });
@@ -159,8 +160,8 @@ pub fn overlay(
     for p in &pts {
         d.items.push(Primitive::Circle {
             center: page(*p),
-            radius: 3.0,
-            width: Some(0.8),
+            radius: 2.2,
+            width: Some(0.6),
         });
     }
     // Legend and scale.

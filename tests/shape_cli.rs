@@ -1,0 +1,261 @@
+//! `coupler-atlas match` run the way a user runs it: on the quick atlas, with targets made
+//! from its own curves moved into a user frame; the shape sidecar `generate` writes; bad
+//! atlases and targets refused clearly.
+
+use coupler_atlas::shape::{C64, CouplerCurve, SHAPES_FILE, decode_sidecar};
+use coupler_atlas::{Circuit, CouplerPoint, FourBar};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("coupler-atlas-match-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// The quick atlas (72 curves) generated into `dir` without pages (with pages when asked).
+fn quick_atlas(dir: &Path, pages: bool) {
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("atlas-spec/quick.toml");
+    let mut args = vec![
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--quiet",
+    ];
+    if !pages {
+        args.push("--no-pages");
+    }
+    let out = run(&args);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+}
+
+/// Points of `c` at `angles` (degrees), moved into a user frame by `p = a·M + b`.
+fn user_points(c: &CouplerCurve, angles: &[f64], a: C64, b: C64) -> Vec<[f64; 2]> {
+    angles
+        .iter()
+        .map(|&t| {
+            let z = a * c.at(t).unwrap().m + b;
+            [z.re, z.im]
+        })
+        .collect()
+}
+
+fn write_csv(path: &Path, pts: &[[f64; 2]]) {
+    let mut s = String::from("x,y\n");
+    for p in pts {
+        s.push_str(&format!("{},{}\n", p[0], p[1]));
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// `generate` writes the sidecar, lists it in the manifest, and it holds every curve of
+/// the index in order; the index itself does not mention it.
+#[test]
+fn generate_writes_the_shape_sidecar() {
+    let dir = tmp("sidecar");
+    quick_atlas(&dir, false);
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    let entry = manifest["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["name"] == SHAPES_FILE)
+        .expect("shapes.bin in the manifest");
+    let bytes = std::fs::read(dir.join(SHAPES_FILE)).unwrap();
+    assert_eq!(entry["bytes"].as_u64(), Some(bytes.len() as u64));
+    let atlas = decode_sidecar(&bytes).unwrap();
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
+    let curves = index["curves"].as_array().unwrap();
+    assert_eq!(atlas.curves.len(), curves.len());
+    for (s, c) in atlas.curves.iter().zip(curves) {
+        assert_eq!(s.id, c["id"].as_u64().unwrap());
+        assert_eq!(
+            s.curve.linkage.coupler,
+            c["linkage"]["coupler"].as_f64().unwrap()
+        );
+        assert_eq!(s.curve.point.v, c["point"]["v"].as_f64().unwrap());
+        assert_eq!(
+            c["circuit"].as_str().unwrap(),
+            match s.curve.circuit {
+                Circuit::Open => "open",
+                Circuit::Crossed => "crossed",
+            }
+        );
+    }
+    assert!(atlas.has_code.iter().all(|&h| h));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A closed target and an open window made from atlas curves under a similarity: the
+/// source is the first match with an error at rounding level, its page and spot are
+/// given, the placement is in the user's frame, and the overlay is a PNG of the size
+/// promised. A reflected target is found only with --mirror, as the mirror four-bar.
+#[test]
+fn match_finds_the_source_and_places_it() {
+    let dir = tmp("find");
+    quick_atlas(&dir, true);
+    let atlas = dir.to_str().unwrap();
+    // Curve: A = 3, B = 2.5, C = 3, point (1.5, 1.5) (u = 0.5 A, v = 0.5 A), open circuit.
+    let src = CouplerCurve {
+        linkage: FourBar::new(3.0, 2.5, 3.0).unwrap(),
+        circuit: Circuit::Open,
+        point: CouplerPoint::new(1.5, 1.5),
+    };
+    let (a, b) = (C64::new(3.0, 4.0), C64::new(100.0, -20.0)); // scale 5, rotation 53.13°
+    let closed: Vec<f64> = (0..60).map(|k| 7.0 + 6.0 * k as f64).collect();
+    let open: Vec<f64> = (0..40).map(|k| 30.0 + 4.0 * k as f64).collect();
+    for (name, angles, flag) in [("closed", &closed, "--closed"), ("open", &open, "--open")] {
+        let file = dir.join(format!("{name}.csv"));
+        write_csv(&file, &user_points(&src, angles, a, b));
+        let png = dir.join(format!("{name}.png"));
+        let out = run(&[
+            "match",
+            file.to_str().unwrap(),
+            "--atlas",
+            atlas,
+            flag,
+            "--top",
+            "3",
+            "--format",
+            "json",
+            "--png",
+            png.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{name}: {}", text(&out.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let best = &v["matches"][0];
+        let id = best["id"].as_u64().unwrap();
+        assert_eq!(best["curve"]["linkage"]["coupler"], 3.0, "{name}: {best}");
+        assert_eq!(best["curve"]["linkage"]["rocker"], 2.5, "{name}: {best}");
+        assert_eq!(best["curve"]["point"]["u"], 1.5, "{name}: {best}");
+        assert_eq!(best["curve"]["point"]["v"], 1.5, "{name}: {best}");
+        assert_eq!(best["curve"]["circuit"], "open", "{name}: {best}");
+        assert!(
+            best["error"]["rms_pct"].as_f64().unwrap() < 1e-4,
+            "{name}: {best}"
+        );
+        let p = &best["placement"];
+        assert!((p["scale"].as_f64().unwrap() - 5.0).abs() < 1e-6, "{p}");
+        assert!((p["o2"][0].as_f64().unwrap() - 100.0).abs() < 1e-5, "{p}");
+        assert!((p["rotation_deg"].as_f64().unwrap() - 53.130102354).abs() < 1e-5);
+        assert!((p["ground"].as_f64().unwrap() - 15.0).abs() < 1e-5);
+        if name == "open" {
+            let c = p["crank_deg"].as_array().unwrap();
+            let (c0, c1) = (c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
+            // The window's crank interval, 30° → 186°, in the user's frame (+53.13°).
+            let turn = |x: f64| (x - 53.130102354 - 30.0).rem_euclid(360.0);
+            assert!(turn(c0) < 1e-3 || turn(c0) > 360.0 - 1e-3, "{c0}");
+            assert!((c1 - c0 - 156.0).abs() < 1e-3, "{c0} {c1}");
+        }
+        let page = best["page"]["file"].as_str().unwrap();
+        assert!(dir.join(page).exists(), "{page}");
+        let img = image::open(&png).unwrap();
+        assert_eq!((img.width(), img.height()), (1200, 1050));
+        let _ = id;
+    }
+    // Reflected: without --mirror the source is not found exactly; with it, it is, as
+    // the mirror four-bar (the other circuit, v negated).
+    let file = dir.join("mirrored.csv");
+    let pts: Vec<[f64; 2]> = user_points(&src, &closed, a, b)
+        .into_iter()
+        .map(|p| [p[0], -p[1]])
+        .collect();
+    write_csv(&file, &pts);
+    let best = |extra: &[&str]| -> serde_json::Value {
+        let mut args = vec!["match", file.to_str().unwrap(), "--atlas", atlas];
+        args.extend_from_slice(&["--closed", "--format", "json"]);
+        args.extend_from_slice(extra);
+        let out = run(&args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["matches"][0].clone()
+    };
+    let plain = best(&[]);
+    let mirrored = best(&["--mirror"]);
+    assert!(
+        mirrored["error"]["rms_pct"].as_f64().unwrap() < 1e-4,
+        "{mirrored}"
+    );
+    assert_eq!(mirrored["placement"]["mirrored"], true);
+    assert_eq!(mirrored["placement"]["circuit"], "crossed");
+    assert!(
+        plain["error"]["rms_pct"].as_f64().unwrap() > 1e-2
+            || plain["placement"]["mirrored"] == false,
+        "{plain}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Bad atlases and targets: exit code 2, a message naming the file and the problem.
+#[test]
+fn match_refuses_bad_input_clearly() {
+    let dir = tmp("bad");
+    quick_atlas(&dir, false);
+    let atlas = dir.to_str().unwrap();
+    let target = dir.join("t.csv");
+    std::fs::write(&target, "0,0\n1,0\n2,1\n3,3\n4,6\n").unwrap();
+    let t = target.to_str().unwrap();
+    let fails = |args: &[&str], needle: &str| {
+        let out = run(args);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        let err = text(&out.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    };
+    // Not an atlas folder.
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    fails(
+        &["match", t, "--atlas", empty.to_str().unwrap()],
+        "is not an atlas folder",
+    );
+    // A target file that is not points.
+    let junk = dir.join("junk.csv");
+    std::fs::write(&junk, "0,0\n1,one\n").unwrap();
+    fails(
+        &["match", junk.to_str().unwrap(), "--atlas", atlas],
+        "junk.csv: line 2: y: `one` is not a number",
+    );
+    // Too few points for a closed target.
+    fails(
+        &["match", t, "--atlas", atlas, "--closed"],
+        "at least 6 points",
+    );
+    // A sidecar changed after it was written.
+    let side = dir.join(SHAPES_FILE);
+    let mut bytes = std::fs::read(&side).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&side, &bytes).unwrap();
+    fails(
+        &["match", t, "--atlas", atlas],
+        "does not match the manifest",
+    );
+    // An atlas without a sidecar (an older version's).
+    std::fs::remove_file(&side).unwrap();
+    let m = dir.join("manifest.json");
+    let s = std::fs::read_to_string(&m).unwrap();
+    let kept: Vec<&str> = s.lines().filter(|l| !l.contains(SHAPES_FILE)).collect();
+    std::fs::write(&m, kept.join("\n").replace(",\n]}", "\n]}")).unwrap();
+    fails(&["match", t, "--atlas", atlas], "has no shape codes");
+    let _ = std::fs::remove_dir_all(&dir);
+}
