@@ -125,7 +125,12 @@ impl Sums {
 
     /// The misfit `Σ|y − α·(Pa + w·e) − γ|²` at the best `α`, `γ` for a given `w`.
     fn at_point(&self, v: usize, w: C64) -> (f64, C64) {
-        let (g11, g12, g22) = self.gram();
+        self.at_point_with(self.gram(), v, w)
+    }
+
+    /// [`Sums::at_point`] with the Gram matrix computed once for many points.
+    #[inline]
+    fn at_point_with(&self, (g11, g12, g22): (f64, C64, f64), v: usize, w: C64) -> (f64, C64) {
         let [r1, r2] = self.r[v];
         let mm = g11 + 2.0 * (w * g12).re + w.norm_sqr() * g22;
         if mm <= 0.0 {
@@ -287,10 +292,11 @@ impl OpenQuery {
                         &self.y,
                         self.allow_mirror,
                     );
+                    let gram = sums.gram();
                     for &mirror in mirrors {
                         let v = usize::from(mirror);
                         for (k, &w) in points.iter().enumerate() {
-                            let m = sums.at_point(v, w).0;
+                            let m = sums.at_point_with(gram, v, w).0;
                             if m < best[k].misfit {
                                 best[k] = Hypothesis {
                                     misfit: m,
