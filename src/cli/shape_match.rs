@@ -8,9 +8,9 @@ use anyhow::{Context, Result};
 use coupler_atlas::generate::FileEntry;
 use coupler_atlas::render::{RasterPage, SvgPage, draw};
 use coupler_atlas::shape::{
-    AtlasCurve, Candidate, CouplerCurve, CurveFit, Match, MatchOptions, OVERLAY_SIZE_PT,
+    AtlasCurve, Candidate, CouplerCurve, CurveFit, Match, MatchOptions, OVERLAY_SIZE_PT, OpenScan,
     OverlayText, Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing, coarse_candidates,
-    decode_sidecar, rank_candidates, refine,
+    decode_sidecar, open_finish, open_scan, rank_candidates, refine,
 };
 use coupler_atlas::{Circuit, IndexCurve, TargetFile};
 use rayon::prelude::*;
@@ -46,9 +46,10 @@ pub struct Args {
     /// Matches to report.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
     top: u32,
-    /// Candidates from the coarse stage that get an exact fit.
-    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=100_000))]
-    candidates: u32,
+    /// Candidates from the coarse stage that get an exact fit (default: 64 for a closed
+    /// target, 256 for an open one).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    candidates: Option<u32>,
     /// Refine each match off the atlas grid (Levenberg–Marquardt over A, B, C, the
     /// coupler point and the transform).
     #[arg(long)]
@@ -146,9 +147,9 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
     decode_sidecar(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
 }
 
-/// The coarse stage on `jobs` threads: open targets in parts cut at linkage boundaries
-/// (each part scanned per linkage), closed targets in one pass (the codes are cheap; the
-/// query's description is the cost).
+/// The coarse stage on the pool's threads: open targets scanned in parts cut at linkage
+/// boundaries, then finished on the whole (the same candidates however it is cut);
+/// closed targets in one pass (the codes are cheap; the query's description is the cost).
 fn coarse(
     target: &Target,
     atlas: &ShapeAtlas,
@@ -175,15 +176,11 @@ fn coarse(
         i += want;
     }
     cuts.push(curves.len());
-    let parts: Vec<Result<Vec<Candidate>, _>> = cuts
+    let scans: Vec<OpenScan> = cuts
         .par_windows(2)
-        .map(|w| coarse_candidates(target, &curves[w[0]..w[1]], &[], options))
-        .collect();
-    let mut all = Vec::new();
-    for p in parts {
-        all.extend(p?);
-    }
-    Ok(all)
+        .map(|w| open_scan(target, &curves[w[0]..w[1]], w[0], options))
+        .collect::<Result<_, _>>()?;
+    open_finish(target, curves, scans, options)
 }
 
 /// Where each hit is drawn (page file and box), from the index: its curve lines are
@@ -385,7 +382,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let options = MatchOptions {
         allow_mirror: args.mirror,
         top: args.top as usize,
-        candidates: args.candidates as usize,
+        candidates: args
+            .candidates
+            .map_or(MatchOptions::DEFAULT.candidates, |c| c as usize),
+        open_candidates: args
+            .candidates
+            .map_or(MatchOptions::DEFAULT.open_candidates, |c| c as usize),
         ..MatchOptions::DEFAULT
     };
     let size = target.size();

@@ -32,8 +32,8 @@ pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
 pub use kin::{CouplerCurve, PointAt, PointSensitivity};
 pub use matching::{
-    AtlasCurve, Candidate, Match, MatchError, MatchOptions, coarse_candidates, find_matches,
-    rank_candidates,
+    AtlasCurve, Candidate, Match, MatchError, MatchOptions, OpenScan, coarse_candidates,
+    find_matches, open_finish, open_scan, rank_candidates,
 };
 pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;

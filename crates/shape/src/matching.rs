@@ -4,7 +4,7 @@
 use crate::code::{ClosedQuery, ShapeCode};
 use crate::fit::{CurveFit, FitOptions, Start, fit_timed, fit_untimed, fit_with};
 use crate::kin::CouplerCurve;
-use crate::open::{OpenQuery, open_candidates};
+use crate::open::{OpenQuery, Stage1, open_candidates, open_stage1, open_stage2};
 use crate::placement::Placement;
 use crate::target::Target;
 use crate::traced::Traced;
@@ -28,16 +28,21 @@ pub struct MatchOptions {
     /// Candidates from the coarse stage that get the exact fit (quick fits on at most 40
     /// points; the best `2·top` then fitted on every point).
     pub candidates: usize,
+    /// The same for an open target (its candidates come from the per-linkage scan, whose
+    /// misfit ranks less sharply than the closed codes' distance, and are cheap to fit:
+    /// they start from the scan's crank angles).
+    pub open_candidates: usize,
     /// The exact fit's settings (its `allow_mirror` is overridden by this one's).
     pub fit: FitOptions,
 }
 
 impl MatchOptions {
-    /// Mirror allowed, top 5, 64 candidates fitted exactly.
+    /// Mirror allowed, top 5, 64 candidates fitted exactly (256 for an open target).
     pub const DEFAULT: MatchOptions = MatchOptions {
         allow_mirror: true,
         top: 5,
         candidates: 64,
+        open_candidates: 256,
         fit: FitOptions::DEFAULT,
     };
 }
@@ -115,7 +120,7 @@ pub fn coarse_candidates(
     codes: &[ShapeCode],
     options: &MatchOptions,
 ) -> Result<Vec<Candidate>, MatchError> {
-    let keep = options.candidates.max(options.top);
+    let keep = options.kept(target);
     if target.is_closed() {
         if codes.len() != curves.len() {
             return Err(MatchError::CodeCount {
@@ -178,6 +183,55 @@ pub fn find_matches(
     Ok(rank_candidates(target, c, options))
 }
 
+/// Stage 1 of an open target's coarse stage over one part of the atlas ([`open_scan`]).
+#[derive(Clone, Debug)]
+pub struct OpenScan(Vec<Stage1>);
+
+/// Stage 1 of the coarse stage of an **open** target over `part = curves[first..]` (cut
+/// at linkage boundaries), to run parts in parallel; [`open_finish`] completes it on the
+/// whole atlas. The result does not depend on how the atlas is cut.
+pub fn open_scan(
+    target: &Target,
+    part: &[AtlasCurve],
+    first: usize,
+    options: &MatchOptions,
+) -> Result<OpenScan, MatchError> {
+    let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
+    Ok(OpenScan(open_stage1(&q, part, first, options.kept(target))))
+}
+
+/// Stage 2 of an open target's coarse stage, from the [`open_scan`]s of parts of
+/// `curves`: the same candidates as [`coarse_candidates`] on the whole of `curves`.
+pub fn open_finish(
+    target: &Target,
+    curves: &[AtlasCurve],
+    scans: Vec<OpenScan>,
+    options: &MatchOptions,
+) -> Result<Vec<Candidate>, MatchError> {
+    let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
+    let all: Vec<Stage1> = scans.into_iter().flat_map(|s| s.0).collect();
+    Ok(open_stage2(&q, curves, all, options.kept(target))
+        .into_iter()
+        .map(|c| Candidate {
+            curve: c.curve,
+            coarse: c.misfit,
+            start: Some(c.start),
+        })
+        .collect())
+}
+
+impl MatchOptions {
+    /// Candidates that get the exact fit for `target`.
+    fn kept(&self, target: &Target) -> usize {
+        if target.is_closed() {
+            self.candidates
+        } else {
+            self.open_candidates
+        }
+        .max(self.top)
+    }
+}
+
 /// The exact stage of [`find_matches`]: the best `options.candidates` of `candidates`
 /// (by coarse distance, then id; duplicates of one curve dropped) each get a quick fit,
 /// the best `2·top` the full fit on every point, and the best `options.top` by RMS error
@@ -193,7 +247,7 @@ pub fn rank_candidates(
             .then(a.curve.id.cmp(&b.curve.id))
     });
     candidates.dedup_by(|a, b| a.curve.id == b.curve.id);
-    candidates.truncate(options.candidates.max(options.top));
+    candidates.truncate(options.kept(target));
     let fit_options = FitOptions {
         allow_mirror: options.allow_mirror,
         ..options.fit
@@ -226,7 +280,7 @@ pub fn rank_candidates(
             .then(candidates[a.1].coarse.total_cmp(&candidates[b.1].coarse))
             .then(candidates[a.1].curve.id.cmp(&candidates[b.1].curve.id))
     });
-    quick.truncate((2 * options.top).max(options.top + 4));
+    quick.truncate((4 * options.top).max(options.top + 8));
     let size = target.size();
     let mut matches: Vec<Match> = quick
         .iter()

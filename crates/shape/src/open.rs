@@ -517,8 +517,22 @@ pub(crate) struct OpenCandidate {
     pub start: Start,
 }
 
-/// Curves kept after stage 1 (stage 2 runs on them).
-const STAGE2: usize = 256;
+/// Least number of curves kept after stage 1 (stage 2 runs on them; at least twice the
+/// candidates wanted).
+const STAGE2: usize = 2048;
+
+fn stage2_count(keep: usize) -> usize {
+    STAGE2.max(2 * keep)
+}
+
+/// One curve's best stage-1 hypothesis: `index` into the whole atlas, `group` the index
+/// of its linkage's first curve.
+#[derive(Clone, Debug)]
+pub(crate) struct Stage1 {
+    group: usize,
+    index: usize,
+    hyp: Hypothesis,
+}
 
 /// The coarse stage for an open target over `curves` (runs of curves that share a
 /// linkage and circuit are scanned once): candidates ordered by misfit, best first.
@@ -527,51 +541,94 @@ pub(crate) fn open_candidates(
     curves: &[AtlasCurve],
     keep: usize,
 ) -> Vec<OpenCandidate> {
+    open_stage2(query, curves, open_stage1(query, curves, 0, keep), keep)
+}
+
+/// Stage 1 over a part of the atlas, `part = atlas[base..]` (cut at linkage boundaries):
+/// the best `stage2_count(keep)` curves of the part by their best hypothesis. The union of
+/// the parts' lists holds the whole atlas's best, so [`open_stage2`] gives the same
+/// result however the atlas is cut.
+pub(crate) fn open_stage1(
+    query: &OpenQuery,
+    part: &[AtlasCurve],
+    base: usize,
+    keep: usize,
+) -> Vec<Stage1> {
     // Groups: runs of equal linkage and circuit.
     let mut groups: Vec<(usize, usize)> = Vec::new();
     let mut i = 0;
-    while i < curves.len() {
-        let c = &curves[i].curve;
+    while i < part.len() {
+        let c = &part[i].curve;
         let mut j = i + 1;
-        while j < curves.len()
-            && curves[j].curve.linkage == c.linkage
-            && curves[j].curve.circuit == c.circuit
+        while j < part.len()
+            && part[j].curve.linkage == c.linkage
+            && part[j].curve.circuit == c.circuit
         {
             j += 1;
         }
         groups.push((i, j));
         i = j;
     }
-    let w_of = |k: usize| C64::new(curves[k].curve.point.u, curves[k].curve.point.v);
-    // Stage 1: every curve's best hypothesis.
-    let mut stage1: Vec<(usize, usize, Hypothesis)> = Vec::new();
-    for (g, &(a, b)) in groups.iter().enumerate() {
-        let c = &curves[a].curve;
+    let mut stage1: Vec<Stage1> = Vec::new();
+    for &(a, b) in &groups {
+        let c = &part[a].curve;
         let Some(table) = Table::new(&c.linkage, c.circuit) else {
             continue;
         };
-        let pts: Vec<C64> = (a..b).map(w_of).collect();
+        let pts: Vec<C64> = (a..b).map(|k| w_of(&part[k])).collect();
         for (k, h) in query.scan(&table, &pts).into_iter().enumerate() {
             if h.misfit.is_finite() {
-                stage1.push((g, a + k, h));
+                stage1.push(Stage1 {
+                    group: base + a,
+                    index: base + a + k,
+                    hyp: h,
+                });
             }
         }
     }
-    stage1.sort_by(|x, y| x.2.misfit.total_cmp(&y.2.misfit).then(x.1.cmp(&y.1)));
-    stage1.truncate(STAGE2.max(keep));
-    // Stage 2, linkage by linkage.
-    stage1.sort_by_key(|x| (x.0, x.1));
+    truncate_stage1(&mut stage1, keep);
+    stage1
+}
+
+fn truncate_stage1(stage1: &mut Vec<Stage1>, keep: usize) {
+    stage1.sort_by(|x, y| {
+        x.hyp
+            .misfit
+            .total_cmp(&y.hyp.misfit)
+            .then(x.index.cmp(&y.index))
+    });
+    stage1.truncate(stage2_count(keep));
+}
+
+fn w_of(c: &AtlasCurve) -> C64 {
+    C64::new(c.curve.point.u, c.curve.point.v)
+}
+
+/// Stage 2 over the best of `stage1` (from one or several parts of `curves`, the whole
+/// atlas): re-estimated angles, the best `keep` as candidates, best first.
+pub(crate) fn open_stage2(
+    query: &OpenQuery,
+    curves: &[AtlasCurve],
+    mut stage1: Vec<Stage1>,
+    keep: usize,
+) -> Vec<OpenCandidate> {
+    truncate_stage1(&mut stage1, keep);
+    // Linkage by linkage (one table each).
+    stage1.sort_by_key(|x| (x.group, x.index));
     let mut out: Vec<OpenCandidate> = Vec::new();
     let mut table: Option<(usize, Table)> = None;
-    for (g, k, h) in &stage1 {
-        if table.as_ref().is_none_or(|t| t.0 != *g) {
-            let c = &curves[*k].curve;
-            table = Table::new(&c.linkage, c.circuit).map(|t| (*g, t));
+    for s in &stage1 {
+        let Some(curve) = curves.get(s.index) else {
+            continue;
+        };
+        if table.as_ref().is_none_or(|t| t.0 != s.group) {
+            let c = &curve.curve;
+            table = Table::new(&c.linkage, c.circuit).map(|t| (s.group, t));
         }
         let Some((_, t)) = &table else { continue };
-        let p = query.polish(t, w_of(*k), h);
+        let p = query.polish(t, w_of(curve), &s.hyp);
         out.push(OpenCandidate {
-            curve: curves[*k],
+            curve: *curve,
             misfit: p.misfit,
             start: Start {
                 mirrored: p.mirror,
