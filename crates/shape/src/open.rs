@@ -332,7 +332,7 @@ impl OpenQuery {
                     let misfit = Sums::of(table, theta.iter().copied(), &self.y, hyp.mirror)
                         .at_point(v, w)
                         .0;
-                    if !(misfit < out.misfit) {
+                    if misfit.partial_cmp(&out.misfit) != Some(std::cmp::Ordering::Less) {
                         break;
                     }
                     out.theta = theta;
@@ -777,11 +777,10 @@ mod lab {
             println!(
                 "case {case}: span {span:.0} n {n} even {even} mir {mir}: src pos {pos:?}; from start {from_start:?} own {own:.3}; first ok cand {first_ok:?} best of 256 {best:.3}",
             );
-            let rank2 = first_ok.unwrap_or(9999);
-            let rank2 = pos.unwrap_or(9999);
-            ranks.push(rank2);
+            // (coarse rank of the source, rank of the first quick fit as close as it)
+            ranks.push((pos.unwrap_or(9999), first_ok.unwrap_or(9999)));
         }
         ranks.sort();
-        println!("stage-2 ranks: {ranks:?}");
+        println!("(coarse rank, first as close) per case: {ranks:?}");
     }
 }
