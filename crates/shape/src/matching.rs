@@ -26,7 +26,7 @@ pub struct MatchOptions {
     /// Matches returned.
     pub top: usize,
     /// Candidates from the coarse stage that get the exact fit (quick fits on at most 40
-    /// points; the best `2·top` then fitted on every point).
+    /// points; the best `4·top` then fitted on every point).
     pub candidates: usize,
     /// The same for an open target (its candidates come from the per-linkage scan, whose
     /// misfit ranks less sharply than the closed codes' distance, and are cheap to fit:
@@ -234,7 +234,7 @@ impl MatchOptions {
 
 /// The exact stage of [`find_matches`]: the best `options.candidates` of `candidates`
 /// (by coarse distance, then id; duplicates of one curve dropped) each get a quick fit,
-/// the best `2·top` the full fit on every point, and the best `options.top` by RMS error
+/// the best `4·top` (at least `top + 8`) the full fit on every point, and the best `options.top` by RMS error
 /// are returned.
 pub fn rank_candidates(
     target: &Target,
