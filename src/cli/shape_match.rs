@@ -233,6 +233,9 @@ fn g(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
+    if x.abs() < 1e-4 {
+        return format!("{x:.5e}");
+    }
     let digits = (5 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;
     let s = format!("{x:.digits$}");
     let s = if s.contains('.') {
@@ -272,7 +275,7 @@ fn placement_json(p: &Placement) -> Value {
         "ground": p.ground,
         "point": p.point,
         "circuit": circuit_name(p.circuit),
-        "crank_deg": p.crank_deg,
+        "crank_deg": crank_interval(p),
     })
 }
 
@@ -291,8 +294,20 @@ fn error_json(fit: &CurveFit, size: f64) -> Value {
     })
 }
 
+/// The crank angles at the first and last point as reported: the first in (−180°, 180°],
+/// the last the first plus the signed travel.
+fn crank_interval(p: &Placement) -> [f64; 2] {
+    let [a, b] = p.crank_deg;
+    let mut first = a.rem_euclid(360.0);
+    if first > 180.0 {
+        first -= 360.0;
+    }
+    [first, first + (b - a)]
+}
+
 /// The lines of one placement in the table.
 fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<String> {
+    let crank = crank_interval(p);
     let mut v = vec![
         format!(
             "transform: scale {} per crank length, rotation {}°, O2 at ({}, {}){}",
@@ -321,11 +336,11 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
             circuit_name(p.circuit)
         ),
     ];
-    let travel = p.crank_deg[1] - p.crank_deg[0];
+    let travel = crank[1] - crank[0];
     v.push(if closed {
         format!(
             "crank: {}° at the first point, a full turn {}",
-            g(p.crank_deg[0]),
+            g(crank[0]),
             if travel >= 0.0 {
                 "counter-clockwise"
             } else {
@@ -335,8 +350,8 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
     } else {
         format!(
             "crank interval: {}° → {}° (travel {}°, {})",
-            g(p.crank_deg[0]),
-            g(p.crank_deg[1]),
+            g(crank[0]),
+            g(crank[1]),
             g(travel),
             if travel >= 0.0 {
                 "counter-clockwise"
@@ -460,7 +475,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     "transform": {"a": m.fit.a, "b": m.fit.b, "scale": m.placement.scale,
                         "rotation_deg": m.placement.rotation_deg, "mirrored": m.fit.mirrored},
                     "placement": placement_json(&m.placement),
-                    "crank_deg": m.placement.crank_deg,
+                    "crank_deg": crank_interval(&m.placement),
                     "timing_rate": m.fit.timing_rate,
                     "error": error_json(&m.fit, size),
                 });
