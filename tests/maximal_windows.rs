@@ -59,7 +59,11 @@ fn major_axis(a: f64, b: f64, c: f64) -> [f64; 2] {
         w
     };
     let r = v[0].hypot(v[1]);
-    if r == 0.0 { [1.0, 0.0] } else { [v[0] / r, v[1] / r] }
+    if r == 0.0 {
+        [1.0, 0.0]
+    } else {
+        [v[0] / r, v[1] / r]
+    }
 }
 
 /// ε_S of the window `[i, i + w]` of `s` (indices modulo its length) and whether it
@@ -80,7 +84,9 @@ fn straightness(s: &Samples, i: usize, w: usize, by_velocity: bool) -> Option<(f
     }
     let mut d = major_axis(a, b, c);
     let forward = if by_velocity {
-        idx.clone().map(|k| s.vx[k] * d[0] + s.vy[k] * d[1]).sum::<f64>()
+        idx.clone()
+            .map(|k| s.vx[k] * d[0] + s.vy[k] * d[1])
+            .sum::<f64>()
     } else {
         let (p, q) = (i % n, (i + w) % n);
         (s.x[q] - s.x[p]) * d[0] + (s.y[q] - s.y[p]) * d[1]
@@ -199,7 +205,13 @@ struct Tally {
 }
 
 /// Checks one curve; `tol` the spec's feature tolerances.
-fn check_curve(l: &Linkage, circuit: Circuit, p: CouplerPoint, tol: &FeatureTolerances, t: &mut Tally) {
+fn check_curve(
+    l: &Linkage,
+    circuit: Circuit,
+    p: CouplerPoint,
+    tol: &FeatureTolerances,
+    t: &mut Tally,
+) {
     let f = FeatureExtractor::new(l, circuit, tol, &DashPattern::default())
         .unwrap()
         .extract(p);
@@ -226,7 +238,8 @@ fn check_curve(l: &Linkage, circuit: Circuit, p: CouplerPoint, tol: &FeatureTole
         let ok = w >= min_line
             && straightness(&s, i, w, true).is_some_and(|(e, one)| one && e <= st * (1.0 + MARGIN));
         if !ok {
-            t.failures.push(format!("{name}: listed line {i}+{w} does not qualify"));
+            t.failures
+                .push(format!("{name}: listed line {i}+{w} does not qualify"));
         }
     }
     for &(i, w) in &arcs {
@@ -236,7 +249,8 @@ fn check_curve(l: &Linkage, circuit: Circuit, p: CouplerPoint, tol: &FeatureTole
                 d <= at * (1.0 + MARGIN) && wd > -MARGIN && turn >= tol.arc_min_turn_deg - 1e-6
             });
         if !ok {
-            t.failures.push(format!("{name}: listed arc {i}+{w} does not qualify"));
+            t.failures
+                .push(format!("{name}: listed arc {i}+{w} does not qualify"));
         }
     }
     // Every window that clearly qualifies shares a step with a listed window at least as long.
@@ -244,7 +258,8 @@ fn check_curve(l: &Linkage, circuit: Circuit, p: CouplerPoint, tol: &FeatureTole
         for w in min_line.min(min_arc)..n {
             let idx: Vec<usize> = (i..=i + w).map(|k| k % n).collect();
             let covered = |list: &[(usize, usize)]| {
-                list.iter().any(|&(a, b)| b >= w && share_a_step(n, (i, w), (a, b)))
+                list.iter()
+                    .any(|&(a, b)| b >= w && share_a_step(n, (i, w), (a, b)))
             };
             if w >= min_line && !covered(&lines) {
                 if let Some((e, true)) = straightness(&s, i, w, true) {
@@ -261,7 +276,10 @@ fn check_curve(l: &Linkage, circuit: Circuit, p: CouplerPoint, tol: &FeatureTole
             }
             if w >= min_arc && !covered(&arcs) {
                 if let Some((d, wd, turn)) = arc_measure(&s, &idx) {
-                    if d <= at * (1.0 - MARGIN) && wd > MARGIN && turn >= tol.arc_min_turn_deg + 1e-6 {
+                    if d <= at * (1.0 - MARGIN)
+                        && wd > MARGIN
+                        && turn >= tol.arc_min_turn_deg + 1e-6
+                    {
                         missed[1] = true;
                         t.failures.push(format!(
                             "{name}: arc window {}°+{}° (deviation {:.4} %, turn {turn:.1}°) is longer than or disjoint from the listed {arcs:?}",
@@ -282,7 +300,8 @@ fn check_curve(l: &Linkage, circuit: Circuit, p: CouplerPoint, tol: &FeatureTole
 }
 
 fn check_atlas(file: &str) -> Tally {
-    let text = std::fs::read_to_string(format!("{}/atlas-spec/{file}", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let text = std::fs::read_to_string(format!("{}/atlas-spec/{file}", env!("CARGO_MANIFEST_DIR")))
+        .unwrap();
     let AtlasSpec::Grid(spec) = AtlasSpec::parse(&text, file).unwrap() else {
         panic!("{file} is a grid spec");
     };
@@ -317,7 +336,12 @@ fn report(file: &str, t: &Tally) {
         t.failures.is_empty(),
         "{file}: {} failures, e.g.\n{}",
         t.failures.len(),
-        t.failures.iter().take(12).cloned().collect::<Vec<_>>().join("\n")
+        t.failures
+            .iter()
+            .take(12)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join("\n")
     );
 }
 
@@ -340,7 +364,11 @@ fn hartenberg_denavit_windows_are_maximal() {
 /// reported one (or as far with a smaller ε_S).
 #[test]
 fn classic_runs_are_the_longest() {
-    let text = std::fs::read_to_string(format!("{}/atlas-spec/classics.toml", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let text = std::fs::read_to_string(format!(
+        "{}/atlas-spec/classics.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
     let AtlasSpec::Curves(list) = AtlasSpec::parse(&text, "classics.toml").unwrap() else {
         panic!("classics.toml is a page set");
     };
@@ -349,7 +377,11 @@ fn classic_runs_are_the_longest() {
     for c in &list.curves {
         let t0 = std::time::Instant::now();
         let m = ClassicCurve::compute(c, list.sampling.crank_step_deg);
-        println!("{}: computed in {:.2} s", c.name, t0.elapsed().as_secs_f64());
+        println!(
+            "{}: computed in {:.2} s",
+            c.name,
+            t0.elapsed().as_secs_f64()
+        );
         for (ti, &tol) in STRAIGHTNESS_TOLERANCES.iter().enumerate() {
             let reported = m.straight[ti];
             let best = reported.map_or(0.0, |r| r.input_span_deg);
@@ -364,7 +396,10 @@ fn classic_runs_are_the_longest() {
                 let ok = straightness(&s, r.samples[0], r.samples[1] - 1, false)
                     .is_some_and(|(e, one)| one && e <= tol * (1.0 + MARGIN));
                 if !ok {
-                    failures.push(format!("{} at {tol}: the reported run does not qualify", c.name));
+                    failures.push(format!(
+                        "{} at {tol}: the reported run does not qualify",
+                        c.name
+                    ));
                 }
             }
             for b in &m.branches {
@@ -417,7 +452,10 @@ fn classic_runs_are_the_longest() {
             checked += 1;
         }
     }
-    println!("classics: {checked} curve × tolerance cells, {} failures", failures.len());
+    println!(
+        "classics: {checked} curve × tolerance cells, {} failures",
+        failures.len()
+    );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
@@ -437,7 +475,13 @@ struct RunSums {
 /// as the spread across the fitted line exceeds `tol` times the length of the polyline
 /// through the run (which bounds its extent along any line): such a run cannot qualify.
 /// `sums` are the run's sums about sample `i`.
-fn run_straightness(s: &Samples, i: usize, j: usize, tol: f64, sums: &RunSums) -> Option<(f64, bool)> {
+fn run_straightness(
+    s: &Samples,
+    i: usize,
+    j: usize,
+    tol: f64,
+    sums: &RunSums,
+) -> Option<(f64, bool)> {
     let (gx, gy) = (sums.sx / sums.m, sums.sy / sums.m);
     let d = major_axis(
         sums.sxx - sums.m * gx * gx,

@@ -182,7 +182,7 @@ fn qualifying(
         }
     }
     let dev = k.max_deviation(xs, ys);
-    if !(dev <= limit * k.radius) {
+    if dev.is_nan() || dev > limit * k.radius {
         return None;
     }
     let sign = winding(c, i, j, k.center);
@@ -221,7 +221,9 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
             let (i, j) = (w.start, w.end);
             let (k, k_sign, _) = qualifying(c, i, j, limit, min_turn, &mut xs, &mut ys)?;
             let geometric = fit_circle(&xs, &ys, Some(k), &CircleFitOptions::DEFAULT)
-                .filter(|g| g.max_deviation(&xs, &ys) / g.radius < k.max_deviation(&xs, &ys) / k.radius)
+                .filter(|g| {
+                    g.max_deviation(&xs, &ys) / g.radius < k.max_deviation(&xs, &ys) / k.radius
+                })
                 .and_then(|g| {
                     let sign = winding(c, i, j, g.center);
                     (sign != 0.0 && turn(c, i, j, g.center, sign, f64::INFINITY) >= min_turn)

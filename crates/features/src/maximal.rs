@@ -74,7 +74,11 @@ impl Candidates {
         mut exact: impl FnMut(usize, usize) -> Option<f64>,
     ) -> Vec<Window> {
         let n = self.n;
-        let edges = if self.periodic { n } else { n.saturating_sub(1) };
+        let edges = if self.periodic {
+            n
+        } else {
+            n.saturating_sub(1)
+        };
         let mut picked: Vec<Window> = Vec::new();
         if n < 3 || max_picks == 0 {
             return picked;
@@ -87,10 +91,10 @@ impl Candidates {
         // Qualifying windows not yet chosen: (travel, error, start, end).
         let mut pending: Vec<(f64, f64, usize, usize)> = Vec::new();
         let finalize = |pending: &mut Vec<(f64, f64, usize, usize)>,
-                            picked: &mut Vec<Window>,
-                            used: &mut Vec<bool>,
-                            count: &mut Vec<u32>,
-                            bound: f64| {
+                        picked: &mut Vec<Window>,
+                        used: &mut Vec<bool>,
+                        count: &mut Vec<u32>,
+                        bound: f64| {
             // Windows travelling more than `bound` cannot be beaten or tied by a window
             // still to be tested: choose among them, longest first.
             pending.sort_by(|a, b| {

@@ -225,7 +225,13 @@ impl Track<'_> {
                 let v = match self.velocity {
                     Some((vx, vy)) => [vx[k], vy[k]],
                     None => {
-                        let q = if k + 1 < n { k + 1 } else if self.periodic { 0 } else { k };
+                        let q = if k + 1 < n {
+                            k + 1
+                        } else if self.periodic {
+                            0
+                        } else {
+                            k
+                        };
                         [self.x[q] - self.x[k], self.y[q] - self.y[k]]
                     }
                 };
@@ -273,11 +279,9 @@ impl Track<'_> {
                 }
                 sums.add(x, y);
                 match self.direction(&angles, i, l) {
-                    Some(a) => {
-                        if !half.add(a) {
-                            break; // no extension moves one way either
-                        }
-                    }
+                    // No extension moves one way either.
+                    Some(a) if !half.add(a) => break,
+                    Some(_) => {}
                     None if self.velocity.is_some() => break,
                     None => {}
                 }
@@ -320,7 +324,9 @@ pub fn straight_segments(
         periodic: true,
         velocity: Some((&c.vx, &c.vy)),
     };
-    let min_steps = (tol.straight_min_span_deg / tol.step_deg - 1e-9).ceil().max(2.0);
+    let min_steps = (tol.straight_min_span_deg / tol.step_deg - 1e-9)
+        .ceil()
+        .max(2.0);
     track
         .maximal(
             tol.straight_pct / 100.0,
