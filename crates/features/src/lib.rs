@@ -216,7 +216,8 @@ pub struct DoublePoints {
 /// An axis of mirror symmetry of the curve.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Symmetry {
-    /// A point of the axis (the curve's arc-length centroid).
+    /// A point of the axis: O2 or O4 where theory gives the axis, else the curve's
+    /// arc-length centroid.
     pub point: [f64; 2],
     /// The axis direction, degrees in [0, 180).
     pub direction_deg: f64,
