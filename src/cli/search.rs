@@ -1,9 +1,9 @@
-//! `coupler-atlas search INDEX [filters] [--sort] [--limit] [--format table|json]`
+//! `coupler-atlas search INDEX [filters] [--sort] [--limit] [--format table|json|csv]`
 
 use super::UsageError;
 use anyhow::Result;
 use coupler_atlas::{Circuit, LinkageClass};
-use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Query, SearchTable, SortKey, SpanFilter};
+use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -41,18 +41,50 @@ pub struct Args {
     /// Symmetric curves only.
     #[arg(long)]
     symmetric: bool,
-    /// Order: id, straight, straightness, arc, deviation, transmission.
+    /// Also list curves of coupler points at a pin (the crank pin's circle, the rocker
+    /// pin's arc), left out by default.
+    #[arg(long)]
+    include_trivial: bool,
+    /// Arcs of radius from MIN to MAX (crank units); implies an arc.
+    #[arg(long, value_name = "MIN:MAX", value_parser = parse_range)]
+    radius: Option<[f64; 2]>,
+    /// Arcs turning at least DEG about their centre; implies an arc.
+    #[arg(long, value_name = "DEG", value_parser = parse_nonnegative)]
+    min_turn: Option<f64>,
+    /// Straight segments with velocity variation ε_V at most PCT %; implies a segment.
+    #[arg(long, value_name = "PCT", value_parser = parse_nonnegative)]
+    max_ev: Option<f64>,
+    /// Order: id, straight, straightness, arc, deviation, transmission, turn, radius, velocity.
     #[arg(long, default_value = "id")]
     sort: SortKey,
     /// At most N hits (0: all).
     #[arg(long, default_value_t = 20)]
     limit: usize,
     /// Output format.
-    #[arg(long, default_value = "table", value_parser = ["table", "json"])]
+    #[arg(long, default_value = "table", value_parser = ["table", "json", "csv"])]
     format: String,
     /// Do not read or write the search cache (INDEX.search).
     #[arg(long)]
     no_cache: bool,
+}
+
+fn parse_nonnegative(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        _ => Err(format!("expected a finite number ≥ 0, got `{s}`")),
+    }
+}
+
+fn parse_range(s: &str) -> Result<[f64; 2], String> {
+    let (a, b) = s
+        .split_once(':')
+        .ok_or_else(|| format!("expected MIN:MAX, got `{s}`"))?;
+    let (a, b) = (parse_nonnegative(a)?, parse_nonnegative(b)?);
+    if a <= b {
+        Ok([a, b])
+    } else {
+        Err(format!("MIN must not exceed MAX, got `{s}`"))
+    }
 }
 
 fn parse_min_transmission(s: &str) -> Result<f64, String> {
@@ -125,99 +157,268 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .transpose()
             .map_err(UsageError)?,
         symmetric: args.symmetric,
+        include_trivial: args.include_trivial,
+        radius: args.radius,
+        min_turn_deg: args.min_turn,
+        max_velocity_variation_pct: args.max_ev,
         sort: args.sort,
         limit: args.limit,
     };
     let t0 = Instant::now();
     let (table, source) = load(&args.index, !args.no_cache)?;
     let t1 = Instant::now();
-    let hits = table.search(&query);
+    let (hits, total) = table.search_counted(&query);
     let t2 = Instant::now();
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
-    if args.format == "json" {
-        writeln!(w, "[")?;
-        for (n, h) in hits.iter().enumerate() {
-            let r = &table.rows[h.row];
-            let mut o = serde_json::json!({
-                "id": r.id,
-                "linkage": {"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]},
-                "point": {"u": r.point[0], "v": r.point[1]},
-                "circuit": r.circuit,
-                "class": r.class,
-                "transmission_deg": r.transmission_deg,
-                "straight_segments": h.straight.iter().map(|&k| numbered(&table.segments[k], k - r.seg_start as usize + 1)).collect::<Vec<_>>(),
-                "pseudo_arcs": h.arcs.iter().map(|&k| numbered(&table.arcs[k], k - r.arc_start as usize + 1)).collect::<Vec<_>>(),
-            });
-            if r.page != u32::MAX {
-                o["page"] = serde_json::json!({"file": table.pages[r.page as usize], "bbox_px": r.page_bbox});
-            }
-            let sep = if n + 1 < hits.len() { "," } else { "" };
-            writeln!(w, "{}{sep}", serde_json::to_string(&o)?)?;
-        }
-        writeln!(w, "]")?;
-    } else {
-        writeln!(
-            w,
-            "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9}  matches / page",
-            "id", "A", "B", "C", "u", "v", "circuit", "mu min"
-        )?;
-        for h in &hits {
-            let r = &table.rows[h.row];
-            let mut m: Vec<String> = h
-                .straight
-                .iter()
-                .map(|&k| {
-                    let s = &table.segments[k];
-                    format!(
-                        "line#{} {}°+{}° ε_S {:.3}%",
-                        k - r.seg_start as usize + 1,
-                        s.start_deg,
-                        s.span_deg,
-                        s.straightness_pct
-                    )
-                })
-                .collect();
-            m.extend(h.arcs.iter().map(|&k| {
-                let a = &table.arcs[k];
-                format!(
-                    "arc#{} {}°+{}° R {:.3} dev {:.3}%",
-                    k - r.arc_start as usize + 1,
-                    a.start_deg,
-                    a.span_deg,
-                    a.radius,
-                    a.deviation_pct
-                )
-            }));
-            if r.page != u32::MAX {
-                let b = r.page_bbox;
-                m.push(format!(
-                    "page {} at ({:.0},{:.0})-({:.0},{:.0}) px",
-                    table.pages[r.page as usize], b[0], b[1], b[2], b[3]
-                ));
-            }
-            writeln!(
-                w,
-                "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9.2}  {}",
-                r.id,
-                r.linkage[0],
-                r.linkage[1],
-                r.linkage[2],
-                r.point[0],
-                r.point[1],
-                r.circuit.name(),
-                r.transmission_deg[0],
-                m.join("; ")
-            )?;
-        }
+    match args.format.as_str() {
+        "json" => write_json(&mut w, &table, &hits, total)?,
+        "csv" => write_csv(&mut w, &table, &hits)?,
+        _ => write_table(&mut w, &table, &hits)?,
     }
     w.flush()?;
     eprintln!(
-        "{} hit(s) of {} curves; load {:.3} s (from {source}), search {:.3} s",
+        "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s",
         hits.len(),
         table.rows.len(),
+        if hits.len() < total {
+            "; --limit 0 shows all"
+        } else {
+            ""
+        },
         (t1 - t0).as_secs_f64(),
         (t2 - t1).as_secs_f64()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// One matching feature of a hit, as the table and CSV print it.
+struct FeatureCells {
+    /// `line#K` or `arc#K`.
+    name: String,
+    start_deg: f64,
+    span_deg: f64,
+    /// ε_S or the radial deviation, percent.
+    error_pct: f64,
+    radius: Option<f64>,
+    turn_deg: Option<f64>,
+    velocity_variation_pct: Option<f64>,
+}
+
+fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
+    let r = &table.rows[h.row];
+    let mut out: Vec<FeatureCells> = h
+        .straight
+        .iter()
+        .map(|&k| {
+            let s = &table.segments[k];
+            FeatureCells {
+                name: format!("line#{}", k - r.seg_start as usize + 1),
+                start_deg: s.start_deg,
+                span_deg: s.span_deg,
+                error_pct: s.straightness_pct,
+                radius: None,
+                turn_deg: None,
+                velocity_variation_pct: Some(s.velocity_variation_pct),
+            }
+        })
+        .collect();
+    out.extend(h.arcs.iter().map(|&k| {
+        let a = &table.arcs[k];
+        FeatureCells {
+            name: format!("arc#{}", k - r.arc_start as usize + 1),
+            start_deg: a.start_deg,
+            span_deg: a.span_deg,
+            error_pct: a.deviation_pct,
+            radius: Some(a.radius),
+            turn_deg: Some(a.turn_deg),
+            velocity_variation_pct: None,
+        }
+    }));
+    out
+}
+
+/// The page's number (the digits before the extension) and the centre of the curve's box.
+fn page_spot(table: &SearchTable, r: &coupler_atlas::CurveRow) -> Option<(String, [f64; 2])> {
+    let file = table.pages.get(r.page as usize)?;
+    let stem = file.rsplit_once('.').map_or(file.as_str(), |(a, _)| a);
+    let digits: String = stem
+        .chars()
+        .rev()
+        .take_while(|c| c.is_ascii_digit())
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect();
+    let page = digits
+        .trim_start_matches('0')
+        .parse::<u64>()
+        .map_or_else(|_| file.clone(), |n| n.to_string());
+    let b = r.page_bbox;
+    Some((page, [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])]))
+}
+
+/// Fixed columns, ≤ 120 characters: one line per matching feature (the curve's columns on
+/// its first), page number and the centre of the curve's box on it in pixels.
+fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
+    writeln!(
+        w,
+        "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} {}",
+        "id",
+        "A",
+        "B",
+        "C",
+        "u",
+        "v",
+        "circ",
+        "μmin",
+        "feat",
+        "start",
+        "span",
+        "err%",
+        "R",
+        "turn",
+        "εV%",
+        "page",
+        "spot px"
+    )?;
+    let opt = |x: Option<f64>, p: usize| x.map_or(String::from("-"), |x| format!("{x:.p$}"));
+    for h in hits {
+        let r = &table.rows[h.row];
+        let cells = feature_cells(table, h);
+        let (page, spot) = match page_spot(table, r) {
+            Some((p, c)) => (p, format!("{:.0},{:.0}", c[0], c[1])),
+            None => ("-".into(), "-".into()),
+        };
+        let circ = if r.circuit == Circuit::Open {
+            "open"
+        } else {
+            "crsd"
+        };
+        let head = format!(
+            "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5.1}",
+            r.id,
+            r.linkage[0],
+            r.linkage[1],
+            r.linkage[2],
+            r.point[0],
+            r.point[1],
+            circ,
+            r.transmission_deg[0]
+        );
+        if cells.is_empty() {
+            writeln!(
+                w,
+                "{head}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {page:>5} {spot}",
+                "-", "-", "-", "-", "-", "-", "-"
+            )?;
+        }
+        for (n, c) in cells.iter().enumerate() {
+            let lead = if n == 0 {
+                head.clone()
+            } else {
+                " ".repeat(head.chars().count())
+            };
+            writeln!(
+                w,
+                "{lead}  {:<6} {:>7.1} {:>6.1} {:>6.3} {:>7} {:>5} {:>6}  {page:>5} {spot}",
+                c.name,
+                c.start_deg,
+                c.span_deg,
+                c.error_pct,
+                opt(c.radius, 3),
+                opt(c.turn_deg, 0),
+                opt(c.velocity_variation_pct, 1),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// One line per matching feature (a curve without one: a line with empty feature
+/// columns); RFC 4180 (no field needs quoting but the page file, which is quoted).
+fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
+    writeln!(
+        w,
+        "id,coupler,rocker,ground,u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,page,page_x_px,page_y_px"
+    )?;
+    let opt = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
+    for h in hits {
+        let r = &table.rows[h.row];
+        let head = format!(
+            "{},{},{},{},{},{},{},{},{},{}",
+            r.id,
+            r.linkage[0],
+            r.linkage[1],
+            r.linkage[2],
+            r.point[0],
+            r.point[1],
+            r.circuit.name(),
+            r.class.code(),
+            r.transmission_deg[0],
+            r.transmission_deg[1]
+        );
+        let page = match table.pages.get(r.page as usize) {
+            Some(f) => {
+                let b = r.page_bbox;
+                format!(
+                    "\"{}\",{},{}",
+                    f.replace('"', "\"\""),
+                    0.5 * (b[0] + b[2]),
+                    0.5 * (b[1] + b[3])
+                )
+            }
+            None => ",,".into(),
+        };
+        let cells = feature_cells(table, h);
+        if cells.is_empty() {
+            writeln!(w, "{head},,,,,,,,{page}")?;
+        }
+        for c in &cells {
+            writeln!(
+                w,
+                "{head},{},{},{},{},{},{},{},{page}",
+                c.name,
+                c.start_deg,
+                c.span_deg,
+                c.error_pct,
+                opt(c.radius),
+                opt(c.turn_deg),
+                opt(c.velocity_variation_pct)
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// `{"total", "shown", "curves", "hits": [...]}`: `total` curves matched, the first
+/// `shown` of them (by the sort) are in `hits`.
+fn write_json(w: &mut impl Write, table: &SearchTable, hits: &[Hit], total: usize) -> Result<()> {
+    writeln!(
+        w,
+        "{{\"total\":{total},\"shown\":{},\"curves\":{},\"hits\":[",
+        hits.len(),
+        table.rows.len()
+    )?;
+    for (n, h) in hits.iter().enumerate() {
+        let r = &table.rows[h.row];
+        let mut o = serde_json::json!({
+            "id": r.id,
+            "linkage": {"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]},
+            "point": {"u": r.point[0], "v": r.point[1]},
+            "circuit": r.circuit,
+            "class": r.class,
+            "transmission_deg": r.transmission_deg,
+            "straight_segments": h.straight.iter().map(|&k| numbered(&table.segments[k], k - r.seg_start as usize + 1)).collect::<Vec<_>>(),
+            "pseudo_arcs": h.arcs.iter().map(|&k| numbered(&table.arcs[k], k - r.arc_start as usize + 1)).collect::<Vec<_>>(),
+        });
+        if r.page != u32::MAX {
+            o["page"] =
+                serde_json::json!({"file": table.pages[r.page as usize], "bbox_px": r.page_bbox});
+        }
+        let sep = if n + 1 < hits.len() { "," } else { "" };
+        writeln!(w, "{}{sep}", serde_json::to_string(&o)?)?;
+    }
+    writeln!(w, "]}}")?;
+    Ok(())
 }

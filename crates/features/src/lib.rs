@@ -240,6 +240,38 @@ pub struct CurveFeatures {
     /// The two other four-bars tracing the same curve (Roberts–Chebyshev;
     /// [`Mechanism::cognates`]).
     pub cognates: Vec<Cognate>,
+    /// Set when the coupler point is a pin of the mechanism, whose curve is a circle or
+    /// an arc a designer gets for free ([`Trivial`]); search leaves such curves out unless
+    /// asked. Absent otherwise (and in indexes written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trivial: Option<Trivial>,
+}
+
+/// A coupler point whose curve is trivial: it coincides with a pin of the mechanism.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Trivial {
+    /// The crank pin Pa (u = v = 0): the crank circle.
+    CrankPin,
+    /// The pin at the far end of the coupler link (u = A, v = 0: the rocker pin Pb of a
+    /// four-bar): an arc about the output link's ground pivot.
+    RockerPin,
+}
+
+impl Trivial {
+    /// Which pin `point` is, to 1e-12 relative to the coupler link (`coupler_length`).
+    pub fn of(point: CouplerPoint, coupler_length: f64) -> Option<Trivial> {
+        let eps = 1e-12 * coupler_length.max(1.0);
+        if point.v.abs() > eps {
+            None
+        } else if point.u.abs() <= eps {
+            Some(Trivial::CrankPin)
+        } else if (point.u - coupler_length).abs() <= eps {
+            Some(Trivial::RockerPin)
+        } else {
+            None
+        }
+    }
 }
 
 /// Extracts features of every coupler point of one mechanism and circuit, sharing one
@@ -292,6 +324,7 @@ impl<M: Mechanism> FeatureExtractor<M> {
             },
             symmetry: symmetry(l, c, point, curve, t),
             cognates: cogs,
+            trivial: Trivial::of(point, l.coupler_length()),
         }
     }
 }
