@@ -11,7 +11,7 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The index to search (index.json of a generated atlas).
+    /// The index to search: an atlas folder or its index.json.
     index: PathBuf,
     /// A straight segment of at least SPAN crank degrees, straightness ε_S at most TOL %.
     #[arg(long, value_name = "SPAN[:TOL]")]
@@ -104,9 +104,40 @@ fn parse_min_transmission(s: &str) -> Result<f64, String> {
 /// The search table of `index` (from its cache when it matches): a usage error when the
 /// index cannot be read or is not an index.
 pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
+    let index = resolve_index(index)?;
     let (table, source) =
-        coupler_atlas::load_table(index, use_cache).map_err(|e| UsageError(e.to_string()))?;
+        coupler_atlas::load_table(&index, use_cache).map_err(|e| UsageError(e.to_string()))?;
     Ok((table, source.name()))
+}
+
+/// An atlas folder stands for its `index.json`; the other JSON files of an atlas are
+/// refused with a hint naming the index (they would read as an empty index).
+fn resolve_index(path: &Path) -> Result<PathBuf, UsageError> {
+    if path.is_dir() {
+        let index = path.join("index.json");
+        return if index.is_file() {
+            Ok(index)
+        } else {
+            Err(UsageError(format!(
+                "{}: an atlas folder holds index.json, and this one has none (was it generated with `generate`?)",
+                path.display()
+            )))
+        };
+    }
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let sibling = path.with_file_name("index.json");
+    match name {
+        "manifest.json" => Err(UsageError(format!(
+            "{}: this is the atlas's manifest (file list and checksums), not its index: search {} (or the folder)",
+            path.display(),
+            sibling.display()
+        ))),
+        "curves.json" => Err(UsageError(format!(
+            "{}: this is a page set's measures (curves.json), which search does not read; search an atlas's index.json (or its folder)",
+            path.display()
+        ))),
+        _ => Ok(path.to_path_buf()),
+    }
 }
 
 /// A feature as JSON with `"index"`: its 1-based position in the curve's list (what

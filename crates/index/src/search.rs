@@ -201,7 +201,11 @@ impl SearchTable {
         let io = |e: std::io::Error| SearchError::Header(e.to_string());
         let mut first = String::new();
         reader.read_line(&mut first).map_err(io)?;
-        if !first.starts_with(&format!("{{\"schema_version\":{SCHEMA_VERSION},")) {
+        // An index's header names its generator second; other files of an atlas
+        // (`manifest.json`) share the first key only.
+        if !first.starts_with(&format!(
+            "{{\"schema_version\":{SCHEMA_VERSION},\"generator\":"
+        )) {
             return Err(SearchError::Header(first.chars().take(60).collect()));
         }
         let mut t = SearchTable::default();
