@@ -139,10 +139,11 @@ fn kasa(s: &Samples, idx: &[usize]) -> Option<([f64; 2], f64)> {
         if a[col][col] == 0.0 {
             return None;
         }
-        for r in col + 1..3 {
-            let f = a[r][col] / a[col][col];
-            for c in col..4 {
-                a[r][c] -= f * a[col][c];
+        let pivot = a[col];
+        for row in a.iter_mut().skip(col + 1) {
+            let f = row[col] / pivot[col];
+            for (x, p) in row.iter_mut().zip(pivot).skip(col) {
+                *x -= f * p;
             }
         }
     }

@@ -294,7 +294,7 @@ fn page_spot(table: &SearchTable, r: &coupler_atlas::CurveRow) -> Option<(String
 fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
     writeln!(
         w,
-        "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} {}",
+        "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} spot px",
         "id",
         "A",
         "B",
@@ -311,7 +311,6 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
         "turn",
         "εV%",
         "page",
-        "spot px"
     )?;
     let opt = |x: Option<f64>, p: usize| x.map_or(String::from("-"), |x| format!("{x:.p$}"));
     for h in hits {
