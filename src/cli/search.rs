@@ -2,7 +2,10 @@
 
 use super::UsageError;
 use anyhow::Result;
-use coupler_atlas::{Circuit, LinkageClass};
+use coupler_atlas::{
+    Circuit, CouplerPoint, DashPattern, FeatureExtractor, FeatureTolerances, FourBar, IndexCurve,
+    Linkage, LinkageClass, PageRef,
+};
 use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -198,20 +201,53 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let t0 = Instant::now();
     let (table, source) = load(&args.index, !args.no_cache)?;
     let t1 = Instant::now();
+    let extracted = extraction_tolerances(&resolve_index(&args.index)?);
+    let curves = table.rows.len();
+    let tight = extracted.and_then(|t| tighter(&query, &t));
+    let refined;
+    let table = match tight {
+        Some(t) => {
+            let (r, n) = refine(&table, &query, &t)?;
+            eprintln!(
+                "refined: the query is tighter than the index's extraction tolerance (straight {} %, arc {} %), so its {n} candidate curve(s) were re-measured at straight {} %, arc {} % in {:.3} s",
+                extracted.map_or(f64::NAN, |e| e.straight_pct),
+                extracted.map_or(f64::NAN, |e| e.arc_pct),
+                t.straight_pct,
+                t.arc_pct,
+                t1.elapsed().as_secs_f64()
+            );
+            refined = r;
+            &refined
+        }
+        None => &table,
+    };
+    if let Some(e) = extracted {
+        for (flag, f, stored) in [
+            ("--straight", query.straight, e.straight_pct),
+            ("--arc", query.arc, e.arc_pct),
+        ] {
+            if let Some(f) = f.filter(|f| f.max_error_pct > stored && f.max_error_pct.is_finite()) {
+                eprintln!(
+                    "note: {flag} tolerance {} % is looser than the index's extraction tolerance {stored} %: its features are the maximal windows within {stored} %, so a longer window within {} % is not found; generate with a looser [features] tolerance for that",
+                    f.max_error_pct, f.max_error_pct
+                );
+            }
+        }
+    }
     let (hits, total) = table.search_counted(&query);
     let t2 = Instant::now();
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
     match args.format.as_str() {
-        "json" => write_json(&mut w, &table, &hits, total)?,
-        "csv" => write_csv(&mut w, &table, &hits)?,
-        _ => write_table(&mut w, &table, &hits)?,
+        "json" => write_json(&mut w, table, &hits, total, curves)?,
+        "csv" => write_csv(&mut w, table, &hits)?,
+        _ => write_table(&mut w, table, &hits)?,
     }
     w.flush()?;
     eprintln!(
         "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s",
         hits.len(),
-        table.rows.len(),
+        curves,
         if hits.len() < total {
             "; --limit 0 shows all"
         } else {
@@ -423,12 +459,17 @@ fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()
 
 /// `{"total", "shown", "curves", "hits": [...]}`: `total` curves matched, the first
 /// `shown` of them (by the sort) are in `hits`.
-fn write_json(w: &mut impl Write, table: &SearchTable, hits: &[Hit], total: usize) -> Result<()> {
+fn write_json(
+    w: &mut impl Write,
+    table: &SearchTable,
+    hits: &[Hit],
+    total: usize,
+    curves: usize,
+) -> Result<()> {
     writeln!(
         w,
-        "{{\"total\":{total},\"shown\":{},\"curves\":{},\"hits\":[",
-        hits.len(),
-        table.rows.len()
+        "{{\"total\":{total},\"shown\":{},\"curves\":{curves},\"hits\":[",
+        hits.len()
     )?;
     for (n, h) in hits.iter().enumerate() {
         let r = &table.rows[h.row];
@@ -451,4 +492,122 @@ fn write_json(w: &mut impl Write, table: &SearchTable, hits: &[Hit], total: usiz
     }
     writeln!(w, "]}}")?;
     Ok(())
+}
+
+/// The feature tolerances the index was extracted with (its header's `spec.features`),
+/// or `None` if the header does not say (features off, or not readable).
+fn extraction_tolerances(index: &Path) -> Option<FeatureTolerances> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(index).ok()?;
+    let mut lines = std::io::BufReader::new(file).lines();
+    lines.next()?.ok()?;
+    let spec = lines.next()?.ok()?;
+    let spec = spec.trim_end().strip_suffix(',').unwrap_or(spec.trim_end());
+    let v: serde_json::Value = serde_json::from_str(&format!("{{{spec}}}")).ok()?;
+    let f = v.get("spec")?.get("features")?;
+    if f.get("enabled").and_then(|e| e.as_bool()) == Some(false) {
+        return None;
+    }
+    let num = |k: &str| f.get(k).and_then(|x| x.as_f64());
+    Some(FeatureTolerances {
+        step_deg: num("step_deg")?,
+        straight_pct: num("straight_pct")?,
+        straight_min_span_deg: num("straight_min_span_deg")?,
+        arc_pct: num("arc_pct")?,
+        arc_min_span_deg: num("arc_min_span_deg")?,
+        arc_min_turn_deg: num("arc_min_turn_deg")?,
+        cusp_speed_ratio: num("cusp_speed_ratio")?,
+        symmetry_tol: num("symmetry_tol")?,
+    })
+}
+
+/// The tolerances to re-measure at when the query's `--straight` or `--arc` TOL is
+/// tighter than the extraction's, else `None`.
+fn tighter(q: &Query, e: &FeatureTolerances) -> Option<FeatureTolerances> {
+    let straight = q
+        .straight
+        .map_or(e.straight_pct, |f| f.max_error_pct.min(e.straight_pct));
+    let arc = q.arc.map_or(e.arc_pct, |f| f.max_error_pct.min(e.arc_pct));
+    (straight < e.straight_pct || arc < e.arc_pct).then_some(FeatureTolerances {
+        straight_pct: straight,
+        arc_pct: arc,
+        ..*e
+    })
+}
+
+/// Exact answers below the extraction tolerance without regenerating. A window within a
+/// tighter tolerance is also within the extraction's, so (the listed windows being
+/// maximal, `docs/features.md`) it shares a step with a listed window at least as long:
+/// only curves with a listed segment (arc) of at least the query's span can match. Those
+/// candidates are re-measured at the tighter tolerances (the same extraction `generate`
+/// runs, so the answer equals that of an atlas generated at them) into a table of their
+/// own, which the query then runs on. Returns that table and the number of candidates.
+fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(SearchTable, usize)> {
+    let relax = |f: Option<SpanFilter>| {
+        f.map(|f| SpanFilter {
+            max_error_pct: f64::INFINITY,
+            ..f
+        })
+    };
+    // Candidates: every filter but the features' errors and measures (which change).
+    let candidates = Query {
+        straight: relax(q.straight),
+        arc: relax(q.arc),
+        double_dwell: false,
+        radius: None,
+        min_turn_deg: None,
+        max_velocity_variation_pct: None,
+        sort: SortKey::Id,
+        limit: 0,
+        ..q.clone()
+    };
+    let rows: Vec<usize> = table.search(&candidates).iter().map(|h| h.row).collect();
+    let dash = DashPattern::default();
+    let measure = |i: usize| -> Result<IndexCurve> {
+        let r = &table.rows[i];
+        let l = FourBar::new(r.linkage[0], r.linkage[1], r.linkage[2])
+            .map_err(|e| anyhow::anyhow!("curve {}: {e}", r.id))?;
+        let point = CouplerPoint::new(r.point[0], r.point[1]);
+        let features = FeatureExtractor::new(&l, r.circuit, t, &dash)
+            .map(|mut x| x.extract(point))
+            .ok_or_else(|| anyhow::anyhow!("curve {}: cannot be re-measured", r.id))?;
+        Ok(IndexCurve {
+            id: r.id,
+            linkage: Linkage::FourBar(l),
+            point,
+            circuit: r.circuit,
+            class: r.class,
+            bbox: [0.0; 4],
+            transmission_deg: r.transmission_deg,
+            speed: [0.0; 2],
+            length: 0.0,
+            flags: Vec::new(),
+            page: table.pages.get(r.page as usize).map(|f| PageRef {
+                file: f.clone(),
+                bbox_px: r.page_bbox,
+            }),
+            features: Some(features),
+        })
+    };
+    // In parallel, in order: one chunk of rows per thread.
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunk = rows.len().div_ceil(threads).max(1);
+    let curves: Vec<IndexCurve> = std::thread::scope(|s| {
+        let handles: Vec<_> = rows
+            .chunks(chunk)
+            .map(|c| s.spawn(|| c.iter().map(|&i| measure(i)).collect::<Result<Vec<_>>>()))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect::<Result<Vec<Vec<_>>>>()
+    })?
+    .into_iter()
+    .flatten()
+    .collect();
+    let mut out = SearchTable::default();
+    for c in &curves {
+        out.push(c);
+    }
+    Ok((out, rows.len()))
 }
