@@ -3,8 +3,8 @@
 use super::UsageError;
 use anyhow::Result;
 use coupler_atlas::{
-    Circuit, CouplerPoint, DashPattern, FeatureExtractor, FeatureTolerances, FourBar, IndexCurve,
-    Linkage, LinkageClass, PageRef,
+    ArcRow, Circuit, CouplerPoint, CrankTable, DashPattern, FeatureTolerances, FourBar,
+    LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments,
 };
 use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
@@ -521,6 +521,16 @@ fn extraction_tolerances(index: &Path) -> Option<FeatureTolerances> {
     })
 }
 
+/// Whether the query tightens the straight and the arc tolerance below `t`'s extraction
+/// (`t` being what [`tighter`] returned).
+fn remeasured(t: &FeatureTolerances, q: &Query) -> (bool, bool) {
+    (
+        q.straight
+            .is_some_and(|f| f.max_error_pct <= t.straight_pct),
+        q.arc.is_some_and(|f| f.max_error_pct <= t.arc_pct),
+    )
+}
+
 /// The tolerances to re-measure at when the query's `--straight` or `--arc` TOL is
 /// tighter than the extraction's, else `None`.
 fn tighter(q: &Query, e: &FeatureTolerances) -> Option<FeatureTolerances> {
@@ -563,36 +573,55 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
     };
     let rows: Vec<usize> = table.search(&candidates).iter().map(|h| h.row).collect();
     let dash = DashPattern::default();
-    let measure = |i: usize| -> Result<IndexCurve> {
+    let crank = CrankTable::new(t.step_deg)
+        .ok_or_else(|| anyhow::anyhow!("the index's feature step {} is not valid", t.step_deg))?;
+    let redo = remeasured(t, q);
+    // Only what the query tightens is re-measured; the rest is the index's own (the same
+    // extraction at the same tolerance).
+    let measure = |i: usize| -> Result<(Vec<SegmentRow>, Vec<ArcRow>)> {
         let r = &table.rows[i];
         let l = FourBar::new(r.linkage[0], r.linkage[1], r.linkage[2])
             .map_err(|e| anyhow::anyhow!("curve {}: {e}", r.id))?;
-        let point = CouplerPoint::new(r.point[0], r.point[1]);
-        let features = FeatureExtractor::new(&l, r.circuit, t, &dash)
-            .map(|mut x| x.extract(point))
-            .ok_or_else(|| anyhow::anyhow!("curve {}: cannot be re-measured", r.id))?;
-        Ok(IndexCurve {
-            id: r.id,
-            linkage: Linkage::FourBar(l),
-            point,
-            circuit: r.circuit,
-            class: r.class,
-            bbox: [0.0; 4],
-            transmission_deg: r.transmission_deg,
-            speed: [0.0; 2],
-            length: 0.0,
-            flags: Vec::new(),
-            page: table.pages.get(r.page as usize).map(|f| PageRef {
-                file: f.clone(),
-                bbox_px: r.page_bbox,
-            }),
-            features: Some(features),
-        })
+        let curve = l
+            .pose_table(r.circuit, &crank)
+            .trace(CouplerPoint::new(r.point[0], r.point[1]));
+        let segments = if redo.0 {
+            straight_segments(&curve, t, &dash)
+                .iter()
+                .map(|s| SegmentRow {
+                    start_deg: s.start_deg,
+                    span_deg: s.span_deg,
+                    straightness_pct: s.straightness_pct,
+                    velocity_variation_pct: s.velocity_variation_pct,
+                    length: s.length,
+                    direction_deg: s.direction_deg,
+                })
+                .collect()
+        } else {
+            table.segments_of(r).to_vec()
+        };
+        let arcs = if redo.1 {
+            pseudo_arcs(&curve, t, &dash)
+                .iter()
+                .map(|a| ArcRow {
+                    start_deg: a.start_deg,
+                    span_deg: a.span_deg,
+                    radius: a.radius,
+                    deviation_pct: a.deviation_pct,
+                    center: a.center,
+                    concave: a.concave,
+                    turn_deg: a.turn_deg,
+                })
+                .collect()
+        } else {
+            table.arcs_of(r).to_vec()
+        };
+        Ok((segments, arcs))
     };
     // In parallel, in order: one chunk of rows per thread.
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let chunk = rows.len().div_ceil(threads).max(1);
-    let curves: Vec<IndexCurve> = std::thread::scope(|s| {
+    let measured: Vec<(Vec<SegmentRow>, Vec<ArcRow>)> = std::thread::scope(|s| {
         let handles: Vec<_> = rows
             .chunks(chunk)
             .map(|c| s.spawn(|| c.iter().map(|&i| measure(i)).collect::<Result<Vec<_>>>()))
@@ -605,9 +634,19 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
     .into_iter()
     .flatten()
     .collect();
-    let mut out = SearchTable::default();
-    for c in &curves {
-        out.push(c);
+    let mut out = SearchTable {
+        pages: table.pages.clone(),
+        ..SearchTable::default()
+    };
+    for (&i, (segments, arcs)) in rows.iter().zip(measured) {
+        let mut r = table.rows[i];
+        r.seg_start = out.segments.len() as u32;
+        r.seg_count = segments.len() as u32;
+        r.arc_start = out.arcs.len() as u32;
+        r.arc_count = arcs.len() as u32;
+        out.segments.extend(segments);
+        out.arcs.extend(arcs);
+        out.rows.push(r);
     }
     Ok((out, rows.len()))
 }
