@@ -869,3 +869,270 @@ pub fn best_double_dwell(
             .unwrap_or_else(|| "no candidate pair on this curve".into()),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose};
+
+    fn driver(a: f64, b: f64, c: f64, u: f64, v: f64) -> Driver {
+        Driver::original(
+            FourBar::new(a, b, c).unwrap(),
+            Circuit::Open,
+            CouplerPoint::new(u, v),
+        )
+    }
+
+    fn w(s: f64, e: f64) -> CrankWindow {
+        CrankWindow::new(s, e, 1.0).unwrap()
+    }
+
+    /// The slotted double dwell on two straight segments (default atlas, A = 1.5, B = C = 3,
+    /// point (2.25, 0), its index's two segments): the output stands nearly still on both
+    /// lines; the block passes 1/24 of its reach from O6, so the default link ratio refuses
+    /// it, a looser one designs it and warns (dψ/dθ 5.5, d²ψ/dθ² 24.5 there).
+    #[test]
+    fn double_dwell_from_lines() {
+        let d = driver(1.5, 3.0, 3.0, 2.25, 0.0);
+        let (w1, w2) = (w(105.0, 175.0), w(240.0, 285.0));
+        assert!(matches!(
+            double_dwell_lines(&d, &w1, &w2, None, &Limits::DEFAULT),
+            Err(DwellError::Inadmissible {
+                why: Inadmissible::LinkRatio { slot: true, .. },
+                ..
+            })
+        ));
+        let loose = Limits {
+            max_link_ratio: 40.0,
+            ..Limits::DEFAULT
+        };
+        let x = double_dwell_lines(&d, &w1, &w2, None, &loose).unwrap();
+        assert!(x.worst_jitter_deg() < 0.5, "{:?}", x.dwells);
+        assert!((x.peak_acceleration.value - 24.47).abs() < 0.01);
+        assert!(
+            x.warnings.iter().any(|w| w.contains("from O6")),
+            "{:?}",
+            x.warnings
+        );
+    }
+
+    /// A slotted link whose pivot the curve winds round turns fully: refused (default atlas,
+    /// A = B = 3.5, C = 4, point (5.25, 3.5), its index's two segments).
+    #[test]
+    fn lines_round_the_pivot_are_refused() {
+        let d = driver(3.5, 3.5, 4.0, 5.25, 3.5);
+        let e = double_dwell_lines(
+            &d,
+            &w(90.0, 235.0),
+            &w(240.0, 285.0),
+            None,
+            &Limits::DEFAULT,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                e,
+                DwellError::Inadmissible {
+                    why: Inadmissible::FullTurn { .. },
+                    ..
+                }
+            ),
+            "{e}"
+        );
+    }
+
+    /// The mirror-image arcs of a symmetric curve (A = B = C = 1.5, point (1.5, −1.5)) are on
+    /// opposite branches whatever the pivot; two windows of one exact circle are one dwell.
+    #[test]
+    fn double_arcs_mirror_pair_has_no_design() {
+        let d = driver(1.5, 1.5, 1.5, 1.5, -1.5);
+        for limit in [30.0, 0.0] {
+            let limits = Limits {
+                min_transmission_deg: limit,
+                ..Limits::DEFAULT
+            };
+            assert_eq!(
+                double_dwell_arcs(
+                    &d,
+                    &w(65.0, 130.0),
+                    &w(230.0, 295.0),
+                    &DoubleArcOptions::DEFAULT,
+                    &limits
+                )
+                .unwrap_err(),
+                DwellError::NoDoubleDwell(NoDoubleDwell::Branches)
+            );
+        }
+        let d = driver(3.0, 2.5, 3.5, 3.0, 0.0);
+        assert!(matches!(
+            double_dwell_arcs(
+                &d,
+                &w(100.0, 160.0),
+                &w(200.0, 260.0),
+                &DoubleArcOptions::DEFAULT,
+                &Limits::DEFAULT
+            ),
+            Err(DwellError::NoDoubleDwell(NoDoubleDwell::SameCentre { .. }))
+        ));
+    }
+
+    /// Real atlas pairs that admit a design: (A, B, C), point, the two windows.
+    type Case = ((f64, f64, f64), (f64, f64), (f64, f64), (f64, f64));
+    const ADMISSIBLE: [Case; 3] = [
+        ((3.0, 3.5, 2.5), (1.5, -3.0), (195.0, 225.0), (355.0, 385.0)),
+        ((2.0, 3.0, 3.0), (2.0, 1.0), (170.0, 200.0), (355.0, 385.0)),
+        (
+            (1.5, 2.5, 2.5),
+            (1.875, -0.75),
+            (160.0, 190.0),
+            (355.0, 385.0),
+        ),
+    ];
+
+    /// On real atlas pairs: the links 5–6 transmission angle stays within [30°, 150°]
+    /// all the way round, the dyad never changes branch and both dwell points are on it,
+    /// and D stays at link 5's length from M.
+    #[test]
+    fn double_arcs_design_is_admissible() {
+        for ((a, b, c), (u, v), (s1, e1), (s2, e2)) in ADMISSIBLE {
+            let dr = driver(a, b, c, u, v);
+            let ws = [w(s1, e1), w(s2, e2)];
+            let d = double_dwell_arcs(
+                &dr,
+                &ws[0],
+                &ws[1],
+                &DoubleArcOptions::DEFAULT,
+                &Limits::DEFAULT,
+            )
+            .unwrap();
+            let mu = d.output_transmission_deg.as_ref().unwrap();
+            let folded = mu
+                .iter()
+                .map(|m| m.min(180.0 - m))
+                .fold(f64::INFINITY, f64::min);
+            assert!(folded >= 30.0 - 1e-9, "{a} {b} {c}: μ {folded}");
+            let Stage::Rocker {
+                link5,
+                link6,
+                pivot: o6,
+                branch,
+            } = d.stage
+            else {
+                panic!("not a rocker")
+            };
+            let l = FourBar::new(a, b, c).unwrap();
+            for (&t, &o) in d.theta_deg.iter().zip(&d.output_deg) {
+                let m = Pose::solve(&l, Circuit::Open, &CrankAngle::from_degrees(t))
+                    .unwrap()
+                    .point(CouplerPoint::new(u, v));
+                let (so, co) = coupler_kinematics::sincos_deg(o);
+                let dd = [o6[0] + link6 * co, o6[1] + link6 * so];
+                assert!(((m.x - dd[0]).hypot(m.y - dd[1]) - link5).abs() < 1e-9 * link5);
+                assert_eq!(crate::stage::branch_of([m.x, m.y], dd, o6), branch);
+                for (i, wi) in ws.iter().enumerate() {
+                    if (t - wi.start_deg).rem_euclid(360.0) <= wi.span_deg() + 1e-9 {
+                        assert_eq!(
+                            crate::stage::branch_of([m.x, m.y], d.dwells[i].point, o6),
+                            branch,
+                            "θ {t}: dwell point {i}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Jitter follows the arcs' deviation: nested windows about one curve's two arcs give a
+    /// smaller worse-dwell jitter each time.
+    #[test]
+    fn double_arcs_jitter_shrinks_with_deviation() {
+        let dr = driver(3.0, 3.5, 2.5, 1.5, -3.0);
+        let mut last: Option<f64> = None;
+        for h in [15.0, 12.0, 9.0, 6.0, 4.0] {
+            let d = double_dwell_arcs(
+                &dr,
+                &w(210.0 - h, 210.0 + h),
+                &w(370.0 - h, 370.0 + h),
+                &DoubleArcOptions::DEFAULT,
+                &Limits::DEFAULT,
+            )
+            .unwrap();
+            let jitter = d.worst_jitter_deg();
+            if let Some(j0) = last {
+                assert!(jitter < j0, "±{h}°: jitter {jitter} (was {j0})");
+            }
+            last = Some(jitter);
+        }
+    }
+
+    /// A jittery pair is refused; allowed more jitter, it designs.
+    #[test]
+    fn double_arcs_refuses_a_jittery_design() {
+        let dr = driver(3.0, 3.0, 1.5, 4.5, 1.5);
+        let (w1, w2) = (w(65.0, 295.0), w(315.0, 405.0));
+        let err = double_dwell_arcs(&dr, &w1, &w2, &DoubleArcOptions::DEFAULT, &Limits::DEFAULT)
+            .unwrap_err();
+        assert!(
+            matches!(err, DwellError::NoDoubleDwell(NoDoubleDwell::Jitter { jitter_deg, swing_deg, .. }) if jitter_deg > 0.1 * swing_deg),
+            "{err}"
+        );
+        let loose = Limits {
+            max_jitter_pct: 100.0,
+            ..Limits::DEFAULT
+        };
+        assert!(double_dwell_arcs(&dr, &w1, &w2, &DoubleArcOptions::DEFAULT, &loose).is_ok());
+    }
+
+    /// A swing asked for is honoured within 0.5° when admissible, refused with the range
+    /// of admissible swings when not.
+    #[test]
+    fn double_arcs_honours_or_refuses_a_swing() {
+        let dr = driver(3.0, 3.5, 2.5, 1.5, -3.0);
+        let (w1, w2) = (w(195.0, 225.0), w(355.0, 385.0));
+        let free =
+            double_dwell_arcs(&dr, &w1, &w2, &DoubleArcOptions::DEFAULT, &Limits::DEFAULT).unwrap();
+        let want = 0.5 * free.dwell_swing_deg.unwrap();
+        let opts = DoubleArcOptions {
+            swing_deg: Some(want),
+            ..DoubleArcOptions::DEFAULT
+        };
+        let d = double_dwell_arcs(&dr, &w1, &w2, &opts, &Limits::DEFAULT).unwrap();
+        let got = d.dwell_swing_deg.unwrap();
+        assert!(
+            (got - want).abs() <= crate::SWING_ACCURACY_DEG,
+            "asked {want}, got {got}"
+        );
+        let opts = DoubleArcOptions {
+            swing_deg: Some(179.0),
+            ..DoubleArcOptions::DEFAULT
+        };
+        assert!(matches!(
+            double_dwell_arcs(&dr, &w1, &w2, &opts, &Limits::DEFAULT),
+            Err(DwellError::SwingOutOfRange { .. })
+        ));
+    }
+
+    /// The finder: on A = 3, B = 3.5, C = 2.5, point (1.5, −3) it finds an admissible
+    /// double dwell; on the symmetric curve (mirror pairs only) nothing.
+    #[test]
+    fn finds_double_dwells() {
+        let d = best_double_dwell(
+            &driver(3.0, 3.5, 2.5, 1.5, -3.0),
+            &DoubleDwellSearch::default(),
+            &DoubleArcOptions::DEFAULT,
+            &Limits::DEFAULT,
+        )
+        .unwrap();
+        assert!(d.worst_jitter_deg() <= 0.1 * d.judged_swing_deg());
+        assert!(d.shortest_felt_deg() >= 20.0, "{}", d.shortest_felt_deg());
+        assert!(matches!(
+            best_double_dwell(
+                &driver(1.5, 1.5, 1.5, 1.5, -1.5),
+                &DoubleDwellSearch::default(),
+                &DoubleArcOptions::DEFAULT,
+                &Limits::DEFAULT
+            ),
+            Err(DwellError::NothingFound { .. })
+        ));
+    }
+}

@@ -422,3 +422,67 @@ fn least_jitter(hits: &[(f64, Stage, Quick)]) -> Option<&(f64, Stage, Quick)> {
     hits.iter()
         .min_by(|a, b| a.2.worst_jitter().total_cmp(&b.2.worst_jitter()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+
+    fn driver(a: f64, b: f64, c: f64, u: f64, v: f64) -> Driver {
+        Driver::original(
+            FourBar::new(a, b, c).unwrap(),
+            Circuit::Open,
+            CouplerPoint::new(u, v),
+        )
+    }
+
+    /// Both methods honour a reachable swing within 0.5° (to 0.01° in fact) and refuse an
+    /// unreachable one, naming the largest swing and why.
+    #[test]
+    fn swing_honoured_or_refused() {
+        let d = driver(2.0, 2.0, 2.5, 2.5, 1.0);
+        let w = CrankWindow::new(150.0, 280.0, 1.0).unwrap();
+        for method in [Method::Norton, Method::Optimise] {
+            for swing in [20.0, 45.0] {
+                let x = single_dwell(&d, &w, swing, method, &Limits::DEFAULT).unwrap();
+                assert!(
+                    (x.swing_deg - swing).abs() <= 0.01,
+                    "{method:?} {swing}: {}",
+                    x.swing_deg
+                );
+            }
+            match single_dwell(&d, &w, 170.0, method, &Limits::DEFAULT).unwrap_err() {
+                DwellError::SwingTooLarge { largest_deg, .. } => assert!(largest_deg < 170.0),
+                e => panic!("{method:?}: {e}"),
+            }
+        }
+    }
+
+    /// Jitter follows the arc's deviation: nested windows about one pseudo-arc give a
+    /// smaller jitter at the same swing.
+    #[test]
+    fn jitter_shrinks_with_deviation() {
+        let d = driver(2.0, 2.0, 2.5, 2.5, 1.0);
+        let mut last: Option<f64> = None;
+        for half in [60.0, 45.0, 30.0, 20.0] {
+            let w = CrankWindow::new(215.0 - half, 215.0 + half, 1.0).unwrap();
+            let x = single_dwell(&d, &w, 40.0, Method::Optimise, &Limits::DEFAULT).unwrap();
+            let j = x.dwells[0].jitter_deg;
+            if let Some(j0) = last {
+                assert!(j < j0, "±{half}°: jitter {j} (was {j0})");
+            }
+            last = Some(j);
+        }
+    }
+
+    /// The exact arc (the rocker pin) leaves no motion to drive.
+    #[test]
+    fn exact_arc_has_no_motion() {
+        let d = driver(3.0, 2.5, 3.5, 3.0, 0.0);
+        let w = CrankWindow::new(100.0, 160.0, 1.0).unwrap();
+        assert_eq!(
+            single_dwell(&d, &w, 40.0, Method::Norton, &Limits::DEFAULT).unwrap_err(),
+            DwellError::NoMotion
+        );
+    }
+}
