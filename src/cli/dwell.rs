@@ -288,6 +288,7 @@ fn outputs(args: &Args) -> Result<Vec<Output>, UsageError> {
         } else {
             "--png"
         };
+        check_folder(path, flag)?;
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -299,17 +300,16 @@ fn outputs(args: &Args) -> Result<Vec<Output>, UsageError> {
                 path.display()
             ))
         })?;
-        check_folder(path, flag)?;
         v.push(Output::Card(path.clone(), format));
     }
     if let Some(path) = &args.export {
+        check_folder(path, "--export")?;
         let format = ExportFormat::from_path(path).ok_or_else(|| {
             UsageError(format!(
                 "--export {}: unknown format; the extension names it: .json, .csv or .dxf",
                 path.display()
             ))
         })?;
-        check_folder(path, "--export")?;
         v.push(Output::Export(path.clone(), format));
     }
     if !(coupler_atlas::layout::DPI_RANGE.contains(&args.dpi)) {

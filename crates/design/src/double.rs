@@ -510,9 +510,13 @@ fn search_arc_design(
             Verdict::Transmission(m) => best_mu = best_mu.max(m),
             Verdict::LinkRatio(r) => best_ratio = best_ratio.min(r),
             Verdict::Admissible(d) => {
-                let sw = d.q.judged_swing();
-                seen[0] = seen[0].min(sw);
-                seen[1] = seen[1].max(sw);
+                // The range a refusal names counts only designs that pass the whole
+                // contract (jitter included), so every swing it names is one we give.
+                if d.q.check_jitter(limits).is_ok() {
+                    let sw = d.q.judged_swing();
+                    seen[0] = seen[0].min(sw);
+                    seen[1] = seen[1].max(sw);
+                }
                 if best.as_ref().is_none_or(|b| d.score < b.score) {
                     *best = Some(*d);
                 }
@@ -558,9 +562,11 @@ fn search_arc_design(
             if let Verdict::Admissible(d) =
                 evaluate(motion, pair, windows, (cur.side, beta, r5), opts, limits)
             {
-                let sw = d.q.judged_swing();
-                seen[0] = seen[0].min(sw);
-                seen[1] = seen[1].max(sw);
+                if d.q.check_jitter(limits).is_ok() {
+                    let sw = d.q.judged_swing();
+                    seen[0] = seen[0].min(sw);
+                    seen[1] = seen[1].max(sw);
+                }
                 if d.score < cur.score {
                     cur = *d;
                     moved = true;

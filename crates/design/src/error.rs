@@ -118,9 +118,9 @@ pub enum DwellError {
         /// Why larger swings fail.
         why: Inadmissible,
     },
-    /// The swing asked for is below every admissible design (double dwells).
+    /// The swing asked for is outside the admissible designs' swings.
     #[error(
-        "no admissible design swings {asked_deg}° between the dwells: admissible designs swing {smallest_deg:.2}°–{largest_deg:.2}°"
+        "no admissible design swings {asked_deg}°: the admissible designs found swing {smallest_deg:.2}°–{largest_deg:.2}° (a single dwell: the output's whole range; a double dwell: the turn between the dwells)"
     )]
     SwingOutOfRange {
         /// The swing asked for, degrees.

@@ -78,9 +78,26 @@ pub(crate) fn stage_of(i: &Inadmissible) -> u8 {
     }
 }
 
-/// Keeps the failure that got furthest.
+/// Keeps the failure that got furthest (of two jitter failures, the smaller relative
+/// jitter: the best the method gets).
 pub(crate) fn closer(best: &mut Option<Inadmissible>, e: Inadmissible) {
-    if best.as_ref().is_none_or(|b| stage_of(&e) > stage_of(b)) {
+    let better = match (best.as_ref(), &e) {
+        (None, _) => true,
+        (
+            Some(Inadmissible::Jitter {
+                jitter_deg: j0,
+                swing_deg: s0,
+                ..
+            }),
+            Inadmissible::Jitter {
+                jitter_deg: j1,
+                swing_deg: s1,
+                ..
+            },
+        ) => j1 / s1 < j0 / s0,
+        (Some(b), e) => stage_of(e) > stage_of(b),
+    };
+    if better {
         *best = Some(e);
     }
 }
@@ -91,6 +108,9 @@ struct Family<'a> {
     motion: &'a Motion,
     windows: &'a [Span],
     limits: &'a Limits,
+    /// Why the family stops at its ends (the optimiser's link 6 is kept within the link
+    /// ratio bound), if it is a contract bound.
+    edge: Option<Inadmissible>,
 }
 
 /// The outcome of solving one family for a swing.
@@ -122,26 +142,59 @@ impl Family<'_> {
         };
         let results: Vec<Option<Result<(Stage, Quick), Inadmissible>>> =
             params.iter().map(|&x| eval(x)).collect();
-        for (i, r) in results.iter().enumerate() {
+        // The whole contract (jitter included) at each parameter: the swings a refusal
+        // names come only from designs that pass it, so every hint is one we honour.
+        let full: Vec<Option<Result<f64, Inadmissible>>> = results
+            .iter()
+            .map(|r| {
+                r.as_ref().map(|r| match r {
+                    Ok((_, q)) => q.check_jitter(self.limits).map(|()| q.swing),
+                    Err(e) => Err(*e),
+                })
+            })
+            .collect();
+        for (i, r) in full.iter().enumerate() {
             match r {
-                Some(Ok((_, q))) => {
-                    let sw = q.swing;
+                Some(Ok(sw)) => {
+                    let sw = *sw;
                     out.smallest = Some(out.smallest.map_or(sw, |s: f64| s.min(sw)));
                     if out.largest.as_ref().is_none_or(|l| sw > l.0) {
                         // Why the neighbours fail: a larger swing lies that way.
+                        // Prefer a neighbour known to swing more (it failed on jitter),
+                        // then one whose swing is unknown (it failed earlier), the
+                        // furthest check first; a jitter failure swinging less is not
+                        // "beyond" this swing.
                         let why = [i.checked_sub(1), Some(i + 1)]
                             .into_iter()
                             .flatten()
-                            .filter_map(|j| match results.get(j) {
-                                Some(Some(Err(e))) => Some(*e),
+                            .filter_map(|j| match (full.get(j), results.get(j)) {
+                                (Some(Some(Err(e))), Some(Some(Ok((_, q))))) => {
+                                    (q.swing > sw).then_some((2, *e))
+                                }
+                                (Some(Some(Err(e))), _) => Some((1, *e)),
                                 _ => None,
                             })
-                            .max_by_key(stage_of);
+                            .max_by_key(|(rank, e)| (*rank, stage_of(e)))
+                            .map(|(_, e)| e)
+                            // At the end of the family: the family's own bound.
+                            .or(if i == 0 || i + 1 == params.len() {
+                                self.edge
+                            } else {
+                                None
+                            });
                         out.largest = Some((sw, why));
                     }
                 }
                 Some(Err(e)) => closer(&mut out.closest, *e),
                 None => {}
+            }
+        }
+        // A scan point at the swing (e.g. the largest a refusal named) is a hit itself.
+        for (i, r) in results.iter().enumerate() {
+            if let (Some(Ok((s, q))), Some(Some(Ok(_)))) = (r, full.get(i)) {
+                if (q.swing - target).abs() <= 0.01 {
+                    out.hits.push((params[i], *s, q.clone()));
+                }
             }
         }
         for i in 0..params.len().saturating_sub(1) {
@@ -176,7 +229,10 @@ impl Family<'_> {
             }
             if let Some(h) = hit {
                 if (h.2.swing - target).abs() <= 0.01 {
-                    out.hits.push(h);
+                    match h.2.check_jitter(self.limits) {
+                        Ok(()) => out.hits.push(h),
+                        Err(e) => closer(&mut out.closest, e),
+                    }
                 }
             }
         }
@@ -237,6 +293,11 @@ pub fn single_dwell(
         motion: &motion,
         windows: &windows,
         limits,
+        edge: (method == Method::Optimise).then_some(Inadmissible::LinkRatio {
+            ratio: limits.max_link_ratio,
+            limit: limits.max_link_ratio,
+            slot: false,
+        }),
     };
     let rocker = |o6: [f64; 2], l6: f64| {
         let branch = branch_of(m0, c, o6);

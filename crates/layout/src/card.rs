@@ -660,7 +660,6 @@ pub fn dwell_card(d: &DwellDesign, e: &Export) -> DisplayList {
     // Scale bar: the crank's length.
     let bar = w.scale * e.crank_length / e.scale;
     let y = panel[3] - 12.0;
-    labels.taken.push([panel[0], y - 8.0, panel[2], panel[3]]);
     line(
         &mut dl,
         vec![[panel[0] + 10.0, y], [panel[0] + 10.0 + bar, y]],
@@ -669,20 +668,31 @@ pub fn dwell_card(d: &DwellDesign, e: &Export) -> DisplayList {
     for x in [panel[0] + 10.0, panel[0] + 10.0 + bar] {
         line(&mut dl, vec![[x, y - 3.0], [x, y + 3.0]], 1.0);
     }
-    text(
-        &mut dl,
-        [panel[0] + 16.0 + bar, y + 2.5],
-        SMALL,
-        Anchor::Start,
-        match d.stage {
-            Stage::Rocker { .. } => {
-                "crank = 1;  bold: dwell windows;  ×: dwell points;  dashed: link 5's circle at the dwell, D's path;  dot and arrow: M at θ = 0, moving"
-            }
-            Stage::Slot { .. } => {
-                "crank = 1;  bold: dwell windows (straight segments);  dashed: the slot's reach as it swings;  dot and arrow: M at θ = 0, moving"
-            }
-        },
-    );
+    // The legend beside the bar, wrapped inside the panel (bottom line level with the bar).
+    let legend = match d.stage {
+        Stage::Rocker { .. } => {
+            "crank = 1;  bold: dwell windows;  ×: dwell points;  dashed: link 5's circle at the dwell, D's path;  dot and arrow: M at θ = 0, moving"
+        }
+        Stage::Slot { .. } => {
+            "crank = 1;  bold: dwell windows (straight segments);  dashed: the slot's reach as it swings;  dot and arrow: M at θ = 0, moving"
+        }
+    };
+    let x0 = panel[0] + 16.0 + bar;
+    let legend = wrap(legend, SMALL, panel[2] - 6.0 - x0);
+    let lead = SMALL * 1.3;
+    let top = y + 2.5 - lead * (legend.len() - 1) as f64;
+    labels
+        .taken
+        .push([panel[0], top - SMALL - 2.0, panel[2], panel[3]]);
+    for (k, s) in legend.into_iter().enumerate() {
+        text(
+            &mut dl,
+            [x0, top + lead * k as f64],
+            SMALL,
+            Anchor::Start,
+            s,
+        );
+    }
 
     for (p, s, _) in &pins {
         labels.place(&mut dl, *p, s, TEXT, 3.5);
