@@ -44,7 +44,7 @@ enum Command {
     Cognates(cognates::Args),
     /// Design a dwell six-bar from a pseudo-arc (or a double dwell from two straight
     /// segments or two equal arcs): honoured or refused, simulated, a design card, CAD export.
-    Dwell(dwell::Args),
+    Dwell(Box<dwell::Args>),
     /// Design a straight-line four-bar for a frame ratio (the symmetric Evans linkage from
     /// its design condition, and its Chebyshev form), or chart the family.
     Straight(straight::Args),
@@ -77,7 +77,7 @@ pub fn main() -> ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::Search(args) => search::run(args),
         Command::Cognates(args) => cognates::run(args),
-        Command::Dwell(args) => dwell::run(args),
+        Command::Dwell(args) => dwell::run(*args),
         Command::Straight(args) => straight::run(args),
         Command::Diff(args) => diff::run(args),
     };

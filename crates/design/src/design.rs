@@ -59,6 +59,11 @@ impl Default for Limits {
     }
 }
 
+/// `x ≤ limit`, false when either is NaN (so a NaN figure always fails a check).
+fn at_most(x: f64, limit: f64) -> bool {
+    x <= limit
+}
+
 /// Which dwell mechanism.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -269,7 +274,7 @@ impl Quick {
     /// The jitter check of the contract.
     pub fn check_jitter(&self, limits: &Limits) -> Result<(), Inadmissible> {
         let (j, s) = (self.worst_jitter(), self.judged_swing());
-        if !(j <= limits.max_jitter_pct / 100.0 * s) {
+        if !at_most(j, limits.max_jitter_pct / 100.0 * s) {
             return Err(Inadmissible::Jitter {
                 jitter_deg: j,
                 swing_deg: s,
@@ -333,7 +338,7 @@ pub(crate) fn quick(
         return Err(Inadmissible::FullTurn { turn_deg: turn });
     }
     let ratio = link_ratio(stage, motion);
-    if !(ratio <= limits.max_link_ratio) {
+    if !at_most(ratio, limits.max_link_ratio) {
         return Err(Inadmissible::LinkRatio {
             ratio,
             limit: limits.max_link_ratio,
@@ -342,7 +347,7 @@ pub(crate) fn quick(
     }
     let [lo, hi] = range(out.psi.iter().copied());
     let swing = hi - lo;
-    if !(swing > 1e-9) {
+    if at_most(swing, 1e-9) || swing.is_nan() {
         return Err(Inadmissible::NoSwing { swing_deg: swing });
     }
     let (mut jitters, mut means) = (Vec::new(), Vec::new());
@@ -554,7 +559,7 @@ impl Build<'_> {
             Stage::Rocker { link5, link6, .. } => link5.max(link6) / link5.min(link6),
             Stage::Slot { .. } => farthest_reach.value / closest_approach.value,
         };
-        if !(link_ratio <= limits.max_link_ratio) {
+        if !at_most(link_ratio, limits.max_link_ratio) {
             return Err(Inadmissible::LinkRatio {
                 ratio: link_ratio,
                 limit: limits.max_link_ratio,

@@ -376,7 +376,7 @@ pub fn single_dwell(
                 let before = solved.hits.len();
                 family.solve(&betas, &stage, swing_deg, &mut solved);
                 for h in &mut solved.hits[before..] {
-                    h.0 = side * h.0; // remember the side in the parameter's sign
+                    h.0 *= side; // remember the side in the parameter's sign
                 }
                 // Norton's own O6 (subtending exactly the swing), for the record.
                 if let Some(s) = stage(swing_deg) {
