@@ -270,7 +270,7 @@ fn sample(
 }
 
 /// Grid angles `k·step` strictly inside `(lo, hi)`, ascending.
-fn grid_inside(lo: f64, hi: f64, step: f64) -> Vec<f64> {
+pub(crate) fn grid_inside(lo: f64, hi: f64, step: f64) -> Vec<f64> {
     let mut k = (lo / step).floor() as i64 + 1;
     let mut v = Vec::new();
     while (k as f64) * step < hi {
