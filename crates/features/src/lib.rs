@@ -19,6 +19,7 @@ mod double_points;
 mod dwell;
 mod fit;
 mod flags;
+mod geared_flags;
 mod run;
 mod straight;
 mod symmetry;
@@ -262,7 +263,7 @@ impl<M: Mechanism> FeatureExtractor<M> {
     ) -> Option<FeatureExtractor<M>> {
         tolerances.validate().ok()?;
         dash.validate().ok()?;
-        let table = CrankTable::new(tolerances.step_deg)?;
+        let table = CrankTable::over(tolerances.step_deg, linkage.period_deg())?;
         let poses = linkage.pose_table(circuit, &table);
         poses.all_valid().then(|| FeatureExtractor {
             linkage: linkage.clone(),

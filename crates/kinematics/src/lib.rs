@@ -35,9 +35,9 @@ pub use dd::Dd;
 pub use exact::{Decimal, DecimalError, divides_turn};
 pub use frame::{CouplerFrame, Drawing, Joint};
 pub use geared::{
-    AssemblyMargin, EquivalentError, GearAngle, GearRatio, GearTable, GearedEquivalent, GearedError,
-    GearedFiveBar, GearedGaps, GearedPose, MARGIN_STEP_DEG, MARGIN_TOL, MAX_GEAR_TERM, Rotatability,
-    TRANSMISSION_STEP_DEG, TingClass, geared_equivalent,
+    AssemblyMargin, EquivalentError, GearAngle, GearRatio, GearTable, GearedEquivalent,
+    GearedError, GearedFiveBar, GearedGaps, GearedPose, MARGIN_STEP_DEG, MARGIN_TOL, MAX_GEAR_TERM,
+    Rotatability, TRANSMISSION_STEP_DEG, TingClass, geared_equivalent,
 };
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use mechanism::{Linkage, LinkageClass, Mechanism};

@@ -118,9 +118,9 @@ impl Mechanism for GearedFiveBar {
 
     fn class_description(&self) -> String {
         let what = match self.rotatability(MARGIN_TOL) {
-            Rotatability::Full => "input turns fully",
-            Rotatability::Touches => "input turns through a toggle",
-            Rotatability::Limited => "input rocks",
+            Rotatability::Full => "turns fully",
+            Rotatability::Touches => "turns through a toggle",
+            Rotatability::Limited => "rocks",
         };
         let class = self.ting_class();
         let change = if class == TingClass::III {
@@ -128,17 +128,25 @@ impl Mechanism for GearedFiveBar {
         } else {
             ""
         };
-        format!("Ting {class} ({what}{change}), gears {}", self.ratio)
+        let mu = match Mechanism::transmission_range(self, Circuit::Open) {
+            Some([lo, hi]) => format!(", μ {:.0}°–{:.0}°", lo.to_degrees(), hi.to_degrees()),
+            None => String::new(),
+        };
+        format!(
+            "Ting {} ({what}{change}), λ = {}, φ = {}°{mu}",
+            class.code(),
+            self.ratio,
+            self.phase
+        )
     }
 
+    /// The lengths; the gears (λ as a fraction, φ) are in [`Mechanism::class_description`].
     fn dimensions(&self) -> Vec<(&'static str, f64)> {
         vec![
             ("L1", self.l1),
             ("L3", self.l3),
             ("L4", self.l4),
             ("L5", self.l5),
-            ("λ", self.ratio.value()),
-            ("φ°", self.phase),
         ]
     }
 
@@ -147,7 +155,7 @@ impl Mechanism for GearedFiveBar {
     }
 
     fn convention(&self) -> &'static str {
-        "input crank = 1, ground L1, dyad L3 (carries the point) and L4, second crank L5, θ5 = λ·θ2 + φ"
+        "input crank = 1, point on L3, θ5 = λ·θ2 + φ"
     }
 
     /// O2 and O5 (ground), then Pa, Pd and the dyad joint P; links input crank O2–Pa,
@@ -163,11 +171,7 @@ impl Mechanism for GearedFiveBar {
         let mut links = Vec::new();
         let pose = self.pose_at_angle(circuit, angle);
         if let Some(p) = &pose {
-            for (name, position) in [
-                ("Pa", p.input_pin),
-                ("Pd", p.second_pin),
-                ("P", p.joint),
-            ] {
+            for (name, position) in [("Pa", p.input_pin), ("Pd", p.second_pin), ("P", p.joint)] {
                 joints.push(Joint {
                     name,
                     position,
@@ -222,10 +226,7 @@ mod tests {
                     let f = l.frame(circuit, angle).unwrap();
                     assert_eq!(f.point(p), pose.point(p));
                     assert_eq!(Some(f.velocity(p)), pose.velocity(p));
-                    assert_eq!(
-                        l.transmission(circuit, angle),
-                        Some(pose.transmission)
-                    );
+                    assert_eq!(l.transmission(circuit, angle), Some(pose.transmission));
                 }
             }
         }
@@ -234,8 +235,8 @@ mod tests {
     #[test]
     fn transmission_range_brackets_every_sample() {
         // Class I with the cranks shortest: turns fully with any gears.
-        let l = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), 30.0)
-            .unwrap();
+        let l =
+            GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), 30.0).unwrap();
         let [lo, hi] = l.transmission_range(Circuit::Open).unwrap();
         let table = CrankTable::over(0.1, l.period_deg()).unwrap();
         let (mut slo, mut shi) = (f64::INFINITY, -f64::INFINITY);
@@ -264,6 +265,10 @@ mod tests {
         let (r2, r5) = l.pitch_radii();
         assert!((r2 + r5 - 2.3).abs() < 1e-15 && (r2 / r5 - 2.0).abs() < 1e-15);
         assert_eq!(l.class().code(), "II");
-        assert!(l.class_description().starts_with("Ting Class II"));
+        assert!(
+            l.class_description().starts_with("Ting II"),
+            "{}",
+            l.class_description()
+        );
     }
 }

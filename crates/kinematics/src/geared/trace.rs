@@ -125,10 +125,7 @@ impl GearedFiveBar {
                     let mut angles = vec![0.0];
                     angles.extend(grid_inside(0.0, period, step_deg));
                     angles.push(period);
-                    let samples = angles
-                        .iter()
-                        .filter_map(|&d| sample(c, d, false))
-                        .collect();
+                    let samples = angles.iter().filter_map(|&d| sample(c, d, false)).collect();
                     branches.push(Branch { samples });
                 }
             }
@@ -188,8 +185,8 @@ mod tests {
 
     #[test]
     fn full_turn_gives_a_branch_per_circuit_over_the_period() {
-        let g = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), 0.0)
-            .unwrap();
+        let g =
+            GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), 0.0).unwrap();
         let full = g.trace_full(CouplerPoint::new(1.0, 1.0), 10.0);
         assert_eq!(full.range, InputRange::Full);
         assert_eq!(full.branches.len(), 2);
@@ -200,6 +197,9 @@ mod tests {
         }
         let never =
             GearedFiveBar::new(10.0, 1.0, 1.0, 1.0, GearRatio::integer(1).unwrap(), 0.0).unwrap();
-        assert_eq!(never.trace_full(CouplerPoint::new(1.0, 0.0), 1.0).range, InputRange::Never);
+        assert_eq!(
+            never.trace_full(CouplerPoint::new(1.0, 0.0), 1.0).range,
+            InputRange::Never
+        );
     }
 }
