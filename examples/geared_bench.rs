@@ -11,7 +11,7 @@
 
 use coupler_atlas::{
     Circuit, CouplerPoint, CrankTable, Curve, FourBar, GearRatio, GearTable, GearedFiveBar,
-    PoseTable,
+    Mechanism, PoseTable,
 };
 use std::hint::black_box;
 use std::time::Instant;
@@ -89,6 +89,13 @@ fn main() {
     let mut four_cpu = Vec::new();
     let mut four_wall = Vec::new();
     let mut five = vec![(Vec::new(), Vec::new()); cases.len()];
+    // The pipeline's path (`generate`, pages): `Mechanism::pose_table` on a crank table
+    // over the period, the gear angles formed per linkage rather than shared.
+    let mut generic = vec![(Vec::new(), Vec::new()); cases.len()];
+    let crank_tables: Vec<CrankTable> = cases
+        .iter()
+        .map(|(_, g)| CrankTable::over(0.5, Mechanism::period_deg(g)).unwrap())
+        .collect();
     let tables: Vec<GearTable> = cases
         .iter()
         .map(|(_, g)| GearTable::for_linkage(g, 0.5).unwrap())
@@ -115,6 +122,15 @@ fn main() {
             });
             five[i].0.push(c);
             five[i].1.push(w);
+            let (c, w) = round(samples, || {
+                let poses = Mechanism::pose_table(black_box(g), Circuit::Open, &crank_tables[i]);
+                for p in &points {
+                    poses.trace_into(*p, &mut buf);
+                    black_box(&buf);
+                }
+            });
+            generic[i].0.push(c);
+            generic[i].1.push(w);
         }
     }
     let f = median(four_cpu.clone());
@@ -131,6 +147,12 @@ fn main() {
         println!(
             "| geared five-bar L1=3 L3=L4=3 L5=1, {name} | {c:.2} | {:.2} | {:.2} |",
             median(five[i].1.clone()),
+            c / f
+        );
+        let c = median(generic[i].0.clone());
+        println!(
+            "| … the same through `Mechanism::pose_table` (as `generate` runs it) | {c:.2} | {:.2} | {:.2} |",
+            median(generic[i].1.clone()),
             c / f
         );
     }

@@ -53,8 +53,7 @@ impl CrankTable {
         if !(step_deg.is_finite()
             && step_deg > 0.0
             && step_deg <= 360.0
-            && turns >= 1.0
-            && turns <= 1000.0
+            && (1.0..=1000.0).contains(&turns)
             && turns.fract() == 0.0)
         {
             return None;

@@ -60,14 +60,10 @@ impl GearedRanges {
     pub fn enumerate(&self) -> (Vec<Linkage>, BTreeMap<String, u64>) {
         let mut linkages = Vec::new();
         let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
-        let f = |r: &DecimalRange| r.values().into_iter().map(|x| x.to_f64()).collect();
-        let (l1s, l3s, l4s, l5s, phases): (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) = (
-            f(&self.l1),
-            f(&self.l3),
-            f(&self.l4),
-            f(&self.l5),
-            f(&self.phases),
-        );
+        let f =
+            |r: &DecimalRange| -> Vec<f64> { r.values().into_iter().map(|x| x.to_f64()).collect() };
+        let (l1s, l3s, l4s, l5s) = (f(&self.l1), f(&self.l3), f(&self.l4), f(&self.l5));
+        let phases = f(&self.phases);
         for &ratio in &self.ratios {
             for &phase in &phases {
                 for &l1 in &l1s {
