@@ -3,11 +3,15 @@
 //! flags with the same meaning, Ting's Class III in place of Barker's change points.
 
 use crate::flags::{CurveFlag, CurveFlags, FlagTolerances};
-use coupler_kinematics::{Circuit, CouplerPoint, GearedFiveBar, GearedGaps, GearedPose, TingClass};
+use coupler_kinematics::{
+    Circuit, CouplerPoint, GearedFiveBar, GearedGaps, GearedPose, MARGIN_TOL, Rotatability,
+    TingClass,
+};
 
 impl CurveFlags {
     /// Assesses a curve of the geared five-bar `linkage`, `circuit`, `point` sampled at
-    /// the input angles `degrees`: `change_point` for Ting's Class III (decided exactly),
+    /// the input angles `degrees`: `change_point` for Ting's Class III (decided exactly)
+    /// whose gears bring the path to the flat configuration (the margin touches zero),
     /// `near_change_point` within [`FlagTolerances::change_point_gap`] of it
     /// (`|L(1) + L(2) + L(5) − L(3) − L(4)| / L(5)`, lengths sorted), `near_toggle`,
     /// `not_assembled`, `far_point`, `extreme_ratio` as for a four-bar; the error bound is
@@ -61,7 +65,12 @@ impl CurveFlags {
         l.sort_by(f64::total_cmp);
         let gap = ((l[0] + l[1] + l[4]) - (l[2] + l[3])).abs() / l[4];
         if linkage.ting_class() == TingClass::III {
-            flags.push(CurveFlag::ChangePoint);
+            // The chain can fold flat, but the gears decide whether the path gets there:
+            // flagged when the dyad's margin touches zero (or the input rocks), not for
+            // a Class III chain whose gears keep it clear.
+            if linkage.rotatability(MARGIN_TOL) != Rotatability::Full {
+                flags.push(CurveFlag::ChangePoint);
+            }
         } else if gap < tol.change_point_gap {
             flags.push(CurveFlag::NearChangePoint);
         }
