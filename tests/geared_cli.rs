@@ -320,3 +320,48 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
         let _ = std::fs::remove_dir_all(dir);
     }
 }
+
+#[test]
+fn cognates_geared_fivebar_gives_the_librarys_equivalent() {
+    // A triple rocker (1 + 3.5 > 2 + 2): its equivalent's input rocks with the coupler.
+    let out = run(&[
+        "cognates",
+        "--coupler",
+        "2",
+        "--rocker",
+        "2",
+        "--ground",
+        "3.5",
+        "--point",
+        "1,0.5",
+        "--geared-fivebar",
+        "--format",
+        "json",
+    ]);
+    let j = json(&out);
+    let l = coupler_atlas::FourBar::new(2.0, 2.0, 3.5).unwrap();
+    let eq = coupler_atlas::geared_equivalent(&l, CouplerPoint::new(1.0, 0.5)).unwrap();
+    assert_eq!(
+        j["geared_fivebar"],
+        serde_json::to_value(eq.linkage).unwrap()
+    );
+    assert_eq!(j["scale"].as_f64().unwrap(), eq.scale);
+    assert_eq!(j["geared_fivebar"]["ratio"], "1");
+    assert_eq!(j["rotatability"], "rocks");
+    assert_eq!(j["input_range"]["kind"], "rocks");
+    assert_eq!(j["four_bar"]["class"], l.class().code());
+    // The crank and rocker pins themselves have no equivalent (a zero-length crank).
+    let bad = run(&[
+        "cognates",
+        "--coupler",
+        "2",
+        "--rocker",
+        "2",
+        "--ground",
+        "3.5",
+        "--point",
+        "0,0",
+        "--geared-fivebar",
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+}
