@@ -365,3 +365,49 @@ fn cognates_geared_fivebar_gives_the_librarys_equivalent() {
     ]);
     assert_eq!(bad.status.code(), Some(2));
 }
+
+#[test]
+fn straight_line_page_set_measures_its_line_at_rounding_level() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = root.join("atlas-spec/geared-straight-line.toml");
+    let dir = std::env::temp_dir().join(format!("geared-straight-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--dpi",
+        "72",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.join("pages/geared-straight-line-0001.png").exists());
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
+    let joint = index["curves"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["point"]["u"] == 3.0 && c["point"]["v"] == 0.0)
+        .expect("the dyad joint's curve");
+    // Its box is the line x = L1/2 = 1.5, a few ulps wide (at most 4 ulps of L3 = 3).
+    let b = joint["bbox"].as_array().unwrap();
+    let (x0, x1) = (b[0].as_f64().unwrap(), b[2].as_f64().unwrap());
+    let tol = 4.0 * f64::EPSILON * 3.0;
+    assert!(
+        (x0 - 1.5).abs() <= tol && (x1 - 1.5).abs() <= tol,
+        "{x0} {x1}"
+    );
+    // And the index's straight-segment measure finds it straight at rounding level.
+    let segs = joint["features"]["straight_segments"].as_array().unwrap();
+    assert!(!segs.is_empty());
+    for s in segs {
+        assert!(s["straightness_pct"].as_f64().unwrap() < 1e-12, "{s}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
