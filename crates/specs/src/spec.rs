@@ -508,20 +508,7 @@ impl AtlasSpec {
             }
             (Some(l), Some(p), None) => {
                 let pages = cx.pages(raw.pages.as_ref(), true)?;
-                let features = match &raw.features {
-                    None => FeatureSettings::DEFAULT,
-                    Some(t) => {
-                        if t.get_ref().contains_key("dash_deg") {
-                            return Err(cx.error(
-                                cx.key_in(t.span(), "dash_deg"),
-                                Some("features.dash_deg"),
-                                "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
-                            ));
-                        }
-                        FeatureSettings::from_table(t.get_ref())
-                            .map_err(|m| cx.error(t.span(), Some("features"), m))?
-                    }
-                };
+                let features = cx.features(raw.features.as_ref())?;
                 let (linkages, circuits) = cx.linkages(l.get_ref())?;
                 let pr = p.get_ref();
                 let (u, u_relative) = cx.range(&pr.u, "points.u", false)?;
@@ -611,6 +598,22 @@ impl Ctx<'_> {
         ))
     }
 
+    /// `[features]` of a grid atlas (four-bar or geared five-bar).
+    fn features(&self, raw: Option<&Spanned<toml::Table>>) -> Result<FeatureSettings, SpecError> {
+        let Some(t) = raw else {
+            return Ok(FeatureSettings::DEFAULT);
+        };
+        if t.get_ref().contains_key("dash_deg") {
+            return Err(self.error(
+                self.key_in(t.span(), "dash_deg"),
+                Some("features.dash_deg"),
+                "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
+            ));
+        }
+        FeatureSettings::from_table(t.get_ref())
+            .map_err(|m| self.error(t.span(), Some("features"), m))
+    }
+
     /// A geared five-bar atlas: `[geared]` and `[points]` (the grid relative to L3).
     fn geared_spec(
         &self,
@@ -639,20 +642,7 @@ impl Ctx<'_> {
             ));
         };
         let pages = self.pages(raw.pages.as_ref(), true)?;
-        let features = match &raw.features {
-            None => FeatureSettings::DEFAULT,
-            Some(t) => {
-                if t.get_ref().contains_key("dash_deg") {
-                    return Err(self.error(
-                        self.key_in(t.span(), "dash_deg"),
-                        Some("features.dash_deg"),
-                        "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
-                    ));
-                }
-                FeatureSettings::from_table(t.get_ref())
-                    .map_err(|m| self.error(t.span(), Some("features"), m))?
-            }
-        };
+        let features = self.features(raw.features.as_ref())?;
         let r = g.get_ref();
         let (l1, _) = self.range(&r.l1, "geared.l1", true)?;
         let (l3, _) = self.range(&r.l3, "geared.l3", true)?;

@@ -6,8 +6,10 @@ use super::linkage::GearedFiveBar;
 use super::margin::MARGIN_STEP_DEG;
 use super::pose::{GearedGaps, GearedPose, factors};
 use crate::linkage::{Circuit, CouplerPoint};
-use crate::trace::{Branch, FullCurve, InputRange, Toggle, ToggleKind, TraceSample, grid_inside};
-use nalgebra::{Point2, Vector2};
+use crate::trace::{
+    Branch, FullCurve, InputRange, Toggle, ToggleKind, TraceSample, grid_inside, toggle_sample,
+};
+use nalgebra::Vector2;
 
 impl GearedFiveBar {
     /// Where the input can go, over one period ([`GearedFiveBar::input_intervals`] at
@@ -51,33 +53,17 @@ impl GearedFiveBar {
         let angle = self.angle_at(deg);
         let pose = GearedPose::solve_with(self, gaps, circuit, &angle)?;
         if toggle {
-            // The toggle: the flat pose, shared by both circuits. The refined angle keeps
-            // the margin ≥ 0 but may leave it a few ulps above zero, where the circuits
-            // differ by h ~ √ε; L3's direction is then taken along the chord's foot,
-            // (e_open + e_crossed)/|…|, the flat pose to that same √ε (as the four-bar's
-            // full trace does).
+            // The flat pose, shared by both circuits (the margin at the refined angle is
+            // ≥ 0 but may be a few ulps above zero).
             let other = GearedPose::solve_with(self, gaps, circuit.other(), &angle)?;
-            let sum = pose.link3_dir + other.link3_dir;
-            let e = if sum.norm() > 0.0 {
-                sum / sum.norm()
-            } else {
-                pose.link3_dir
-            };
-            let pa = pose.input_pin;
-            let point = Point2::new(pa.x + p.u * e.x - p.v * e.y, pa.y + p.u * e.y + p.v * e.x);
-            let flat = if pose.transmission > std::f64::consts::FRAC_PI_2 {
-                std::f64::consts::PI
-            } else {
-                0.0
-            };
-            return Some(TraceSample {
-                degrees: deg,
+            return Some(toggle_sample(
+                deg,
                 circuit,
-                point,
-                velocity: Vector2::new(f64::INFINITY, f64::INFINITY),
-                transmission: flat,
-                toggle,
-            });
+                p,
+                pose.input_pin,
+                [pose.link3_dir, other.link3_dir],
+                pose.transmission,
+            ));
         }
         Some(TraceSample {
             degrees: deg,
