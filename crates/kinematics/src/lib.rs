@@ -40,7 +40,7 @@ pub use geared::{
     Rotatability, TRANSMISSION_STEP_DEG, TingClass, geared_equivalent,
 };
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use mechanism::{Linkage, LinkageClass, Mechanism};
+pub use mechanism::{Linkage, LinkageClass, Mechanism, SymmetryAxis, SymmetryReason};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
 pub use trace::{
     Branch, FullCurve, InputRange, Toggle, ToggleKind, TraceSample, circle_intersections,
