@@ -21,7 +21,14 @@ fn atlas() -> &'static (PathBuf, Vec<u8>) {
         let _ = std::fs::remove_dir_all(&dir);
         let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("atlas-spec/quick.toml");
         let o = Command::new(BIN)
-            .args(["generate", spec.to_str().unwrap(), "--dpi", "36", "--quiet", "--out"])
+            .args([
+                "generate",
+                spec.to_str().unwrap(),
+                "--dpi",
+                "36",
+                "--quiet",
+                "--out",
+            ])
             .arg(&dir)
             .output()
             .unwrap();
@@ -276,7 +283,14 @@ fn corrupted_cache_counts_in_search_and_dwell() {
     std::fs::write(&idx, bytes).unwrap();
     let search = |cache: bool| {
         let mut c = Command::new(BIN);
-        c.args(["search", idx.to_str().unwrap(), "--arc", "20", "--limit", "0"]);
+        c.args([
+            "search",
+            idx.to_str().unwrap(),
+            "--arc",
+            "20",
+            "--limit",
+            "0",
+        ]);
         if !cache {
             c.arg("--no-cache");
         }
@@ -294,7 +308,15 @@ fn corrupted_cache_counts_in_search_and_dwell() {
         .to_string();
     let dwell = || {
         Command::new(BIN)
-            .args(["dwell", "--index", idx.to_str().unwrap(), "--curve", &curve, "--arc", "1"])
+            .args([
+                "dwell",
+                "--index",
+                idx.to_str().unwrap(),
+                "--curve",
+                &curve,
+                "--arc",
+                "1",
+            ])
             .args(["--format", "json"])
             .output()
             .unwrap()
@@ -309,7 +331,10 @@ fn corrupted_cache_counts_in_search_and_dwell() {
             std::fs::write(cache_path(&idx), &b).unwrap();
             let o = if run == 0 { search(true) } else { dwell() };
             let err = String::from_utf8_lossy(&o.stderr);
-            assert!(!err.contains("panicked") && !err.contains("memory allocation"), "{at}: {err}");
+            assert!(
+                !err.contains("panicked") && !err.contains("memory allocation"),
+                "{at}: {err}"
+            );
             let want = if run == 0 { &truth } else { &dwell_truth };
             assert_eq!(o.status.code(), want.status.code(), "{at}: {err}");
             assert_eq!(o.stdout, want.stdout, "field at {at}");

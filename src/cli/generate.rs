@@ -127,8 +127,7 @@ fn read_spec_file(path: &std::path::Path) -> Result<String> {
         ))
         .into());
     }
-    String::from_utf8(bytes)
-        .map_err(|_| cannot("stream did not contain valid UTF-8".into()).into())
+    String::from_utf8(bytes).map_err(|_| cannot("stream did not contain valid UTF-8".into()).into())
 }
 
 /// The spec's text and where it came from (the built-in default when no path is given).
@@ -381,9 +380,16 @@ fn job_from_shards(args: &MergeArgs) -> Result<(Job, Box<dyn Renderer>)> {
             Some((d0, id0)) => {
                 if id.run_key != id0.run_key {
                     let what = if id.spec_toml != id0.spec_toml || id.name != id0.name {
-                        format!("{} (atlas `{}`) and {} (atlas `{}`)", id0.source, id0.name, id.source, id.name)
+                        format!(
+                            "{} (atlas `{}`) and {} (atlas `{}`)",
+                            id0.source, id0.name, id.source, id.name
+                        )
                     } else if id.pages != id0.pages {
-                        format!("the same spec with other page settings ({} vs {})", describe_pages(&id0.pages), describe_pages(&id.pages))
+                        format!(
+                            "the same spec with other page settings ({} vs {})",
+                            describe_pages(&id0.pages),
+                            describe_pages(&id.pages)
+                        )
                     } else {
                         format!("{} and {}", id0.generator, id.generator)
                     };
@@ -432,26 +438,44 @@ fn job_from_shards(args: &MergeArgs) -> Result<(Job, Box<dyn Renderer>)> {
     }
     let mut wrong = Vec::new();
     if args.no_pages && id.pages.is_some() {
-        wrong.push(format!("--no-pages, but the shards have pages ({})", describe_pages(&id.pages)));
+        wrong.push(format!(
+            "--no-pages, but the shards have pages ({})",
+            describe_pages(&id.pages)
+        ));
     }
     if let (Some(f), Some(p)) = (&args.format, &id.pages) {
         if f != &p.formats {
-            wrong.push(format!("--format {}, but the shards' pages are {}", f.join(","), p.formats.join(",")));
+            wrong.push(format!(
+                "--format {}, but the shards' pages are {}",
+                f.join(","),
+                p.formats.join(",")
+            ));
         }
     }
     if let (Some(d), Some(p)) = (args.dpi, &id.pages) {
         if d != p.dpi {
-            wrong.push(format!("--dpi {d}, but the shards' pages are {} dpi", p.dpi));
+            wrong.push(format!(
+                "--dpi {d}, but the shards' pages are {} dpi",
+                p.dpi
+            ));
         }
     }
     if let (Some(s), Some(p)) = (&args.page_size, &id.pages) {
-        if s.parse::<coupler_atlas::layout::PageSize>().map(|x| x.to_string()).ok().as_deref()
+        if s.parse::<coupler_atlas::layout::PageSize>()
+            .map(|x| x.to_string())
+            .ok()
+            .as_deref()
             != Some(p.page_size.as_str())
         {
-            wrong.push(format!("--page-size {s}, but the shards' pages are {}", p.page_size));
+            wrong.push(format!(
+                "--page-size {s}, but the shards' pages are {}",
+                p.page_size
+            ));
         }
     }
-    if (args.format.is_some() || args.dpi.is_some() || args.page_size.is_some()) && id.pages.is_none() {
+    if (args.format.is_some() || args.dpi.is_some() || args.page_size.is_some())
+        && id.pages.is_none()
+    {
         wrong.push("page flags, but the shards were made without pages".into());
     }
     if !wrong.is_empty() {
@@ -482,7 +506,10 @@ pub fn merge(args: MergeArgs) -> Result<ExitCode> {
     let index = match generate::merge(&job, renderer.as_ref(), &args.shards, &interrupt) {
         Ok(i) => i,
         Err(e @ GenerateError::Interrupted { .. }) => {
-            eprintln!("merge stopped: {} is incomplete (no temporary file is left); run the same command again to finish", e_dir(&e));
+            eprintln!(
+                "merge stopped: {} is incomplete (no temporary file is left); run the same command again to finish",
+                e_dir(&e)
+            );
             return Ok(ExitCode::from(130));
         }
         Err(e) => {
@@ -571,7 +598,10 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
         .map_err(classify)
         .with_context(|| format!("generating {} into {}", job.list.name, job.out.display()))?;
     let removed = if report.removed_files > 0 {
-        format!(", {} file(s) of an earlier run removed", report.removed_files)
+        format!(
+            ", {} file(s) of an earlier run removed",
+            report.removed_files
+        )
     } else {
         String::new()
     };

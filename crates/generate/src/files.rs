@@ -229,7 +229,12 @@ pub(crate) fn sync_files<'a>(
     })?;
     let mut folders: Vec<PathBuf> = names
         .iter()
-        .map(|n| dir.join(n).parent().map(Path::to_path_buf).unwrap_or_default())
+        .map(|n| {
+            dir.join(n)
+                .parent()
+                .map(Path::to_path_buf)
+                .unwrap_or_default()
+        })
         .collect();
     folders.sort();
     folders.dedup();

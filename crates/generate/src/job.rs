@@ -225,23 +225,26 @@ impl Job {
             .enumerate()
             .flat_map(move |(li, l)| {
                 let circuits = circuits.clone();
-                circuits.into_iter().enumerate().flat_map(move |(ci, circuit)| {
-                    let g = li as u64 * self.spec.circuits.len() as u64 + ci as u64;
-                    (0..n.div_ceil(per_unit).max(1)).map(move |u| {
-                        let first = u * per_unit;
-                        Group {
-                            linkage: l,
-                            circuit,
-                            points: self.spec.points.points_in(
-                                l.coupler_length(),
-                                first,
-                                per_unit,
-                            ),
-                            first_id: g * n + first,
-                            first_page: g * pages_per_group + first / per_page + 1,
-                        }
+                circuits
+                    .into_iter()
+                    .enumerate()
+                    .flat_map(move |(ci, circuit)| {
+                        let g = li as u64 * self.spec.circuits.len() as u64 + ci as u64;
+                        (0..n.div_ceil(per_unit).max(1)).map(move |u| {
+                            let first = u * per_unit;
+                            Group {
+                                linkage: l,
+                                circuit,
+                                points: self.spec.points.points_in(
+                                    l.coupler_length(),
+                                    first,
+                                    per_unit,
+                                ),
+                                first_id: g * n + first,
+                                first_page: g * pages_per_group + first / per_page + 1,
+                            }
+                        })
                     })
-                })
             })
     }
 
@@ -257,16 +260,20 @@ impl Job {
             .enumerate()
             .flat_map(move |(li, l)| {
                 let points = self.spec.points.points(l.coupler_length());
-                circuits.clone().into_iter().enumerate().map(move |(ci, circuit)| {
-                    let g = li as u64 * self.spec.circuits.len() as u64 + ci as u64;
-                    Group {
-                        linkage: l,
-                        circuit,
-                        points: points.clone(),
-                        first_id: g * n,
-                        first_page: g * pages_per_group + 1,
-                    }
-                })
+                circuits
+                    .clone()
+                    .into_iter()
+                    .enumerate()
+                    .map(move |(ci, circuit)| {
+                        let g = li as u64 * self.spec.circuits.len() as u64 + ci as u64;
+                        Group {
+                            linkage: l,
+                            circuit,
+                            points: points.clone(),
+                            first_id: g * n,
+                            first_page: g * pages_per_group + 1,
+                        }
+                    })
             })
     }
 

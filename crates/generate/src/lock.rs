@@ -159,6 +159,9 @@ mod tests {
     #[test]
     fn dates_are_civil() {
         let t = utc_now();
-        assert!(t.starts_with("20") && t.ends_with(" UTC") && t.len() == 23, "{t}");
+        assert!(
+            t.starts_with("20") && t.ends_with(" UTC") && t.len() == 23,
+            "{t}"
+        );
     }
 }

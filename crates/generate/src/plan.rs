@@ -113,9 +113,7 @@ impl Plan {
         let options = renderer.page_options();
         let per_page = u128::from(s.pages.curves_per_page.max(1));
         let pages = match options {
-            Some(_) => {
-                u128::from(job.linkages) * circuits * u128::from(points).div_ceil(per_page)
-            }
+            Some(_) => u128::from(job.linkages) * circuits * u128::from(points).div_ceil(per_page),
             None => 0,
         };
         let formats = options.map(|o| o.formats.len() as u128).unwrap_or(0);
@@ -148,8 +146,8 @@ impl Plan {
             pages: pages * page_bytes,
             total: 2 * index + pages * page_bytes,
         };
-        let skipped_by_class = (s.linkages.coupler.len() <= Plan::CLASS_COUNT_LIMIT)
-            .then(|| job.skipped().clone());
+        let skipped_by_class =
+            (s.linkages.coupler.len() <= Plan::CLASS_COUNT_LIMIT).then(|| job.skipped().clone());
         let mut plan = Plan {
             name: s.name.clone(),
             source: job.source.clone(),

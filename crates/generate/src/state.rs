@@ -12,11 +12,9 @@
 //!   complete run, files in the ledger that the new manifest does not list (pages of an
 //!   earlier, larger atlas) are removed.
 
-use crate::files::{
-    PAGES_DIR, STATE_DIR, check_name, read_small, sync_dir, write_atomically,
-};
-use crate::{GenerateError, PageOptions};
 use crate::error::io_err;
+use crate::files::{PAGES_DIR, STATE_DIR, check_name, read_small, sync_dir, write_atomically};
+use crate::{GenerateError, PageOptions};
 use serde::{Deserialize, Serialize};
 use std::collections::HashSet;
 use std::io::Write as _;
@@ -209,7 +207,10 @@ impl Ledger {
     }
 
     /// Records `names` (those not yet recorded), durably, before they are written.
-    pub(crate) fn add<'a>(&self, names: impl IntoIterator<Item = &'a str>) -> Result<(), GenerateError> {
+    pub(crate) fn add<'a>(
+        &self,
+        names: impl IntoIterator<Item = &'a str>,
+    ) -> Result<(), GenerateError> {
         let mut inner = self
             .inner
             .lock()
@@ -369,7 +370,11 @@ fn remove_owned(out: &Path, name: &str) -> Result<bool, GenerateError> {
 /// manifest or index beside pages of other settings: first the manifest, then the index
 /// (`root` files, in order), then the chunk records, then every other file the ledger
 /// lists. Each step is made durable before the next.
-pub(crate) fn remove_atlas(out: &Path, ledger: &Ledger, root: &[&str]) -> Result<(), GenerateError> {
+pub(crate) fn remove_atlas(
+    out: &Path,
+    ledger: &Ledger,
+    root: &[&str],
+) -> Result<(), GenerateError> {
     for name in root {
         if ledger.owns(name) && remove_owned(out, name)? {
             sync_dir(out).map_err(io_err(out))?;

@@ -333,7 +333,9 @@ fn read_cache(cache: &Path, key: IndexKey) -> Result<SearchTable, CacheError> {
     bytes
         .try_reserve_exact(len as usize)
         .map_err(|_| bad("too large to read"))?;
-    f.take(len).read_to_end(&mut bytes).map_err(|e| bad(e.to_string()))?;
+    f.take(len)
+        .read_to_end(&mut bytes)
+        .map_err(|e| bad(e.to_string()))?;
     SearchTable::from_cache_bytes(&bytes, key)
 }
 

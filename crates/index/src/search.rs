@@ -195,19 +195,19 @@ impl SearchTable {
         let mut line_no = 1;
         // Lines are read with a bound on their length: a file without newlines (a
         // gigabyte of anything) is refused after 16 MiB, never read whole.
-        let mut next_line = |reader: &mut R, line_no: usize| -> Result<Option<String>, SearchError> {
+        let mut next_line = |reader: &mut R,
+                             line_no: usize|
+         -> Result<Option<String>, SearchError> {
             match read_line_bounded(reader, &mut buf, MAX_INDEX_LINE) {
                 Ok(0) => Ok(None),
                 Ok(_) => Ok(Some(String::from_utf8_lossy(&buf).into_owned())),
-                Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
-                    Err(SearchError::Line {
-                        line: line_no,
-                        message: format!(
-                            "the line is longer than {} MiB: this is not a coupler-atlas index",
-                            MAX_INDEX_LINE >> 20
-                        ),
-                    })
-                }
+                Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Err(SearchError::Line {
+                    line: line_no,
+                    message: format!(
+                        "the line is longer than {} MiB: this is not a coupler-atlas index",
+                        MAX_INDEX_LINE >> 20
+                    ),
+                }),
                 Err(e) => Err(SearchError::Header(e.to_string())),
             }
         };

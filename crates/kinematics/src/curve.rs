@@ -33,7 +33,9 @@ pub const MAX_SAMPLES_PER_TURN: u64 = 1_000_000;
 /// ```
 pub fn samples_per_turn(step_deg: f64) -> Result<u64, String> {
     if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
-        return Err(format!("must be > 0 and at most 360 degrees, got {step_deg}"));
+        return Err(format!(
+            "must be > 0 and at most 360 degrees, got {step_deg}"
+        ));
     }
     let n = (360.0 / step_deg).ceil();
     if n > MAX_SAMPLES_PER_TURN as f64 {
@@ -44,7 +46,11 @@ pub fn samples_per_turn(step_deg: f64) -> Result<u64, String> {
     }
     let n = n as u64;
     // The last k·step may round to 360 exactly: it is not below 360.
-    Ok(if (n - 1) as f64 * step_deg < 360.0 { n } else { n - 1 })
+    Ok(if (n - 1) as f64 * step_deg < 360.0 {
+        n
+    } else {
+        n - 1
+    })
 }
 
 impl CrankTable {

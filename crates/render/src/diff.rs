@@ -287,10 +287,8 @@ impl PngRows {
             message,
         };
         let file = std::fs::File::open(path).map_err(|e| err(e.to_string()))?;
-        let mut dec = png::Decoder::new_with_limits(
-            BufReader::new(file),
-            png::Limits { bytes: 64 << 20 },
-        );
+        let mut dec =
+            png::Decoder::new_with_limits(BufReader::new(file), png::Limits { bytes: 64 << 20 });
         dec.set_transformations(png::Transformations::normalize_to_color8());
         let mut reader = dec.read_info().map_err(|e| err(e.to_string()))?;
         let (width, height) = (reader.info().width, reader.info().height);
@@ -309,7 +307,9 @@ impl PngRows {
                 .output_buffer_size()
                 .ok_or_else(|| err("image too large".into()))?;
             let mut buf = vec![0u8; size];
-            reader.next_frame(&mut buf).map_err(|e| err(e.to_string()))?;
+            reader
+                .next_frame(&mut buf)
+                .map_err(|e| err(e.to_string()))?;
             Some(buf)
         } else {
             None

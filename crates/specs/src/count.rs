@@ -92,8 +92,7 @@ impl LinkLattice {
         let big = [out.one, out.a.last(), out.b.last(), out.c.last()]
             .into_iter()
             .max()?;
-        (big < 1_000_000_000_000_000_000_000_000 && out.a.step > 0 && out.b.step > 0)
-            .then_some(out)
+        (big < 1_000_000_000_000_000_000_000_000 && out.a.step > 0 && out.b.step > 0).then_some(out)
     }
 
     fn to_f64(&self, x: i128) -> f64 {
@@ -283,7 +282,13 @@ impl LinkLattice {
             let a = self.a.value(i);
             let (lo, hi) = (one.min(a), one.max(a));
             // Doubled values of B where two breakpoints meet.
-            let critical = [2 * one, 2 * a, 2 * (2 * lo - hi), one + a, 2 * (2 * hi - lo)];
+            let critical = [
+                2 * one,
+                2 * a,
+                2 * (2 * lo - hi),
+                one + a,
+                2 * (2 * hi - lo),
+            ];
             let mut cuts = vec![0, b.n];
             for v in critical {
                 // First j with 2·b_j ≥ v; if 2·b_j = v there, j is a range of its own.
@@ -340,9 +345,7 @@ pub(crate) fn count_crank_rockers(l: &LinkageRanges) -> u64 {
 /// The combinations in the ranges by Barker class code, counted arithmetically (classes
 /// with none are left out).
 pub(crate) fn count_by_class(l: &LinkageRanges) -> BTreeMap<&'static str, u64> {
-    let counts = LinkLattice::of(l)
-        .map(|g| g.count())
-        .unwrap_or([0; 14]);
+    let counts = LinkLattice::of(l).map(|g| g.count()).unwrap_or([0; 14]);
     Class::ALL
         .iter()
         .zip(counts)
@@ -531,12 +534,28 @@ mod tests {
     #[test]
     fn counts_and_stream_match_enumeration() {
         let cases = [
-            (("1.5", "4.5", "0.5"), ("1.5", "4.5", "0.5"), ("1.5", "4.5", "0.5")),
-            (("0.5", "5", "0.5"), ("0.5", "5", "0.5"), ("0.5", "9", "0.5")),
-            (("0.3", "3.3", "0.3"), ("0.1", "4.1", "0.2"), ("0.7", "6.2", "0.1")),
+            (
+                ("1.5", "4.5", "0.5"),
+                ("1.5", "4.5", "0.5"),
+                ("1.5", "4.5", "0.5"),
+            ),
+            (
+                ("0.5", "5", "0.5"),
+                ("0.5", "5", "0.5"),
+                ("0.5", "9", "0.5"),
+            ),
+            (
+                ("0.3", "3.3", "0.3"),
+                ("0.1", "4.1", "0.2"),
+                ("0.7", "6.2", "0.1"),
+            ),
             (("1", "3", "0.25"), ("2", "2", "1"), ("0.25", "7", "0.125")),
             (("2.5", "2.5", "1"), ("0.35", "6", "0.45"), ("1", "1", "1")),
-            (("0.1", "9.9", "0.7"), ("0.2", "9.8", "0.6"), ("0.05", "12", "0.35")),
+            (
+                ("0.1", "9.9", "0.7"),
+                ("0.2", "9.8", "0.6"),
+                ("0.05", "12", "0.35"),
+            ),
             (("3", "30", "3"), ("1.5", "40", "1.5"), ("1", "50", "0.5")),
         ];
         for (a, b, c) in cases {
@@ -574,21 +593,14 @@ mod tests {
                 (s(start), s(start + n as f64 * step), s(step))
             };
             let (a, b, c) = (r(), r(), r());
-            let spec = ranges(
-                (&a.0, &a.1, &a.2),
-                (&b.0, &b.1, &b.2),
-                (&c.0, &c.1, &c.2),
-            );
+            let spec = ranges((&a.0, &a.1, &a.2), (&b.0, &b.1, &b.2), (&c.0, &c.1, &c.2));
             let (classes, linkages) = brute(&spec);
             assert_eq!(count_by_class(&spec.linkages), classes, "{a:?} {b:?} {c:?}");
             let streamed: Vec<Linkage> = CrankRockers::new(&spec.linkages).collect();
             assert_eq!(streamed, linkages, "{a:?} {b:?} {c:?}");
             assert_eq!(count_crank_rockers(&spec.linkages), linkages.len() as u64);
             let g = LinkLattice::of(&spec.linkages).unwrap();
-            assert_eq!(
-                g.count()[Class::Gcrr as usize],
-                linkages.len() as i128
-            );
+            assert_eq!(g.count()[Class::Gcrr as usize], linkages.len() as i128);
         }
     }
 
@@ -608,11 +620,17 @@ mod tests {
         assert_eq!(first.len(), 3);
         // Generous for a loaded CI machine; typically a few tens of milliseconds.
         assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
-        eprintln!("crank-rockers of 10^15 combinations counted in {:?}", t.elapsed());
+        eprintln!(
+            "crank-rockers of 10^15 combinations counted in {:?}",
+            t.elapsed()
+        );
         let t = std::time::Instant::now();
         let all: u64 = count_by_class(&spec.linkages).values().sum();
         assert_eq!(all, 1_000_000_000_000_000);
-        eprintln!("every class of 10^15 combinations counted in {:?}", t.elapsed());
+        eprintln!(
+            "every class of 10^15 combinations counted in {:?}",
+            t.elapsed()
+        );
         // Integer ranges: for A, B ≥ 2, the C strictly inside (|A−B|+1, A+B−1) are
         // 2·min(A,B) − 3 integers, clipped to C ≤ 100,000.
         let small = ranges(("1", "60", "1"), ("1", "60", "1"), ("1", "60", "1"));

@@ -4,11 +4,11 @@
 //!
 //! The format is documented in `docs/spec-format.md`.
 
+use crate::count::{self, CrankRockers};
 use crate::curves::CurveList;
 use crate::features::FeatureSettings;
 use crate::settings::{PageSettings, Sampling};
 use coupler_features::{NamedCurve, TraceMode};
-use crate::count::{self, CrankRockers};
 use coupler_kinematics::{
     Circuit, Class, CouplerPoint, Decimal, FourBar, Linkage, divides_turn, samples_per_turn,
 };
@@ -203,7 +203,11 @@ impl PointGrid {
         let value = |r: &DecimalRange, k: u64, rel: bool| {
             let x = r
                 .start
-                .checked_add(r.step.checked_mul_int(i128::from(k)).unwrap_or(Decimal::ZERO))
+                .checked_add(
+                    r.step
+                        .checked_mul_int(i128::from(k))
+                        .unwrap_or(Decimal::ZERO),
+                )
                 .unwrap_or(r.start)
                 .to_f64();
             if rel { x * a } else { x }
