@@ -258,7 +258,7 @@ fn same_size_same_time_other_index_is_not_answered_from_the_cache() {
     let (before, _) = load_table(&idx, true).unwrap();
     // Another index: one ground length changed, same number of bytes.
     let text = String::from_utf8(bytes.clone()).unwrap();
-    let swapped = text.replacen("\"ground\":3.0,", "\"ground\":3.5,", 1);
+    let swapped = text.replacen("\"ground\":3.0}", "\"ground\":3.5}", 1);
     assert_ne!(swapped, text);
     assert_eq!(swapped.len(), text.len());
     std::fs::write(&idx, &swapped).unwrap();

@@ -330,6 +330,11 @@ pub(crate) fn check_user_files(
             continue;
         };
         for e in entries.flatten() {
+            // A folder where a page goes cannot be overwritten (that page then fails,
+            // named, and the run goes on): only files and links are at risk.
+            if e.file_type().is_ok_and(|t| t.is_dir()) {
+                continue;
+            }
             let name = format!("{prefix}{}", e.file_name().to_string_lossy());
             if names.has(&name) && !ledger.owns(&name) {
                 found.push(name);
