@@ -8,7 +8,7 @@
 use crate::GenerateError;
 use crate::error::io_err;
 use crate::files::STATE_DIR;
-use std::fs::{File, OpenOptions, TryLockError};
+use std::fs::{File, OpenOptions};
 use std::io::{Read, Seek, Write};
 use std::path::{Path, PathBuf};
 
@@ -78,9 +78,9 @@ impl FolderLock {
             },
         };
         check_not_a_link(&path, &file)?;
-        match file.try_lock() {
-            Ok(()) => {}
-            Err(TryLockError::WouldBlock) => {
+        match try_lock(&file) {
+            Ok(true) => {}
+            Ok(false) => {
                 let mut text = String::new();
                 let _ = (&file).take(4096).read_to_string(&mut text);
                 let holder = text.trim();
@@ -94,7 +94,7 @@ impl FolderLock {
                 });
             }
             // No locks on this file system (some network file systems): go on.
-            Err(TryLockError::Error(_)) => return Ok(FolderLock { _file: Some(file) }),
+            Err(_) => return Ok(FolderLock { _file: Some(file) }),
         }
         if writable {
             let text = holder_text();
@@ -105,6 +105,24 @@ impl FolderLock {
         }
         Ok(FolderLock { _file: Some(file) })
     }
+}
+
+/// Takes an exclusive `flock` on `file` without waiting: `Ok(false)` if another process
+/// holds it.
+#[cfg(unix)]
+fn try_lock(file: &File) -> std::io::Result<bool> {
+    use rustix::fs::{FlockOperation, flock};
+    match flock(file, FlockOperation::NonBlockingLockExclusive) {
+        Ok(()) => Ok(true),
+        Err(e) if e == rustix::io::Errno::WOULDBLOCK => Ok(false),
+        Err(e) => Err(e.into()),
+    }
+}
+
+/// Elsewhere the run goes on unlocked.
+#[cfg(not(unix))]
+fn try_lock(_: &File) -> std::io::Result<bool> {
+    Err(std::io::Error::other("no advisory locks here"))
 }
 
 /// Whether an error says the folder cannot be written (permissions, a read-only mount).

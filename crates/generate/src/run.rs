@@ -118,6 +118,9 @@ fn chunk_path(dir: &Path, chunk: u64) -> PathBuf {
         .join(format!("{chunk:06}.jsonl"))
 }
 
+/// Receives the curve lines of a chunk record as they are read.
+type LineSink<'a> = &'a mut dyn FnMut(&str) -> std::io::Result<()>;
+
 /// Reads chunk record `chunk` of `dir` and checks everything in it: format, run key and
 /// chunk number; every file name a plain name inside the folder; the curve lines
 /// complete, numbered from the header's first id, and equal to their recorded size and
@@ -129,7 +132,7 @@ fn read_chunk(
     chunk: u64,
     key: &str,
     verify_files: bool,
-    mut sink: Option<&mut dyn FnMut(&str) -> std::io::Result<()>>,
+    mut sink: Option<LineSink<'_>>,
 ) -> Result<ChunkHeader, ChunkProblem> {
     let path = chunk_path(dir, chunk);
     let file = open_regular(&path).map_err(|_| ChunkProblem::Missing)?;

@@ -4,7 +4,7 @@
 //! it takes seconds per million curves. So `search` reads it once into a [`SearchTable`]
 //! (one fixed-size row per curve plus flat arrays of segments and arcs), saves that as a
 //! binary cache next to the index (`INDEX.search`, keyed by the index's length and
-//! modification time), and answers queries from the cache: a linear scan with cheap
+//! content hash, checksummed: see `cache.rs`), and answers queries from the cache: a linear scan with cheap
 //! tests, milliseconds per million curves. The filtered quantities are kept as `f64`,
 //! so a result satisfies its filters exactly as the index's own numbers do.
 

@@ -95,7 +95,7 @@ impl LinkLattice {
         (big < 1_000_000_000_000_000_000_000_000 && out.a.step > 0 && out.b.step > 0).then_some(out)
     }
 
-    fn to_f64(&self, x: i128) -> f64 {
+    fn length(&self, x: i128) -> f64 {
         Decimal::new(x, self.exponent).to_f64()
     }
 }
@@ -378,7 +378,7 @@ impl CrankRockers {
         let lat = LinkLattice::of(l);
         let values = |r: Option<Lattice>| -> Vec<f64> {
             match (lat, r) {
-                (Some(g), Some(r)) => (0..r.n).map(|k| g.to_f64(r.value(k))).collect(),
+                (Some(g), Some(r)) => (0..r.n).map(|k| g.length(r.value(k))).collect(),
                 _ => Vec::new(),
             }
         };
