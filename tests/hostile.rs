@@ -520,3 +520,83 @@ fn a_complete_atlas_verifies_without_writing() {
     manifest_consistent(&dir).unwrap();
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// SIGTERM (what `kill`, a batch system or a container stop sends) stops like Ctrl-C:
+/// the work in progress finishes, the run says how to resume, exit code 130.
+#[test]
+fn sigterm_stops_cleanly_like_sigint() {
+    let spec = root().join("tests/fixtures/kill.toml");
+    let out = tmp("sigterm");
+    let child = bin()
+        .arg("generate")
+        .arg(&spec)
+        .arg("--out")
+        .arg(&out)
+        .args(["--quiet", "--no-pages", "--jobs", "1"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !chunk0(&out).exists() {
+        assert!(start.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("run the same command again to resume"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.join("index.json").exists());
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// `merge` takes the spec and page settings from the shards (no `--spec`: not the
+/// built-in atlas), and refuses shards made with other settings, naming both folders.
+#[test]
+fn merge_takes_the_spec_from_the_shards() {
+    let base = tmp("merge-spec");
+    let single = base.join("single");
+    assert_ok(&generate(&ok_spec(), &single, &["--no-pages"]));
+    let s = shards(&base, &["--no-pages"]);
+    let out = base.join("merged");
+    let o = bin()
+        .arg("merge")
+        .arg("--out")
+        .arg(&out)
+        .args(&s)
+        .output()
+        .unwrap();
+    assert_ok(&o);
+    assert_eq!(
+        std::fs::read(out.join("index.json")).unwrap(),
+        std::fs::read(single.join("index.json")).unwrap()
+    );
+    // Shard 2/2 made again with pages: the shards disagree.
+    let other = base.join("s2-pages");
+    assert_ok(&generate(&ok_spec(), &other, &["--shard", "2/2"]));
+    let o = bin()
+        .arg("merge")
+        .arg("--out")
+        .arg(base.join("merged-2"))
+        .arg(&s[0])
+        .arg(&other)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("do not make one atlas")
+            && e.contains(&s[0].display().to_string())
+            && e.contains(&other.display().to_string()),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
