@@ -229,27 +229,34 @@ fn planted_symlinks_are_not_followed() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
+/// Starts `generate tests/fixtures/kill.toml --no-pages --jobs 1` into `out` (63 chunks,
+/// long enough to race) and returns once its first chunk is recorded.
+fn start_kill_atlas(out: &Path) -> std::process::Child {
+    let child = bin()
+        .arg("generate")
+        .arg(root().join("tests/fixtures/kill.toml"))
+        .arg("--out")
+        .arg(out)
+        .args(["--quiet", "--no-pages", "--jobs", "1"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !chunk0(out).exists() {
+        assert!(start.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    child
+}
+
 /// A second run into a folder a run is writing refuses at once, naming the first (its
 /// process id); the first finishes unharmed; the lock goes with the process.
 #[test]
 fn a_second_run_into_a_busy_folder_refuses_naming_the_first() {
     let spec = root().join("tests/fixtures/kill.toml");
     let out = tmp("busy");
-    let mut first = bin()
-        .arg("generate")
-        .arg(&spec)
-        .arg("--out")
-        .arg(&out)
-        .args(["--quiet", "--no-pages", "--jobs", "1"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while !out.join(".coupler-atlas/chunks/000000.jsonl").exists() {
-        assert!(start.elapsed() < Duration::from_secs(120), "no progress");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let mut first = start_kill_atlas(&out);
     let second = generate(&spec, &out, &["--no-pages"]);
     let still_running = first.try_wait().unwrap().is_none();
     // Exit 1: nothing is wrong with the input, the folder is busy now.
@@ -525,23 +532,8 @@ fn a_complete_atlas_verifies_without_writing() {
 /// the work in progress finishes, the run says how to resume, exit code 130.
 #[test]
 fn sigterm_stops_cleanly_like_sigint() {
-    let spec = root().join("tests/fixtures/kill.toml");
     let out = tmp("sigterm");
-    let child = bin()
-        .arg("generate")
-        .arg(&spec)
-        .arg("--out")
-        .arg(&out)
-        .args(["--quiet", "--no-pages", "--jobs", "1"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while !chunk0(&out).exists() {
-        assert!(start.elapsed() < Duration::from_secs(120), "no progress");
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let child = start_kill_atlas(&out);
     let status = Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()

@@ -98,22 +98,11 @@ impl FileEntry {
     }
 }
 
-/// Size and XXH3-128 (hex) of everything `r` yields, read in 1 MiB blocks.
-pub(crate) fn hash_reader(mut r: impl Read) -> std::io::Result<(u64, String)> {
-    let mut hasher = xxhash_rust::xxh3::Xxh3::new();
-    let mut buf = vec![0u8; 1 << 20];
-    let mut bytes = 0u64;
-    loop {
-        let n = match r.read(&mut buf) {
-            Ok(0) => break,
-            Ok(n) => n,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-            Err(e) => return Err(e),
-        };
-        hasher.update(&buf[..n]);
-        bytes += n as u64;
-    }
-    Ok((bytes, format!("{:032x}", hasher.digest128())))
+/// Size and XXH3-128 (hex) of everything `r` yields, read in 1 MiB blocks (the same
+/// streaming hash that keys the search cache).
+pub(crate) fn hash_reader(r: impl Read) -> std::io::Result<(u64, String)> {
+    let key = coupler_index::IndexKey::of_reader(r)?;
+    Ok((key.bytes, format!("{:032x}", key.hash)))
 }
 
 /// Opens `path` for reading if it is a regular file (a symbolic link, a folder, a device
