@@ -10,8 +10,9 @@ use crate::{CacheError, read_container};
 use coupler_features::Side;
 use coupler_kinematics::{Circuit, LinkageClass};
 
-/// Version of the column set (the cache's table version).
-pub const TABLE_VERSION: u32 = 1;
+/// Version of the column set (the cache's table version): 2 added arcs' turn and the
+/// rows' `trivial` flag.
+pub const TABLE_VERSION: u32 = 2;
 
 fn f64s(out: &mut Vec<u8>, xs: &[f64]) {
     for x in xs {
@@ -66,7 +67,7 @@ impl SearchTable {
             Vec::with_capacity(8 * n),
             Vec::with_capacity(8 * n),
             Vec::with_capacity(8 * n),
-            Vec::with_capacity(4 * n),
+            Vec::with_capacity(5 * n),
         );
         for r in &self.rows {
             id.extend_from_slice(&r.id.to_le_bytes());
@@ -87,6 +88,7 @@ impl SearchTable {
                 class,
                 r.symmetric as u8,
                 r.has_features as u8,
+                r.trivial as u8,
             ]);
         }
         let mut seg = Vec::with_capacity(48 * self.segments.len());
@@ -103,7 +105,7 @@ impl SearchTable {
                 ],
             );
         }
-        let mut arc = Vec::with_capacity(48 * self.arcs.len());
+        let mut arc = Vec::with_capacity(56 * self.arcs.len());
         let mut side = Vec::with_capacity(self.arcs.len());
         for a in &self.arcs {
             f64s(
@@ -115,6 +117,7 @@ impl SearchTable {
                     a.deviation_pct,
                     a.center[0],
                     a.center[1],
+                    a.turn_deg,
                 ],
             );
             side.push((a.concave == Side::Right) as u8);
@@ -137,9 +140,9 @@ impl SearchTable {
             col("row.segs", 8, segs),
             col("row.arcs", 8, arcs),
             col("row.dbl", 8, dbl),
-            col("row.flag", 4, flags),
+            col("row.flag", 5, flags),
             col("seg", 48, seg),
-            col("arc", 48, arc),
+            col("arc", 56, arc),
             col("arc.side", 1, side),
             col("page.off", 8, off),
             col("page.txt", 1, text),
@@ -201,9 +204,9 @@ impl SearchTable {
             rows_of("row.segs", 8)?,
             rows_of("row.arcs", 8)?,
             rows_of("row.dbl", 8)?,
-            rows_of("row.flag", 4)?,
+            rows_of("row.flag", 5)?,
         );
-        let (seg, arc, side) = (find("seg", 48)?, find("arc", 48)?, find("arc.side", 1)?);
+        let (seg, arc, side) = (find("seg", 48)?, find("arc", 56)?, find("arc.side", 1)?);
         if side.count != arc.count {
             return Err(bad("column arc.side length"));
         }
@@ -250,13 +253,14 @@ impl SearchTable {
             let [seg_start, seg_count] = u32_row::<2>(&segs, i);
             let [arc_start, arc_count] = u32_row::<2>(&arcs, i);
             let [crunodes, cusps] = u32_row::<2>(&dbl, i);
-            let f = &flags.data[i * 4..i * 4 + 4];
+            let f = &flags.data[i * 5..i * 5 + 5];
             if u64::from(seg_start) + u64::from(seg_count) > nsegs
                 || u64::from(arc_start) + u64::from(arc_count) > narcs
                 || (pg != u32::MAX && pg as usize >= npages)
                 || f[0] > 1
                 || f[2] > 1
                 || f[3] > 1
+                || f[4] > 1
             {
                 return Err(bad(format!("row {i} refers outside the table")));
             }
@@ -283,6 +287,7 @@ impl SearchTable {
                     .ok_or_else(|| bad("class"))?,
                 symmetric: f[2] == 1,
                 has_features: f[3] == 1,
+                trivial: f[4] == 1,
             });
         }
         t.segments.reserve_exact(nsegs as usize);
@@ -302,7 +307,7 @@ impl SearchTable {
         }
         t.arcs.reserve_exact(narcs as usize);
         for i in 0..narcs as usize {
-            let v = f64_row::<6>(&arc, i);
+            let v = f64_row::<7>(&arc, i);
             let s = side.data[i];
             if !finite(&v) || s > 1 {
                 return Err(bad("an arc value is not valid"));
@@ -314,6 +319,7 @@ impl SearchTable {
                 deviation_pct: v[3],
                 center: [v[4], v[5]],
                 concave: if s == 1 { Side::Right } else { Side::Left },
+                turn_deg: v[6],
             });
         }
         Ok(t)
