@@ -221,7 +221,7 @@ impl Job {
         let per_page = u64::from(self.spec.pages.curves_per_page.max(1));
         let pages_per_group = n.div_ceil(per_page);
         self.spec
-            .crank_rockers()
+            .atlas_linkages()
             .enumerate()
             .flat_map(move |(li, l)| {
                 let circuits = circuits.clone();
@@ -256,7 +256,7 @@ impl Job {
         let pages_per_group = n.div_ceil(per_page);
         let circuits = self.spec.circuits.clone();
         self.spec
-            .crank_rockers()
+            .atlas_linkages()
             .enumerate()
             .flat_map(move |(li, l)| {
                 let points = self.spec.points.points(l.coupler_length());
@@ -320,6 +320,16 @@ pub fn compute_group(
 ) -> Result<Vec<IndexCurve>, GenerateError> {
     let mut extractor =
         features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t, dash));
+    // A mechanism whose period is longer than a turn (a geared five-bar of gear ratio
+    // p/q) is sampled over its whole period at the same step.
+    let own_table;
+    let table = if group.linkage.period_deg() == 360.0 {
+        table
+    } else {
+        own_table = CrankTable::over(table.step(), group.linkage.period_deg())
+            .ok_or(GenerateError::BadStep(table.step()))?;
+        &own_table
+    };
     let poses = group.linkage.pose_table(group.circuit, table);
     if !poses.all_valid() {
         return Err(GenerateError::NotAssembled {

@@ -53,9 +53,15 @@ pub struct Plan {
     pub source: String,
     /// (A, B, C) combinations in the ranges.
     pub combinations: u64,
-    /// Values of A, B and C.
+    /// Values of A, B and C (all 0 for a geared grid: see `ranges`).
     pub range_values: [u64; 3],
-    /// Strict crank-rockers among them.
+    /// The ranges in words: "A: 10 values, B: 10, C: 7", or a geared grid's
+    /// "L1: …, L3: …, L4: …, L5: …, ratios: …, phases: …".
+    pub ranges: String,
+    /// The mechanism: "four-bar" or "geared-fivebar".
+    pub mechanism: String,
+    /// The atlas's linkages among them (strict crank-rockers, or geared five-bars whose
+    /// input turns fully).
     pub linkages: u64,
     /// The others, by Barker class (`None` when not counted: more than
     /// [`Plan::CLASS_COUNT_LIMIT`] values of A).
@@ -157,6 +163,29 @@ impl Plan {
                 s.linkages.rocker.len(),
                 s.linkages.ground.len(),
             ],
+            ranges: match &s.geared {
+                Some(g) => format!(
+                    "L1: {} values, L3: {}, L4: {}, L5: {}, ratios: {}, phases: {}",
+                    g.l1.len(),
+                    g.l3.len(),
+                    g.l4.len(),
+                    g.l5.len(),
+                    g.ratios.len(),
+                    g.phases.len()
+                ),
+                None => format!(
+                    "A: {} values, B: {}, C: {}",
+                    s.linkages.coupler.len(),
+                    s.linkages.rocker.len(),
+                    s.linkages.ground.len()
+                ),
+            },
+            mechanism: if s.geared.is_some() {
+                "geared-fivebar"
+            } else {
+                "four-bar"
+            }
+            .to_string(),
             linkages: job.linkages,
             skipped: s.combinations().saturating_sub(job.linkages),
             skipped_by_class,
@@ -225,13 +254,18 @@ impl Plan {
     pub fn describe(&self) -> String {
         let mut t = String::new();
         let _ = writeln!(t, "spec:         {} ({})", self.name, self.source);
-        let [na, nb, nc] = self.range_values;
+        let geared = self.mechanism == "geared-fivebar";
+        let _ = writeln!(t, "combinations: {} ({})", self.combinations, self.ranges);
         let _ = writeln!(
             t,
-            "combinations: {} (A: {na} values, B: {nb}, C: {nc})",
-            self.combinations
+            "linkages:     {} {}",
+            self.linkages,
+            if geared {
+                "geared five-bars whose input turns fully"
+            } else {
+                "strict crank-rockers"
+            }
         );
-        let _ = writeln!(t, "linkages:     {} strict crank-rockers", self.linkages);
         let detail = match &self.skipped_by_class {
             Some(m) if !m.is_empty() => format!(
                 " ({})",
@@ -248,8 +282,13 @@ impl Plan {
         };
         let _ = writeln!(
             t,
-            "skipped:      {} not strict crank-rockers{detail}",
-            self.skipped
+            "skipped:      {} {}{detail}",
+            self.skipped,
+            if geared {
+                "whose input does not turn fully"
+            } else {
+                "not strict crank-rockers"
+            }
         );
         let _ = writeln!(
             t,
@@ -260,8 +299,14 @@ impl Plan {
         let _ = writeln!(t, "curves:       {}", self.curves);
         let _ = writeln!(
             t,
-            "samples:      {} per curve (every {}°)",
-            self.samples_per_curve, self.crank_step_deg
+            "samples:      {} per curve (every {}°){}",
+            self.samples_per_curve,
+            self.crank_step_deg,
+            if geared {
+                " per turn of input; a gear ratio p/q takes q turns"
+            } else {
+                ""
+            }
         );
         match &self.page_settings {
             Some(p) => {

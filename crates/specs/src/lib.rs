@@ -8,14 +8,16 @@
 mod count;
 mod curves;
 mod features;
+mod geared;
 mod settings;
 mod spec;
 
 pub use count::CrankRockers;
 pub use curves::CurveList;
 pub use features::FeatureSettings;
+pub use geared::GearedRanges;
 pub use settings::{PageSettings, Sampling};
 pub use spec::{
-    AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
-    MAX_NAME_LEN, MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
+    AtlasLinkages, AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration,
+    LinkageRanges, MAX_NAME_LEN, MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
 };
