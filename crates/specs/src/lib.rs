@@ -5,6 +5,7 @@
 //! page set; and target files for shape search (CSV or JSON lists of points). Parsing validates everything before any work starts; every error names the
 //! file, the line, the column and the key.
 
+mod count;
 mod curves;
 mod features;
 mod geared;
@@ -12,12 +13,13 @@ mod settings;
 mod spec;
 mod target_file;
 
+pub use count::CrankRockers;
 pub use curves::CurveList;
 pub use features::FeatureSettings;
 pub use geared::GearedRanges;
 pub use settings::{PageSettings, Sampling};
 pub use spec::{
-    AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
-    MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
+    AtlasLinkages, AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration,
+    LinkageRanges, MAX_NAME_LEN, MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
 };
 pub use target_file::{TargetFile, TargetFileError};
