@@ -11,8 +11,9 @@
 //! bracketed; and the measured straightness at 1 %, 0.1 % and 0.01 % in a box.
 
 use crate::font;
+use crate::atlas::{CurvePlacement, PageLayout};
 use crate::page::{
-    Anchor, CurvePlacement, DisplayList, LayoutError, Occupancy, PageLayout, PagePoint, PageSetup,
+    Anchor, CurveStyle, DisplayList, LayoutError, Occupancy, PagePoint, PageSetup,
     WorldToPage, draw_dashes, draw_links, fit_transform, fmt_num, footer_settings, pivot_labels,
     rects_overlap, start_marker, style, union,
 };
@@ -266,6 +267,7 @@ pub fn layout_classic(
     let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
     let mut centroid = [0.0, 0.0, 0.0];
     let mut branch_started = Vec::new();
+    let mut start_dot: PagePoint = [0.0, 0.0];
     for leg in &geometry.legs {
         let pts: Vec<Vec<PagePoint>> = leg
             .dashes
@@ -282,7 +284,16 @@ pub fn layout_classic(
         }
         let first = !branch_started.contains(&leg.branch);
         let bold = (first && !leg.dashes.is_empty()).then_some(0);
-        bbox = union(bbox, draw_dashes(&mut dl, &t, &leg.dashes, &pts, bold));
+        bbox = union(bbox, draw_dashes(
+            &mut dl,
+            &t,
+            &leg.dashes,
+            &pts,
+            bold,
+            &CurveStyle::BLACK,
+            setup.dash.step_deg,
+            0,
+        ));
         if let (true, Some(d0)) = (first, leg.dashes.first()) {
             branch_started.push(leg.branch);
             // The dot at the branch's true start (θ = 0, or the lower toggle, which may
@@ -294,6 +305,9 @@ pub fn layout_classic(
                 .unwrap_or(d0.points[0]);
             let end = d0.points[d0.points.len() - 1];
             let dir = travel_direction(page, leg.circuit, d0);
+            if start_dot == [0.0, 0.0] {
+                start_dot = t.map(start.x, start.y);
+            }
             bbox = union(bbox, start_marker(&mut dl, &t, start, end, dir));
         }
     }
@@ -421,8 +435,13 @@ pub fn layout_classic(
             point: p,
             bbox_pt: bbox,
             label_pt: best,
+            dot_pt: start_dot,
+            label: page.curve.name.clone(),
+            ghost: false,
         }],
         scale_pt_per_unit: t.scale,
+        keyed: false,
+        label_failures: 0,
     }
 }
 

@@ -496,6 +496,16 @@ impl AtlasSpec {
                 let pr = p.get_ref();
                 let (u, u_relative) = cx.range(&pr.u, "points.u", false)?;
                 let (v, v_relative) = cx.range(&pr.v, "points.v", false)?;
+                // One family per page (as in the 1951 atlas): unless the spec says
+                // otherwise, a page holds one row of the grid (constant v).
+                let per_page_given = raw
+                    .pages
+                    .as_ref()
+                    .is_some_and(|p| p.get_ref().curves_per_page.is_some());
+                let mut pages = pages;
+                if !per_page_given {
+                    pages.curves_per_page = u.len().clamp(1, 100) as u32;
+                }
                 Ok(AtlasSpec::Grid(Box::new(Spec {
                     name,
                     title,
