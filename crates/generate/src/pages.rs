@@ -10,15 +10,15 @@ use coupler_features::CurveFeatures;
 use coupler_index::{IndexCurve, PageRef};
 use coupler_kinematics::{Circuit, CouplerPoint, CrankTable, Linkage};
 use coupler_layout::{
-    ContentsEntry, CurvePlacement, DisplayList, LayoutError, LinkagePage, PageSetup,
-    compute_page, layout_contents, layout_page,
+    ContentsEntry, CurvePlacement, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page,
+    layout_contents, layout_page,
 };
 use coupler_render::{
     Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, RasterPage, SvgPage, draw,
     write_pdf,
 };
-use rayon::prelude::*;
 use coupler_specs::{PageSettings, Sampling, Spec};
+use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -78,7 +78,12 @@ impl PageOptions {
     /// The file name of contents page `number` (1-based) in `format`: numbered 0000 so
     /// that the contents come first in file order.
     pub fn contents_file(&self, number: usize, format: PageFormat) -> String {
-        format!("{}-0000-contents-{}.{}", self.stem, number, format.extension())
+        format!(
+            "{}-0000-contents-{}.{}",
+            self.stem,
+            number,
+            format.extension()
+        )
     }
 
     /// The file of the whole atlas as one PDF.

@@ -15,14 +15,14 @@ use crate::font;
 use crate::labels::{LABEL_PAD, place_labels};
 use crate::page::{
     Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, PT_PER_INCH, PagePoint,
-    PageSetup, Primitive, WorldToPage, clip_segment, draw_dashes, draw_links, fit_into,
-    fmt_num, footer, footer_settings, frame_of, header, inset_rect, nice_inches_per_unit,
-    pivot_labels, scale_bar, start_marker, style, union,
+    PageSetup, Primitive, WorldToPage, clip_segment, draw_dashes, draw_links, fit_into, fmt_num,
+    footer, footer_settings, frame_of, header, inset_rect, nice_inches_per_unit, pivot_labels,
+    scale_bar, start_marker, style, union,
 };
 use coupler_features::CurveFeatures;
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, DashedCurve, Drawing, Linkage,
-    Mechanism, dash_curve,
+    Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, DashedCurve, Drawing, Linkage, Mechanism,
+    dash_curve,
 };
 
 /// Crank angle (degrees) at which the linkage is drawn: θ = 0, so every coupler point of
@@ -178,7 +178,7 @@ const INSET_CAPTION: f64 = 11.0;
 /// width) goes into the corner where the curves, fitted to the whole frame, leave it
 /// empty; if every corner has curves, the curves are refitted above or below a band for
 /// it.
-fn place_inset(
+pub(crate) fn place_inset(
     world: [f64; 4],
     link: [f64; 4],
     samples: &[(f64, f64)],
@@ -281,8 +281,7 @@ impl CurvePlacement {
 
     /// The θ = 0 dot in device pixels at `dpi` (not rounded; 0.01 px).
     pub fn dot_px(&self, dpi: f64) -> [f64; 2] {
-        self.dot_pt
-            .map(|v| (to_px(v, dpi) * 100.0).round() / 100.0)
+        self.dot_pt.map(|v| (to_px(v, dpi) * 100.0).round() / 100.0)
     }
 }
 
@@ -316,7 +315,11 @@ pub struct PageLayout {
 /// real minus sign, e.g. `−0.375`, `1.125`, `0.0001036`, `12.35`.
 pub fn fmt_sig(x: f64) -> String {
     if x == 0.0 || !x.is_finite() {
-        return if x.is_finite() { "0".into() } else { format!("{x}") };
+        return if x.is_finite() {
+            "0".into()
+        } else {
+            format!("{x}")
+        };
     }
     let mag = libm::floor(libm::log10(x.abs())) as i32;
     let decimals = (3 - mag).max(0) as usize;
@@ -351,7 +354,7 @@ const GHOST_STYLE: CurveStyle = CurveStyle {
 };
 
 /// Ink of the linkage's context (crank circle, plate, grid) and of the feature brackets.
-const CONTEXT_INK: Ink = Ink::Gray(140);
+const CONTEXT_INK: Ink = Ink::Gray(150);
 
 /// The page's header lines: the linkage's dimensions, then class, circuit, row and the
 /// transmission-angle range (with a warning sign under [`MU_WARNING_DEG`]).
@@ -365,11 +368,9 @@ fn header_lines<M: Mechanism>(page: &LinkagePage<M>) -> (String, String) {
         .join("   ");
     let a = l.coupler_length();
     let row = match page.points.first() {
-        Some(p0) if page.points.iter().all(|p| p.v == p0.v) => format!(
-            "   row v = {} ({} A)",
-            fmt_sig(p0.v),
-            fmt_sig(p0.v / a)
-        ),
+        Some(p0) if page.points.iter().all(|p| p.v == p0.v) => {
+            format!("   row v = {} ({} A)", fmt_sig(p0.v), fmt_sig(p0.v / a))
+        }
         _ => String::new(),
     };
     let mu = match l.transmission_range(page.circuit) {
@@ -439,7 +440,10 @@ fn draw_linkage<M: Mechanism>(
             let mq = pose.point(*q);
             let p = t.map(mq.x, mq.y);
             let r = style::GRID_RADIUS;
-            if p[0] - r >= clip[0] && p[0] + r <= clip[2] && p[1] - r >= clip[1] && p[1] + r <= clip[3]
+            if p[0] - r >= clip[0]
+                && p[0] + r <= clip[2]
+                && p[1] - r >= clip[1]
+                && p[1] + r <= clip[3]
             {
                 dl.circle(p, r, Some(style::THIN));
                 grid_dots.push(p);
@@ -585,7 +589,11 @@ pub fn layout_page<M: Mechanism>(
     };
 
     // Curves: the pins' ghosts first, then the others, alternating styles.
-    let ghost: Vec<bool> = page.points.iter().map(|p| is_pin_point(a_len, *p)).collect();
+    let ghost: Vec<bool> = page
+        .points
+        .iter()
+        .map(|p| is_pin_point(a_len, *p))
+        .collect();
     let mut placements = Vec::with_capacity(geometry.curves.len());
     let mut page_curves: Vec<Vec<Vec<PagePoint>>> = Vec::with_capacity(geometry.curves.len());
     for c in &geometry.curves {
@@ -702,7 +710,11 @@ pub fn layout_page<M: Mechanism>(
     );
     let asc = font::ascent(style::LABEL_SIZE);
     for (i, (r, text)) in labels.boxes.iter().zip(&labels.texts).enumerate() {
-        dl.ink(if ghost[i] { GHOST_STYLE.ink } else { Ink::Black });
+        dl.ink(if ghost[i] {
+            GHOST_STYLE.ink
+        } else {
+            Ink::Black
+        });
         dl.text_halo(
             [r[0] + LABEL_PAD, r[1] + LABEL_PAD + asc],
             style::LABEL_SIZE,
@@ -748,7 +760,11 @@ pub fn layout_page<M: Mechanism>(
 
     // Markers, last: θ = 0 dots and arrowheads, cusps, crunodes.
     for (i, c) in geometry.curves.iter().enumerate() {
-        dl.ink(if ghost[i] { GHOST_STYLE.ink } else { Ink::Black });
+        dl.ink(if ghost[i] {
+            GHOST_STYLE.ink
+        } else {
+            Ink::Black
+        });
         let d0 = &c.dashes[0];
         bboxes[i] = union(
             bboxes[i],
@@ -785,7 +801,13 @@ pub fn layout_page<M: Mechanism>(
         });
     }
 
-    legend(&mut dl, page, geometry, setup, labels.keyed.then_some(&full));
+    legend(
+        &mut dl,
+        page,
+        geometry,
+        setup,
+        labels.keyed.then_some(&full),
+    );
     PageLayout {
         display: dl,
         curves: placements,
@@ -820,7 +842,15 @@ fn legend<M: Mechanism>(
     dl.line(vec![[x, y2 + r], [x + 2.0 * r, y2 - r]], 0.7);
     dl.circle([x + 14.0, y2], 3.0, Some(0.6));
     dl.ink(CONTEXT_INK);
-    dl.line(vec![[x + 22.0, y2 - 2.5], [x + 22.0, y2], [x + 34.0, y2], [x + 34.0, y2 - 2.5]], 0.5);
+    dl.line(
+        vec![
+            [x + 22.0, y2 - 2.5],
+            [x + 22.0, y2],
+            [x + 34.0, y2],
+            [x + 34.0, y2 - 2.5],
+        ],
+        0.5,
+    );
     dl.line(vec![[x + 40.0, y2 + 0.5], [x + 44.0, y2 - 2.5]], 1.25);
     dl.ink(Ink::Black);
     dl.text(
@@ -839,7 +869,13 @@ fn legend<M: Mechanism>(
             page.circuit.name()
         ),
     );
-    let sx = m + 2.0 + font::text_width(ts, "crank turns counter-clockwise, θ from O2→O4;  crossed circuit;  linkage drawn at θ = 0°") + 16.0;
+    let sx = m
+        + 2.0
+        + font::text_width(
+            ts,
+            "crank turns counter-clockwise, θ from O2→O4;  crossed circuit;  linkage drawn at θ = 0°",
+        )
+        + 16.0;
     scale_bar(
         dl,
         sx,
@@ -1010,5 +1046,4 @@ mod tests {
         // 1 bold θ = 0 dash + the others as strokes or dots.
         assert_eq!(1 + strokes + dots, 36, "strokes {strokes}, dots {dots}");
     }
-
 }

@@ -103,10 +103,7 @@ fn place_all(
     let mut failed = 0;
     for i in order {
         let tw = font::text_width(size, &texts[i]);
-        let (hw, hh) = (
-            0.5 * tw + LABEL_PAD,
-            0.5 * (asc + desc) + LABEL_PAD,
-        );
+        let (hw, hh) = (0.5 * tw + LABEL_PAD, 0.5 * (asc + desc) + LABEL_PAD);
         let p = dots[i];
         let mut best: Option<(f64, [f64; 4])> = None;
         let mut fallback: Option<(f64, [f64; 4])> = None;

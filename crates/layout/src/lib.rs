@@ -14,18 +14,18 @@ mod font;
 mod labels;
 mod page;
 
-pub use classic::{
-    BRACKETED_TOLERANCE, ClassicGeometry, ClassicPage, Leg, compute_classic, layout_classic,
-};
-pub use font::{
-    FONT_BYTES, FONT_FAMILY, OutlineCmd, PlacedGlyph, ascent, descent, embedded_font, px_scale,
-    shape_line, text_outline, text_width,
-};
 pub use atlas::{
     CurvePlacement, DRAWN_CRANK_ANGLE_DEG, Inset, LinkagePage, MU_WARNING_DEG, PageGeometry,
     PageLayout, compute_page, fmt_sig, is_pin_point, layout_page,
 };
+pub use classic::{
+    BRACKETED_TOLERANCE, ClassicGeometry, ClassicPage, Leg, compute_classic, layout_classic,
+};
 pub use contents::{ContentsEntry, ContentsPage, layout_contents};
+pub use font::{
+    FONT_BYTES, FONT_FAMILY, OutlineCmd, PlacedGlyph, ascent, descent, embedded_font, px_scale,
+    shape_line, text_outline, text_width,
+};
 pub use labels::{own_dot_is_nearest, rect_distance};
 pub use page::{
     Anchor, DEFAULT_CHORD_TOLERANCE_PX, DEFAULT_CURVES_PER_PAGE, DEFAULT_DPI, DEFAULT_MARGIN_PT,

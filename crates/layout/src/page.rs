@@ -11,8 +11,7 @@
 //! Everything is fitted to the frame: a curve is never cut.
 
 use crate::font;
-use coupler_kinematics::{
-    DashError, DashPattern, Drawing};
+use coupler_kinematics::{DashError, DashPattern, Drawing};
 
 /// Points per inch.
 pub const PT_PER_INCH: f64 = 72.0;
@@ -569,7 +568,10 @@ pub(crate) fn fit_transform(
     nice: &[f64],
 ) -> (WorldToPage, [f64; 4]) {
     let frame = frame_of(setup);
-    (fit_into(world, inset_rect(frame, style::FRAME_PAD), nice), frame)
+    (
+        fit_into(world, inset_rect(frame, style::FRAME_PAD), nice),
+        frame,
+    )
 }
 
 /// `r` shrunk by `d` on every side.
@@ -775,7 +777,8 @@ pub(crate) fn draw_dashes(
     let mut heavy: Vec<Vec<PagePoint>> = Vec::new();
     for (k, (d, pts)) in dashes.iter().zip(pts).enumerate() {
         let is_bold = bold == Some(k);
-        let is_heavy = !is_bold && st.heavy > st.width && is_quarter_dash(d.index - index0, step_deg);
+        let is_heavy =
+            !is_bold && st.heavy > st.width && is_quarter_dash(d.index - index0, step_deg);
         let len: f64 = pts
             .windows(2)
             .map(|s| libm::hypot(s[1][0] - s[0][0], s[1][1] - s[0][1]))
@@ -883,6 +886,17 @@ pub(crate) fn draw_links(
     drawing: &Drawing,
     segments: &mut Vec<(PagePoint, PagePoint)>,
 ) -> Vec<(PagePoint, &'static str)> {
+    draw_links_width(dl, t, drawing, segments, style::LINK_WIDTH)
+}
+
+/// [`draw_links`] with links `width` wide (a ghost of the linkage: thin).
+pub(crate) fn draw_links_width(
+    dl: &mut DisplayList,
+    t: &WorldToPage,
+    drawing: &Drawing,
+    segments: &mut Vec<(PagePoint, PagePoint)>,
+    width: f64,
+) -> Vec<(PagePoint, &'static str)> {
     let pins: Vec<(PagePoint, &'static str)> = drawing
         .joints
         .iter()
@@ -896,7 +910,7 @@ pub(crate) fn draw_links(
             let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
             let a2 = [a[0] + u[0] * r, a[1] + u[1] * r];
             let b2 = [b[0] - u[0] * r, b[1] - u[1] * r];
-            dl.line(vec![a2, b2], style::LINK_WIDTH);
+            dl.line(vec![a2, b2], width);
             segments.push((a2, b2));
         }
     };
@@ -1107,5 +1121,4 @@ mod tests {
         );
         assert_eq!(clip_segment([-5.0, -5.0], [-1.0, 20.0], r), None);
     }
-
 }

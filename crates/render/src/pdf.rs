@@ -12,8 +12,8 @@
 use super::{Canvas, anchored_x};
 use coupler_layout::{self as font, Anchor, Ink, PagePoint};
 use pdf_writer::types::{
-    BlendMode, CidFontType, FontFlags, LineCapStyle, LineJoinStyle, NumberingStyle,
-    SystemInfo, TextRenderingMode, AnnotationType, ActionType,
+    ActionType, AnnotationType, BlendMode, CidFontType, FontFlags, LineCapStyle, LineJoinStyle,
+    NumberingStyle, SystemInfo, TextRenderingMode,
 };
 use pdf_writer::writers::PageLabel;
 use pdf_writer::{Content, Filter, Finish, Name, Pdf, Rect, Ref, Str, TextStr};
@@ -303,7 +303,10 @@ pub fn write_pdf(
     pdf.set_version(1, 7);
     pdf.document_info(info)
         .title(TextStr(title))
-        .producer(TextStr(concat!("coupler-atlas ", env!("CARGO_PKG_VERSION"))));
+        .producer(TextStr(concat!(
+            "coupler-atlas ",
+            env!("CARGO_PKG_VERSION")
+        )));
 
     {
         let mut cat = pdf.catalog(catalog);

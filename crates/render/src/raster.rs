@@ -16,6 +16,19 @@ pub struct RasterPage {
     dpi: f64,
     font: FontRef<'static>,
     ink: Ink,
+    /// Gray ink of one level is rasterised into its own coverage layer and composited
+    /// into the page when the level changes, before paper is drawn, and when the page is
+    /// read: grays overprint black in any order, so black can be drawn meanwhile. Made
+    /// on the first gray.
+    gray: Option<GrayLayer>,
+}
+
+/// A coverage layer for one gray level, with the pixel box drawn into since the last
+/// flush.
+struct GrayLayer {
+    mask: Mask,
+    level: u8,
+    dirty: Option<[usize; 4]>,
 }
 
 impl RasterPage {
@@ -27,6 +40,7 @@ impl RasterPage {
             dpi,
             font: font::embedded_font(),
             ink: Ink::Black,
+            gray: None,
         })
     }
 
@@ -47,19 +61,52 @@ impl RasterPage {
 
     /// Erases all ink (and sets the ink back to black).
     pub fn clear(&mut self) {
+        self.flush_gray();
         self.mask.data_mut().fill(0);
         self.ink = Ink::Black;
     }
 
-    /// The ink coverage, row-major.
-    pub fn ink(&self) -> &[u8] {
+    /// The ink coverage, row-major (grays composited in).
+    pub fn ink(&mut self) -> &[u8] {
+        self.flush_gray();
         self.mask.data()
+    }
+
+    /// Composites the gray layer into the page and clears it.
+    fn flush_gray(&mut self) {
+        let Some(layer) = self.gray.as_mut() else {
+            return;
+        };
+        let Some([x0, y0, x1, y1]) = layer.dirty.take() else {
+            return;
+        };
+        let stride = self.mask.width() as usize;
+        let ink = Ink::Gray(layer.level);
+        let src = layer.mask.data_mut();
+        let dst = self.mask.data_mut();
+        for j in y0..y1 {
+            let row = j * stride;
+            let (d_row, s_row) = (&mut dst[row + x0..row + x1], &mut src[row + x0..row + x1]);
+            // Most of the layer is empty: skip it eight bytes at a time.
+            for (d8, s8) in d_row.chunks_mut(8).zip(s_row.chunks_mut(8)) {
+                if s8.len() == 8 && u64::from_ne_bytes(s8[..8].try_into().unwrap_or([1; 8])) == 0 {
+                    continue;
+                }
+                for (d, s) in d8.iter_mut().zip(s8.iter_mut()) {
+                    if *s != 0 {
+                        *d = composite(*d, *s, ink);
+                        *s = 0;
+                    }
+                }
+            }
+        }
     }
 
     /// Writes the page as an 8-bit grayscale PNG (paper white, ink black). The buffer is
     /// turned into gray levels in place on the way (one pass, no copy), which finishes the
     /// page: call [`RasterPage::clear`] before drawing the next one.
     pub fn finish_png(&mut self, out: impl Write) -> Result<(), png::EncodingError> {
+        self.flush_gray();
         let (w, h, dpi) = (self.width(), self.height(), self.dpi);
         let data = self.mask.data_mut();
         invert(data);
@@ -67,7 +114,7 @@ impl RasterPage {
     }
 
     /// The page as 8-bit gray levels (255 = paper), a new buffer.
-    pub fn to_gray(&self) -> Vec<u8> {
+    pub fn to_gray(&mut self) -> Vec<u8> {
         let mut v = self.ink().to_vec();
         invert(&mut v);
         v
@@ -101,6 +148,9 @@ impl RasterPage {
             (y1.ceil() as usize).min(self.height() as usize),
         );
         let ink_of = self.ink;
+        if ink_of == Ink::Paper {
+            self.flush_gray();
+        }
         let data = self.mask.data_mut();
         for j in j0..j1 {
             let cy = cover(y0, y1, j);
@@ -120,11 +170,49 @@ impl RasterPage {
     fn fill(&mut self, path: &tiny_skia::Path) {
         match self.ink {
             // All-black ink composites straight into the page's coverage.
-            Ink::Black => {
-                self.mask
-                    .fill_path(path, FillRule::Winding, true, Transform::identity())
+            Ink::Black => self
+                .mask
+                .fill_path(path, FillRule::Winding, true, Transform::identity()),
+            Ink::Gray(level) => {
+                if self.gray.as_ref().is_some_and(|g| g.level != level) {
+                    self.flush_gray();
+                }
+                let (w, h) = (self.width(), self.height());
+                let layer = match &mut self.gray {
+                    Some(layer) => layer,
+                    None => self.gray.insert(GrayLayer {
+                        mask: Mask::new(w, h).expect("same size as the page"),
+                        level,
+                        dirty: None,
+                    }),
+                };
+                layer.level = level;
+                layer
+                    .mask
+                    .fill_path(path, FillRule::Winding, true, Transform::identity());
+                let b = path.bounds();
+                let clampx = |v: f32| (v.max(0.0) as usize).min(w as usize);
+                let clampy = |v: f32| (v.max(0.0) as usize).min(h as usize);
+                let r = [
+                    clampx(b.left().floor() - 1.0),
+                    clampy(b.top().floor() - 1.0),
+                    clampx(b.right().ceil() + 1.0),
+                    clampy(b.bottom().ceil() + 1.0),
+                ];
+                layer.dirty = Some(match layer.dirty {
+                    None => r,
+                    Some(d) => [
+                        d[0].min(r[0]),
+                        d[1].min(r[1]),
+                        d[2].max(r[2]),
+                        d[3].max(r[3]),
+                    ],
+                });
             }
-            ink => self.fill_with(path, ink),
+            Ink::Paper => {
+                self.flush_gray();
+                self.fill_with(path, Ink::Paper)
+            }
         }
     }
 
@@ -340,6 +428,7 @@ impl Canvas for RasterPage {
                     ..Stroke::default()
                 };
                 if let Some(outline) = path.stroke(&stroke, 1.0) {
+                    self.flush_gray();
                     self.fill_with(&outline, Ink::Paper);
                 }
             }

@@ -4,8 +4,8 @@
 //! the font installed.
 
 use super::{Canvas, anchored_x, num};
-use coupler_layout::{self as font, Anchor, Ink, PagePoint};
 use crate::svg_font::FONT_CSS_FAMILY;
+use coupler_layout::{self as font, Anchor, Ink, PagePoint};
 use std::fmt::Write;
 
 /// An SVG document being built (page points as user units; the size in `pt`).
