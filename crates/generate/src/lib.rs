@@ -33,7 +33,7 @@ pub use job::{
 };
 pub use measure::{machine, median, thread_cpu_seconds};
 pub use pages::{
-    BufferPool, PageError, PageOptions, PageRenderer, PageTimings, RenderedPage, render_classic,
-    render_contents, render_page,
+    BufferPool, PageError, PageJob, PageOptions, PageRenderer, PageTimings, RenderedPage,
+    render_classic, render_contents, render_page,
 };
 pub use run::{CHUNK_GROUPS, RunReport, merge, run, run_key};

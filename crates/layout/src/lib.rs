@@ -20,6 +20,7 @@ pub use atlas::{
 };
 pub use classic::{
     BRACKETED_TOLERANCE, ClassicGeometry, ClassicPage, Leg, compute_classic, layout_classic,
+    mirror_branch, run_velocity_variation,
 };
 pub use contents::{ContentsEntry, ContentsPage, layout_contents};
 pub use font::{

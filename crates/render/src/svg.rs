@@ -15,8 +15,8 @@ pub struct SvgPage {
     height: f64,
     /// The current ink as an SVG colour.
     color: String,
-    /// Glyphs used by the text (for the embedded font subset).
-    glyphs: std::collections::BTreeSet<u16>,
+    /// Characters used by the text (for the embedded font subset).
+    glyphs: std::collections::BTreeSet<char>,
 }
 
 fn xml_escape(s: &str) -> String {
@@ -165,7 +165,7 @@ impl Canvas for SvgPage {
         let f = font::embedded_font();
         let (glyphs, width) = font::shape_line(&f, size, text);
         let x = anchored_x(pos[0], width, anchor);
-        self.glyphs.extend(glyphs.iter().map(|g| g.id.0));
+        self.glyphs.extend(text.chars());
         let xs: Vec<String> = glyphs.iter().map(|g| num(x + g.x)).collect();
         let halo = if halo > 0.0 {
             format!(
