@@ -4,9 +4,7 @@
 //! their dash pattern where they start; the atlas PDF carries real, extractable text.
 
 use coupler_atlas::generate::{Job, PageJob, PageOptions, PageTimings, compute_group};
-use coupler_atlas::layout::{
-    ClassicPage, PT_PER_INCH, compute_classic, rect_distance,
-};
+use coupler_atlas::layout::{ClassicPage, PT_PER_INCH, compute_classic, rect_distance};
 use coupler_atlas::spec::{DEFAULT_SPEC_TEXT, Spec};
 use coupler_atlas::{ClassicCurve, CrankTable, CurveList, Mechanism};
 use rayon::prelude::*;
@@ -106,7 +104,10 @@ fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
     let labels: usize = results.iter().map(|r| r.1).sum();
     let bad: Vec<&String> = results.iter().flat_map(|r| &r.2).collect();
     assert_eq!(pages as u64, job.pages());
-    assert!(pages >= 700 && labels >= 7000, "{pages} pages, {labels} labels");
+    assert!(
+        pages >= 700 && labels >= 7000,
+        "{pages} pages, {labels} labels"
+    );
     assert!(
         bad.is_empty(),
         "{} problems, first: {:?}",
@@ -205,9 +206,15 @@ fn object(pdf: &[u8], id: u32) -> &[u8] {
 /// The first `N 0 R` after `key` in `dict`.
 fn reference(dict: &[u8], key: &str) -> u32 {
     let at = find(dict, key.as_bytes(), 0).unwrap_or_else(|| panic!("{key}")) + key.len();
-    let text = std::str::from_utf8(&dict[at..]).unwrap_or_default();
-    let text = text.trim_start().trim_start_matches('[').trim_start();
-    text.split_whitespace().next().unwrap().parse().unwrap()
+    let digits: String = dict[at..]
+        .iter()
+        .skip_while(|b| b.is_ascii_whitespace() || **b == b'[')
+        .take_while(|b| b.is_ascii_digit())
+        .map(|&b| char::from(b))
+        .collect();
+    digits
+        .parse()
+        .unwrap_or_else(|_| panic!("no reference after {key}"))
 }
 
 /// The bytes of the stream of an object, inflated when it says FlateDecode.

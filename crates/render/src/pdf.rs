@@ -465,8 +465,6 @@ pub fn write_pdf(
     }
     let cmap = cmap.finish();
     pdf.cmap(to_unicode, cmap.as_slice());
-    pdf.catalog(catalog).finish();
-    let _ = catalog;
     Ok(pdf.finish())
 }
 

@@ -128,7 +128,10 @@ pub(crate) fn subset_font(font: &[u8], chars: &BTreeSet<char>) -> Option<Vec<u8>
             return None;
         }
         let (a, b) = if long_loca {
-            (u32_at(loca, 4 * g)? as usize, u32_at(loca, 4 * g + 4)? as usize)
+            (
+                u32_at(loca, 4 * g)? as usize,
+                u32_at(loca, 4 * g + 4)? as usize,
+            )
         } else {
             (
                 2 * u16_at(loca, 2 * g)? as usize,
