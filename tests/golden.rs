@@ -27,7 +27,7 @@ const GOLDEN_PAGES: [&str; 4] = [
     "hartenberg-denavit-0001.png",
     "hartenberg-denavit-0005.png",
     "hartenberg-denavit-0010.png",
-    "hartenberg-denavit-contents-1.png",
+    "hartenberg-denavit-0000-contents-001.png",
 ];
 
 fn root() -> PathBuf {

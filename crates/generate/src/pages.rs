@@ -31,7 +31,7 @@ pub struct PageOptions {
     /// Formats to write (one file per page per format).
     pub formats: Vec<PageFormat>,
     /// File name stem (the spec's name): pages are `STEM-0001.png`, contents
-    /// `STEM-contents-1.png`.
+    /// `STEM-0000-contents-001.png` (so that they come first in file order).
     pub stem: String,
 }
 
@@ -79,7 +79,7 @@ impl PageOptions {
     /// that the contents come first in file order.
     pub fn contents_file(&self, number: usize, format: PageFormat) -> String {
         format!(
-            "{}-0000-contents-{}.{}",
+            "{}-0000-contents-{:03}.{}",
             self.stem,
             number,
             format.extension()

@@ -29,6 +29,9 @@ use coupler_kinematics::{
 /// the page sits on the start (θ = 0 dot) of its own curve.
 pub const DRAWN_CRANK_ANGLE_DEG: f64 = 0.0;
 
+/// Labels farther than this from their dot (points) get a leader.
+const LEADER_MIN_GAP: f64 = 7.0;
+
 /// Transmission angle below which the header carries a warning, degrees.
 pub const MU_WARNING_DEG: f64 = 30.0;
 
@@ -715,6 +718,19 @@ pub fn layout_page<M: Mechanism>(
         } else {
             Ink::Black
         });
+        // A label set off from its dot (to keep clear of other curves) gets a hairline
+        // leader from just outside the dot to the box.
+        let d = dots[i];
+        let near = [d[0].clamp(r[0], r[2]), d[1].clamp(r[1], r[3])];
+        let gap = libm::hypot(near[0] - d[0], near[1] - d[1]);
+        if gap > LEADER_MIN_GAP {
+            let u = [(near[0] - d[0]) / gap, (near[1] - d[1]) / gap];
+            let from = style::START_DOT_RADIUS + 1.0;
+            dl.line(
+                vec![[d[0] + u[0] * from, d[1] + u[1] * from], near],
+                style::THIN,
+            );
+        }
         dl.text_halo(
             [r[0] + LABEL_PAD, r[1] + LABEL_PAD + asc],
             style::LABEL_SIZE,

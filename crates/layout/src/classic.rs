@@ -552,7 +552,8 @@ pub fn layout_classic(
     for (a, b) in &segments {
         occ.mark_segment(*a, *b, 2);
     }
-    let mut taken: Vec<[f64; 4]> = Vec::new();
+    // The inset box is taken: neither the measures nor a bracket label may cover it.
+    let mut taken: Vec<[f64; 4]> = geometry.inset.iter().map(|i| i.rect).collect();
     dl.ink(GHOST);
     taken.extend(pivot_labels(&mut dl, pins));
     dl.ink(Ink::Black);

@@ -46,6 +46,12 @@ pub(crate) struct LabelPlacement {
 /// Padding between a label's text and its box edge, points.
 pub(crate) const LABEL_PAD: f64 = 0.8;
 
+/// Gaps tried between a dot and the near side of its label box, points (nearest first).
+const LABEL_GAPS: [f64; 9] = [1.5, 3.0, 5.0, 8.0, 12.0, 16.0, 22.0, 30.0, 40.0];
+
+/// Directions tried around a dot (evenly spaced).
+const LABEL_DIRECTIONS: usize = 24;
+
 /// Places labels for `dots` (the θ = 0 dots, page points): `full[i]` if every label fits
 /// by the rule, else `numbers[i]` for all. `taken` are boxes labels must not cover (pivot
 /// names, the inset, the key), `frame` the area they must stay in, `occ` the ink.
@@ -107,9 +113,9 @@ fn place_all(
         let p = dots[i];
         let mut best: Option<(f64, [f64; 4])> = None;
         let mut fallback: Option<(f64, [f64; 4])> = None;
-        for (gi, gap) in [1.5, 3.0, 5.0, 8.0, 12.0].into_iter().enumerate() {
-            for k in 0..16 {
-                let phi = std::f64::consts::TAU * k as f64 / 16.0;
+        for (gi, gap) in LABEL_GAPS.into_iter().enumerate() {
+            for k in 0..LABEL_DIRECTIONS {
+                let phi = std::f64::consts::TAU * k as f64 / LABEL_DIRECTIONS as f64;
                 let (s, c) = (libm::sin(phi), libm::cos(phi));
                 // Centre so that the box's near side is `gap` from the dot along (c, s).
                 let t = gap + (hw * c.abs()).max(hh * s.abs()).min(hw.hypot(hh));

@@ -321,6 +321,12 @@ impl PageSetup {
         self.dpi / PT_PER_INCH
     }
 
+    /// The frame (the plot area, inside the margins, below the header and above the
+    /// footer) in points: `[x0, y0, x1, y1]`.
+    pub fn frame_pt(&self) -> [f64; 4] {
+        frame_of(self)
+    }
+
     /// Raster size in pixels (rounded).
     pub fn size_px(&self) -> (u32, u32) {
         let (w, h) = self.size_pt();
