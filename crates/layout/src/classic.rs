@@ -150,9 +150,8 @@ pub fn compute_classic(
         }
     }
     if let Some(pose) = drawn_pose(page, drawn) {
-        for q in [pose.crank_pin] {
-            world = union(world, [q.x, q.y, q.x, q.y]);
-        }
+        let q = pose.crank_pin;
+        world = union(world, [q.x, q.y, q.x, q.y]);
     }
     if !curve_world[0].is_finite() {
         curve_world = world;

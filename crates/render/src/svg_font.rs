@@ -80,10 +80,7 @@ fn components(glyph: &[u8]) -> Vec<(usize, u16)> {
         return out;
     }
     let mut o = 10;
-    loop {
-        let (Some(flags), Some(id)) = (u16_at(glyph, o), u16_at(glyph, o + 2)) else {
-            break;
-        };
+    while let (Some(flags), Some(id)) = (u16_at(glyph, o), u16_at(glyph, o + 2)) {
         out.push((o + 2, id));
         o += 4 + if flags & 0x0001 != 0 { 4 } else { 2 };
         if flags & 0x0008 != 0 {
@@ -258,7 +255,7 @@ pub(crate) fn subset_font(font: &[u8], chars: &BTreeSet<char>) -> Option<Vec<u8>
         (*b"name", t.get(b"name")?.to_vec()),
         (*b"post", new_post),
     ];
-    out_tables.sort_by(|a, b| a.0.cmp(&b.0));
+    out_tables.sort_by_key(|t| t.0);
     let nt = out_tables.len() as u16;
     let entry = 15 - nt.leading_zeros() as u16;
     let search = 16 * (1u16 << entry);
