@@ -399,6 +399,22 @@ fn the_atlas_pdf_has_extractable_text_links_and_an_outline() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let pdf = std::fs::read(out.join("pages/quick.pdf")).unwrap();
     assert!(pdf.starts_with(b"%PDF-"));
+    // Byte-deterministic for any --jobs.
+    let one = std::env::temp_dir().join(format!("coupler-atlas-pdf1-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&one);
+    let o = Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+        .args(["generate", "atlas-spec/quick.toml", "--out"])
+        .arg(&one)
+        .args(["--format", "pdf", "--quiet", "--jobs", "1"])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::read(one.join("pages/quick.pdf")).unwrap() == pdf,
+        "the PDF differs between --jobs 1 and all cores"
+    );
+    let _ = std::fs::remove_dir_all(&one);
     // quick.toml: 6 linkages × 2 circuits, one page each, after the contents pages.
     let count = page_count(&pdf);
     let contents = (0..count)
