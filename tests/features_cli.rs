@@ -295,3 +295,60 @@ fn dwell_double_arcs_designs_or_refuses() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("opposite branches"), "{err}");
 }
+
+/// `curve --window` shows its measures in every format (they were dropped silently from
+/// `table` and `csv`): the same ε_S, ε_V and radius as the JSON.
+#[test]
+fn curve_window_measures_in_every_format() {
+    let args = [
+        "curve",
+        "--coupler",
+        "3",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "3.5",
+        "--point",
+        "3,0",
+        "--window",
+        "300:420",
+    ];
+    let j = run_json(&args);
+    let w = &j["window"];
+    let run = |format: &str| {
+        let out = bin()
+            .args(args)
+            .args(["--format", format])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let csv = run("csv");
+    let block: Vec<&str> = csv
+        .split("\n\n")
+        .nth(1)
+        .expect("a window block")
+        .lines()
+        .collect();
+    let keys: Vec<&str> = block[0].split(',').collect();
+    let values: Vec<&str> = block[1].split(',').collect();
+    let get = |k: &str| values[keys.iter().position(|&x| x == k).unwrap()];
+    assert_eq!(
+        get("arc_radius").parse::<f64>().unwrap(),
+        w["arc_radius"].as_f64().unwrap()
+    );
+    assert_eq!(
+        get("extent").parse::<f64>().unwrap(),
+        w["extent"].as_f64().unwrap()
+    );
+    assert_eq!(get("window_start_deg"), "300");
+    let table = run("table");
+    let r = w["arc_radius"].as_f64().unwrap();
+    assert!(table.contains("# window 300°..420°"), "{table}");
+    assert!(table.contains(&format!("radius {r:.6}")), "{table}");
+}

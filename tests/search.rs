@@ -72,16 +72,25 @@ fn satisfies(c: &IndexCurve, q: &Query) -> bool {
     let seg_ok = |s: &coupler_atlas::StraightSegment| {
         q.straight
             .is_none_or(|p| s.span_deg >= p.min_span_deg && s.straightness_pct <= p.max_error_pct)
+            && q.max_velocity_variation_pct
+                .is_none_or(|m| s.velocity_variation_pct <= m)
     };
     let arc_ok = |a: &coupler_atlas::PseudoArc| {
         q.arc
             .is_none_or(|p| a.span_deg >= p.min_span_deg && a.deviation_pct <= p.max_error_pct)
+            && q.radius
+                .is_none_or(|[lo, hi]| lo <= a.radius && a.radius <= hi)
+            && q.min_turn_deg.is_none_or(|m| a.turn_deg >= m)
     };
     let segs: Vec<_> = f.straight_segments.iter().filter(|s| seg_ok(s)).collect();
     let arcs: Vec<_> = f.pseudo_arcs.iter().filter(|a| arc_ok(a)).collect();
     let mut ok = true;
-    ok &= q.straight.is_none() || !segs.is_empty();
-    ok &= q.arc.is_none() || !arcs.is_empty();
+    let want_straight = q.straight.is_some() || q.max_velocity_variation_pct.is_some();
+    let want_arc = q.arc.is_some() || q.radius.is_some() || q.min_turn_deg.is_some();
+    ok &= !want_straight || !segs.is_empty();
+    ok &= !want_arc || !arcs.is_empty();
+    // The index's own flag: curves of a pin are left out unless asked for.
+    ok &= q.include_trivial || f.trivial.is_none();
     if q.double_dwell {
         let pair = arcs.iter().enumerate().any(|(i, a)| {
             arcs[i + 1..].iter().any(|b| {
@@ -136,9 +145,28 @@ fn query() -> impl Strategy<Value = Query> {
             Just(Some([3.0, 2.5, 3.0]))
         ],
         prop_oneof![Just(None), Just(Some(Class::Gcrr))],
+        (
+            any::<bool>(),
+            prop_oneof![
+                Just(None),
+                (0.0..5.0f64, 0.0..20.0f64).prop_map(|(a, w)| Some([a, a + w]))
+            ],
+            prop_oneof![Just(None), (0.0..60.0f64).prop_map(Some)],
+            prop_oneof![Just(None), (0.0..20.0f64).prop_map(Some)],
+        ),
     )
         .prop_map(
-            |(straight, arc, double_dwell, mt, circuit, symmetric, linkage, class)| Query {
+            |(
+                straight,
+                arc,
+                double_dwell,
+                mt,
+                circuit,
+                symmetric,
+                linkage,
+                class,
+                (include_trivial, radius, min_turn_deg, max_ev),
+            )| Query {
                 straight,
                 arc,
                 double_dwell,
@@ -148,6 +176,10 @@ fn query() -> impl Strategy<Value = Query> {
                 linkage,
                 circuit,
                 symmetric,
+                include_trivial,
+                radius,
+                min_turn_deg,
+                max_velocity_variation_pct: max_ev,
                 sort: SortKey::Id,
                 limit: 0,
             },
@@ -198,7 +230,9 @@ fn hoeken_is_found_by_straight() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let hits: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let hits = j["hits"].as_array().unwrap();
+    assert_eq!(j["total"].as_u64().unwrap() as usize, hits.len());
     let hoeken = hits.iter().find(|h| {
         h["linkage"] == serde_json::json!({"coupler": 2.5, "rocker": 2.5, "ground": 2.0})
             && h["point"] == serde_json::json!({"u": 5.0, "v": 0.0})
@@ -254,4 +288,148 @@ fn dwell_from_an_indexed_arc() {
         }
     }
     assert!(designed >= 3, "only {designed} designs");
+}
+
+/// Trivial curves (the crank pin's circle, the rocker pin's arc) are perfect arcs, so an
+/// arc search sorted by deviation used to list them all first. They are left out unless
+/// `--include-trivial`; the total of matches is in the JSON and on stderr.
+#[test]
+fn trivial_curves_are_left_out_unless_asked() {
+    let (index, curves, _) = atlas();
+    let run = |extra: &[&str]| -> serde_json::Value {
+        let out = bin()
+            .args([
+                "search",
+                index.to_str().unwrap(),
+                "--arc",
+                "60:0.5",
+                "--sort",
+            ])
+            .args(["deviation", "--format", "json", "--limit", "5"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(
+            err.contains(&format!("5 of {} matching curve(s) shown", j["total"])),
+            "{err}"
+        );
+        j
+    };
+    let pin = |h: &serde_json::Value| {
+        let (u, v) = (
+            h["point"]["u"].as_f64().unwrap(),
+            h["point"]["v"].as_f64().unwrap(),
+        );
+        v == 0.0 && (u == 0.0 || u == h["linkage"]["coupler"].as_f64().unwrap())
+    };
+    let pins = curves
+        .iter()
+        .filter(|c| c.features.as_ref().unwrap().trivial.is_some())
+        .count();
+    let mut groups: Vec<String> = curves
+        .iter()
+        .map(|c| format!("{:?} {}", c.linkage, c.circuit))
+        .collect();
+    groups.dedup();
+    assert_eq!(
+        pins,
+        2 * groups.len(),
+        "a crank pin and a rocker pin per group"
+    );
+    let without = run(&[]);
+    let with = run(&["--include-trivial"]);
+    assert!(without["hits"].as_array().unwrap().iter().all(|h| !pin(h)));
+    // With them, the exact circles and arcs come first.
+    assert!(with["hits"].as_array().unwrap().iter().all(pin));
+    assert!(with["total"].as_u64().unwrap() > without["total"].as_u64().unwrap());
+}
+
+/// A tolerance tighter than the index's extraction tolerance is answered without
+/// regenerating (candidates re-measured at query time), and the answer equals that of an
+/// atlas generated at the tighter tolerance: `quick.toml` at the default 0.5 % against a
+/// copy extracted at 0.2 %.
+#[test]
+fn tighter_tolerance_equals_regenerating() {
+    let dir = std::env::temp_dir().join(format!("coupler-atlas-refine-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let quick = std::fs::read_to_string(
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("atlas-spec/quick.toml"),
+    )
+    .unwrap();
+    let tight = dir.join("tight.toml");
+    std::fs::write(
+        &tight,
+        format!("{quick}\n[features]\nstraight_pct = 0.2\narc_pct = 0.2\n"),
+    )
+    .unwrap();
+    let generate = |spec: &std::path::Path, out: &str| {
+        let out = dir.join(out);
+        let st = bin()
+            .arg("generate")
+            .arg(spec)
+            .arg("--out")
+            .arg(&out)
+            .args(["--no-pages", "-q"])
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        out
+    };
+    let loose = generate(
+        &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("atlas-spec/quick.toml"),
+        "loose",
+    );
+    let tight = generate(&tight, "tight");
+    let search = |atlas: &std::path::Path, q: &[&str]| -> (serde_json::Value, String) {
+        let out = bin()
+            .arg("search")
+            .arg(atlas)
+            .args(q)
+            .args(["--format", "json", "--limit", "0", "--include-trivial"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (
+            serde_json::from_slice(&out.stdout).unwrap(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let mut nonempty = 0;
+    for q in [
+        &["--straight", "30:0.2"][..],
+        &["--arc", "60:0.2"],
+        &["--arc", "40:0.1", "--sort", "deviation"],
+        &[
+            "--straight",
+            "30:0.15",
+            "--arc",
+            "30:0.2",
+            "--sort",
+            "straight",
+        ],
+    ] {
+        let (a, note) = search(&loose, q);
+        let (b, _) = search(&tight, q);
+        assert!(note.contains("refined"), "{q:?}: {note}");
+        assert_eq!(a, b, "{q:?}");
+        nonempty += (a["total"].as_u64().unwrap() > 0) as usize;
+    }
+    assert!(nonempty >= 3, "the queries must find something");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -173,6 +173,35 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     f(s.transmission_deg)
                 )?;
             }
+            if let Some(m) = &window {
+                // A second block after an empty line: the window's measures.
+                let o = |x: Option<f64>| x.map(|x| x.to_string()).unwrap_or_default();
+                let c = m.arc_center;
+                writeln!(w)?;
+                writeln!(
+                    w,
+                    "window_start_deg,window_end_deg,step_deg,samples,line,direction_deg,extent,straightness_pct,velocity_variation_pct,monotone,mean_speed,arc_center_x,arc_center_y,arc_radius,arc_deviation_pct"
+                )?;
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                    m.start_deg,
+                    m.end_deg,
+                    m.step_deg,
+                    m.samples,
+                    m.line,
+                    m.direction_deg,
+                    m.extent,
+                    o(m.straightness_pct),
+                    o(m.velocity_variation_pct),
+                    m.monotone,
+                    m.mean_speed,
+                    o(c.map(|c| c[0])),
+                    o(c.map(|c| c[1])),
+                    o(m.arc_radius),
+                    o(m.arc_deviation_pct)
+                )?;
+            }
         }
         _ => {
             writeln!(
@@ -204,6 +233,42 @@ pub fn run(args: Args) -> Result<ExitCode> {
                     f(s.vy, 6),
                     f(s.transmission_deg, 2)
                 )?;
+            }
+            if let Some(m) = &window {
+                let pct = |x: Option<f64>| match x {
+                    None => "-".to_string(),
+                    Some(x) if x != 0.0 && x.abs() < 0.01 => format!("{x:.4e} %"),
+                    Some(x) => format!("{x:.4} %"),
+                };
+                writeln!(
+                    w,
+                    "# window {}°..{}° every {}° ({} samples), {} line at {:.4}°: Δx {:.6}, ε_S {}, ε_V {}, {}, mean speed {:.6}",
+                    m.start_deg,
+                    m.end_deg,
+                    m.step_deg,
+                    m.samples,
+                    m.line,
+                    m.direction_deg,
+                    m.extent,
+                    pct(m.straightness_pct),
+                    pct(m.velocity_variation_pct),
+                    if m.monotone {
+                        "moves one way along it"
+                    } else {
+                        "does not move one way along it"
+                    },
+                    m.mean_speed
+                )?;
+                match (m.arc_center, m.arc_radius) {
+                    (Some(c), Some(r)) => writeln!(
+                        w,
+                        "# window circle: centre ({:.6}, {:.6}), radius {r:.6}, deviation {}",
+                        c[0],
+                        c[1],
+                        pct(m.arc_deviation_pct)
+                    )?,
+                    _ => writeln!(w, "# window circle: none (the samples are collinear)")?,
+                }
             }
         }
     }

@@ -1,9 +1,12 @@
-//! `coupler-atlas search INDEX [filters] [--sort] [--limit] [--format table|json]`
+//! `coupler-atlas search INDEX [filters] [--sort] [--limit] [--format table|json|csv]`
 
 use super::UsageError;
 use anyhow::Result;
-use coupler_atlas::{Circuit, LinkageClass};
-use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Query, SearchTable, SortKey, SpanFilter};
+use coupler_atlas::{
+    ArcRow, Circuit, CouplerPoint, CrankTable, DashPattern, FeatureTolerances, FourBar,
+    LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments,
+};
+use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -11,7 +14,7 @@ use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The index to search (index.json of a generated atlas).
+    /// The index to search: an atlas folder or its index.json.
     index: PathBuf,
     /// A straight segment of at least SPAN crank degrees, straightness ε_S at most TOL %.
     #[arg(long, value_name = "SPAN[:TOL]")]
@@ -41,18 +44,50 @@ pub struct Args {
     /// Symmetric curves only.
     #[arg(long)]
     symmetric: bool,
-    /// Order: id, straight, straightness, arc, deviation, transmission.
+    /// Also list curves of coupler points at a pin (the crank pin's circle, the rocker
+    /// pin's arc), left out by default.
+    #[arg(long)]
+    include_trivial: bool,
+    /// Arcs of radius from MIN to MAX (crank units); implies an arc.
+    #[arg(long, value_name = "MIN:MAX", value_parser = parse_range)]
+    radius: Option<[f64; 2]>,
+    /// Arcs turning at least DEG about their centre; implies an arc.
+    #[arg(long, value_name = "DEG", value_parser = parse_nonnegative)]
+    min_turn: Option<f64>,
+    /// Straight segments with velocity variation ε_V at most PCT %; implies a segment.
+    #[arg(long, value_name = "PCT", value_parser = parse_nonnegative)]
+    max_ev: Option<f64>,
+    /// Order: id, straight, straightness, arc, deviation, transmission, turn, radius, velocity.
     #[arg(long, default_value = "id")]
     sort: SortKey,
     /// At most N hits (0: all).
     #[arg(long, default_value_t = 20)]
     limit: usize,
     /// Output format.
-    #[arg(long, default_value = "table", value_parser = ["table", "json"])]
+    #[arg(long, default_value = "table", value_parser = ["table", "json", "csv"])]
     format: String,
     /// Do not read or write the search cache (INDEX.search).
     #[arg(long)]
     no_cache: bool,
+}
+
+fn parse_nonnegative(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        _ => Err(format!("expected a finite number ≥ 0, got `{s}`")),
+    }
+}
+
+fn parse_range(s: &str) -> Result<[f64; 2], String> {
+    let (a, b) = s
+        .split_once(':')
+        .ok_or_else(|| format!("expected MIN:MAX, got `{s}`"))?;
+    let (a, b) = (parse_nonnegative(a)?, parse_nonnegative(b)?);
+    if a <= b {
+        Ok([a, b])
+    } else {
+        Err(format!("MIN must not exceed MAX, got `{s}`"))
+    }
 }
 
 fn parse_min_transmission(s: &str) -> Result<f64, String> {
@@ -72,9 +107,40 @@ fn parse_min_transmission(s: &str) -> Result<f64, String> {
 /// The search table of `index` (from its cache when it matches): a usage error when the
 /// index cannot be read or is not an index.
 pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
+    let index = resolve_index(index)?;
     let (table, source) =
-        coupler_atlas::load_table(index, use_cache).map_err(|e| UsageError(e.to_string()))?;
+        coupler_atlas::load_table(&index, use_cache).map_err(|e| UsageError(e.to_string()))?;
     Ok((table, source.name()))
+}
+
+/// An atlas folder stands for its `index.json`; the other JSON files of an atlas are
+/// refused with a hint naming the index (they would read as an empty index).
+fn resolve_index(path: &Path) -> Result<PathBuf, UsageError> {
+    if path.is_dir() {
+        let index = path.join("index.json");
+        return if index.is_file() {
+            Ok(index)
+        } else {
+            Err(UsageError(format!(
+                "{}: an atlas folder holds index.json, and this one has none (was it generated with `generate`?)",
+                path.display()
+            )))
+        };
+    }
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    let sibling = path.with_file_name("index.json");
+    match name {
+        "manifest.json" => Err(UsageError(format!(
+            "{}: this is the atlas's manifest (file list and checksums), not its index: search {} (or the folder)",
+            path.display(),
+            sibling.display()
+        ))),
+        "curves.json" => Err(UsageError(format!(
+            "{}: this is a page set's measures (curves.json), which search does not read; search an atlas's index.json (or its folder)",
+            path.display()
+        ))),
+        _ => Ok(path.to_path_buf()),
+    }
 }
 
 /// A feature as JSON with `"index"`: its 1-based position in the curve's list (what
@@ -125,99 +191,462 @@ pub fn run(args: Args) -> Result<ExitCode> {
             .transpose()
             .map_err(UsageError)?,
         symmetric: args.symmetric,
+        include_trivial: args.include_trivial,
+        radius: args.radius,
+        min_turn_deg: args.min_turn,
+        max_velocity_variation_pct: args.max_ev,
         sort: args.sort,
         limit: args.limit,
     };
     let t0 = Instant::now();
     let (table, source) = load(&args.index, !args.no_cache)?;
     let t1 = Instant::now();
-    let hits = table.search(&query);
+    let extracted = extraction_tolerances(&resolve_index(&args.index)?);
+    let curves = table.rows.len();
+    let tight = extracted.and_then(|t| tighter(&query, &t));
+    let refined;
+    let table = match tight {
+        Some(t) => {
+            let (r, n) = refine(&table, &query, &t)?;
+            eprintln!(
+                "refined: the query is tighter than the index's extraction tolerance (straight {} %, arc {} %), so its {n} candidate curve(s) were re-measured at straight {} %, arc {} % in {:.3} s",
+                extracted.map_or(f64::NAN, |e| e.straight_pct),
+                extracted.map_or(f64::NAN, |e| e.arc_pct),
+                t.straight_pct,
+                t.arc_pct,
+                t1.elapsed().as_secs_f64()
+            );
+            refined = r;
+            &refined
+        }
+        None => &table,
+    };
+    if let Some(e) = extracted {
+        for (flag, f, stored) in [
+            ("--straight", query.straight, e.straight_pct),
+            ("--arc", query.arc, e.arc_pct),
+        ] {
+            if let Some(f) = f.filter(|f| f.max_error_pct > stored && f.max_error_pct.is_finite()) {
+                eprintln!(
+                    "note: {flag} tolerance {} % is looser than the index's extraction tolerance {stored} %: its features are the maximal windows within {stored} %, so a longer window within {} % is not found; generate with a looser [features] tolerance for that",
+                    f.max_error_pct, f.max_error_pct
+                );
+            }
+        }
+    }
+    let (hits, total) = table.search_counted(&query);
     let t2 = Instant::now();
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
-    if args.format == "json" {
-        writeln!(w, "[")?;
-        for (n, h) in hits.iter().enumerate() {
-            let r = &table.rows[h.row];
-            let mut o = serde_json::json!({
-                "id": r.id,
-                "linkage": {"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]},
-                "point": {"u": r.point[0], "v": r.point[1]},
-                "circuit": r.circuit,
-                "class": r.class,
-                "transmission_deg": r.transmission_deg,
-                "straight_segments": h.straight.iter().map(|&k| numbered(&table.segments[k], k - r.seg_start as usize + 1)).collect::<Vec<_>>(),
-                "pseudo_arcs": h.arcs.iter().map(|&k| numbered(&table.arcs[k], k - r.arc_start as usize + 1)).collect::<Vec<_>>(),
-            });
-            if r.page != u32::MAX {
-                o["page"] = serde_json::json!({"file": table.pages[r.page as usize], "bbox_px": r.page_bbox});
-            }
-            let sep = if n + 1 < hits.len() { "," } else { "" };
-            writeln!(w, "{}{sep}", serde_json::to_string(&o)?)?;
-        }
-        writeln!(w, "]")?;
-    } else {
-        writeln!(
-            w,
-            "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9}  matches / page",
-            "id", "A", "B", "C", "u", "v", "circuit", "mu min"
-        )?;
-        for h in &hits {
-            let r = &table.rows[h.row];
-            let mut m: Vec<String> = h
-                .straight
-                .iter()
-                .map(|&k| {
-                    let s = &table.segments[k];
-                    format!(
-                        "line#{} {}°+{}° ε_S {:.3}%",
-                        k - r.seg_start as usize + 1,
-                        s.start_deg,
-                        s.span_deg,
-                        s.straightness_pct
-                    )
-                })
-                .collect();
-            m.extend(h.arcs.iter().map(|&k| {
-                let a = &table.arcs[k];
-                format!(
-                    "arc#{} {}°+{}° R {:.3} dev {:.3}%",
-                    k - r.arc_start as usize + 1,
-                    a.start_deg,
-                    a.span_deg,
-                    a.radius,
-                    a.deviation_pct
-                )
-            }));
-            if r.page != u32::MAX {
-                let b = r.page_bbox;
-                m.push(format!(
-                    "page {} at ({:.0},{:.0})-({:.0},{:.0}) px",
-                    table.pages[r.page as usize], b[0], b[1], b[2], b[3]
-                ));
-            }
-            writeln!(
-                w,
-                "{:>8} {:>6} {:>6} {:>6} {:>7} {:>7} {:>7} {:>9.2}  {}",
-                r.id,
-                r.linkage[0],
-                r.linkage[1],
-                r.linkage[2],
-                r.point[0],
-                r.point[1],
-                r.circuit.name(),
-                r.transmission_deg[0],
-                m.join("; ")
-            )?;
-        }
+    match args.format.as_str() {
+        "json" => write_json(&mut w, table, &hits, total, curves)?,
+        "csv" => write_csv(&mut w, table, &hits)?,
+        _ => write_table(&mut w, table, &hits)?,
     }
     w.flush()?;
     eprintln!(
-        "{} hit(s) of {} curves; load {:.3} s (from {source}), search {:.3} s",
+        "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s",
         hits.len(),
-        table.rows.len(),
+        curves,
+        if hits.len() < total {
+            "; --limit 0 shows all"
+        } else {
+            ""
+        },
         (t1 - t0).as_secs_f64(),
         (t2 - t1).as_secs_f64()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// One matching feature of a hit, as the table and CSV print it.
+struct FeatureCells {
+    /// `line#K` or `arc#K`.
+    name: String,
+    start_deg: f64,
+    span_deg: f64,
+    /// ε_S or the radial deviation, percent.
+    error_pct: f64,
+    radius: Option<f64>,
+    turn_deg: Option<f64>,
+    velocity_variation_pct: Option<f64>,
+}
+
+fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
+    let r = &table.rows[h.row];
+    let mut out: Vec<FeatureCells> = h
+        .straight
+        .iter()
+        .map(|&k| {
+            let s = &table.segments[k];
+            FeatureCells {
+                name: format!("line#{}", k - r.seg_start as usize + 1),
+                start_deg: s.start_deg,
+                span_deg: s.span_deg,
+                error_pct: s.straightness_pct,
+                radius: None,
+                turn_deg: None,
+                velocity_variation_pct: Some(s.velocity_variation_pct),
+            }
+        })
+        .collect();
+    out.extend(h.arcs.iter().map(|&k| {
+        let a = &table.arcs[k];
+        FeatureCells {
+            name: format!("arc#{}", k - r.arc_start as usize + 1),
+            start_deg: a.start_deg,
+            span_deg: a.span_deg,
+            error_pct: a.deviation_pct,
+            radius: Some(a.radius),
+            turn_deg: Some(a.turn_deg),
+            velocity_variation_pct: None,
+        }
+    }));
+    out
+}
+
+/// The page's number (the digits before the extension) and the centre of the curve's box.
+fn page_spot(table: &SearchTable, r: &coupler_atlas::CurveRow) -> Option<(String, [f64; 2])> {
+    let file = table.pages.get(r.page as usize)?;
+    let stem = file.rsplit_once('.').map_or(file.as_str(), |(a, _)| a);
+    let digits: String = stem
+        .chars()
+        .rev()
+        .take_while(|c| c.is_ascii_digit())
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect();
+    let page = digits
+        .trim_start_matches('0')
+        .parse::<u64>()
+        .map_or_else(|_| file.clone(), |n| n.to_string());
+    let b = r.page_bbox;
+    Some((page, [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])]))
+}
+
+/// Fixed columns, ≤ 120 characters: one line per matching feature (the curve's columns on
+/// its first), page number and the centre of the curve's box on it in pixels.
+fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
+    writeln!(
+        w,
+        "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} spot px",
+        "id",
+        "A",
+        "B",
+        "C",
+        "u",
+        "v",
+        "circ",
+        "μmin",
+        "feat",
+        "start",
+        "span",
+        "err%",
+        "R",
+        "turn",
+        "εV%",
+        "page",
+    )?;
+    let opt = |x: Option<f64>, p: usize| x.map_or(String::from("-"), |x| format!("{x:.p$}"));
+    for h in hits {
+        let r = &table.rows[h.row];
+        let cells = feature_cells(table, h);
+        let (page, spot) = match page_spot(table, r) {
+            Some((p, c)) => (p, format!("{:.0},{:.0}", c[0], c[1])),
+            None => ("-".into(), "-".into()),
+        };
+        let circ = if r.circuit == Circuit::Open {
+            "open"
+        } else {
+            "crsd"
+        };
+        let head = format!(
+            "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5.1}",
+            r.id,
+            r.linkage[0],
+            r.linkage[1],
+            r.linkage[2],
+            r.point[0],
+            r.point[1],
+            circ,
+            r.transmission_deg[0]
+        );
+        if cells.is_empty() {
+            writeln!(
+                w,
+                "{head}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {page:>5} {spot}",
+                "-", "-", "-", "-", "-", "-", "-"
+            )?;
+        }
+        for (n, c) in cells.iter().enumerate() {
+            let lead = if n == 0 {
+                head.clone()
+            } else {
+                " ".repeat(head.chars().count())
+            };
+            writeln!(
+                w,
+                "{lead}  {:<6} {:>7.1} {:>6.1} {:>6.3} {:>7} {:>5} {:>6}  {page:>5} {spot}",
+                c.name,
+                c.start_deg,
+                c.span_deg,
+                c.error_pct,
+                opt(c.radius, 3),
+                opt(c.turn_deg, 0),
+                opt(c.velocity_variation_pct, 1),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// One line per matching feature (a curve without one: a line with empty feature
+/// columns); RFC 4180 (no field needs quoting but the page file, which is quoted).
+fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
+    writeln!(
+        w,
+        "id,coupler,rocker,ground,u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,page,page_x_px,page_y_px"
+    )?;
+    let opt = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
+    for h in hits {
+        let r = &table.rows[h.row];
+        let head = format!(
+            "{},{},{},{},{},{},{},{},{},{}",
+            r.id,
+            r.linkage[0],
+            r.linkage[1],
+            r.linkage[2],
+            r.point[0],
+            r.point[1],
+            r.circuit.name(),
+            r.class.code(),
+            r.transmission_deg[0],
+            r.transmission_deg[1]
+        );
+        let page = match table.pages.get(r.page as usize) {
+            Some(f) => {
+                let b = r.page_bbox;
+                format!(
+                    "\"{}\",{},{}",
+                    f.replace('"', "\"\""),
+                    0.5 * (b[0] + b[2]),
+                    0.5 * (b[1] + b[3])
+                )
+            }
+            None => ",,".into(),
+        };
+        let cells = feature_cells(table, h);
+        if cells.is_empty() {
+            writeln!(w, "{head},,,,,,,,{page}")?;
+        }
+        for c in &cells {
+            writeln!(
+                w,
+                "{head},{},{},{},{},{},{},{},{page}",
+                c.name,
+                c.start_deg,
+                c.span_deg,
+                c.error_pct,
+                opt(c.radius),
+                opt(c.turn_deg),
+                opt(c.velocity_variation_pct)
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// `{"total", "shown", "curves", "hits": [...]}`: `total` curves matched, the first
+/// `shown` of them (by the sort) are in `hits`.
+fn write_json(
+    w: &mut impl Write,
+    table: &SearchTable,
+    hits: &[Hit],
+    total: usize,
+    curves: usize,
+) -> Result<()> {
+    writeln!(
+        w,
+        "{{\"total\":{total},\"shown\":{},\"curves\":{curves},\"hits\":[",
+        hits.len()
+    )?;
+    for (n, h) in hits.iter().enumerate() {
+        let r = &table.rows[h.row];
+        let mut o = serde_json::json!({
+            "id": r.id,
+            "linkage": {"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]},
+            "point": {"u": r.point[0], "v": r.point[1]},
+            "circuit": r.circuit,
+            "class": r.class,
+            "transmission_deg": r.transmission_deg,
+            "straight_segments": h.straight.iter().map(|&k| numbered(&table.segments[k], k - r.seg_start as usize + 1)).collect::<Vec<_>>(),
+            "pseudo_arcs": h.arcs.iter().map(|&k| numbered(&table.arcs[k], k - r.arc_start as usize + 1)).collect::<Vec<_>>(),
+        });
+        if r.page != u32::MAX {
+            o["page"] =
+                serde_json::json!({"file": table.pages[r.page as usize], "bbox_px": r.page_bbox});
+        }
+        let sep = if n + 1 < hits.len() { "," } else { "" };
+        writeln!(w, "{}{sep}", serde_json::to_string(&o)?)?;
+    }
+    writeln!(w, "]}}")?;
+    Ok(())
+}
+
+/// The feature tolerances the index was extracted with (its header's `spec.features`),
+/// or `None` if the header does not say (features off, or not readable).
+fn extraction_tolerances(index: &Path) -> Option<FeatureTolerances> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(index).ok()?;
+    let mut lines = std::io::BufReader::new(file).lines();
+    lines.next()?.ok()?;
+    let spec = lines.next()?.ok()?;
+    let spec = spec.trim_end().strip_suffix(',').unwrap_or(spec.trim_end());
+    let v: serde_json::Value = serde_json::from_str(&format!("{{{spec}}}")).ok()?;
+    let f = v.get("spec")?.get("features")?;
+    if f.get("enabled").and_then(|e| e.as_bool()) == Some(false) {
+        return None;
+    }
+    let num = |k: &str| f.get(k).and_then(|x| x.as_f64());
+    Some(FeatureTolerances {
+        step_deg: num("step_deg")?,
+        straight_pct: num("straight_pct")?,
+        straight_min_span_deg: num("straight_min_span_deg")?,
+        arc_pct: num("arc_pct")?,
+        arc_min_span_deg: num("arc_min_span_deg")?,
+        arc_min_turn_deg: num("arc_min_turn_deg")?,
+        cusp_speed_ratio: num("cusp_speed_ratio")?,
+        symmetry_tol: num("symmetry_tol")?,
+    })
+}
+
+/// Whether the query tightens the straight and the arc tolerance below `t`'s extraction
+/// (`t` being what [`tighter`] returned).
+fn remeasured(t: &FeatureTolerances, q: &Query) -> (bool, bool) {
+    (
+        q.straight
+            .is_some_and(|f| f.max_error_pct <= t.straight_pct),
+        q.arc.is_some_and(|f| f.max_error_pct <= t.arc_pct),
+    )
+}
+
+/// The tolerances to re-measure at when the query's `--straight` or `--arc` TOL is
+/// tighter than the extraction's, else `None`.
+fn tighter(q: &Query, e: &FeatureTolerances) -> Option<FeatureTolerances> {
+    let straight = q
+        .straight
+        .map_or(e.straight_pct, |f| f.max_error_pct.min(e.straight_pct));
+    let arc = q.arc.map_or(e.arc_pct, |f| f.max_error_pct.min(e.arc_pct));
+    (straight < e.straight_pct || arc < e.arc_pct).then_some(FeatureTolerances {
+        straight_pct: straight,
+        arc_pct: arc,
+        ..*e
+    })
+}
+
+/// Exact answers below the extraction tolerance without regenerating. A window within a
+/// tighter tolerance is also within the extraction's, so (the listed windows being
+/// maximal, `docs/features.md`) it shares a step with a listed window at least as long:
+/// only curves with a listed segment (arc) of at least the query's span can match. Those
+/// candidates are re-measured at the tighter tolerances (the same extraction `generate`
+/// runs, so the answer equals that of an atlas generated at them) into a table of their
+/// own, which the query then runs on. Returns that table and the number of candidates.
+fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(SearchTable, usize)> {
+    let relax = |f: Option<SpanFilter>| {
+        f.map(|f| SpanFilter {
+            max_error_pct: f64::INFINITY,
+            ..f
+        })
+    };
+    // Candidates: every filter but the features' errors and measures (which change).
+    let candidates = Query {
+        straight: relax(q.straight),
+        arc: relax(q.arc),
+        double_dwell: false,
+        radius: None,
+        min_turn_deg: None,
+        max_velocity_variation_pct: None,
+        sort: SortKey::Id,
+        limit: 0,
+        ..q.clone()
+    };
+    let rows: Vec<usize> = table.search(&candidates).iter().map(|h| h.row).collect();
+    let dash = DashPattern::default();
+    let crank = CrankTable::new(t.step_deg)
+        .ok_or_else(|| anyhow::anyhow!("the index's feature step {} is not valid", t.step_deg))?;
+    let redo = remeasured(t, q);
+    // Only what the query tightens is re-measured; the rest is the index's own (the same
+    // extraction at the same tolerance).
+    let measure = |i: usize| -> Result<(Vec<SegmentRow>, Vec<ArcRow>)> {
+        let r = &table.rows[i];
+        let l = FourBar::new(r.linkage[0], r.linkage[1], r.linkage[2])
+            .map_err(|e| anyhow::anyhow!("curve {}: {e}", r.id))?;
+        let curve = l
+            .pose_table(r.circuit, &crank)
+            .trace(CouplerPoint::new(r.point[0], r.point[1]));
+        let segments = if redo.0 {
+            straight_segments(&curve, t, &dash)
+                .iter()
+                .map(|s| SegmentRow {
+                    start_deg: s.start_deg,
+                    span_deg: s.span_deg,
+                    straightness_pct: s.straightness_pct,
+                    velocity_variation_pct: s.velocity_variation_pct,
+                    length: s.length,
+                    direction_deg: s.direction_deg,
+                })
+                .collect()
+        } else {
+            table.segments_of(r).to_vec()
+        };
+        let arcs = if redo.1 {
+            pseudo_arcs(&curve, t, &dash)
+                .iter()
+                .map(|a| ArcRow {
+                    start_deg: a.start_deg,
+                    span_deg: a.span_deg,
+                    radius: a.radius,
+                    deviation_pct: a.deviation_pct,
+                    center: a.center,
+                    concave: a.concave,
+                    turn_deg: a.turn_deg,
+                })
+                .collect()
+        } else {
+            table.arcs_of(r).to_vec()
+        };
+        Ok((segments, arcs))
+    };
+    // In parallel, in order: one chunk of rows per thread.
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunk = rows.len().div_ceil(threads).max(1);
+    let measured: Vec<(Vec<SegmentRow>, Vec<ArcRow>)> = std::thread::scope(|s| {
+        let handles: Vec<_> = rows
+            .chunks(chunk)
+            .map(|c| s.spawn(|| c.iter().map(|&i| measure(i)).collect::<Result<Vec<_>>>()))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect::<Result<Vec<Vec<_>>>>()
+    })?
+    .into_iter()
+    .flatten()
+    .collect();
+    let mut out = SearchTable {
+        pages: table.pages.clone(),
+        ..SearchTable::default()
+    };
+    for (&i, (segments, arcs)) in rows.iter().zip(measured) {
+        let mut r = table.rows[i];
+        r.seg_start = out.segments.len() as u32;
+        r.seg_count = segments.len() as u32;
+        r.arc_start = out.arcs.len() as u32;
+        r.arc_count = arcs.len() as u32;
+        out.segments.extend(segments);
+        out.arcs.extend(arcs);
+        out.rows.push(r);
+    }
+    Ok((out, rows.len()))
 }

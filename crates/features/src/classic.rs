@@ -80,9 +80,10 @@ pub struct ClassicCurve {
 impl ClassicCurve {
     /// Traces `c` at input steps of `step_deg` across its toggles
     /// ([`coupler_kinematics::trace_full`]) and measures its longest straight run at each
-    /// tolerance: the longest run of consecutive samples on one branch that moves one
-    /// way along its total-least-squares line with ε_S ≤ the tolerance (Norton §3.8),
-    /// the longest by input travel across branches.
+    /// tolerance: the run of consecutive samples on one branch that moves one way along
+    /// its total-least-squares line with ε_S ≤ the tolerance (Norton §3.8) and travels
+    /// the farthest in input angle, over every run of every branch
+    /// ([`crate::longest_straight_run`]; ties: the smaller ε_S, then the earlier branch).
     pub fn compute(c: &NamedCurve, step_deg: f64) -> ClassicCurve {
         let full = trace_full(&c.linkage, c.point, step_deg);
         let branches: Vec<Branch> = match c.trace {
@@ -99,7 +100,8 @@ impl ClassicCurve {
                 let mut best: Option<StraightMeasure> = None;
                 for (bi, b) in branches.iter().enumerate() {
                     let pts = b.points();
-                    let Some(run) = longest_straight_run(&pts, t) else {
+                    let input: Vec<f64> = b.samples.iter().map(|s| s.degrees).collect();
+                    let Some(run) = longest_straight_run(&pts, &input, t) else {
                         continue;
                     };
                     let seg = &b.samples[run.start..run.start + run.len];
@@ -107,7 +109,11 @@ impl ClassicCurve {
                         .windows(2)
                         .map(|w| (w[1].degrees - w[0].degrees).abs())
                         .sum();
-                    if best.is_none_or(|m| span > m.input_span_deg) {
+                    let better = best.is_none_or(|m| {
+                        span > m.input_span_deg
+                            || (span == m.input_span_deg && run.straightness < m.straightness)
+                    });
+                    if better {
                         let (first, last) = (seg[0], seg[seg.len() - 1]);
                         best = Some(StraightMeasure {
                             tolerance: t,

@@ -8,9 +8,11 @@
 //!
 //! Extraction works on the curve sampled every [`FeatureTolerances::step_deg`] (5° by
 //! default) and refines with the closed-form pose where a sampled answer is not enough
-//! (crossings, cusps, symmetry). Windows grow by a two-pointer sweep over the periodic
-//! samples (each start's window extends while it stays within tolerance), so the cost is
-//! O(n·w) per curve (n samples, w the longest window), not O(n³).
+//! (crossings, cusps, symmetry). Straight segments and pseudo-arcs are the *maximal*
+//! qualifying windows of the samples: every window is considered (a cheap O(1) filter
+//! from sliding fit sums, then an exact test, longest first), so no qualifying window is
+//! longer than, or disjoint from, the ones reported (`docs/features.md`, "Maximal
+//! windows: the contract").
 //! Definitions and defaults: `docs/features.md`.
 
 mod arcs;
@@ -19,6 +21,7 @@ mod double_points;
 mod dwell;
 mod fit;
 mod flags;
+mod maximal;
 mod run;
 mod straight;
 mod symmetry;
@@ -213,7 +216,8 @@ pub struct DoublePoints {
 /// An axis of mirror symmetry of the curve.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Symmetry {
-    /// A point of the axis (the curve's arc-length centroid).
+    /// A point of the axis: O2 or O4 where theory gives the axis, else the curve's
+    /// arc-length centroid.
     pub point: [f64; 2],
     /// The axis direction, degrees in [0, 180).
     pub direction_deg: f64,
@@ -236,6 +240,38 @@ pub struct CurveFeatures {
     /// The two other four-bars tracing the same curve (Roberts–Chebyshev;
     /// [`Mechanism::cognates`]).
     pub cognates: Vec<Cognate>,
+    /// Set when the coupler point is a pin of the mechanism, whose curve is a circle or
+    /// an arc a designer gets for free ([`Trivial`]); search leaves such curves out unless
+    /// asked. Absent otherwise (and in indexes written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trivial: Option<Trivial>,
+}
+
+/// A coupler point whose curve is trivial: it coincides with a pin of the mechanism.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Trivial {
+    /// The crank pin Pa (u = v = 0): the crank circle.
+    CrankPin,
+    /// The pin at the far end of the coupler link (u = A, v = 0: the rocker pin Pb of a
+    /// four-bar): an arc about the output link's ground pivot.
+    RockerPin,
+}
+
+impl Trivial {
+    /// Which pin `point` is, to 1e-12 relative to the coupler link (`coupler_length`).
+    pub fn of(point: CouplerPoint, coupler_length: f64) -> Option<Trivial> {
+        let eps = 1e-12 * coupler_length.max(1.0);
+        if point.v.abs() > eps {
+            None
+        } else if point.u.abs() <= eps {
+            Some(Trivial::CrankPin)
+        } else if (point.u - coupler_length).abs() <= eps {
+            Some(Trivial::RockerPin)
+        } else {
+            None
+        }
+    }
 }
 
 /// Extracts features of every coupler point of one mechanism and circuit, sharing one
@@ -288,6 +324,7 @@ impl<M: Mechanism> FeatureExtractor<M> {
             },
             symmetry: symmetry(l, c, point, curve, t),
             cognates: cogs,
+            trivial: Trivial::of(point, l.coupler_length()),
         }
     }
 }
@@ -297,85 +334,9 @@ pub(crate) fn dash_count(span_deg: f64, dash: &DashPattern) -> u32 {
     (span_deg / dash.step_deg + 1e-9).floor().max(0.0) as u32
 }
 
-/// Picks non-overlapping windows greedily, longest first (ties: smaller error, then
-/// earlier start), from candidate windows `[start, end, error]` (sample indices, `end`
-/// may pass `n`: periodic); windows may share an end sample. Returns the chosen windows
-/// sorted by start.
-pub(crate) fn pick_disjoint(
-    n: usize,
-    mut candidates: Vec<(usize, usize, f64)>,
-) -> Vec<(usize, usize)> {
-    candidates.sort_by(|a, b| {
-        (b.1 - b.0)
-            .cmp(&(a.1 - a.0))
-            .then(a.2.total_cmp(&b.2))
-            .then(a.0.cmp(&b.0))
-    });
-    let mut used = vec![false; n]; // edge k joins samples k and k+1 (mod n)
-    let mut chosen = Vec::new();
-    for (s, e, _) in candidates {
-        if (s..e).any(|k| used[k % n]) {
-            continue;
-        }
-        for k in s..e {
-            used[k % n] = true;
-        }
-        chosen.push((s, e));
-    }
-    chosen.sort();
-    chosen
-}
-
-/// For each start index `i` of a periodic sequence of `n` samples, the largest `j ≥ i`
-/// (`j − i < n`) such that every window grown one sample at a time from `[i, i + min − 1]`
-/// passes `ok`: a two-pointer sweep (the end never moves back), so `ok` runs O(n) times.
-/// `ok(i, j)` gets the window's first and last (unwrapped) indices. A start whose first
-/// window of `min` samples fails gets `j = i`.
-pub(crate) fn grow_windows(
-    n: usize,
-    min: usize,
-    mut ok: impl FnMut(usize, usize) -> bool,
-) -> Vec<usize> {
-    let mut best = vec![0; n];
-    let mut j = 0usize;
-    for (i, b) in best.iter_mut().enumerate() {
-        if j < i + min - 1 {
-            j = i + min - 1;
-            if j - i >= n || !ok(i, j) {
-                *b = i;
-                j = i;
-                continue;
-            }
-        }
-        while j + 1 - i < n && ok(i, j + 1) {
-            j += 1;
-        }
-        *b = j;
-    }
-    best
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn greedy_pick_and_growth() {
-        let chosen = pick_disjoint(10, vec![(0, 4, 0.0), (2, 9, 0.0), (8, 12, 0.0)]);
-        assert_eq!(chosen, vec![(2, 9)]);
-        let chosen = pick_disjoint(
-            10,
-            vec![(1, 5, 0.2), (0, 4, 0.1), (4, 9, 0.0), (9, 10, 0.0)],
-        );
-        assert_eq!(chosen, vec![(0, 4), (4, 9), (9, 10)]);
-        assert_eq!(
-            pick_disjoint(10, vec![(1, 5, 0.1), (0, 4, 0.2)]),
-            vec![(1, 5)]
-        );
-        // ok when the window stays within 0..=5 (no wrap)
-        let best = grow_windows(10, 2, |_, j| j <= 5);
-        assert_eq!(&best[..7], &[5, 5, 5, 5, 5, 5, 6]);
-    }
 
     #[test]
     fn defaults_validate() {

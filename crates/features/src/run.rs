@@ -1,7 +1,9 @@
 //! The longest straight run of an open sequence of samples (one branch of a full curve):
-//! Norton's ε_S against the total-least-squares line, grown sample by sample. The classic
-//! straight-line pages measure their runs with it (see [`crate::ClassicCurve`]).
+//! the straight segments' contract and search ([`crate::straight`]) on positions only, the
+//! run moving one way along its fitted line step by step, longest by input travel. The
+//! classic straight-line pages measure their runs with it (see [`crate::ClassicCurve`]).
 
+use crate::straight::Track;
 use nalgebra::Point2;
 
 /// A straight run found on a sampled polyline.
@@ -17,84 +19,67 @@ pub struct StraightRun {
     pub extent: f64,
 }
 
+fn columns(points: &[Point2<f64>]) -> (Vec<f64>, Vec<f64>) {
+    points.iter().map(|p| (p.x, p.y)).unzip()
+}
+
 /// Norton's ε_S with the line fitted by total least squares (the principal axis of the
-/// points): Cx along it, Cy across; `ε_S = (max Cy − min Cy)/(max Cx − min Cx)`. Also
-/// returns Δx and whether Cx moves one way (monotone) along the samples.
+/// points, [`crate::LineSums`]): Cx along it, Cy across; `ε_S = (max Cy − min Cy)/(max Cx
+/// − min Cx)`. Also returns Δx and whether the points move one way along the line (every
+/// step that moves at all has ΔCx > 0, the line oriented from the first point towards the
+/// last). `None` for fewer than three points or Δx = 0.
 pub fn straightness_fitted(points: &[Point2<f64>]) -> Option<(f64, f64, bool)> {
     if points.len() < 3 {
         return None;
     }
-    let n = points.len() as f64;
-    let (mx, my) = points
-        .iter()
-        .fold((0.0, 0.0), |(a, b), p| (a + p.x / n, b + p.y / n));
-    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
-    for p in points {
-        let (x, y) = (p.x - mx, p.y - my);
-        sxx += x * x;
-        syy += y * y;
-        sxy += x * y;
-    }
-    let phi = 0.5 * libm::atan2(2.0 * sxy, sxx - syy);
-    let (s, c) = (libm::sin(phi), libm::cos(phi));
-    let (mut x0, mut x1, mut y0, mut y1) =
-        (f64::INFINITY, -f64::INFINITY, f64::INFINITY, -f64::INFINITY);
-    let mut dir = 0.0f64;
-    let mut monotone = true;
-    let mut prev: Option<f64> = None;
-    for p in points {
-        let (x, y) = (p.x - mx, p.y - my);
-        let (cx, cy) = (c * x + s * y, -s * x + c * y);
-        if let Some(q) = prev {
-            let d = cx - q;
-            if dir == 0.0 {
-                dir = d.signum();
-            } else if d * dir < 0.0 {
-                monotone = false;
-            }
-        }
-        prev = Some(cx);
-        x0 = x0.min(cx);
-        x1 = x1.max(cx);
-        y0 = y0.min(cy);
-        y1 = y1.max(cy);
-    }
-    (x1 > x0).then(|| ((y1 - y0) / (x1 - x0), x1 - x0, monotone))
+    let (x, y) = columns(points);
+    let track = Track {
+        x: &x,
+        y: &y,
+        periodic: false,
+        velocity: None,
+    };
+    let f = track.measure(0, points.len() - 1)?;
+    (f.extent > 0.0).then(|| (f.width / f.extent, f.extent, f.monotone))
 }
 
 /// The longest run of consecutive samples (at least 3) that moves one way along its
-/// fitted line with `ε_S ≤ tolerance`; ties go to the smaller ε_S. For a closed branch
-/// pass the samples once (a run does not wrap).
-pub fn longest_straight_run(points: &[Point2<f64>], tolerance: f64) -> Option<StraightRun> {
-    let mut best: Option<StraightRun> = None;
-    for start in 0..points.len() {
-        let mut len = 3;
-        let mut last: Option<StraightRun> = None;
-        while start + len <= points.len() {
-            match straightness_fitted(&points[start..start + len]) {
-                Some((eps, extent, true)) if eps <= tolerance => {
-                    last = Some(StraightRun {
-                        start,
-                        len,
-                        straightness: eps,
-                        extent,
-                    });
-                    len += 1;
-                }
-                _ => break,
-            }
-        }
-        if let Some(run) = last {
-            let better = match best {
-                None => true,
-                Some(b) => {
-                    run.len > b.len || (run.len == b.len && run.straightness < b.straightness)
-                }
-            };
-            if better {
-                best = Some(run);
-            }
-        }
+/// fitted line with `ε_S ≤ tolerance`, longest by input travel (`input_deg[k]` is the
+/// input angle of sample k; the travel of a run sums |Δ input| over its steps); ties go to
+/// the smaller ε_S, then the earlier start. Every run is considered (ε_S is not monotone
+/// in a run's length), so no qualifying run is longer. For a closed branch pass the
+/// samples once (a run does not wrap).
+pub fn longest_straight_run(
+    points: &[Point2<f64>],
+    input_deg: &[f64],
+    tolerance: f64,
+) -> Option<StraightRun> {
+    if points.len() < 3 || input_deg.len() != points.len() {
+        return None;
     }
-    best
+    let (x, y) = columns(points);
+    let mut travel = vec![0.0; points.len()];
+    let mut h_max: f64 = 0.0;
+    for k in 1..points.len() {
+        let h = (input_deg[k] - input_deg[k - 1]).abs();
+        h_max = h_max.max(h);
+        travel[k] = travel[k - 1] + h;
+    }
+    let track = Track {
+        x: &x,
+        y: &y,
+        periodic: false,
+        velocity: None,
+    };
+    let w = track
+        .maximal(tolerance, |i, j| travel[j] - travel[i], h_max, 0.0, 1)
+        .into_iter()
+        .next()?;
+    let f = track.measure(w.start, w.end)?;
+    Some(StraightRun {
+        start: w.start,
+        len: w.end - w.start + 1,
+        straightness: w.error,
+        extent: f.extent,
+    })
 }

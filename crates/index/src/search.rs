@@ -9,8 +9,8 @@
 //! so a result satisfies its filters exactly as the index's own numbers do.
 
 use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
-use coupler_features::{CurveFeatures, Side};
-use coupler_kinematics::{Circuit, Linkage, LinkageClass};
+use coupler_features::{CurveFeatures, Side, Trivial};
+use coupler_kinematics::{Circuit, Linkage, LinkageClass, Mechanism};
 use serde::Serialize;
 
 /// One straight segment, as searched.
@@ -45,6 +45,8 @@ pub struct ArcRow {
     pub center: [f64; 2],
     /// Concave side.
     pub concave: Side,
+    /// Turn about the centre, degrees.
+    pub turn_deg: f64,
 }
 
 /// One curve, as searched.
@@ -82,6 +84,9 @@ pub struct CurveRow {
     pub cusps: u32,
     /// Whether the index carried features for it.
     pub has_features: bool,
+    /// The coupler point is a pin ([`Trivial`]): decided from the point, so indexes
+    /// written before the index's `trivial` key existed are searched the same way.
+    pub trivial: bool,
 }
 
 /// The searchable form of an index.
@@ -135,6 +140,7 @@ impl SearchTable {
             double_points: Default::default(),
             symmetry: None,
             cognates: Vec::new(),
+            trivial: None,
         };
         let f = c.features.as_ref().unwrap_or(&empty);
         let row = CurveRow {
@@ -156,6 +162,7 @@ impl SearchTable {
             crunodes: f.double_points.crunodes.len() as u32,
             cusps: f.double_points.cusps.len() as u32,
             has_features: c.features.is_some(),
+            trivial: Trivial::of(c.point, c.linkage.coupler_length()).is_some(),
         };
         self.segments
             .extend(f.straight_segments.iter().map(|s| SegmentRow {
@@ -173,6 +180,7 @@ impl SearchTable {
             deviation_pct: a.deviation_pct,
             center: a.center,
             concave: a.concave,
+            turn_deg: a.turn_deg,
         }));
         self.rows.push(row);
     }
@@ -193,7 +201,11 @@ impl SearchTable {
         let io = |e: std::io::Error| SearchError::Header(e.to_string());
         let mut first = String::new();
         reader.read_line(&mut first).map_err(io)?;
-        if !first.starts_with(&format!("{{\"schema_version\":{SCHEMA_VERSION},")) {
+        // An index's header names its generator second; other files of an atlas
+        // (`manifest.json`) share the first key only.
+        if !first.starts_with(&format!(
+            "{{\"schema_version\":{SCHEMA_VERSION},\"generator\":"
+        )) {
             return Err(SearchError::Header(first.chars().take(60).collect()));
         }
         let mut t = SearchTable::default();
@@ -304,6 +316,7 @@ impl SearchTable {
                 class,
                 r.symmetric as u8,
                 r.has_features as u8,
+                r.trivial as u8,
             ]);
         }
         for s in &self.segments {
@@ -326,6 +339,7 @@ impl SearchTable {
                 a.deviation_pct,
                 a.center[0],
                 a.center[1],
+                a.turn_deg,
             ] {
                 f(&mut w, x);
             }
@@ -359,7 +373,7 @@ impl SearchTable {
             for x in &mut k {
                 *x = r.u32()?;
             }
-            let flags = r.take(4)?;
+            let flags = r.take(5)?;
             t.rows.push(CurveRow {
                 id,
                 linkage: [v[0], v[1], v[2]],
@@ -383,6 +397,7 @@ impl SearchTable {
                     .ok_or(SearchError::Cache)?,
                 symmetric: flags[2] == 1,
                 has_features: flags[3] == 1,
+                trivial: flags[4] == 1,
             });
         }
         t.segments.reserve_exact(nsegs);
@@ -402,7 +417,7 @@ impl SearchTable {
         }
         t.arcs.reserve_exact(narcs);
         for _ in 0..narcs {
-            let mut v = [0.0; 6];
+            let mut v = [0.0; 7];
             for x in &mut v {
                 *x = r.f64()?;
             }
@@ -414,6 +429,7 @@ impl SearchTable {
                 deviation_pct: v[3],
                 center: [v[4], v[5]],
                 concave: if side == 1 { Side::Right } else { Side::Left },
+                turn_deg: v[6],
             });
         }
         if r.at != b.len() {
@@ -426,6 +442,11 @@ impl SearchTable {
     /// are computed once per hit; with a limit, only the best `limit` hits are sorted
     /// (partial selection), so a query that matches most of a million curves stays fast.
     pub fn search(&self, q: &Query) -> Vec<Hit> {
+        self.search_counted(q).0
+    }
+
+    /// [`SearchTable::search`], with the number of curves that matched before the limit.
+    pub fn search_counted(&self, q: &Query) -> (Vec<Hit>, usize) {
         let key = |h: &Hit| -> f64 {
             let r = &self.rows[h.row];
             match q.sort {
@@ -451,6 +472,21 @@ impl SearchTable {
                     .map(|&k| self.segments[k].straightness_pct)
                     .fold(f64::INFINITY, f64::min),
                 SortKey::Transmission => -r.transmission_deg[0],
+                SortKey::Turn => -h
+                    .arcs
+                    .iter()
+                    .map(|&k| self.arcs[k].turn_deg)
+                    .fold(0.0, f64::max),
+                SortKey::Radius => h
+                    .arcs
+                    .iter()
+                    .map(|&k| self.arcs[k].radius)
+                    .fold(f64::INFINITY, f64::min),
+                SortKey::Velocity => h
+                    .straight
+                    .iter()
+                    .map(|&k| self.segments[k].velocity_variation_pct)
+                    .fold(f64::INFINITY, f64::min),
             }
         };
         let mut keyed: Vec<(f64, u64, Hit)> = self
@@ -462,16 +498,17 @@ impl SearchTable {
             .collect();
         let order =
             |a: &(f64, u64, Hit), b: &(f64, u64, Hit)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        let total = keyed.len();
         if q.limit > 0 && keyed.len() > q.limit {
             keyed.select_nth_unstable_by(q.limit - 1, order);
             keyed.truncate(q.limit);
         }
         keyed.sort_by(order);
-        keyed.into_iter().map(|(_, _, h)| h).collect()
+        (keyed.into_iter().map(|(_, _, h)| h).collect(), total)
     }
 }
 
-const MAGIC: &[u8] = b"coupler-atlas search v1\n";
+const MAGIC: &[u8] = b"coupler-atlas search v2\n";
 
 struct Reader<'a> {
     b: &'a [u8],
@@ -515,6 +552,12 @@ pub enum SortKey {
     Deviation,
     /// Largest minimum transmission angle first.
     Transmission,
+    /// Largest matching arc turn first.
+    Turn,
+    /// Smallest matching arc radius first.
+    Radius,
+    /// Smallest matching segment ε_V first.
+    Velocity,
 }
 
 impl std::str::FromStr for SortKey {
@@ -527,9 +570,12 @@ impl std::str::FromStr for SortKey {
             "arc" => SortKey::Arc,
             "deviation" => SortKey::Deviation,
             "transmission" => SortKey::Transmission,
+            "turn" => SortKey::Turn,
+            "radius" => SortKey::Radius,
+            "velocity" => SortKey::Velocity,
             _ => {
                 return Err(format!(
-                    "unknown sort key `{s}` (expected id, straight, straightness, arc, deviation, transmission)"
+                    "unknown sort key `{s}` (expected id, straight, straightness, arc, deviation, transmission, turn, radius, velocity)"
                 ));
             }
         })
@@ -593,6 +639,14 @@ pub struct Query {
     pub circuit: Option<Circuit>,
     /// Symmetric curves only.
     pub symmetric: bool,
+    /// Keep curves of coupler points at a pin ([`CurveRow::trivial`]); left out by default.
+    pub include_trivial: bool,
+    /// Matching arcs have a radius in `[min, max]`.
+    pub radius: Option<[f64; 2]>,
+    /// Matching arcs turn at least this many degrees about their centre.
+    pub min_turn_deg: Option<f64>,
+    /// Matching straight segments have ε_V at most this, percent.
+    pub max_velocity_variation_pct: Option<f64>,
     /// Order.
     pub sort: SortKey,
     /// At most this many hits (0: all).
@@ -638,7 +692,13 @@ impl Query {
         if self.symmetric && !r.symmetric {
             return None;
         }
-        let wants_features = self.straight.is_some() || self.arc.is_some() || self.double_dwell;
+        if r.trivial && !self.include_trivial {
+            return None;
+        }
+        // Arc and segment measures filter the arcs or segments; given alone, they ask for one.
+        let want_straight = self.straight.is_some() || self.max_velocity_variation_pct.is_some();
+        let want_arc = self.arc.is_some() || self.radius.is_some() || self.min_turn_deg.is_some();
+        let wants_features = want_straight || want_arc || self.double_dwell;
         if wants_features && !r.has_features {
             return None;
         }
@@ -646,30 +706,37 @@ impl Query {
             Some(f) => span >= f.min_span_deg && err <= f.max_error_pct,
             None => true,
         };
-        let straight: Vec<usize> = if self.straight.is_some() || self.double_dwell {
+        let straight: Vec<usize> = if want_straight || self.double_dwell {
             (r.seg_start as usize..(r.seg_start + r.seg_count) as usize)
                 .filter(|&k| {
-                    pass(
-                        &self.straight,
-                        t.segments[k].span_deg,
-                        t.segments[k].straightness_pct,
-                    )
+                    let s = &t.segments[k];
+                    pass(&self.straight, s.span_deg, s.straightness_pct)
+                        && self
+                            .max_velocity_variation_pct
+                            .is_none_or(|m| s.velocity_variation_pct <= m)
                 })
                 .collect()
         } else {
             Vec::new()
         };
-        let arcs: Vec<usize> = if self.arc.is_some() || self.double_dwell {
+        let arcs: Vec<usize> = if want_arc || self.double_dwell {
             (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
-                .filter(|&k| pass(&self.arc, t.arcs[k].span_deg, t.arcs[k].deviation_pct))
+                .filter(|&k| {
+                    let a = &t.arcs[k];
+                    pass(&self.arc, a.span_deg, a.deviation_pct)
+                        && self
+                            .radius
+                            .is_none_or(|[lo, hi]| lo <= a.radius && a.radius <= hi)
+                        && self.min_turn_deg.is_none_or(|m| a.turn_deg >= m)
+                })
                 .collect()
         } else {
             Vec::new()
         };
-        if self.straight.is_some() && straight.is_empty() {
+        if want_straight && straight.is_empty() {
             return None;
         }
-        if self.arc.is_some() && arcs.is_empty() {
+        if want_arc && arcs.is_empty() {
             return None;
         }
         if self.double_dwell {
@@ -685,7 +752,7 @@ impl Query {
             match (two_lines, pair) {
                 (true, _) => {
                     // Show the arcs that passed --arc if it was given, else the equal pair.
-                    let arcs = if self.arc.is_some() {
+                    let arcs = if want_arc {
                         arcs
                     } else {
                         pair.map(|p| p.to_vec()).unwrap_or_default()

@@ -35,7 +35,7 @@ pub use dd::Dd;
 pub use exact::{Decimal, DecimalError, divides_turn};
 pub use frame::{CouplerFrame, Drawing, Joint};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use mechanism::{Linkage, LinkageClass, Mechanism};
+pub use mechanism::{Linkage, LinkageClass, Mechanism, SymmetryAxis, SymmetryReason};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
 pub use trace::{
     Branch, FullCurve, InputRange, Toggle, ToggleKind, TraceSample, circle_intersections,

@@ -79,6 +79,39 @@ pub trait Mechanism: Clone + fmt::Debug + fmt::Display + Send + Sync {
     fn cognates(&self, _circuit: Circuit, _point: CouplerPoint) -> Vec<Cognate> {
         Vec::new()
     }
+
+    /// An axis of mirror symmetry of the coupler curve of `point` where theory gives it
+    /// exactly: a point on the axis and its direction (radians). `None` when theory says
+    /// nothing (the curve may still be symmetric: features then test reflections).
+    fn symmetry_axis(&self, _circuit: Circuit, _point: CouplerPoint) -> Option<SymmetryAxis> {
+        None
+    }
+}
+
+/// An axis of mirror symmetry given by theory ([`Mechanism::symmetry_axis`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SymmetryAxis {
+    /// A point on the axis.
+    pub point: Point2<f64>,
+    /// Its direction, radians.
+    pub direction: f64,
+    /// Which theorem gives it.
+    pub reason: SymmetryReason,
+}
+
+/// Why a four-bar's coupler curve is symmetric (docs/conventions.md §5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SymmetryReason {
+    /// The crank pin: a circle about O2 (every line through O2 is an axis; the ground
+    /// line is reported).
+    CrankPin,
+    /// The rocker pin: an arc of the circle about O4 swept between the rocker's two
+    /// extreme positions; the axis through O4 bisects them.
+    RockerPin,
+    /// A = B and M on the circle about Pb through Pa ((u − A)² + v² = A²): the axis
+    /// through O4 turned by γ/2 from the ground line, γ the coupler's angle from Pb→Pa
+    /// to Pb→M (Hartenberg & Denavit §6).
+    EqualRockerCircle,
 }
 
 impl Mechanism for FourBar {
@@ -164,6 +197,62 @@ impl Mechanism for FourBar {
         cognates(self, circuit, point)
             .map(|[_, a, b]| vec![a, b])
             .unwrap_or_default()
+    }
+
+    /// The three symmetric families of [`SymmetryReason`], recognised to 1e-12 (relative
+    /// to the links). Positions at θ = 0 fix the signs (which side of the ground the
+    /// rocker swings on, the coupler's sense of turning), so both circuits are covered.
+    fn symmetry_axis(&self, circuit: Circuit, point: CouplerPoint) -> Option<SymmetryAxis> {
+        let (a, b, c) = (self.coupler, self.rocker, self.ground);
+        let scale = 1.0f64.max(a).max(b).max(c);
+        let eps = 1e-12 * scale;
+        let o4 = Point2::new(c, 0.0);
+        if point.u.abs() <= eps && point.v.abs() <= eps {
+            return Some(SymmetryAxis {
+                point: Point2::origin(),
+                direction: 0.0,
+                reason: SymmetryReason::CrankPin,
+            });
+        }
+        if !self.is_crank_rocker() {
+            return None;
+        }
+        let frame = self.frame(circuit, &CrankAngle::from_degrees(0.0))?;
+        if (point.u - a).abs() <= eps && point.v.abs() <= eps {
+            // Extremes of the rocker: crank and coupler in line, |O2 Pb| = A ± 1; the
+            // angle at O4 between O4→O2 and O4→Pb by the law of cosines.
+            let alpha = |d: f64| {
+                ((b * b + c * c - d * d) / (2.0 * b * c))
+                    .clamp(-1.0, 1.0)
+                    .acos()
+            };
+            let mid = 0.5 * (alpha(a + 1.0) + alpha(a - 1.0));
+            let above = frame.point(CouplerPoint::new(a, 0.0)).y > 0.0;
+            let direction = if above {
+                std::f64::consts::PI - mid
+            } else {
+                std::f64::consts::PI + mid
+            };
+            return Some(SymmetryAxis {
+                point: o4,
+                direction,
+                reason: SymmetryReason::RockerPin,
+            });
+        }
+        let on_circle = ((point.u - a).powi(2) + point.v.powi(2) - a * a).abs() <= eps * scale;
+        if (a - b).abs() <= eps && on_circle {
+            let pa = frame.point(CouplerPoint::new(0.0, 0.0));
+            let pb = frame.point(CouplerPoint::new(a, 0.0));
+            let m = frame.point(point);
+            let (s, t) = (pa - pb, m - pb);
+            let gamma = libm::atan2(s.x * t.y - s.y * t.x, s.x * t.x + s.y * t.y);
+            return Some(SymmetryAxis {
+                point: o4,
+                direction: 0.5 * gamma,
+                reason: SymmetryReason::EqualRockerCircle,
+            });
+        }
+        None
     }
 }
 
@@ -266,6 +355,12 @@ impl Mechanism for Linkage {
     fn cognates(&self, circuit: Circuit, point: CouplerPoint) -> Vec<Cognate> {
         match self {
             Linkage::FourBar(l) => l.cognates(circuit, point),
+        }
+    }
+
+    fn symmetry_axis(&self, circuit: Circuit, point: CouplerPoint) -> Option<SymmetryAxis> {
+        match self {
+            Linkage::FourBar(l) => l.symmetry_axis(circuit, point),
         }
     }
 }

@@ -1,0 +1,308 @@
+//! Maximal qualifying windows: the one search behind straight segments, pseudo-arcs and
+//! the classics' straight runs (`docs/features.md`, "Maximal windows: the contract").
+//!
+//! A *window* `[i, j]` is a run of consecutive samples (on a periodic track `j` may pass
+//! `n`; it never spans the whole turn). Its *travel* is the crank (or input) angle it
+//! covers. A feature says which windows *qualify* (exactly, in O(w)) and gives a cheap
+//! necessary condition (a *filter*, O(1) per window from sliding fit sums). The windows
+//! reported are chosen greedily: the longest qualifying window first (ties: the smaller
+//! error, then the earlier start), then the longest qualifying window that shares no step
+//! with any chosen one, and so on (windows may share an end sample). So every qualifying
+//! window shares at least one step with a reported window at least as long as itself: no
+//! qualifying window is longer than, or disjoint from, the reported ones.
+//!
+//! Every window is considered, not only those a one-sample-at-a-time growth reaches (the
+//! error of a window is not monotone in its length). The filter rejects most windows in
+//! O(1); the exact test runs on the rest, longest first, and skips windows that overlap
+//! a window already chosen. Cost: O(n²) filter evaluations plus O(w) per window tested
+//! exactly (measured in `docs/benchmarks.md`, "Features").
+
+/// A chosen window: first and last sample (`end` may pass `n` on a periodic track) and
+/// its error (what ties are broken by).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Window {
+    pub start: usize,
+    pub end: usize,
+    pub error: f64,
+}
+
+/// Which windows passed the O(1) filter: `pass[i·n + l]` for the window of `l` steps
+/// starting at sample `i`.
+pub(crate) struct Candidates {
+    n: usize,
+    periodic: bool,
+    pass: Vec<bool>,
+}
+
+impl Candidates {
+    /// No window passes yet. A periodic track of `n` samples has windows of up to `n − 1`
+    /// steps from every start; an open one of up to `n − 1 − i` steps from start `i`.
+    pub fn new(n: usize, periodic: bool) -> Candidates {
+        Candidates {
+            n,
+            periodic,
+            pass: vec![false; n * n],
+        }
+    }
+
+    /// Longest window from start `i`, in steps.
+    pub fn max_steps(&self, i: usize) -> usize {
+        if self.periodic {
+            self.n.saturating_sub(1)
+        } else {
+            self.n.saturating_sub(1 + i)
+        }
+    }
+
+    /// Marks the window of `l` steps from `i` as passing the filter.
+    #[inline]
+    pub fn set(&mut self, i: usize, l: usize) {
+        self.pass[i * self.n + l] = true;
+    }
+
+    /// The greedy choice above. `travel(i, j)` is the window's travel and `h_max` the
+    /// largest travel of one step (so a window of `l` steps travels at most `l·h_max`);
+    /// windows travelling less than `min_travel` never qualify; at most `max_picks`
+    /// windows are chosen. `exact(i, j)` is the window's error if it qualifies.
+    /// Returns the chosen windows by start.
+    pub fn pick(
+        &self,
+        travel: impl Fn(usize, usize) -> f64,
+        h_max: f64,
+        min_travel: f64,
+        max_picks: usize,
+        mut exact: impl FnMut(usize, usize) -> Option<f64>,
+    ) -> Vec<Window> {
+        let n = self.n;
+        let edges = if self.periodic {
+            n
+        } else {
+            n.saturating_sub(1)
+        };
+        let mut picked: Vec<Window> = Vec::new();
+        if n < 3 || max_picks == 0 {
+            return picked;
+        }
+        // used[k]: step k (samples k, k+1) belongs to a chosen window; `count` is the
+        // prefix count over the steps taken twice round (periodic windows wrap).
+        let mut used = vec![false; edges];
+        let mut count = vec![0u32; 2 * edges + 1];
+        let overlaps = |count: &[u32], i: usize, j: usize| count[j] > count[i];
+        // Qualifying windows not yet chosen: (travel, error, start, end).
+        let mut pending: Vec<(f64, f64, usize, usize)> = Vec::new();
+        let finalize = |pending: &mut Vec<(f64, f64, usize, usize)>,
+                        picked: &mut Vec<Window>,
+                        used: &mut Vec<bool>,
+                        count: &mut Vec<u32>,
+                        bound: f64| {
+            // Windows travelling more than `bound` cannot be beaten or tied by a window
+            // still to be tested: choose among them, longest first.
+            pending.sort_by(|a, b| {
+                b.0.total_cmp(&a.0)
+                    .then(a.1.total_cmp(&b.1))
+                    .then(a.2.cmp(&b.2))
+            });
+            let ready = pending.iter().take_while(|w| w.0 > bound).count();
+            for &(_, error, i, j) in &pending[..ready] {
+                if picked.len() >= max_picks || overlaps(count, i, j) {
+                    continue;
+                }
+                picked.push(Window {
+                    start: i,
+                    end: j,
+                    error,
+                });
+                for k in i..j {
+                    used[k % edges] = true;
+                }
+                for k in 0..2 * edges {
+                    count[k + 1] = count[k] + used[k % edges] as u32;
+                }
+            }
+            pending.drain(..ready);
+        };
+        let longest = (0..n).map(|i| self.max_steps(i)).max().unwrap_or(0);
+        for l in (2..=longest).rev() {
+            finalize(
+                &mut pending,
+                &mut picked,
+                &mut used,
+                &mut count,
+                l as f64 * h_max,
+            );
+            if picked.len() >= max_picks {
+                break;
+            }
+            for i in 0..n {
+                if l > self.max_steps(i) || !self.pass[i * n + l] {
+                    continue;
+                }
+                let j = i + l;
+                if overlaps(&count, i, j) {
+                    continue;
+                }
+                let t = travel(i, j);
+                if t < min_travel {
+                    continue;
+                }
+                if let Some(e) = exact(i, j) {
+                    pending.push((t, e, i, j));
+                }
+            }
+        }
+        finalize(
+            &mut pending,
+            &mut picked,
+            &mut used,
+            &mut count,
+            f64::NEG_INFINITY,
+        );
+        picked.sort_by_key(|w| w.start);
+        picked
+    }
+}
+
+/// Tracks whether a growing set of directions lies in an open half-plane (a point moving
+/// one way along some line has all its velocities, or all its steps, there). The first
+/// direction added is the reference; the others are kept as angles from it in (−π, π];
+/// the set fits in an open half-plane iff their range is below π. Once it fails, every
+/// larger set fails too.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct HalfPlane {
+    reference: Option<f64>,
+    lo: f64,
+    hi: f64,
+}
+
+impl HalfPlane {
+    pub fn new() -> HalfPlane {
+        HalfPlane {
+            reference: None,
+            lo: 0.0,
+            hi: 0.0,
+        }
+    }
+
+    /// Adds a direction given by its angle (radians, from `atan2`). Returns whether the
+    /// set still fits in an open half-plane.
+    #[inline]
+    pub fn add(&mut self, angle: f64) -> bool {
+        match self.reference {
+            None => {
+                self.reference = Some(angle);
+                true
+            }
+            Some(r) => {
+                let d = wrap_pi(angle - r);
+                self.lo = self.lo.min(d);
+                self.hi = self.hi.max(d);
+                self.hi - self.lo < std::f64::consts::PI
+            }
+        }
+    }
+}
+
+/// An angle wrapped into (−π, π].
+#[inline]
+pub(crate) fn wrap_pi(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if a > PI {
+        a - TAU
+    } else if a <= -PI {
+        a + TAU
+    } else {
+        a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Windows qualify when they lie inside [2, 9] or [12, 15] of an open track of 20
+    /// samples: the greedy choice takes both, longest first; a second pick inside a
+    /// chosen window is refused.
+    #[test]
+    fn greedy_longest_first_without_overlap() {
+        let mut c = Candidates::new(20, false);
+        for i in 0..20 {
+            for l in 2..=c.max_steps(i) {
+                c.set(i, l);
+            }
+        }
+        let ok = |i: usize, j: usize| (2..=9).contains(&i) && j <= 9 || i >= 12 && j <= 15;
+        let w = c.pick(
+            |i, j| (j - i) as f64,
+            1.0,
+            0.0,
+            10,
+            |i, j| ok(i, j).then_some(0.0),
+        );
+        let got: Vec<(usize, usize)> = w.iter().map(|w| (w.start, w.end)).collect();
+        assert_eq!(got, vec![(2, 9), (12, 15)]);
+        // Ties go to the smaller error, then the earlier start; overlapping ties lose,
+        // windows sharing an end sample do not overlap.
+        let w = c.pick(
+            |i, j| (j - i) as f64,
+            1.0,
+            0.0,
+            10,
+            |i, j| (j - i == 4 && i < 6).then_some(if i == 1 { 0.1 } else { 0.2 }),
+        );
+        let got: Vec<(usize, usize)> = w.iter().map(|w| (w.start, w.end)).collect();
+        assert_eq!(got, vec![(1, 5), (5, 9)]);
+    }
+
+    /// On a periodic track a window may wrap past the last sample.
+    #[test]
+    fn periodic_windows_wrap() {
+        let mut c = Candidates::new(10, true);
+        for i in 0..10 {
+            for l in 2..=c.max_steps(i) {
+                c.set(i, l);
+            }
+        }
+        // Qualifies when it stays within samples 8, 9, 0, 1, 2 (unwrapped 8..=12).
+        let w = c.pick(
+            |i, j| (j - i) as f64,
+            1.0,
+            0.0,
+            10,
+            |i, j| (i >= 8 && j <= 12).then_some(0.0),
+        );
+        assert_eq!((w[0].start, w[0].end), (8, 12));
+        assert_eq!(w.len(), 1);
+    }
+
+    /// Unequal steps: the longest window by travel wins, even with fewer samples.
+    #[test]
+    fn longest_by_travel() {
+        let travel = [0.0, 1.0, 2.0, 3.0, 10.0, 11.0, 12.0];
+        let mut c = Candidates::new(7, false);
+        for i in 0..7 {
+            for l in 2..=c.max_steps(i) {
+                c.set(i, l);
+            }
+        }
+        let w = c.pick(
+            |i, j| travel[j] - travel[i],
+            7.0,
+            0.0,
+            1,
+            |i, j| ((i == 0 && j == 3) || (i == 2 && j == 4)).then_some(0.0),
+        );
+        assert_eq!((w[0].start, w[0].end), (2, 4));
+    }
+
+    #[test]
+    fn half_plane() {
+        let mut h = HalfPlane::new();
+        assert!(h.add(3.0));
+        assert!(h.add(3.0 + 1.5));
+        assert!(h.add(3.0 - 1.5));
+        assert!(!h.add(3.0 + 1.7));
+        let mut h = HalfPlane::new();
+        assert!(h.add(-3.1));
+        assert!(h.add(3.1)); // 0.08 rad apart across ±π
+    }
+}
