@@ -8,6 +8,7 @@
 //! No pixels, no files: a renderer (`coupler-render`) strokes what comes out of here.
 
 mod atlas;
+mod card;
 mod classic;
 mod contents;
 mod font;
@@ -18,6 +19,7 @@ pub use atlas::{
     CurvePlacement, DRAWN_CRANK_ANGLE_DEG, Inset, LinkagePage, MU_WARNING_DEG, PageGeometry,
     PageLayout, compute_page, fmt_sig, is_pin_point, layout_page,
 };
+pub use card::{CARD_HEIGHT_PT, CARD_WIDTH_PT, dwell_card, straight_family_chart, wrap};
 pub use classic::{
     BRACKETED_TOLERANCE, ClassicGeometry, ClassicPage, Leg, compute_classic, layout_classic,
     mirror_branch, run_velocity_variation,
