@@ -48,7 +48,7 @@ fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
     let table = CrankTable::new(spec.sampling.crank_step_deg).unwrap();
     let dash = spec.sampling.dash_pattern();
     let row_len = spec.points.u.len() as usize;
-    let groups = job.groups();
+    let groups: Vec<_> = job.groups().collect();
     let per = setup.curves_per_page;
     assert_eq!(per, row_len, "curves per page follows the row");
     let frame = setup.frame_pt();
@@ -173,7 +173,6 @@ fn default_atlas_has_the_1951_scale_and_hoekens_point() {
     assert!(job.curves() >= 7000 && job.pages() >= 700);
     let hoeken = job
         .groups()
-        .into_iter()
         .find(|g| {
             let d = g.linkage.dimensions();
             d[0].1 == 2.5 && d[1].1 == 2.5 && d[2].1 == 2.0

@@ -457,7 +457,8 @@ impl PageRenderer {
     fn atlas_pdf(&self, job: &Job, entries: &[ContentsEntry]) -> Result<Vec<u8>, PageError> {
         let per = self.opts.setup.curves_per_page.max(1);
         let page_count = job.pages();
-        let groups = job.groups();
+        // A paged atlas is bounded (docs/scale.md), so its groups fit in memory.
+        let groups: Vec<Group> = job.groups().collect();
         let table = CrankTable::new(job.spec.sampling.crank_step_deg)
             .ok_or_else(|| PageError::Curves("bad crank step".into()))?;
         let features = job
@@ -563,7 +564,6 @@ impl PageRenderer {
     fn contents_entries(&self, job: &Job) -> Vec<ContentsEntry> {
         let per = self.opts.setup.curves_per_page.max(1);
         job.groups()
-            .iter()
             .map(|g| ContentsEntry {
                 linkage: g.linkage,
                 circuit: g.circuit,
@@ -654,6 +654,25 @@ impl Renderer for PageRenderer {
 
     fn pages(&self, job: &Job) -> u64 {
         job.pages()
+    }
+
+    fn page_options(&self) -> Option<&PageOptions> {
+        Some(&self.opts)
+    }
+
+    fn group_files(&self, _job: &Job, group: &Group) -> Option<Vec<String>> {
+        let per = self.opts.setup.curves_per_page.max(1);
+        let pages = group.points.len().div_ceil(per) as u64;
+        Some(
+            (group.first_page..group.first_page + pages)
+                .flat_map(|n| {
+                    self.opts
+                        .formats
+                        .iter()
+                        .map(move |&f| format!("pages/{}", self.opts.page_file(n, f)))
+                })
+                .collect(),
+        )
     }
 
     fn settings(&self) -> String {

@@ -19,16 +19,82 @@ pub struct CrankTable {
     angles: Vec<CrankAngle>,
 }
 
+/// At most this many samples per crank turn (a step of at least 0.00036°): a guard
+/// against typos like `--step 1e-9`, which would ask for gigabytes.
+pub const MAX_SAMPLES_PER_TURN: u64 = 1_000_000;
+
+/// The number of samples `0, step, 2·step, …` below 360° when `0 < step ≤ 360` is finite
+/// and the count is at most [`MAX_SAMPLES_PER_TURN`]; `Err` says why not (for messages).
+///
+/// ```
+/// use coupler_kinematics::samples_per_turn;
+/// assert_eq!(samples_per_turn(7.0), Ok(52));
+/// assert!(samples_per_turn(1e-9).unwrap_err().contains("more than the 1000000 allowed"));
+/// ```
+pub fn samples_per_turn(step_deg: f64) -> Result<u64, String> {
+    if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
+        return Err(format!(
+            "must be > 0 and at most 360 degrees, got {step_deg}"
+        ));
+    }
+    let n = (360.0 / step_deg).ceil();
+    if n > MAX_SAMPLES_PER_TURN as f64 {
+        return Err(format!(
+            "a step of {step_deg}° gives {n:.0} samples per turn, more than the {MAX_SAMPLES_PER_TURN} allowed (use a step of at least {}°)",
+            360.0 / MAX_SAMPLES_PER_TURN as f64
+        ));
+    }
+    let n = n as u64;
+    // The last k·step may round to 360 exactly: it is not below 360.
+    Ok(if (n - 1) as f64 * step_deg < 360.0 {
+        n
+    } else {
+        n - 1
+    })
+}
+
 impl CrankTable {
-    /// Angles `0, step, 2·step, …` below 360°. `None` unless `0 < step ≤ 360` and finite.
+    /// Angles `0, step, 2·step, …` below 360°. `None` unless `0 < step ≤ 360` is finite
+    /// and gives at most [`MAX_SAMPLES_PER_TURN`] samples ([`samples_per_turn`]).
     pub fn new(step_deg: f64) -> Option<CrankTable> {
-        if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
-            return None;
-        }
+        samples_per_turn(step_deg).ok()?;
         let n = (360.0 / step_deg).ceil() as usize;
         let angles = (0..n)
             .map(|k| k as f64 * step_deg)
             .filter(|&t| t < 360.0)
+            .map(CrankAngle::from_degrees)
+            .collect();
+        Some(CrankTable {
+            step: step_deg,
+            angles,
+        })
+    }
+
+    /// Angles `0, step, 2·step, …` below `period_deg` (a mechanism's period, e.g. `720`
+    /// for a geared five-bar of gear ratio p/2: [`crate::Mechanism::period_deg`]).
+    /// `None` unless `0 < step ≤ 360` and `period_deg` is a positive multiple of 360 (at
+    /// most 360 000: a thousand turns). `over(step, 360.0)` is [`CrankTable::new`].
+    ///
+    /// ```
+    /// use coupler_kinematics::CrankTable;
+    /// let t = CrankTable::over(10.0, 720.0).unwrap();
+    /// assert_eq!(t.len(), 72);
+    /// assert_eq!(t.angles()[71].degrees, 710.0);
+    /// ```
+    pub fn over(step_deg: f64, period_deg: f64) -> Option<CrankTable> {
+        let turns = period_deg / 360.0;
+        if !(step_deg.is_finite()
+            && step_deg > 0.0
+            && step_deg <= 360.0
+            && (1.0..=1000.0).contains(&turns)
+            && turns.fract() == 0.0)
+        {
+            return None;
+        }
+        let n = (period_deg / step_deg).ceil() as usize;
+        let angles = (0..n)
+            .map(|k| k as f64 * step_deg)
+            .filter(|&t| t < period_deg)
             .map(CrankAngle::from_degrees)
             .collect();
         Some(CrankTable {

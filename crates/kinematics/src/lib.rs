@@ -19,13 +19,17 @@ mod dash;
 mod dd;
 mod exact;
 mod frame;
+mod geared;
 mod linkage;
 mod mechanism;
 mod pose;
 mod trace;
 
 pub use cognates::{Cognate, CognateError, cognates};
-pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
+pub use curve::{
+    CrankTable, Curve, CurveSummary, MAX_SAMPLES_PER_TURN, PoseTable, samples_per_turn,
+    transmission_range,
+};
 pub use dash::{
     DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
     DashPattern, DashedCurve, MAX_SUBDIVISION_DEPTH, dash_curve, dash_leg, dash_leg_from,
@@ -34,6 +38,11 @@ pub use dash::{
 pub use dd::Dd;
 pub use exact::{Decimal, DecimalError, divides_turn};
 pub use frame::{CouplerFrame, Drawing, Joint};
+pub use geared::{
+    AssemblyMargin, EquivalentError, GearAngle, GearRatio, GearTable, GearedEquivalent,
+    GearedError, GearedFiveBar, GearedGaps, GearedPose, MARGIN_STEP_DEG, MARGIN_TOL, MAX_GEAR_TERM,
+    Rotatability, TRANSMISSION_STEP_DEG, TingClass, geared_equivalent,
+};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use mechanism::{Linkage, LinkageClass, Mechanism, SymmetryAxis, SymmetryReason};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};

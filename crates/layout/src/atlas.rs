@@ -131,7 +131,9 @@ pub fn compute_page<M: Mechanism>(
     setup: &PageSetup,
 ) -> Result<PageGeometry, LayoutError> {
     setup.validate()?;
-    let table = CrankTable::new(2.0).expect("valid step");
+    // A mechanism whose period is longer than a turn (a geared five-bar of gear ratio
+    // p/q) is traced over its whole period.
+    let table = CrankTable::over(2.0, page.linkage.period_deg()).expect("valid step");
     let poses = page.linkage.pose_table(page.circuit, &table);
     let mut world = EMPTY;
     let mut samples: Vec<(f64, f64)> = Vec::new();
@@ -881,7 +883,9 @@ fn legend<M: Mechanism>(
         ts,
         Anchor::Start,
         format!(
-            "crank turns counter-clockwise, θ from O2→O4;  {} circuit;  linkage drawn at θ = 0°",
+            "crank turns counter-clockwise, θ from O2→{};  {} circuit;  linkage drawn at θ = 0°",
+            // The second ground pivot: O4 of a four-bar, O5 of a geared five-bar.
+            drawn(page).joints.get(1).map_or("O4", |j| j.name),
             page.circuit.name()
         ),
     );

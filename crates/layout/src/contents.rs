@@ -49,7 +49,6 @@ pub fn layout_contents(entries: &[ContentsEntry], setup: &PageSetup) -> Vec<Cont
     let top = m + 44.0;
     let rows = (((h - m - 20.0) - top) / ROW).floor().max(1.0) as usize;
     let n_pages = entries.len().div_ceil(rows).max(1);
-    let table = CrankTable::new(5.0).expect("valid step");
     let mut pages = Vec::with_capacity(n_pages);
     for pi in 0..n_pages {
         let mut dl = DisplayList::new(w, h);
@@ -115,6 +114,7 @@ pub fn layout_contents(entries: &[ContentsEntry], setup: &PageSetup) -> Vec<Cont
             let avail = w - 2.0 * m - TEXT_COL;
             let bw = (avail / n as f64 - 6.0).min(100.0);
             let bh = ROW - 16.0;
+            let table = CrankTable::over(5.0, e.linkage.period_deg()).expect("valid step");
             let poses = e.linkage.pose_table(e.circuit, &table);
             let a = e.linkage.coupler_length();
             let mut curve = Curve::default();

@@ -18,7 +18,9 @@ mod raster;
 mod svg;
 mod svg_font;
 
-pub use diff::{DiffError, ImageDiff, diff_files, diff_images, read_image};
+pub use diff::{
+    DiffError, ImageDiff, MAX_DIFF_PIXELS, MAX_DIFF_WIDTH, diff_files, diff_images, read_image,
+};
 pub use pdf::{Bookmark, PageLabelRange, PdfError, PdfPage, PdfPageContent, write_pdf};
 pub use raster::{RasterPage, encode_png};
 pub use svg::SvgPage;

@@ -4,11 +4,16 @@
 //!
 //! The format is documented in `docs/spec-format.md`.
 
+use crate::count::{self, CrankRockers};
 use crate::curves::CurveList;
 use crate::features::FeatureSettings;
+use crate::geared::GearedRanges;
 use crate::settings::{PageSettings, Sampling};
 use coupler_features::{NamedCurve, TraceMode};
-use coupler_kinematics::{Circuit, Class, CouplerPoint, Decimal, FourBar, Linkage, divides_turn};
+use coupler_kinematics::{
+    Circuit, Class, CouplerPoint, Decimal, FourBar, GearRatio, GearedError, Linkage, divides_turn,
+    samples_per_turn,
+};
 use coupler_layout::{DPI_RANGE, Orientation, PaperSize};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -46,8 +51,11 @@ pub struct Spec {
     pub name: String,
     /// Title printed on the contents page.
     pub title: String,
-    /// Ranges of the coupler A, rocker B and ground C (crank = 1).
+    /// Ranges of the coupler A, rocker B and ground C (crank = 1) of a four-bar atlas;
+    /// empty ranges in a geared five-bar atlas (see `geared`).
     pub linkages: LinkageRanges,
+    /// The linkages of a geared five-bar atlas (`[geared]`, instead of `[linkages]`).
+    pub geared: Option<GearedRanges>,
     /// Circuits to trace, in order.
     pub circuits: Vec<Circuit>,
     /// The coupler-point grid.
@@ -83,7 +91,10 @@ impl Serialize for Spec {
         let mut st = s.serialize_struct("Spec", 8)?;
         st.serialize_field("name", &self.name)?;
         st.serialize_field("title", &self.title)?;
-        st.serialize_field("linkages", &self.linkages)?;
+        match &self.geared {
+            None => st.serialize_field("linkages", &self.linkages)?,
+            Some(g) => st.serialize_field("linkages", g)?,
+        }
         st.serialize_field("circuits", &self.circuits)?;
         st.serialize_field("points", &self.points)?;
         st.serialize_field("sampling", &self.sampling)?;
@@ -193,6 +204,32 @@ impl PointGrid {
             .collect()
     }
 
+    /// The points `first..first + count` of [`PointGrid::points`] (same order, same
+    /// values), without making the others: a slice of a grid too large to hold.
+    pub fn points_in(&self, a: f64, first: u64, count: u64) -> Vec<CouplerPoint> {
+        let nu = self.u.len().max(1);
+        let value = |r: &DecimalRange, k: u64, rel: bool| {
+            let x = r
+                .start
+                .checked_add(
+                    r.step
+                        .checked_mul_int(i128::from(k))
+                        .unwrap_or(Decimal::ZERO),
+                )
+                .unwrap_or(r.start)
+                .to_f64();
+            if rel { x * a } else { x }
+        };
+        (first..first.saturating_add(count).min(self.len()))
+            .map(|i| {
+                CouplerPoint::new(
+                    value(&self.u, i % nu, self.u_relative),
+                    value(&self.v, i / nu, self.v_relative),
+                )
+            })
+            .collect()
+    }
+
     /// Points per linkage.
     pub fn len(&self) -> u64 {
         self.u.len() * self.v.len()
@@ -212,6 +249,8 @@ struct RawSpec {
     atlas: Spanned<RawAtlas>,
     #[serde(default)]
     linkages: Option<Spanned<RawLinkages>>,
+    #[serde(default)]
+    geared: Option<Spanned<RawGeared>>,
     #[serde(default)]
     points: Option<Spanned<RawPoints>>,
     #[serde(default)]
@@ -252,6 +291,20 @@ struct RawLinkages {
     coupler: Spanned<RawRange>,
     rocker: Spanned<RawRange>,
     ground: Spanned<RawRange>,
+    #[serde(default)]
+    circuits: Option<Spanned<Vec<Spanned<String>>>>,
+}
+
+/// `[geared]`: a geared five-bar atlas's linkages.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGeared {
+    l1: Spanned<RawRange>,
+    l3: Spanned<RawRange>,
+    l4: Spanned<RawRange>,
+    l5: Spanned<RawRange>,
+    ratios: Spanned<Vec<Spanned<String>>>,
+    phases: Spanned<RawRange>,
     #[serde(default)]
     circuits: Option<Spanned<Vec<Spanned<String>>>>,
 }
@@ -393,6 +446,17 @@ impl Ctx<'_> {
             ));
         }
         let range = DecimalRange { start, end, step };
+        if positive && !fits_f64_exactly(&range) {
+            return Err(self.error(
+                r.span(),
+                Some(key),
+                format!(
+                    "values from {} by {} need more than {MAX_DIGITS} significant digits, which a length cannot hold exactly",
+                    raw.start.get_ref(),
+                    raw.step.get_ref()
+                ),
+            ));
+        }
         if range.len() > MAX_RANGE_VALUES {
             return Err(self.error(
                 r.span(),
@@ -423,12 +487,40 @@ impl Ctx<'_> {
                 format!("must be > 0 and divide 360 exactly, got {}", x.get_ref()),
             ));
         }
+        samples_per_turn(*x.get_ref()).map_err(|m| self.error(x.span(), Some(key), m))?;
         Ok(*x.get_ref())
     }
 }
 
 /// At most this many values in one range (a guard against typos like `step = 1e-9`).
 pub const MAX_RANGE_VALUES: u64 = 100_000;
+
+/// At most this many characters in an atlas name: it names the output folder and every
+/// page file (`NAME-contents-1.png`, and while written `.NAME-0001.png.tmp-…`), and file
+/// names are limited to 255 bytes.
+pub const MAX_NAME_LEN: usize = 100;
+
+/// Significant digits a link length may need: every value then reads back from its
+/// `f64` as the same decimal, so classes decided on the decimals and on the lengths
+/// agree (and the arithmetic counts of `count.rs` are exact).
+const MAX_DIGITS: u32 = 15;
+
+/// Whether every value of the range has at most [`MAX_DIGITS`] significant digits.
+fn fits_f64_exactly(r: &DecimalRange) -> bool {
+    let e = r.start.exponent().min(r.step.exponent());
+    let scale = |d: Decimal| -> Option<i128> {
+        let mut m = d.mantissa();
+        for _ in 0..(d.exponent() - e) {
+            m = m.checked_mul(10)?;
+        }
+        Some(m)
+    };
+    let (Some(start), Some(step)) = (scale(r.start), scale(r.step)) else {
+        return false;
+    };
+    let last = start + step * (r.len().max(1) as i128 - 1);
+    last.abs() < 10i128.pow(MAX_DIGITS)
+}
 
 /// What a spec file describes: a Hrones–Nelson grid (`[linkages]` and `[points]`), or a
 /// full-curve page set (a list of `[[curve]]` entries, e.g. `atlas-spec/classics.toml`).
@@ -455,6 +547,11 @@ impl AtlasSpec {
         })?;
         let (name, title) = cx.atlas(raw.atlas.get_ref())?;
         let sampling = cx.sampling(raw.sampling.as_ref())?;
+        if let Some(g) = &raw.geared {
+            return cx
+                .geared_spec(&raw, g, name, title, sampling)
+                .map(AtlasSpec::Grid);
+        }
         match (&raw.linkages, &raw.points, &raw.curve) {
             (_, _, Some(curves)) => {
                 if let Some(t) = &raw.linkages {
@@ -478,20 +575,7 @@ impl AtlasSpec {
             }
             (Some(l), Some(p), None) => {
                 let pages = cx.pages(raw.pages.as_ref(), true)?;
-                let features = match &raw.features {
-                    None => FeatureSettings::DEFAULT,
-                    Some(t) => {
-                        if t.get_ref().contains_key("dash_deg") {
-                            return Err(cx.error(
-                                cx.key_in(t.span(), "dash_deg"),
-                                Some("features.dash_deg"),
-                                "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
-                            ));
-                        }
-                        FeatureSettings::from_table(t.get_ref())
-                            .map_err(|m| cx.error(t.span(), Some("features"), m))?
-                    }
-                };
+                let features = cx.features(raw.features.as_ref())?;
                 let (linkages, circuits) = cx.linkages(l.get_ref())?;
                 let pr = p.get_ref();
                 let (u, u_relative) = cx.range(&pr.u, "points.u", false)?;
@@ -520,6 +604,7 @@ impl AtlasSpec {
                     sampling,
                     pages,
                     features,
+                    geared: None,
                 })))
             }
             (l, _, None) => {
@@ -567,6 +652,16 @@ impl Ctx<'_> {
         {
             return Err(self.error(atlas.name.span(), Some("atlas.name"), "name must be non-empty and use only ASCII letters, digits, `-` and `_` (it names files)".into()));
         }
+        if name.len() > MAX_NAME_LEN {
+            return Err(self.error(
+                atlas.name.span(),
+                Some("atlas.name"),
+                format!(
+                    "name is {} characters long, more than the {MAX_NAME_LEN} allowed (it names the output folder and every page file, and file names are limited to 255 bytes)",
+                    name.len()
+                ),
+            ));
+        }
         let title = atlas
             .title
             .as_ref()
@@ -579,34 +674,7 @@ impl Ctx<'_> {
         let (coupler, _) = self.range(&l.coupler, "linkages.coupler", true)?;
         let (rocker, _) = self.range(&l.rocker, "linkages.rocker", true)?;
         let (ground, _) = self.range(&l.ground, "linkages.ground", true)?;
-        let circuits = match &l.circuits {
-            None => vec![Circuit::Open],
-            Some(list) => {
-                if list.get_ref().is_empty() {
-                    return Err(self.error(
-                        list.span(),
-                        Some("linkages.circuits"),
-                        "list is empty: give `open`, `crossed` or both".into(),
-                    ));
-                }
-                let mut out = Vec::new();
-                for c in list.get_ref() {
-                    let circuit: Circuit = c
-                        .get_ref()
-                        .parse()
-                        .map_err(|m: String| self.error(c.span(), Some("linkages.circuits"), m))?;
-                    if out.contains(&circuit) {
-                        return Err(self.error(
-                            c.span(),
-                            Some("linkages.circuits"),
-                            format!("`{circuit}` is listed twice"),
-                        ));
-                    }
-                    out.push(circuit);
-                }
-                out
-            }
-        };
+        let circuits = self.circuits(l.circuits.as_ref(), "linkages.circuits")?;
         Ok((
             LinkageRanges {
                 coupler,
@@ -615,6 +683,159 @@ impl Ctx<'_> {
             },
             circuits,
         ))
+    }
+
+    /// `[features]` of a grid atlas (four-bar or geared five-bar).
+    fn features(&self, raw: Option<&Spanned<toml::Table>>) -> Result<FeatureSettings, SpecError> {
+        let Some(t) = raw else {
+            return Ok(FeatureSettings::DEFAULT);
+        };
+        if t.get_ref().contains_key("dash_deg") {
+            return Err(self.error(
+                self.key_in(t.span(), "dash_deg"),
+                Some("features.dash_deg"),
+                "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
+            ));
+        }
+        FeatureSettings::from_table(t.get_ref())
+            .map_err(|m| self.error(t.span(), Some("features"), m))
+    }
+
+    /// A geared five-bar atlas: `[geared]` and `[points]` (the grid relative to L3).
+    fn geared_spec(
+        &self,
+        raw: &RawSpec,
+        g: &Spanned<RawGeared>,
+        name: String,
+        title: String,
+        sampling: Sampling,
+    ) -> Result<Box<Spec>, SpecError> {
+        let both = "a spec gives the linkages of one mechanism: [linkages] (four-bars) or [geared] (geared five-bars), not both";
+        if let Some(t) = &raw.linkages {
+            return Err(self.error(t.span(), Some("linkages"), both.into()));
+        }
+        if let Some(t) = &raw.curve {
+            return Err(self.error(
+                t.span(),
+                Some("curve"),
+                "a [geared] grid cannot also list [[curve]] entries".into(),
+            ));
+        }
+        let Some(p) = &raw.points else {
+            return Err(self.error(
+                g.span(),
+                Some("points"),
+                "missing field `points` (a [geared] atlas needs a [points] grid)".into(),
+            ));
+        };
+        let pages = self.pages(raw.pages.as_ref(), true)?;
+        let features = self.features(raw.features.as_ref())?;
+        let r = g.get_ref();
+        let (l1, _) = self.range(&r.l1, "geared.l1", true)?;
+        let (l3, _) = self.range(&r.l3, "geared.l3", true)?;
+        let (l4, _) = self.range(&r.l4, "geared.l4", true)?;
+        let (l5, _) = self.range(&r.l5, "geared.l5", true)?;
+        let (phases, relative) = self.range(&r.phases, "geared.phases", false)?;
+        if relative {
+            return Err(self.error(
+                r.phases.span(),
+                Some("geared.phases.relative"),
+                "`relative` applies to coupler points (u, v) only".into(),
+            ));
+        }
+        if r.ratios.get_ref().is_empty() {
+            return Err(self.error(
+                r.ratios.span(),
+                Some("geared.ratios"),
+                "list is empty: give gear ratios such as \"-1\", \"2\", \"-1/2\"".into(),
+            ));
+        }
+        let mut ratios = Vec::new();
+        for t in r.ratios.get_ref() {
+            let ratio: GearRatio = t.get_ref().parse().map_err(|e: GearedError| {
+                self.error(t.span(), Some("geared.ratios"), e.to_string())
+            })?;
+            if ratios.contains(&ratio) {
+                return Err(self.error(
+                    t.span(),
+                    Some("geared.ratios"),
+                    format!("gear ratio {ratio} is listed twice"),
+                ));
+            }
+            ratios.push(ratio);
+        }
+        let circuits = self.circuits(r.circuits.as_ref(), "geared.circuits")?;
+        let pr = p.get_ref();
+        let (u, u_relative) = self.range(&pr.u, "points.u", false)?;
+        let (v, v_relative) = self.range(&pr.v, "points.v", false)?;
+        let none = DecimalRange {
+            start: Decimal::ZERO,
+            end: Decimal::ZERO,
+            step: Decimal::ZERO,
+        };
+        Ok(Box::new(Spec {
+            name,
+            title,
+            linkages: LinkageRanges {
+                coupler: none,
+                rocker: none,
+                ground: none,
+            },
+            geared: Some(GearedRanges {
+                l1,
+                l3,
+                l4,
+                l5,
+                ratios,
+                phases,
+            }),
+            circuits,
+            points: PointGrid {
+                u,
+                v,
+                u_relative,
+                v_relative,
+            },
+            sampling,
+            pages,
+            features,
+        }))
+    }
+
+    fn circuits(
+        &self,
+        list: Option<&Spanned<Vec<Spanned<String>>>>,
+        key: &str,
+    ) -> Result<Vec<Circuit>, SpecError> {
+        let circuits = match list {
+            None => vec![Circuit::Open],
+            Some(list) => {
+                if list.get_ref().is_empty() {
+                    return Err(self.error(
+                        list.span(),
+                        Some(key),
+                        "list is empty: give `open`, `crossed` or both".into(),
+                    ));
+                }
+                let mut out = Vec::new();
+                for c in list.get_ref() {
+                    let circuit: Circuit = c
+                        .get_ref()
+                        .parse()
+                        .map_err(|m: String| self.error(c.span(), Some(key), m))?;
+                    if out.contains(&circuit) {
+                        return Err(self.error(
+                            c.span(),
+                            Some(key),
+                            format!("`{circuit}` is listed twice"),
+                        ));
+                    }
+                    out.push(circuit);
+                }
+                out
+            }
+        };
+        Ok(circuits)
     }
 
     fn sampling(&self, raw: Option<&Spanned<RawSampling>>) -> Result<Sampling, SpecError> {
@@ -823,30 +1044,85 @@ impl Spec {
 
     /// Number of (A, B, C) combinations the ranges touch.
     pub fn combinations(&self) -> u64 {
+        if let Some(g) = &self.geared {
+            return g.combinations();
+        }
         self.linkages.coupler.len() * self.linkages.rocker.len() * self.linkages.ground.len()
     }
 
     /// Enumerates the linkages: every (A, B, C) in the ranges (A outer, then B, then C,
     /// each ascending) that is a strict crank-rocker, and counts the others by class.
+    /// This holds every linkage in memory: a run streams them instead
+    /// ([`Spec::crank_rockers`]) and counts them arithmetically ([`Spec::count_linkages`]).
     pub fn enumerate(&self) -> Enumeration {
-        let mut linkages = Vec::new();
-        let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
-        for a in self.linkages.coupler.values() {
-            for b in self.linkages.rocker.values() {
-                for c in self.linkages.ground.values() {
-                    let Ok(l) = FourBar::new(a.to_f64(), b.to_f64(), c.to_f64()) else {
-                        continue;
-                    };
-                    let class = l.class();
-                    if class == Class::Gcrr {
-                        linkages.push(Linkage::FourBar(l));
-                    } else {
-                        *skipped.entry(class.code().to_string()).or_default() += 1;
-                    }
-                }
-            }
+        if let Some(g) = &self.geared {
+            let (linkages, skipped) = g.enumerate();
+            return Enumeration { linkages, skipped };
         }
-        Enumeration { linkages, skipped }
+        Enumeration {
+            linkages: self.crank_rockers().collect(),
+            skipped: self.skipped(),
+        }
+    }
+
+    /// The strict crank-rockers in atlas order, one at a time (constant memory).
+    pub fn crank_rockers(&self) -> CrankRockers {
+        CrankRockers::new(&self.linkages)
+    }
+
+    /// The atlas's linkages in atlas order, one at a time: the strict crank-rockers of a
+    /// four-bar grid (constant memory), or the fully turning five-bars of a `[geared]`
+    /// grid (a geared grid is small: it is enumerated at once).
+    pub fn atlas_linkages(&self) -> AtlasLinkages {
+        match &self.geared {
+            Some(g) => AtlasLinkages::Listed(g.enumerate().0.into_iter()),
+            None => AtlasLinkages::CrankRockers(Box::new(self.crank_rockers())),
+        }
+    }
+
+    /// The number of the atlas's linkages: strict crank-rockers counted arithmetically
+    /// (milliseconds, whatever the ranges: `docs/scale.md`), or a geared grid's fully
+    /// turning five-bars.
+    pub fn count_linkages(&self) -> u64 {
+        match &self.geared {
+            Some(g) => g.enumerate().0.len() as u64,
+            None => count::count_crank_rockers(&self.linkages),
+        }
+    }
+
+    /// The combinations that are not in the atlas, by class: for four-bars those that are
+    /// not strict crank-rockers, by Barker class code, counted arithmetically (work grows
+    /// with the number of coupler lengths A only); for a geared grid those whose input
+    /// does not turn fully.
+    pub fn skipped(&self) -> BTreeMap<String, u64> {
+        if let Some(g) = &self.geared {
+            return g.enumerate().1;
+        }
+        count::count_by_class(&self.linkages)
+            .into_iter()
+            .filter(|(c, _)| *c != Class::Gcrr.code())
+            .map(|(c, n)| (c.to_string(), n))
+            .collect()
+    }
+}
+
+/// The atlas's linkages in atlas order ([`Spec::atlas_linkages`]).
+#[derive(Clone, Debug)]
+pub enum AtlasLinkages {
+    /// A four-bar grid's strict crank-rockers, made one at a time.
+    CrankRockers(Box<CrankRockers>),
+    /// A listed set (a geared grid's fully turning five-bars).
+    Listed(std::vec::IntoIter<Linkage>),
+}
+
+impl Iterator for AtlasLinkages {
+    type Item = Linkage;
+
+    fn next(&mut self) -> Option<Linkage> {
+        match self {
+            AtlasLinkages::CrankRockers(c) => c.next(),
+            AtlasLinkages::Listed(l) => l.next(),
+        }
     }
 }
 
@@ -989,6 +1265,17 @@ mod tests {
         }
         assert_eq!(want.len(), 10);
         assert_eq!(got, want);
+    }
+
+    #[test]
+    fn slices_of_the_grid_are_the_grid() {
+        let spec = Spec::default_atlas();
+        for a in [1.5, 3.0, 4.5] {
+            let all = spec.points.points(a);
+            assert_eq!(spec.points.points_in(a, 0, spec.points.len()), all);
+            assert_eq!(spec.points.points_in(a, 7, 9), all[7..16].to_vec());
+            assert_eq!(spec.points.points_in(a, 38, 10), all[38..].to_vec());
+        }
     }
 
     #[test]
