@@ -124,7 +124,6 @@ fn filter_windows(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates
     let mut syy = vec![0.0; n];
     let mut szx = vec![0.0; n];
     let mut szy = vec![0.0; n];
-    let mut pass = vec![false; n];
     let lo_f = (1.0 - 1.001 * tol - 1e-9).max(0.0).powi(2);
     let hi_f = (1.0 + 1.001 * tol + 1e-9).powi(2);
     for l in 1..n {
@@ -151,6 +150,7 @@ fn filter_windows(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates
         let (ux0, uy0) = (&vx2[..n], &vy2[..n]);
         let (uxh, uyh) = (&vx2[h..h + n], &vy2[h..h + n]);
         let (uxl, uyl) = (&vx2[l..l + n], &vy2[l..l + n]);
+        let pass = cand.row_mut(l);
         for i in 0..n {
             let (mx, my) = (sx[i] * inv_m, sy[i] * inv_m);
             let sz = sxx[i] + syy[i];
@@ -191,11 +191,6 @@ fn filter_windows(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates
             let reverses = (p0 & ph & (s0 != sh)) | (p0 & pe & (s0 != se)) | (ph & pe & (sh != se));
             let trusted = det > 1e-4 * scale * scale;
             pass[i] = (round & !(trusted & reverses)) | !fitted;
-        }
-        for (i, &p) in pass.iter().enumerate() {
-            if p {
-                cand.set(i, l);
-            }
         }
     }
 }
