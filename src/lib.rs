@@ -11,7 +11,10 @@
 //! - [`kinematics`] (pure): exact decimals, [`FourBar`] and Barker's classes, [`Pose`],
 //!   [`PoseTable`] and [`Curve`], full curves across toggles, cognates, dash intervals;
 //! - [`features`] (pure): straight segments, pseudo-arcs, double points, symmetry, crank
-//!   windows, curve flags, the classics' straight runs, dwell design;
+//!   windows, curve flags, the classics' straight runs;
+//! - [`design`] (pure): dwell six-bars (Norton's construction, an optimiser, double
+//!   dwells, one admissibility contract), their exports (JSON, CSV, DXF), straight-line
+//!   four-bars (Evans, Chebyshev) — not re-exported flat: `coupler_atlas::design::…`;
 //! - [`layout`] (pure): paper, display lists, labels, text metrics, the pages;
 //! - [`render`]: PNG, SVG and PDF of a display list, page diffs;
 //! - [`index`]: the JSON index, search and its cache;
@@ -25,6 +28,7 @@
 //! The items of the pure layers and of the index and spec are also re-exported here,
 //! flat.
 
+pub use coupler_design as design;
 pub use coupler_features as features;
 pub use coupler_generate as generate;
 pub use coupler_index as index;

@@ -211,6 +211,10 @@ fn closed_pipe_ends_quietly() {
         "3.125,1.25",
         "--window",
         "295:435",
+        "--swing",
+        "9",
+        "--method",
+        "optimise",
         "--format",
         "json",
     ]);

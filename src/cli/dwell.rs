@@ -1,14 +1,15 @@
-//! `coupler-atlas dwell --coupler A --rocker B --ground C --point U,V --window S:E
-//! [--window2 S:E] [--kind single|double-lines|double-arcs] [--swing DEG] [--png FILE]`
+//! `coupler-atlas dwell (--coupler A --rocker B --ground C --point U,V | --index INDEX
+//! --curve ID) [--window S:E [--window2 S:E] | --arc K… | --line K K2] [--kind …]
+//! [--method norton|optimise] [--swing DEG] [--cognate K] [limits] [--card FILE]
+//! [--export FILE] [--crank-length L] [--format table|json]`
 
 use super::{UsageError, parse_length, parse_number, parse_point};
 use anyhow::{Context, Result};
-use coupler_atlas::{
-    ArcPairSearch, DoubleArcOptions, DwellMechanism, best_double_dwell_arcs, double_dwell_arcs,
-    double_dwell_lines, single_dwell,
+use coupler_atlas::design::{
+    DoubleArcOptions, DoubleDwellSearch, Driver, Export, ExportFormat, Limits, Method,
+    best_double_dwell, double_dwell_arcs, double_dwell_lines, single_dwell,
 };
-use coupler_atlas::{Circuit, CouplerPoint, CrankAngle, CrankWindow, FourBar, Pose};
-use plotters::prelude::*;
+use coupler_atlas::{Circuit, CouplerPoint, CrankWindow, FourBar};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -30,9 +31,13 @@ pub struct Args {
     /// Circuit (assembly).
     #[arg(long, default_value = "open", value_parser = ["open", "crossed"])]
     circuit: String,
+    /// Design on this Roberts–Chebyshev cognate, numbered as `cognates` lists them (0 the
+    /// linkage itself; the crank-rocker cognate is 2). The curve, its windows and its
+    /// crank angles are the same; the four-bar that drives the dyad is the cognate.
+    #[arg(long, default_value_t = 0)]
+    cognate: usize,
     /// The (first) dwell window START:END, crank degrees: the pseudo-arc or straight
-    /// segment. For double-arcs, leave out both windows to have the best pair of arc
-    /// windows found on the curve.
+    /// segment. For double dwells, leave out both windows to have the best pair found.
     #[arg(long, allow_hyphen_values = true)]
     window: Option<String>,
     /// Take the linkage, point, circuit and windows from this index (with --curve and
@@ -53,31 +58,61 @@ pub struct Args {
     /// The second window, for a double dwell.
     #[arg(long, allow_hyphen_values = true)]
     window2: Option<String>,
-    /// single (one pseudo-arc), double-lines (two straight segments), double-arcs (two equal arcs).
-    #[arg(long, default_value = "single", value_parser = ["single", "double-lines", "double-arcs"])]
+    /// single (one pseudo-arc), double-arcs (two equal arcs), double-lines (two straight
+    /// segments), double (without windows: the best of both found on the curve).
+    #[arg(long, default_value = "single", value_parser = ["single", "double-lines", "double-arcs", "double"])]
     kind: String,
-    /// Output swing, degrees: of a single dwell (default 40); for double-arcs, the swing
-    /// between the two dwells (default: free, chosen for the least jitter relative to the
-    /// swing; if no admissible design has the swing asked for, the nearest one is taken).
+    /// Single dwell: how O6 is placed: norton (Norton's construction, O6 on the
+    /// perpendicular bisector of DE) or optimise (O6 anywhere, least jitter).
+    #[arg(long, default_value = "norton", value_parser = ["norton", "optimise", "optimize"])]
+    method: String,
+    /// Output swing, degrees: of a single dwell the output's whole range (default 40); of
+    /// a double dwell the turn between the dwells (default: free). Honoured within 0.5°,
+    /// or refused with the range this curve allows.
     #[arg(long, value_parser = parse_number)]
     swing: Option<f64>,
-    /// double-arcs: lower limit of the links 5–6 transmission angle over the whole
-    /// revolution, degrees (the angle at D stays within [limit, 180° − limit]).
-    #[arg(long, default_value_t = coupler_atlas::DEFAULT_MIN_TRANSMISSION_DEG, value_parser = parse_number)]
+    /// Lower limit of the links 5–6 transmission angle all round, degrees (the angle at D
+    /// stays within [limit, 180° − limit]).
+    #[arg(long, default_value_t = coupler_atlas::design::DEFAULT_MIN_TRANSMISSION_DEG, value_parser = parse_number)]
     min_transmission: f64,
-    /// double-arcs: largest difference of the two arcs' radii, percent of the larger.
-    #[arg(long, default_value_t = coupler_atlas::DEFAULT_DOUBLE_ARC_RADIUS_TOL_PCT, value_parser = parse_number)]
-    radius_tol: f64,
-    /// double-arcs: refuse a design whose worse dwell jitters more than this percentage
-    /// of the swing between the dwells.
-    #[arg(long, default_value_t = 100.0 * coupler_atlas::DEFAULT_MAX_RELATIVE_JITTER, value_parser = parse_number)]
+    /// Refuse a design whose worse dwell jitters more than this percentage of its swing
+    /// (between the dwells for a double dwell).
+    #[arg(long, default_value_t = coupler_atlas::design::DEFAULT_MAX_JITTER_PCT, value_parser = parse_number)]
     max_jitter_pct: f64,
-    /// Simulation step, crank degrees.
+    /// Refuse a design whose link 5 and link 6 differ more than this ratio (a slot: the
+    /// block's farthest over its closest distance from O6).
+    #[arg(long, default_value_t = coupler_atlas::design::DEFAULT_MAX_LINK_RATIO, value_parser = parse_number)]
+    max_link_ratio: f64,
+    /// The felt dwell: the crank range in which the output stays within ± this of its
+    /// dwell position, degrees.
+    #[arg(long, default_value_t = coupler_atlas::design::DEFAULT_DWELL_TOL_DEG, value_parser = parse_number)]
+    dwell_tol: f64,
+    /// double-arcs: largest difference of the two arcs' radii, percent of the larger.
+    #[arg(long, default_value_t = coupler_atlas::design::DEFAULT_DOUBLE_ARC_RADIUS_TOL_PCT, value_parser = parse_number)]
+    radius_tol: f64,
+    /// Simulation step, crank degrees (divides 360).
     #[arg(long, default_value = "1", value_parser = parse_number)]
     step: f64,
-    /// Draw the design and its output-angle plot to this PNG.
-    #[arg(long)]
+    /// Draw the design card (the six-bar at θ = 0, the curve with its dwells, ψ(θ) and the
+    /// figures) to FILE.png, FILE.svg or FILE.pdf.
+    #[arg(long, value_name = "FILE")]
+    card: Option<PathBuf>,
+    /// The same as --card (kept for old scripts; the extension decides the format).
+    #[arg(long, value_name = "FILE", hide = true)]
     png: Option<PathBuf>,
+    /// Resolution of a PNG card, dots per inch.
+    #[arg(long, default_value_t = 150)]
+    dpi: u32,
+    /// Write the six-bar at θ = 0 (pivots, joints, link lengths) and its coupler curve
+    /// to FILE.json, FILE.csv or FILE.dxf (ASCII DXF R12, for CAD), in user units.
+    #[arg(long, value_name = "FILE")]
+    export: Option<PathBuf>,
+    /// The crank's length in user units for --export (scales everything).
+    #[arg(long, default_value = "1", value_parser = parse_length)]
+    crank_length: f64,
+    /// Name of the user units for --export.
+    #[arg(long, default_value = "crank")]
+    units: String,
     /// Output format.
     #[arg(long, default_value = "table", value_parser = ["table", "json"])]
     format: String,
@@ -89,19 +124,18 @@ fn window(s: &str, step: f64) -> Result<CrankWindow, UsageError> {
         .map_err(|e| UsageError(e.to_string()))
 }
 
-/// Resolves the linkage, point, circuit, windows and kind from the flags (directly, or
-/// from a curve of an index and its features).
-#[allow(clippy::type_complexity)]
-fn plan(
-    args: &Args,
-) -> Result<(
-    FourBar,
-    Circuit,
-    CouplerPoint,
-    Option<String>,
-    Option<String>,
-    String,
-)> {
+/// What to design: the curve, windows and kind, from the flags (directly, or from a
+/// curve of an index and its features).
+struct Plan {
+    linkage: FourBar,
+    circuit: Circuit,
+    point: CouplerPoint,
+    window1: Option<String>,
+    window2: Option<String>,
+    kind: String,
+}
+
+fn plan(args: &Args) -> Result<Plan> {
     if let Some(index) = &args.index {
         let id = args
             .curve
@@ -135,17 +169,16 @@ fn plan(
         };
         if args.arc.is_empty()
             && args.line.is_empty()
-            && (args.window.is_some() || args.kind == "double-arcs")
+            && (args.window.is_some() || args.kind.starts_with("double"))
         {
-            // The curve from the index, the windows as given (or, for double-arcs, found).
-            return Ok((
-                l,
-                row.circuit,
-                p,
-                args.window.clone(),
-                args.window2.clone(),
-                args.kind.clone(),
-            ));
+            return Ok(Plan {
+                linkage: l,
+                circuit: row.circuit,
+                point: p,
+                window1: args.window.clone(),
+                window2: args.window2.clone(),
+                kind: args.kind.clone(),
+            });
         }
         let (spans, kind) = match (args.arc.len(), args.line.len()) {
             (n @ 1..=2, 0) => (
@@ -180,14 +213,14 @@ fn plan(
             }
         };
         let w = |(s, n): (f64, f64)| format!("{s}:{}", s + n);
-        return Ok((
-            l,
-            row.circuit,
-            p,
-            Some(w(spans[0])),
-            spans.get(1).map(|&x| w(x)),
-            kind.to_string(),
-        ));
+        return Ok(Plan {
+            linkage: l,
+            circuit: row.circuit,
+            point: p,
+            window1: Some(w(spans[0])),
+            window2: spans.get(1).map(|&x| w(x)),
+            kind: kind.to_string(),
+        });
     }
     let need = |name: &str| {
         UsageError(format!(
@@ -202,25 +235,134 @@ fn plan(
     .map_err(|e| UsageError(e.to_string()))?;
     let circuit: Circuit = args.circuit.parse().map_err(UsageError)?;
     let p = args.point.ok_or_else(|| need("point"))?;
-    if args.window.is_none() && args.kind != "double-arcs" {
+    if args.window.is_none() && !args.kind.starts_with("double") {
         return Err(need("window").into());
     }
-    Ok((
-        l,
+    Ok(Plan {
+        linkage: l,
         circuit,
-        p,
-        args.window.clone(),
-        args.window2.clone(),
-        args.kind.clone(),
-    ))
+        point: p,
+        window1: args.window.clone(),
+        window2: args.window2.clone(),
+        kind: args.kind.clone(),
+    })
+}
+
+/// An output file and its format, checked before any work.
+enum Output {
+    Card(PathBuf, coupler_atlas::render::PageFormat),
+    Export(PathBuf, ExportFormat),
+}
+
+fn check_folder(path: &Path, flag: &str) -> Result<(), UsageError> {
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !parent.is_dir() {
+        return Err(UsageError(format!(
+            "{flag} {}: the folder {} does not exist",
+            path.display(),
+            parent.display()
+        )));
+    }
+    if path.is_dir() {
+        return Err(UsageError(format!(
+            "{flag} {}: is a folder, not a file",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
+fn outputs(args: &Args) -> Result<Vec<Output>, UsageError> {
+    let mut v = Vec::new();
+    if args.card.is_some() && args.png.is_some() {
+        return Err(UsageError(
+            "give --card or --png (its old name), not both".into(),
+        ));
+    }
+    if let Some(path) = args.card.as_ref().or(args.png.as_ref()) {
+        let flag = if args.card.is_some() {
+            "--card"
+        } else {
+            "--png"
+        };
+        check_folder(path, flag)?;
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_string();
+        let format: coupler_atlas::render::PageFormat = ext.parse().map_err(|e| {
+            UsageError(format!(
+                "{flag} {}: {e}; the extension names the format",
+                path.display()
+            ))
+        })?;
+        v.push(Output::Card(path.clone(), format));
+    }
+    if let Some(path) = &args.export {
+        check_folder(path, "--export")?;
+        let format = ExportFormat::from_path(path).ok_or_else(|| {
+            UsageError(format!(
+                "--export {}: unknown format; the extension names it: .json, .csv or .dxf",
+                path.display()
+            ))
+        })?;
+        v.push(Output::Export(path.clone(), format));
+    }
+    if !(coupler_atlas::layout::DPI_RANGE.contains(&args.dpi)) {
+        return Err(UsageError(format!(
+            "--dpi must be in {}..={}, got {}",
+            coupler_atlas::layout::DPI_RANGE.start(),
+            coupler_atlas::layout::DPI_RANGE.end(),
+            args.dpi
+        )));
+    }
+    Ok(v)
+}
+
+/// Renders a display list (a card or chart) in a format.
+pub(super) fn render(
+    display: &coupler_atlas::layout::DisplayList,
+    format: coupler_atlas::render::PageFormat,
+    dpi: u32,
+) -> Result<Vec<u8>> {
+    use coupler_atlas::render::{PageFormat, RasterPage, SvgPage, draw};
+    Ok(match format {
+        PageFormat::Png => {
+            let k = dpi as f64 / coupler_atlas::layout::PT_PER_INCH;
+            let (w, h) = (
+                (display.width * k).round() as u32,
+                (display.height * k).round() as u32,
+            );
+            let mut page = RasterPage::new(w, h, dpi as f64).context("empty page")?;
+            draw(display, &mut page);
+            let mut bytes = Vec::new();
+            page.finish_png(&mut bytes)?;
+            bytes
+        }
+        PageFormat::Svg => {
+            let mut svg = SvgPage::new(display.width, display.height);
+            draw(display, &mut svg);
+            svg.finish().into_bytes()
+        }
+        #[cfg(feature = "pdf")]
+        PageFormat::Pdf => {
+            let mut pdf = coupler_atlas::render::PdfPage::new(display.width, display.height);
+            draw(display, &mut pdf);
+            pdf.finish()
+        }
+    })
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
-    let (l, circuit, p, window1, window2, kind) = plan(&args)?;
-    if !(args.step > 0.0 && args.step <= 10.0) {
+    let p = plan(&args)?;
+    let step = args.step;
+    if !(step > 0.0 && step <= 10.0 && coupler_atlas::divides_turn(step)) {
         return Err(UsageError(format!(
-            "--step must be in (0, 10] degrees, got {}",
-            args.step
+            "--step must divide 360 and be in (0, 10] degrees, got {step}"
         ))
         .into());
     }
@@ -231,213 +373,122 @@ pub fn run(args: Args) -> Result<ExitCode> {
             );
         }
     }
-    if !(args.min_transmission >= 0.0 && args.min_transmission < 90.0) {
+    let checks = [
+        ("--min-transmission", args.min_transmission, 0.0, 90.0),
+        ("--max-jitter-pct", args.max_jitter_pct, 0.0, 1000.0),
+        ("--dwell-tol", args.dwell_tol, 0.0, 90.0),
+    ];
+    for (name, x, lo, hi) in checks {
+        if !(x >= lo && x < hi) {
+            return Err(UsageError(format!("{name} must be in [{lo}, {hi}), got {x}")).into());
+        }
+    }
+    if !(args.max_link_ratio >= 1.0 && args.max_link_ratio.is_finite()) {
         return Err(UsageError(format!(
-            "--min-transmission must be in [0, 90) degrees, got {}",
-            args.min_transmission
+            "--max-link-ratio must be ≥ 1, got {}",
+            args.max_link_ratio
         ))
         .into());
     }
+    let files = outputs(&args)?;
+    let driver = Driver::cognate(p.linkage, p.circuit, p.point, args.cognate)
+        .map_err(|e| UsageError(e.to_string()))?;
+    let limits = Limits {
+        step_deg: step,
+        min_transmission_deg: args.min_transmission,
+        max_jitter_pct: args.max_jitter_pct,
+        max_link_ratio: args.max_link_ratio,
+        dwell_tol_deg: args.dwell_tol,
+    };
+    let kind = p.kind.as_str();
     let first = || -> Result<CrankWindow, UsageError> {
-        let s = window1
+        let s = p
+            .window1
             .as_deref()
             .ok_or_else(|| UsageError(format!("--kind {kind} needs --window")))?;
-        window(s, args.step)
+        window(s, step)
     };
     let second = || -> Result<CrankWindow, UsageError> {
-        let s = window2
+        let s = p
+            .window2
             .as_deref()
             .ok_or_else(|| UsageError(format!("--kind {kind} needs --window2")))?;
-        window(s, args.step)
+        window(s, step)
     };
     let arc_opts = DoubleArcOptions {
-        step_deg: args.step,
-        min_transmission_deg: args.min_transmission,
         swing_deg: args.swing,
         radius_tol_pct: args.radius_tol,
-        max_relative_jitter: args.max_jitter_pct / 100.0,
     };
-    let d = match kind.as_str() {
+    let method = match args.method.as_str() {
+        "norton" => Method::Norton,
+        _ => Method::Optimise,
+    };
+    let find = p.window1.is_none() && p.window2.is_none();
+    let d = match kind {
         "single" => single_dwell(
-            &l,
-            circuit,
-            p,
+            &driver,
             &first()?,
             args.swing.unwrap_or(40.0),
-            args.step,
+            method,
+            &limits,
         ),
-        "double-lines" => double_dwell_lines(&l, circuit, p, &first()?, &second()?, args.step),
-        _ if window1.is_none() && window2.is_none() => {
-            best_double_dwell_arcs(&l, circuit, p, &ArcPairSearch::default(), &arc_opts)
+        _ if find => {
+            let mut search = DoubleDwellSearch::default();
+            match kind {
+                "double-arcs" => search.line_candidates = 0,
+                "double-lines" => search.arc_candidates = 0,
+                _ => {}
+            }
+            best_double_dwell(&driver, &search, &arc_opts, &limits)
         }
-        _ => double_dwell_arcs(&l, circuit, p, &first()?, &second()?, &arc_opts),
+        "double-lines" => double_dwell_lines(&driver, &first()?, &second()?, args.swing, &limits),
+        "double-arcs" => double_dwell_arcs(&driver, &first()?, &second()?, &arc_opts, &limits),
+        _ => {
+            return Err(UsageError(
+                "--kind double finds its windows: leave out --window and --window2 (or name the kind: double-arcs, double-lines)".into(),
+            )
+            .into());
+        }
     }
     .map_err(|e| UsageError(e.to_string()))?;
+    // Every file is made in memory and written whole before anything is printed: an
+    // I/O error names its file, and no half-written file is left under its name.
+    let mut export_at_one = None;
+    for f in &files {
+        let (path, bytes) = match f {
+            Output::Card(path, format) => {
+                let e = match &export_at_one {
+                    Some(e) => e,
+                    None => export_at_one.insert(
+                        Export::new(&d, &driver, 1.0, "crank")
+                            .context("the design does not assemble at θ = 0")?,
+                    ),
+                };
+                (
+                    path,
+                    render(&coupler_atlas::layout::dwell_card(&d, e), *format, args.dpi)?,
+                )
+            }
+            Output::Export(path, format) => {
+                let scale = args.crank_length / driver.crank();
+                let e = Export::new(&d, &driver, scale, &args.units)
+                    .context("the design does not assemble at θ = 0")?;
+                (path, e.write(*format).into_bytes())
+            }
+        };
+        coupler_atlas::generate::write_atomically(path, |w| w.write_all(&bytes))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
     if args.format == "json" {
         serde_json::to_writer(&mut w, &d)?;
         writeln!(w)?;
     } else {
-        writeln!(
-            w,
-            "{:?} dwell on {l} ({circuit}), point ({}, {})",
-            d.kind, p.u, p.v
-        )?;
-        writeln!(
-            w,
-            "link 5 {:.4}, output pivot O6 ({:.4}, {:.4}), link 6 {:.4}",
-            d.link5, d.output_pivot[0], d.output_pivot[1], d.link6
-        )?;
-        write!(w, "output swing {:.3}°", d.swing_deg)?;
-        if let Some(s) = d.dwell_swing_deg {
-            write!(w, ", between the dwells {s:.3}°")?;
-            if let (Some(want), "double-arcs") = (args.swing, kind.as_str()) {
-                if (s - want).abs() > 1.0 {
-                    write!(w, " (asked for {want}°: no admissible design has it)")?;
-                }
-            }
+        for line in d.report_lines(args.swing) {
+            writeln!(w, "{line}")?;
         }
-        writeln!(w)?;
-        for (k, x) in d.dwells.iter().enumerate() {
-            let [a, b] = x.output_transmission_range_deg;
-            writeln!(
-                w,
-                "dwell {}: θ {}°+{}° ({} dashes of 10°), output {:.3}°, jitter {:.4}°, links 5–6 transmission {a:.1}°–{b:.1}°",
-                k + 1,
-                x.start_deg,
-                x.span_deg,
-                (x.span_deg / 10.0 + 1e-9).floor(),
-                x.output_deg,
-                x.jitter_deg
-            )?;
-        }
-        let [a, b] = d.output_transmission_range_deg;
-        let [c, e] = d.fourbar_transmission_range_deg;
-        writeln!(
-            w,
-            "transmission angles: links 5–6 {a:.2}°–{b:.2}°, four-bar {c:.2}°–{e:.2}°"
-        )?;
     }
     w.flush()?;
-    if let Some(path) = &args.png {
-        draw(&d, path).with_context(|| format!("cannot draw {}", path.display()))?;
-    }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Left: the design (curve, dwell circles/pivots, the linkage at the first dwell); right:
-/// output angle against crank angle, dwells shaded. No text (plotters here has no font).
-fn draw(d: &DwellMechanism, path: &Path) -> Result<()> {
-    let root = BitMapBackend::new(path, (1400, 700)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let (left, right) = root.split_horizontally(700);
-    let l = &d.linkage;
-    let pose_at = |t: f64| Pose::solve(l, d.circuit, &CrankAngle::from_degrees(t));
-    let curve: Vec<(f64, f64)> = (0..=360)
-        .filter_map(|k| pose_at(k as f64).map(|p| p.point(d.point)))
-        .map(|m| (m.x, m.y))
-        .collect();
-    let mut pts: Vec<(f64, f64)> = curve.clone();
-    pts.extend([
-        (0.0, 0.0),
-        (l.ground, 0.0),
-        (d.output_pivot[0], d.output_pivot[1]),
-    ]);
-    pts.extend(d.dwell_points.iter().map(|c| (c[0], c[1])));
-    let (x0, x1) = pts
-        .iter()
-        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
-    let (y0, y1) = pts
-        .iter()
-        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
-    let half = 0.55 * (x1 - x0).max(y1 - y0);
-    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
-    let mut chart = ChartBuilder::on(&left.margin(20, 20, 20, 20))
-        .build_cartesian_2d(cx - half..cx + half, cy - half..cy + half)?;
-    chart.draw_series(LineSeries::new(curve, BLACK.stroke_width(2)))?;
-    for c in &d.dwell_points {
-        let circle: Vec<(f64, f64)> = (0..=180)
-            .map(|k| {
-                let (s, co) = coupler_atlas::sincos_deg(k as f64 * 2.0);
-                (c[0] + d.link5 * co, c[1] + d.link5 * s)
-            })
-            .collect();
-        if d.link5 > 0.0 {
-            chart.draw_series(LineSeries::new(circle, BLUE.mix(0.5)))?;
-        }
-        chart.draw_series(std::iter::once(Circle::new((c[0], c[1]), 5, BLUE.filled())))?;
-    }
-    if let Some(first) = d.dwells.first() {
-        if let Some(pose) = pose_at(first.start_deg + 0.5 * first.span_deg) {
-            let m = pose.point(d.point);
-            let (pa, pb) = (pose.crank_pin, pose.rocker_pin);
-            let links = [
-                vec![(0.0, 0.0), (pa.x, pa.y)],
-                vec![(pa.x, pa.y), (pb.x, pb.y), (m.x, m.y), (pa.x, pa.y)],
-                vec![(l.ground, 0.0), (pb.x, pb.y)],
-            ];
-            for link in links {
-                chart.draw_series(LineSeries::new(link, RED.stroke_width(3)))?;
-            }
-            let c = d.dwell_points[0];
-            chart.draw_series(LineSeries::new(
-                vec![
-                    (m.x, m.y),
-                    (c[0], c[1]),
-                    (d.output_pivot[0], d.output_pivot[1]),
-                ],
-                GREEN.stroke_width(3),
-            ))?;
-        }
-    }
-    for p in [
-        (0.0, 0.0),
-        (l.ground, 0.0),
-        (d.output_pivot[0], d.output_pivot[1]),
-    ] {
-        chart.draw_series(std::iter::once(TriangleMarker::new(p, 9, BLACK.filled())))?;
-    }
-    // Output angle plot.
-    let t0 = d.theta_deg[0];
-    let (o0, o1) = d
-        .output_deg
-        .iter()
-        .fold((f64::MAX, f64::MIN), |a, &o| (a.0.min(o), a.1.max(o)));
-    let pad = 0.05 * (o1 - o0).max(1e-6);
-    let mut plot = ChartBuilder::on(&right.margin(30, 30, 30, 30))
-        .build_cartesian_2d(t0..t0 + 360.0, o0 - pad..o1 + pad)?;
-    for x in &d.dwells {
-        let s = t0 + (x.start_deg - t0).rem_euclid(360.0);
-        for (a, b) in [
-            (s, (s + x.span_deg).min(t0 + 360.0)),
-            (t0, s + x.span_deg - 360.0),
-        ] {
-            if b > a {
-                plot.draw_series(std::iter::once(Rectangle::new(
-                    [(a, o0 - pad), (b, o1 + pad)],
-                    BLUE.mix(0.15).filled(),
-                )))?;
-            }
-        }
-    }
-    plot.draw_series(LineSeries::new(
-        vec![
-            (t0, o0 - pad),
-            (t0 + 360.0, o0 - pad),
-            (t0 + 360.0, o1 + pad),
-            (t0, o1 + pad),
-            (t0, o0 - pad),
-        ],
-        BLACK,
-    ))?;
-    plot.draw_series(LineSeries::new(
-        d.theta_deg
-            .iter()
-            .copied()
-            .zip(d.output_deg.iter().copied()),
-        BLACK.stroke_width(2),
-    ))?;
-    root.present()?;
-    Ok(())
 }

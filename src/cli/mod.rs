@@ -19,6 +19,7 @@ mod diff;
 mod dwell;
 mod generate;
 mod search;
+mod straight;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -41,9 +42,12 @@ enum Command {
     Curve(curve::Args),
     /// The three four-bars (Roberts–Chebyshev cognates) that trace one coupler curve.
     Cognates(cognates::Args),
-    /// Design and simulate a dwell six-bar from a pseudo-arc (or a double dwell from two
-    /// straight segments or two equal arcs).
-    Dwell(dwell::Args),
+    /// Design a dwell six-bar from a pseudo-arc (or a double dwell from two straight
+    /// segments or two equal arcs): honoured or refused, simulated, a design card, CAD export.
+    Dwell(Box<dwell::Args>),
+    /// Design a straight-line four-bar for a frame ratio (the symmetric Evans linkage from
+    /// its design condition, and its Chebyshev form), or chart the family.
+    Straight(straight::Args),
     /// Search an atlas index by features (straight segments, arcs, dwells, transmission).
     Search(search::Args),
     /// Benchmarks (results go to docs/benchmarks.md).
@@ -73,7 +77,8 @@ pub fn main() -> ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::Search(args) => search::run(args),
         Command::Cognates(args) => cognates::run(args),
-        Command::Dwell(args) => dwell::run(args),
+        Command::Dwell(args) => dwell::run(*args),
+        Command::Straight(args) => straight::run(args),
         Command::Diff(args) => diff::run(args),
     };
     match result {

@@ -3,8 +3,8 @@
 //! Features of a coupler curve (`docs/conventions.md`, "Features"): straight segments,
 //! pseudo-arcs, double points, symmetry and cognates; measures over a crank window; the
 //! flags for what the numerics cannot fully resolve; the longest straight runs of the
-//! classic full curves; dwell six-bars designed from the features. Pure: no I/O, no
-//! global state.
+//! classic full curves (dwell six-bars designed from them are in `coupler-design`). Pure:
+//! no I/O, no global state.
 //!
 //! Extraction works on the curve sampled every [`FeatureTolerances::step_deg`] (5° by
 //! default) and refines with the closed-form pose where a sampled answer is not enough
@@ -18,7 +18,6 @@
 mod arcs;
 mod classic;
 mod double_points;
-mod dwell;
 mod fit;
 mod flags;
 mod maximal;
@@ -30,12 +29,6 @@ mod window;
 pub use arcs::pseudo_arcs;
 pub use classic::{ClassicCurve, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure, TraceMode};
 pub use double_points::{crunodes, cusps};
-pub use dwell::{
-    ArcPairSearch, CENTRE_SEPARATION_FACTOR, DEFAULT_DOUBLE_ARC_RADIUS_TOL_PCT,
-    DEFAULT_MAX_RELATIVE_JITTER, DEFAULT_MIN_TRANSMISSION_DEG, DoubleArcOptions, Dwell, DwellError,
-    DwellKind, DwellMechanism, MIN_FREE_SWING_DEG, NoDoubleDwell, SWING_TOLERANCE,
-    best_double_dwell_arcs, double_dwell_arcs, double_dwell_lines, single_dwell,
-};
 pub use fit::{Circle, CircleFitOptions, LineSums, angle_deg, fit_circle, kasa_circle};
 pub use flags::{CurveFlag, CurveFlags, FlagTolerances, curve_flags};
 pub use run::{StraightRun, longest_straight_run, straightness_fitted};

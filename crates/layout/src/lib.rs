@@ -7,10 +7,12 @@
 //! font's metrics (DejaVu Sans, compiled in), the same font every renderer draws with.
 //! No pixels, no files: a renderer (`coupler-render`) strokes what comes out of here.
 
+mod card;
 mod classic;
 mod font;
 mod page;
 
+pub use card::{CARD_HEIGHT_PT, CARD_WIDTH_PT, dwell_card, straight_family_chart, wrap};
 pub use classic::{
     BRACKETED_TOLERANCE, ClassicGeometry, ClassicPage, Leg, compute_classic, layout_classic,
 };
