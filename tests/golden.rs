@@ -83,6 +83,13 @@ fn golden_classic_pages_match() {
     );
 }
 
+/// A geared five-bar page (λ = −1/2: two input turns, 72 dashes; the gears' pitch
+/// circles; Ting's class, λ, φ and μ in the header).
+#[test]
+fn golden_geared_pages_match() {
+    check_golden("atlas-spec/geared-quick.toml", &["geared-quick-0007.png"]);
+}
+
 fn check_golden(spec: &str, pages: &[&str]) {
     let out = tmp(&format!("golden-{}", spec.replace('/', "-")));
     generate_spec(spec, &out, &["--dpi", GOLDEN_DPI, "--jobs", "2"]);

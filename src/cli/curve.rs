@@ -1,4 +1,5 @@
 //! `coupler-atlas curve --coupler A --rocker B --ground C --point U,V [--circuit] [--step] [--format]`
+//! (and `--mechanism geared-fivebar`: src/cli/geared.rs)
 
 use super::{LinkageArgs, UsageError, parse_number};
 use anyhow::Result;
@@ -9,8 +10,15 @@ use std::process::ExitCode;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
+    /// The mechanism: `four-bar` (--coupler, --rocker, --ground) or `geared-fivebar`
+    /// (--l1, --l3, --l4, --l5, --ratio, --phase; sampled over its period, 360°·q of
+    /// input for a gear ratio p/q).
+    #[arg(long, default_value = "four-bar", value_parser = ["four-bar", "geared-fivebar"])]
+    mechanism: String,
     #[command(flatten)]
     linkage: LinkageArgs,
+    #[command(flatten)]
+    geared: super::geared::GearedArgs,
     /// Crank step in degrees; samples at 0, step, 2·step, … below 360.
     #[arg(long, default_value = "1", value_parser = parse_number, allow_hyphen_values = true)]
     step: f64,
@@ -57,6 +65,16 @@ fn finite(x: f64) -> Option<f64> {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
+    if args.mechanism == "geared-fivebar" {
+        return run_geared(&args);
+    }
+    if args.geared.any() {
+        return Err(UsageError(
+            "--l1, --l3, --l4, --l5 and --ratio name a geared five-bar: add --mechanism geared-fivebar"
+                .into(),
+        )
+        .into());
+    }
     let (linkage, circuit, point) = args.linkage.resolve()?;
     let table = CrankTable::new(args.step).ok_or_else(|| {
         UsageError(format!(
@@ -274,4 +292,37 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     w.flush()?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// `curve --mechanism geared-fivebar`.
+fn run_geared(args: &Args) -> Result<ExitCode> {
+    if args.linkage.has_four_bar_lengths() {
+        return Err(UsageError(
+            "--coupler, --rocker and --ground name a four-bar: a geared five-bar takes --l1, --l3, --l4, --l5, --ratio and --phase".into(),
+        )
+        .into());
+    }
+    if args.window.is_some() {
+        return Err(UsageError(
+            "--window is measured for four-bars only (not yet for the geared five-bar)".into(),
+        )
+        .into());
+    }
+    let linkage = args.geared.resolve()?;
+    let (circuit, p) = args.linkage.circuit_and_point()?;
+    if !(args.step.is_finite() && args.step > 0.0 && args.step <= 360.0) {
+        return Err(UsageError(format!(
+            "--step must be > 0 and at most 360 degrees, got {}",
+            args.step
+        ))
+        .into());
+    }
+    if args.trace == "full" {
+        let full = linkage.trace_full(p, args.step);
+        let head = super::geared::json_head(&linkage)?;
+        let title = format!("geared five-bar {linkage} ({})", linkage.ting_class());
+        let class = linkage.ting_class().code();
+        return super::curve_full::write(&full, &head, class, &title, p, &args.format);
+    }
+    super::geared::run(&linkage, circuit, p, args.step, &args.format)
 }

@@ -3,7 +3,7 @@
 
 use anyhow::Result;
 use coupler_atlas::{CouplerPoint, FourBar};
-use coupler_atlas::{InputRange, trace_full};
+use coupler_atlas::{FullCurve, InputRange, trace_full};
 use serde::Serialize;
 use std::io::Write;
 use std::process::ExitCode;
@@ -27,6 +27,26 @@ fn finite(x: f64) -> Option<f64> {
 /// Writes the full curve in `format` (`json`, `csv` or `table`).
 pub fn run(linkage: &FourBar, p: CouplerPoint, step: f64, format: &str) -> Result<ExitCode> {
     let full = trace_full(linkage, p, step);
+    let head = format!(
+        "{{\"linkage\":{{\"coupler\":{},\"rocker\":{},\"ground\":{}}}",
+        serde_json::to_string(&linkage.coupler)?,
+        serde_json::to_string(&linkage.rocker)?,
+        serde_json::to_string(&linkage.ground)?
+    );
+    let title = format!("{linkage} class {}", linkage.class());
+    write(&full, &head, linkage.class().code(), &title, p, format)
+}
+
+/// Writes a full curve of any mechanism: `head` opens the JSON object with the
+/// mechanism's identity (`{"linkage":{…}`), `title` starts the table's first line.
+pub fn write(
+    full: &FullCurve,
+    head: &str,
+    class: &str,
+    title: &str,
+    p: CouplerPoint,
+    format: &str,
+) -> Result<ExitCode> {
     let branches: Vec<Vec<Sample>> = full
         .branches
         .iter()
@@ -53,18 +73,11 @@ pub fn run(linkage: &FourBar, p: CouplerPoint, step: f64, format: &str) -> Resul
     let mut w = std::io::BufWriter::new(stdout.lock());
     match format {
         "json" => {
-            write!(
-                w,
-                "{{\"linkage\":{{\"coupler\":{},\"rocker\":{},\"ground\":{}}},\"point\":",
-                serde_json::to_string(&linkage.coupler)?,
-                serde_json::to_string(&linkage.rocker)?,
-                serde_json::to_string(&linkage.ground)?
-            )?;
+            write!(w, "{head},\"point\":")?;
             serde_json::to_writer(&mut w, &p)?;
             write!(
                 w,
-                ",\"trace\":\"full\",\"class\":\"{}\",\"input_range\":",
-                linkage.class().code()
+                ",\"trace\":\"full\",\"class\":\"{class}\",\"input_range\":"
             )?;
             serde_json::to_writer(&mut w, &full.range)?;
             write!(w, ",\"branches\":[")?;
@@ -114,13 +127,7 @@ pub fn run(linkage: &FourBar, p: CouplerPoint, step: f64, format: &str) -> Resul
                     .collect::<Vec<_>>()
                     .join(" and "),
             };
-            writeln!(
-                w,
-                "# {linkage} class {} point ({}, {}); input: {range}",
-                linkage.class(),
-                p.u,
-                p.v
-            )?;
+            writeln!(w, "# {title} point ({}, {}); input: {range}", p.u, p.v)?;
             for (i, b) in branches.iter().enumerate() {
                 writeln!(w, "# branch {i}: {} samples", b.len())?;
                 writeln!(

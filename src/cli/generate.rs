@@ -268,12 +268,17 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     match &report.index_path {
         Some(index) => eprintln!(
-            "{}: {} curves of {} linkages ({} combinations, {} skipped as not strict crank-rockers), {} pages, in {:.2} s{reused}; index: {}",
+            "{}: {} curves of {} linkages ({} combinations, {} skipped as {}), {} pages, in {:.2} s{reused}; index: {}",
             job.spec.name,
             s.curves,
             s.linkages,
             s.combinations,
             skipped,
+            if job.spec.geared.is_some() {
+                "their input does not turn fully"
+            } else {
+                "not strict crank-rockers"
+            },
             s.pages,
             start.elapsed().as_secs_f64(),
             index.display()

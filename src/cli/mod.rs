@@ -17,6 +17,7 @@ mod curve;
 mod curve_full;
 mod diff;
 mod dwell;
+mod geared;
 mod generate;
 mod search;
 mod straight;
@@ -38,7 +39,8 @@ enum Command {
     Generate(generate::Args),
     /// Combine the output folders of `generate --shard K/N` runs into one atlas.
     Merge(generate::MergeArgs),
-    /// Sample the coupler curve of any single four-bar.
+    /// Sample the coupler curve of any single four-bar (or geared five-bar:
+    /// `--mechanism geared-fivebar`).
     Curve(curve::Args),
     /// The three four-bars (Roberts–Chebyshev cognates) that trace one coupler curve.
     Cognates(cognates::Args),
@@ -122,15 +124,15 @@ pub fn parse_number(s: &str) -> Result<f64, String> {
 /// The flags that name one four-bar, a coupler point and a circuit (`curve`, `cognates`).
 #[derive(clap::Args, Debug)]
 pub struct LinkageArgs {
-    /// Coupler length A (crank = 1).
+    /// Coupler length A (crank = 1). Required for a four-bar.
     #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    coupler: f64,
-    /// Rocker length B.
+    coupler: Option<f64>,
+    /// Rocker length B. Required for a four-bar.
     #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    rocker: f64,
-    /// Ground length C.
+    rocker: Option<f64>,
+    /// Ground length C. Required for a four-bar.
     #[arg(long, value_parser = parse_length, allow_hyphen_values = true)]
-    ground: f64,
+    ground: Option<f64>,
     /// Coupler point U,V in the coupler frame (crank units), e.g. `--point 1.5,-0.5`.
     #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
     point: coupler_atlas::CouplerPoint,
@@ -151,10 +153,34 @@ impl LinkageArgs {
         ),
         UsageError,
     > {
-        let linkage = coupler_atlas::FourBar::new(self.coupler, self.rocker, self.ground)
-            .map_err(|e| UsageError(e.to_string()))?;
+        let need = |x: Option<f64>, flag: &str| {
+            x.ok_or_else(|| {
+                UsageError(format!(
+                    "the four-bar needs --coupler, --rocker and --ground: {flag} is missing"
+                ))
+            })
+        };
+        let linkage = coupler_atlas::FourBar::new(
+            need(self.coupler, "--coupler")?,
+            need(self.rocker, "--rocker")?,
+            need(self.ground, "--ground")?,
+        )
+        .map_err(|e| UsageError(e.to_string()))?;
+        let (circuit, point) = self.circuit_and_point()?;
+        Ok((linkage, circuit, point))
+    }
+
+    /// The circuit and the coupler point alone (any mechanism).
+    pub fn circuit_and_point(
+        &self,
+    ) -> Result<(coupler_atlas::Circuit, coupler_atlas::CouplerPoint), UsageError> {
         let circuit = self.circuit.parse().map_err(UsageError)?;
-        Ok((linkage, circuit, self.point))
+        Ok((circuit, self.point))
+    }
+
+    /// Whether any of the four-bar's length flags was given.
+    pub fn has_four_bar_lengths(&self) -> bool {
+        self.coupler.is_some() || self.rocker.is_some() || self.ground.is_some()
     }
 }
 

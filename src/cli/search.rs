@@ -475,7 +475,9 @@ fn write_json(
         let r = &table.rows[h.row];
         let mut o = serde_json::json!({
             "id": r.id,
-            "linkage": {"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]},
+            // A geared five-bar's row has no (A, B, C): its linkage is in index.json under
+            // the same id.
+            "linkage": if r.linkage[0].is_nan() { serde_json::Value::Null } else { serde_json::json!({"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]}) },
             "point": {"u": r.point[0], "v": r.point[1]},
             "circuit": r.circuit,
             "class": r.class,

@@ -15,9 +15,10 @@ pub(crate) fn at<M: Mechanism>(
     (m.x.is_finite() && v.x.is_finite() && v.y.is_finite()).then_some(([m.x, m.y], [v.x, v.y]))
 }
 
-fn wrap360(deg: f64) -> f64 {
-    let r = deg.rem_euclid(360.0);
-    if r >= 360.0 { 0.0 } else { r }
+/// `deg` reduced to `[0, period)` (the mechanism's period: 360° for a four-bar).
+fn wrap(deg: f64, period: f64) -> f64 {
+    let r = deg.rem_euclid(period);
+    if r >= period { 0.0 } else { r }
 }
 
 /// Where segments `p0→p1` and `q0→q1` cross: parameters `(t, s)` in [0, 1].
@@ -106,8 +107,9 @@ pub fn crunodes<M: Mechanism>(
                 t1 += (d1 * scale).to_degrees();
                 t2 += (d2 * scale).to_degrees();
             }
-            let (t1, t2) = (wrap360(t1), wrap360(t2));
-            let gap = (t1 - t2).abs().min(360.0 - (t1 - t2).abs());
+            let period = l.period_deg();
+            let (t1, t2) = (wrap(t1, period), wrap(t2, period));
+            let gap = (t1 - t2).abs().min(period - (t1 - t2).abs());
             if !converged || gap < 1e-6 {
                 continue;
             }
@@ -198,7 +200,7 @@ pub fn cusps<M: Mechanism>(
         if ratio <= tol.cusp_speed_ratio {
             out.push(Cusp {
                 position: m,
-                angle_deg: wrap360(t),
+                angle_deg: wrap(t, l.period_deg()),
                 speed_ratio: ratio,
             });
         }

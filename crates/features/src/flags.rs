@@ -256,5 +256,6 @@ pub fn curve_flags(
 ) -> Vec<CurveFlag> {
     match linkage {
         Linkage::FourBar(l) => CurveFlags::for_full_turn(l, point, transmission, tol),
+        Linkage::GearedFiveBar(l) => CurveFlags::for_full_turn_geared(l, point, transmission, tol),
     }
 }

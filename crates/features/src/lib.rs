@@ -20,6 +20,7 @@ mod classic;
 mod double_points;
 mod fit;
 mod flags;
+mod geared_flags;
 mod maximal;
 mod run;
 mod straight;
@@ -291,7 +292,7 @@ impl<M: Mechanism> FeatureExtractor<M> {
     ) -> Option<FeatureExtractor<M>> {
         tolerances.validate().ok()?;
         dash.validate().ok()?;
-        let table = CrankTable::new(tolerances.step_deg)?;
+        let table = CrankTable::over(tolerances.step_deg, linkage.period_deg())?;
         let poses = linkage.pose_table(circuit, &table);
         poses.all_valid().then(|| FeatureExtractor {
             linkage: linkage.clone(),

@@ -210,19 +210,39 @@ impl Job {
         let s = &self.spec;
         let mut t = String::new();
         let _ = writeln!(t, "spec:         {} ({})", s.name, self.source);
-        let _ = writeln!(
-            t,
-            "combinations: {} (A: {} values, B: {}, C: {})",
-            s.combinations(),
-            s.linkages.coupler.len(),
-            s.linkages.rocker.len(),
-            s.linkages.ground.len()
-        );
-        let _ = writeln!(
-            t,
-            "linkages:     {} strict crank-rockers",
-            self.enumeration.linkages.len()
-        );
+        if let Some(g) = &s.geared {
+            // A geared five-bar atlas (crates/specs/src/geared.rs).
+            let _ = writeln!(
+                t,
+                "combinations: {} (L1: {} values, L3: {}, L4: {}, L5: {}, ratios: {}, phases: {})",
+                s.combinations(),
+                g.l1.len(),
+                g.l3.len(),
+                g.l4.len(),
+                g.l5.len(),
+                g.ratios.len(),
+                g.phases.len()
+            );
+            let _ = writeln!(
+                t,
+                "linkages:     {} geared five-bars whose input turns fully",
+                self.enumeration.linkages.len()
+            );
+        } else {
+            let _ = writeln!(
+                t,
+                "combinations: {} (A: {} values, B: {}, C: {})",
+                s.combinations(),
+                s.linkages.coupler.len(),
+                s.linkages.rocker.len(),
+                s.linkages.ground.len()
+            );
+            let _ = writeln!(
+                t,
+                "linkages:     {} strict crank-rockers",
+                self.enumeration.linkages.len()
+            );
+        }
         let skipped: u64 = self.enumeration.skipped.values().sum();
         let detail: Vec<String> = self
             .enumeration
@@ -232,7 +252,12 @@ impl Job {
             .collect();
         let _ = writeln!(
             t,
-            "skipped:      {skipped} not strict crank-rockers{}",
+            "skipped:      {skipped} {}{}",
+            if s.geared.is_some() {
+                "whose input does not turn fully"
+            } else {
+                "not strict crank-rockers"
+            },
             if detail.is_empty() {
                 String::new()
             } else {
@@ -258,9 +283,14 @@ impl Job {
         let _ = writeln!(t, "curves:       {}", self.curves());
         let _ = writeln!(
             t,
-            "samples:      {} per curve (every {}°)",
+            "samples:      {} per curve (every {}°){}",
             (360.0 / s.sampling.crank_step_deg).round(),
-            s.sampling.crank_step_deg
+            s.sampling.crank_step_deg,
+            if s.geared.is_some() {
+                " per turn of input; a gear ratio p/q takes q turns"
+            } else {
+                ""
+            }
         );
         let _ = writeln!(
             t,
@@ -286,6 +316,16 @@ pub fn compute_group(
 ) -> Result<Vec<IndexCurve>, GenerateError> {
     let mut extractor =
         features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t, dash));
+    // A mechanism whose period is longer than a turn (a geared five-bar of gear ratio
+    // p/q) is sampled over its whole period at the same step.
+    let own_table;
+    let table = if group.linkage.period_deg() == 360.0 {
+        table
+    } else {
+        own_table = CrankTable::over(table.step(), group.linkage.period_deg())
+            .ok_or(GenerateError::BadStep(table.step()))?;
+        &own_table
+    };
     let poses = group.linkage.pose_table(group.circuit, table);
     if !poses.all_valid() {
         return Err(GenerateError::NotAssembled {

@@ -147,6 +147,10 @@ impl SearchTable {
             id: c.id,
             linkage: match c.linkage {
                 Linkage::FourBar(l) => [l.coupler, l.rocker, l.ground],
+                // The search rows hold a four-bar's (A, B, C); a geared five-bar has no
+                // such triple, so `--linkage A,B,C` never matches it (NaN ≠ anything).
+                // Searching five-bar atlases by their lengths is not done yet.
+                Linkage::GearedFiveBar(_) => [f64::NAN; 3],
             },
             point: [c.point.u, c.point.v],
             circuit: c.circuit,
@@ -680,7 +684,8 @@ impl Query {
             }
         }
         if let Some(l) = self.linkage {
-            if (0..3).any(|k| (r.linkage[k] - l[k]).abs() > 1e-9) {
+            // A geared five-bar's row holds NaN here: it never matches a four-bar's A, B, C.
+            if (0..3).any(|k| r.linkage[k].is_nan() || (r.linkage[k] - l[k]).abs() > 1e-9) {
                 return None;
             }
         }

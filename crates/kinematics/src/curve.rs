@@ -37,6 +37,39 @@ impl CrankTable {
         })
     }
 
+    /// Angles `0, step, 2·step, …` below `period_deg` (a mechanism's period, e.g. `720`
+    /// for a geared five-bar of gear ratio p/2: [`crate::Mechanism::period_deg`]).
+    /// `None` unless `0 < step ≤ 360` and `period_deg` is a positive multiple of 360 (at
+    /// most 360 000: a thousand turns). `over(step, 360.0)` is [`CrankTable::new`].
+    ///
+    /// ```
+    /// use coupler_kinematics::CrankTable;
+    /// let t = CrankTable::over(10.0, 720.0).unwrap();
+    /// assert_eq!(t.len(), 72);
+    /// assert_eq!(t.angles()[71].degrees, 710.0);
+    /// ```
+    pub fn over(step_deg: f64, period_deg: f64) -> Option<CrankTable> {
+        let turns = period_deg / 360.0;
+        if !(step_deg.is_finite()
+            && step_deg > 0.0
+            && step_deg <= 360.0
+            && (1.0..=1000.0).contains(&turns)
+            && turns.fract() == 0.0)
+        {
+            return None;
+        }
+        let n = (period_deg / step_deg).ceil() as usize;
+        let angles = (0..n)
+            .map(|k| k as f64 * step_deg)
+            .filter(|&t| t < period_deg)
+            .map(CrankAngle::from_degrees)
+            .collect();
+        Some(CrankTable {
+            step: step_deg,
+            angles,
+        })
+    }
+
     /// The step in degrees.
     pub fn step(&self) -> f64 {
         self.step

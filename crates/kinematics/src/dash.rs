@@ -246,8 +246,8 @@ impl<M: Mechanism> Sampler<'_, M> {
     }
 }
 
-/// Cuts the coupler curve of `point` on `linkage` (`circuit`) into dashes of `pattern`,
-/// each sampled so that every chord stays within `tolerance` (curve units) of the true
+/// Cuts the coupler curve of `point` on `linkage` (`circuit`) into dashes of `pattern`
+/// over the mechanism's period ([`Mechanism::period_deg`]), each sampled so that every chord stays within `tolerance` (curve units) of the true
 /// curve at the samples tested (midpoints, and quarter points on the coarsest pieces).
 ///
 /// Errors if the pattern or tolerance is invalid, or if the linkage does not assemble
@@ -277,9 +277,13 @@ pub fn dash_curve<M: Mechanism>(
         point,
         warp: &|t| t,
     };
-    let mut dashes = Vec::with_capacity(pattern.count());
+    // Over the mechanism's whole period: one turn for a four-bar, q turns for a geared
+    // five-bar of gear ratio p/q (one dash per Δ of input all the way).
+    let turns = (linkage.period_deg() / 360.0).round().max(1.0) as usize;
+    let count = pattern.count() * turns;
+    let mut dashes = Vec::with_capacity(count);
     let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
-    for k in 0..pattern.count() {
+    for k in 0..count {
         let (t0, t1) = pattern.interval(k);
         let p0 = s.at(t0)?;
         let p1 = s.at(t1)?;

@@ -19,6 +19,7 @@ mod dash;
 mod dd;
 mod exact;
 mod frame;
+mod geared;
 mod linkage;
 mod mechanism;
 mod pose;
@@ -33,6 +34,11 @@ pub use dash::{
 pub use dd::Dd;
 pub use exact::{Decimal, DecimalError, divides_turn};
 pub use frame::{CouplerFrame, Drawing, Joint};
+pub use geared::{
+    AssemblyMargin, EquivalentError, GearAngle, GearRatio, GearTable, GearedEquivalent,
+    GearedError, GearedFiveBar, GearedGaps, GearedPose, MARGIN_STEP_DEG, MARGIN_TOL, MAX_GEAR_TERM,
+    Rotatability, TRANSMISSION_STEP_DEG, TingClass, geared_equivalent,
+};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use mechanism::{Linkage, LinkageClass, Mechanism, SymmetryAxis, SymmetryReason};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};

@@ -20,6 +20,7 @@
 use crate::cognates::{Cognate, cognates};
 use crate::curve::{CrankTable, PoseTable, transmission_range};
 use crate::frame::{CouplerFrame, Drawing, Joint};
+use crate::geared::{GearedFiveBar, TingClass};
 use crate::linkage::{Circuit, Class, CouplerPoint, FourBar};
 use crate::pose::{CrankAngle, Pose, PoseCore, ToggleGaps};
 use nalgebra::Point2;
@@ -52,8 +53,15 @@ pub trait Mechanism: Clone + fmt::Debug + fmt::Display + Send + Sync {
     /// or `None` unless the mechanism assembles all the way round.
     fn transmission_range(&self, circuit: Circuit) -> Option<[f64; 2]>;
 
-    /// Its class (Barker's for a four-bar).
+    /// Its class (Barker's for a four-bar, Ting's for a geared five-bar).
     fn class(&self) -> LinkageClass;
+
+    /// Degrees of input after which the mechanism is back where it started: 360 for a
+    /// four-bar, `360·q` for a geared five-bar of gear ratio p/q. A whole coupler curve is
+    /// sampled over `[0, period)` ([`CrankTable::over`]).
+    fn period_deg(&self) -> f64 {
+        360.0
+    }
 
     /// The class with a word on what it means for the input, for page headers, e.g.
     /// `"GCRR (crank-rocker)"`.
@@ -265,6 +273,15 @@ impl Mechanism for FourBar {
 pub enum Linkage {
     /// A four-bar (crank = 1, coupler A, rocker B, ground C).
     FourBar(FourBar),
+    /// A geared five-bar (input crank 1, ground L1, dyad L3 and L4, second crank L5,
+    /// gear ratio λ and phase φ): `{"l1", "l3", "l4", "l5", "ratio", "phase"}`.
+    GearedFiveBar(GearedFiveBar),
+}
+
+impl From<GearedFiveBar> for Linkage {
+    fn from(l: GearedFiveBar) -> Linkage {
+        Linkage::GearedFiveBar(l)
+    }
 }
 
 impl From<FourBar> for Linkage {
@@ -278,6 +295,15 @@ impl Linkage {
     pub fn four_bar(&self) -> Option<&FourBar> {
         match self {
             Linkage::FourBar(l) => Some(l),
+            Linkage::GearedFiveBar(_) => None,
+        }
+    }
+
+    /// The geared five-bar, if it is one.
+    pub fn geared_five_bar(&self) -> Option<&GearedFiveBar> {
+        match self {
+            Linkage::GearedFiveBar(l) => Some(l),
+            Linkage::FourBar(_) => None,
         }
     }
 }
@@ -286,6 +312,7 @@ impl fmt::Display for Linkage {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Linkage::FourBar(l) => l.fmt(f),
+            Linkage::GearedFiveBar(l) => l.fmt(f),
         }
     }
 }
@@ -295,94 +322,120 @@ impl Mechanism for Linkage {
     fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
         match self {
             Linkage::FourBar(l) => l.frame(circuit, angle),
+            Linkage::GearedFiveBar(l) => l.frame(circuit, angle),
         }
     }
 
     fn pose_table(&self, circuit: Circuit, table: &CrankTable) -> PoseTable {
         match self {
             Linkage::FourBar(l) => l.pose_table(circuit, table),
+            Linkage::GearedFiveBar(l) => l.pose_table(circuit, table),
         }
     }
 
     fn transmission(&self, circuit: Circuit, angle: &CrankAngle) -> Option<f64> {
         match self {
             Linkage::FourBar(l) => l.transmission(circuit, angle),
+            Linkage::GearedFiveBar(l) => l.transmission(circuit, angle),
         }
     }
 
     fn transmission_range(&self, circuit: Circuit) -> Option<[f64; 2]> {
         match self {
             Linkage::FourBar(l) => l.transmission_range(circuit),
+            Linkage::GearedFiveBar(l) => l.transmission_range(circuit),
         }
     }
 
     fn class(&self) -> LinkageClass {
         match self {
             Linkage::FourBar(l) => Mechanism::class(l),
+            Linkage::GearedFiveBar(l) => Mechanism::class(l),
+        }
+    }
+
+    fn period_deg(&self) -> f64 {
+        match self {
+            Linkage::FourBar(l) => l.period_deg(),
+            Linkage::GearedFiveBar(l) => Mechanism::period_deg(l),
         }
     }
 
     fn class_description(&self) -> String {
         match self {
             Linkage::FourBar(l) => l.class_description(),
+            Linkage::GearedFiveBar(l) => l.class_description(),
         }
     }
 
     fn dimensions(&self) -> Vec<(&'static str, f64)> {
         match self {
             Linkage::FourBar(l) => l.dimensions(),
+            Linkage::GearedFiveBar(l) => l.dimensions(),
         }
     }
 
     fn coupler_length(&self) -> f64 {
         match self {
             Linkage::FourBar(l) => l.coupler_length(),
+            Linkage::GearedFiveBar(l) => l.coupler_length(),
         }
     }
 
     fn convention(&self) -> &'static str {
         match self {
             Linkage::FourBar(l) => l.convention(),
+            Linkage::GearedFiveBar(l) => l.convention(),
         }
     }
 
     fn drawing(&self, circuit: Circuit, angle: &CrankAngle) -> Drawing {
         match self {
             Linkage::FourBar(l) => l.drawing(circuit, angle),
+            Linkage::GearedFiveBar(l) => l.drawing(circuit, angle),
         }
     }
 
     fn cognates(&self, circuit: Circuit, point: CouplerPoint) -> Vec<Cognate> {
         match self {
             Linkage::FourBar(l) => l.cognates(circuit, point),
+            Linkage::GearedFiveBar(l) => l.cognates(circuit, point),
         }
     }
 
     fn symmetry_axis(&self, circuit: Circuit, point: CouplerPoint) -> Option<SymmetryAxis> {
         match self {
             Linkage::FourBar(l) => l.symmetry_axis(circuit, point),
+            Linkage::GearedFiveBar(l) => l.symmetry_axis(circuit, point),
         }
     }
 }
 
-/// The class of a mechanism: Barker's for a four-bar. Serialised as its code
-/// (`"GCRR"`), without a tag.
+/// The class of a mechanism: Barker's for a four-bar, Ting's for a geared five-bar.
+/// Serialised as its code (`"GCRR"`, `"II"`), without a tag.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum LinkageClass {
     /// Barker's class of a four-bar.
     Barker(Class),
+    /// Ting's rotatability class of a geared five-bar (`"I"`, `"II"`, `"III"`).
+    Ting(TingClass),
 }
 
 impl LinkageClass {
-    /// Every class, in a fixed order (the search cache stores a class as its position).
-    pub const ALL: [LinkageClass; 14] = {
-        let mut all = [LinkageClass::Barker(Class::Gccc); 14];
+    /// Every class, in a fixed order (the search cache stores a class as its position):
+    /// Barker's fourteen, then Ting's three (appended, so the four-bar positions keep
+    /// their numbers).
+    pub const ALL: [LinkageClass; 17] = {
+        let mut all = [LinkageClass::Barker(Class::Gccc); 17];
         let mut k = 0;
         while k < 14 {
             all[k] = LinkageClass::Barker(Class::ALL[k]);
             k += 1;
         }
+        all[14] = LinkageClass::Ting(TingClass::I);
+        all[15] = LinkageClass::Ting(TingClass::II);
+        all[16] = LinkageClass::Ting(TingClass::III);
         all
     };
 
@@ -390,6 +443,7 @@ impl LinkageClass {
     pub fn code(self) -> &'static str {
         match self {
             LinkageClass::Barker(c) => c.code(),
+            LinkageClass::Ting(c) => c.code(),
         }
     }
 }
@@ -409,7 +463,12 @@ impl fmt::Display for LinkageClass {
 impl std::str::FromStr for LinkageClass {
     type Err = String;
     fn from_str(s: &str) -> Result<LinkageClass, String> {
-        s.parse::<Class>().map(LinkageClass::Barker)
+        match s.trim() {
+            "I" => Ok(LinkageClass::Ting(TingClass::I)),
+            "II" => Ok(LinkageClass::Ting(TingClass::II)),
+            "III" => Ok(LinkageClass::Ting(TingClass::III)),
+            _ => s.parse::<Class>().map(LinkageClass::Barker),
+        }
     }
 }
 

@@ -231,33 +231,15 @@ fn sample(
     let angle = CrankAngle::from_degrees(deg);
     let pose = Pose::solve_with(l, gaps, c, &angle)?;
     if toggle {
-        // The toggle itself: the flat pose, the same for both circuits. Where the refined
-        // angle could not make the thin factor exactly zero (it changes by more than its
-        // rounding window per ulp of θ), the circuits differ by h ~ √ε there; the coupler
-        // direction is then taken along the chord's foot, e = (e_open + e_crossed)/|…|,
-        // which is the flat pose to that same √ε.
         let other = Pose::solve_with(l, gaps, c.other(), &angle)?;
-        let sum = pose.coupler_dir + other.coupler_dir;
-        let e = if sum.norm() > 0.0 {
-            sum / sum.norm()
-        } else {
-            pose.coupler_dir
-        };
-        let pa = pose.crank_pin;
-        let point = Point2::new(pa.x + p.u * e.x - p.v * e.y, pa.y + p.u * e.y + p.v * e.x);
-        let flat = if pose.transmission > std::f64::consts::FRAC_PI_2 {
-            std::f64::consts::PI
-        } else {
-            0.0
-        };
-        return Some(TraceSample {
-            degrees: deg,
-            circuit: c,
-            point,
-            velocity: Vector2::new(f64::INFINITY, f64::INFINITY),
-            transmission: flat,
-            toggle,
-        });
+        return Some(toggle_sample(
+            deg,
+            c,
+            p,
+            pose.crank_pin,
+            [pose.coupler_dir, other.coupler_dir],
+            pose.transmission,
+        ));
     }
     Some(TraceSample {
         degrees: deg,
@@ -269,8 +251,44 @@ fn sample(
     })
 }
 
+/// The sample at a toggle: the flat pose, the same for both circuits. Where the refined
+/// angle could not make the thin factor exactly zero (it changes by more than its rounding
+/// window per ulp of θ), the circuits differ by h ~ √ε there; the coupler direction is
+/// then taken along the chord's foot, e = (e_this + e_other)/|…| (the directions of the
+/// body carrying the point on the two circuits), which is the flat pose to that same √ε.
+/// Shared by the four-bar's and the geared five-bar's full traces.
+pub(crate) fn toggle_sample(
+    deg: f64,
+    circuit: Circuit,
+    p: CouplerPoint,
+    pa: Point2<f64>,
+    [e_this, e_other]: [Vector2<f64>; 2],
+    transmission: f64,
+) -> TraceSample {
+    let sum = e_this + e_other;
+    let e = if sum.norm() > 0.0 {
+        sum / sum.norm()
+    } else {
+        e_this
+    };
+    let point = Point2::new(pa.x + p.u * e.x - p.v * e.y, pa.y + p.u * e.y + p.v * e.x);
+    let flat = if transmission > std::f64::consts::FRAC_PI_2 {
+        std::f64::consts::PI
+    } else {
+        0.0
+    };
+    TraceSample {
+        degrees: deg,
+        circuit,
+        point,
+        velocity: Vector2::new(f64::INFINITY, f64::INFINITY),
+        transmission: flat,
+        toggle: true,
+    }
+}
+
 /// Grid angles `k·step` strictly inside `(lo, hi)`, ascending.
-fn grid_inside(lo: f64, hi: f64, step: f64) -> Vec<f64> {
+pub(crate) fn grid_inside(lo: f64, hi: f64, step: f64) -> Vec<f64> {
     let mut k = (lo / step).floor() as i64 + 1;
     let mut v = Vec::new();
     while (k as f64) * step < hi {

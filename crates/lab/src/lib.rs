@@ -29,6 +29,7 @@ mod adaptive;
 mod closed;
 mod features;
 mod freudenstein;
+mod geared_reference;
 mod measure;
 mod newton;
 mod reference;
@@ -42,6 +43,7 @@ pub use closed::{ClosedForm, KahanOnD, NaiveClosedForm};
 
 pub use features::{CircleFit, fit_circle, straightness_along_x};
 pub use freudenstein::Freudenstein;
+pub use geared_reference::{geared_point_dd, joints_dd, second_crank_degrees_dd, sincos_deg_dd2};
 pub use measure::{Measurement, measure, uniform_angles};
 pub use newton::Newton;
 pub use reference::{coupler_point_dd, sincos_deg_dd};

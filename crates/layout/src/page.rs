@@ -611,7 +611,7 @@ pub fn compute_page<M: Mechanism>(
     setup: &PageSetup,
 ) -> Result<PageGeometry, LayoutError> {
     setup.validate()?;
-    let table = CrankTable::new(2.0).expect("valid step");
+    let table = CrankTable::over(2.0, page.linkage.period_deg()).expect("valid step");
     let poses = page.linkage.pose_table(page.circuit, &table);
     let mut world = linkage_bbox(page);
     let mut curve = Curve::default();
@@ -1252,7 +1252,9 @@ fn legend<M: Mechanism>(
         ts,
         Anchor::Start,
         format!(
-            "crank turns counter-clockwise, θ from O2→O4;  {} circuit;  linkage drawn at θ = {}°",
+            "crank turns counter-clockwise, θ from O2→{};  {} circuit;  linkage drawn at θ = {}°",
+            // The second ground pivot: O4 of a four-bar, O5 of a geared five-bar.
+            drawn(page).joints.get(1).map_or("O4", |j| j.name),
             page.circuit.name(),
             fmt_num(DRAWN_CRANK_ANGLE_DEG)
         ),

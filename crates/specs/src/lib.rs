@@ -7,11 +7,13 @@
 
 mod curves;
 mod features;
+mod geared;
 mod settings;
 mod spec;
 
 pub use curves::CurveList;
 pub use features::FeatureSettings;
+pub use geared::GearedRanges;
 pub use settings::{PageSettings, Sampling};
 pub use spec::{
     AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,

@@ -6,9 +6,12 @@
 
 use crate::curves::CurveList;
 use crate::features::FeatureSettings;
+use crate::geared::GearedRanges;
 use crate::settings::{PageSettings, Sampling};
 use coupler_features::{NamedCurve, TraceMode};
-use coupler_kinematics::{Circuit, Class, CouplerPoint, Decimal, FourBar, Linkage, divides_turn};
+use coupler_kinematics::{
+    Circuit, Class, CouplerPoint, Decimal, FourBar, GearRatio, GearedError, Linkage, divides_turn,
+};
 use coupler_layout::{DPI_RANGE, Orientation, PaperSize};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -46,8 +49,11 @@ pub struct Spec {
     pub name: String,
     /// Title printed on the contents page.
     pub title: String,
-    /// Ranges of the coupler A, rocker B and ground C (crank = 1).
+    /// Ranges of the coupler A, rocker B and ground C (crank = 1) of a four-bar atlas;
+    /// empty ranges in a geared five-bar atlas (see `geared`).
     pub linkages: LinkageRanges,
+    /// The linkages of a geared five-bar atlas (`[geared]`, instead of `[linkages]`).
+    pub geared: Option<GearedRanges>,
     /// Circuits to trace, in order.
     pub circuits: Vec<Circuit>,
     /// The coupler-point grid.
@@ -83,7 +89,10 @@ impl Serialize for Spec {
         let mut st = s.serialize_struct("Spec", 8)?;
         st.serialize_field("name", &self.name)?;
         st.serialize_field("title", &self.title)?;
-        st.serialize_field("linkages", &self.linkages)?;
+        match &self.geared {
+            None => st.serialize_field("linkages", &self.linkages)?,
+            Some(g) => st.serialize_field("linkages", g)?,
+        }
         st.serialize_field("circuits", &self.circuits)?;
         st.serialize_field("points", &self.points)?;
         st.serialize_field("sampling", &self.sampling)?;
@@ -213,6 +222,8 @@ struct RawSpec {
     #[serde(default)]
     linkages: Option<Spanned<RawLinkages>>,
     #[serde(default)]
+    geared: Option<Spanned<RawGeared>>,
+    #[serde(default)]
     points: Option<Spanned<RawPoints>>,
     #[serde(default)]
     curve: Option<Spanned<Vec<Spanned<RawCurve>>>>,
@@ -252,6 +263,20 @@ struct RawLinkages {
     coupler: Spanned<RawRange>,
     rocker: Spanned<RawRange>,
     ground: Spanned<RawRange>,
+    #[serde(default)]
+    circuits: Option<Spanned<Vec<Spanned<String>>>>,
+}
+
+/// `[geared]`: a geared five-bar atlas's linkages.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGeared {
+    l1: Spanned<RawRange>,
+    l3: Spanned<RawRange>,
+    l4: Spanned<RawRange>,
+    l5: Spanned<RawRange>,
+    ratios: Spanned<Vec<Spanned<String>>>,
+    phases: Spanned<RawRange>,
     #[serde(default)]
     circuits: Option<Spanned<Vec<Spanned<String>>>>,
 }
@@ -455,6 +480,11 @@ impl AtlasSpec {
         })?;
         let (name, title) = cx.atlas(raw.atlas.get_ref())?;
         let sampling = cx.sampling(raw.sampling.as_ref())?;
+        if let Some(g) = &raw.geared {
+            return cx
+                .geared_spec(&raw, g, name, title, sampling)
+                .map(AtlasSpec::Grid);
+        }
         match (&raw.linkages, &raw.points, &raw.curve) {
             (_, _, Some(curves)) => {
                 if let Some(t) = &raw.linkages {
@@ -478,20 +508,7 @@ impl AtlasSpec {
             }
             (Some(l), Some(p), None) => {
                 let pages = cx.pages(raw.pages.as_ref(), true)?;
-                let features = match &raw.features {
-                    None => FeatureSettings::DEFAULT,
-                    Some(t) => {
-                        if t.get_ref().contains_key("dash_deg") {
-                            return Err(cx.error(
-                                cx.key_in(t.span(), "dash_deg"),
-                                Some("features.dash_deg"),
-                                "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
-                            ));
-                        }
-                        FeatureSettings::from_table(t.get_ref())
-                            .map_err(|m| cx.error(t.span(), Some("features"), m))?
-                    }
-                };
+                let features = cx.features(raw.features.as_ref())?;
                 let (linkages, circuits) = cx.linkages(l.get_ref())?;
                 let pr = p.get_ref();
                 let (u, u_relative) = cx.range(&pr.u, "points.u", false)?;
@@ -510,6 +527,7 @@ impl AtlasSpec {
                     sampling,
                     pages,
                     features,
+                    geared: None,
                 })))
             }
             (l, _, None) => {
@@ -569,34 +587,7 @@ impl Ctx<'_> {
         let (coupler, _) = self.range(&l.coupler, "linkages.coupler", true)?;
         let (rocker, _) = self.range(&l.rocker, "linkages.rocker", true)?;
         let (ground, _) = self.range(&l.ground, "linkages.ground", true)?;
-        let circuits = match &l.circuits {
-            None => vec![Circuit::Open],
-            Some(list) => {
-                if list.get_ref().is_empty() {
-                    return Err(self.error(
-                        list.span(),
-                        Some("linkages.circuits"),
-                        "list is empty: give `open`, `crossed` or both".into(),
-                    ));
-                }
-                let mut out = Vec::new();
-                for c in list.get_ref() {
-                    let circuit: Circuit = c
-                        .get_ref()
-                        .parse()
-                        .map_err(|m: String| self.error(c.span(), Some("linkages.circuits"), m))?;
-                    if out.contains(&circuit) {
-                        return Err(self.error(
-                            c.span(),
-                            Some("linkages.circuits"),
-                            format!("`{circuit}` is listed twice"),
-                        ));
-                    }
-                    out.push(circuit);
-                }
-                out
-            }
-        };
+        let circuits = self.circuits(l.circuits.as_ref(), "linkages.circuits")?;
         Ok((
             LinkageRanges {
                 coupler,
@@ -605,6 +596,159 @@ impl Ctx<'_> {
             },
             circuits,
         ))
+    }
+
+    /// `[features]` of a grid atlas (four-bar or geared five-bar).
+    fn features(&self, raw: Option<&Spanned<toml::Table>>) -> Result<FeatureSettings, SpecError> {
+        let Some(t) = raw else {
+            return Ok(FeatureSettings::DEFAULT);
+        };
+        if t.get_ref().contains_key("dash_deg") {
+            return Err(self.error(
+                self.key_in(t.span(), "dash_deg"),
+                Some("features.dash_deg"),
+                "the dash angle is one setting for the pages and the index's dash counts: set it as `[sampling] dash_deg`".into(),
+            ));
+        }
+        FeatureSettings::from_table(t.get_ref())
+            .map_err(|m| self.error(t.span(), Some("features"), m))
+    }
+
+    /// A geared five-bar atlas: `[geared]` and `[points]` (the grid relative to L3).
+    fn geared_spec(
+        &self,
+        raw: &RawSpec,
+        g: &Spanned<RawGeared>,
+        name: String,
+        title: String,
+        sampling: Sampling,
+    ) -> Result<Box<Spec>, SpecError> {
+        let both = "a spec gives the linkages of one mechanism: [linkages] (four-bars) or [geared] (geared five-bars), not both";
+        if let Some(t) = &raw.linkages {
+            return Err(self.error(t.span(), Some("linkages"), both.into()));
+        }
+        if let Some(t) = &raw.curve {
+            return Err(self.error(
+                t.span(),
+                Some("curve"),
+                "a [geared] grid cannot also list [[curve]] entries".into(),
+            ));
+        }
+        let Some(p) = &raw.points else {
+            return Err(self.error(
+                g.span(),
+                Some("points"),
+                "missing field `points` (a [geared] atlas needs a [points] grid)".into(),
+            ));
+        };
+        let pages = self.pages(raw.pages.as_ref(), true)?;
+        let features = self.features(raw.features.as_ref())?;
+        let r = g.get_ref();
+        let (l1, _) = self.range(&r.l1, "geared.l1", true)?;
+        let (l3, _) = self.range(&r.l3, "geared.l3", true)?;
+        let (l4, _) = self.range(&r.l4, "geared.l4", true)?;
+        let (l5, _) = self.range(&r.l5, "geared.l5", true)?;
+        let (phases, relative) = self.range(&r.phases, "geared.phases", false)?;
+        if relative {
+            return Err(self.error(
+                r.phases.span(),
+                Some("geared.phases.relative"),
+                "`relative` applies to coupler points (u, v) only".into(),
+            ));
+        }
+        if r.ratios.get_ref().is_empty() {
+            return Err(self.error(
+                r.ratios.span(),
+                Some("geared.ratios"),
+                "list is empty: give gear ratios such as \"-1\", \"2\", \"-1/2\"".into(),
+            ));
+        }
+        let mut ratios = Vec::new();
+        for t in r.ratios.get_ref() {
+            let ratio: GearRatio = t.get_ref().parse().map_err(|e: GearedError| {
+                self.error(t.span(), Some("geared.ratios"), e.to_string())
+            })?;
+            if ratios.contains(&ratio) {
+                return Err(self.error(
+                    t.span(),
+                    Some("geared.ratios"),
+                    format!("gear ratio {ratio} is listed twice"),
+                ));
+            }
+            ratios.push(ratio);
+        }
+        let circuits = self.circuits(r.circuits.as_ref(), "geared.circuits")?;
+        let pr = p.get_ref();
+        let (u, u_relative) = self.range(&pr.u, "points.u", false)?;
+        let (v, v_relative) = self.range(&pr.v, "points.v", false)?;
+        let none = DecimalRange {
+            start: Decimal::ZERO,
+            end: Decimal::ZERO,
+            step: Decimal::ZERO,
+        };
+        Ok(Box::new(Spec {
+            name,
+            title,
+            linkages: LinkageRanges {
+                coupler: none,
+                rocker: none,
+                ground: none,
+            },
+            geared: Some(GearedRanges {
+                l1,
+                l3,
+                l4,
+                l5,
+                ratios,
+                phases,
+            }),
+            circuits,
+            points: PointGrid {
+                u,
+                v,
+                u_relative,
+                v_relative,
+            },
+            sampling,
+            pages,
+            features,
+        }))
+    }
+
+    fn circuits(
+        &self,
+        list: Option<&Spanned<Vec<Spanned<String>>>>,
+        key: &str,
+    ) -> Result<Vec<Circuit>, SpecError> {
+        let circuits = match list {
+            None => vec![Circuit::Open],
+            Some(list) => {
+                if list.get_ref().is_empty() {
+                    return Err(self.error(
+                        list.span(),
+                        Some(key),
+                        "list is empty: give `open`, `crossed` or both".into(),
+                    ));
+                }
+                let mut out = Vec::new();
+                for c in list.get_ref() {
+                    let circuit: Circuit = c
+                        .get_ref()
+                        .parse()
+                        .map_err(|m: String| self.error(c.span(), Some(key), m))?;
+                    if out.contains(&circuit) {
+                        return Err(self.error(
+                            c.span(),
+                            Some(key),
+                            format!("`{circuit}` is listed twice"),
+                        ));
+                    }
+                    out.push(circuit);
+                }
+                out
+            }
+        };
+        Ok(circuits)
     }
 
     fn sampling(&self, raw: Option<&Spanned<RawSampling>>) -> Result<Sampling, SpecError> {
@@ -813,12 +957,19 @@ impl Spec {
 
     /// Number of (A, B, C) combinations the ranges touch.
     pub fn combinations(&self) -> u64 {
+        if let Some(g) = &self.geared {
+            return g.combinations();
+        }
         self.linkages.coupler.len() * self.linkages.rocker.len() * self.linkages.ground.len()
     }
 
     /// Enumerates the linkages: every (A, B, C) in the ranges (A outer, then B, then C,
     /// each ascending) that is a strict crank-rocker, and counts the others by class.
     pub fn enumerate(&self) -> Enumeration {
+        if let Some(g) = &self.geared {
+            let (linkages, skipped) = g.enumerate();
+            return Enumeration { linkages, skipped };
+        }
         let mut linkages = Vec::new();
         let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
         for a in self.linkages.coupler.values() {

@@ -1,0 +1,415 @@
+//! `coupler-atlas curve --mechanism geared-fivebar`, run as a user runs it: the JSON
+//! contract (the library's numbers, nulls where the dyad cannot close, flags and error
+//! bound), the full trace across toggles, the exact straight line, and clear errors.
+
+use coupler_atlas::{Circuit, CouplerPoint, GearRatio, GearedFiveBar};
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("valid JSON")
+}
+
+fn geared(lengths: [&str; 4], ratio: &str, phase: &str, rest: &[&str]) -> Output {
+    let mut args = vec![
+        "curve",
+        "--mechanism",
+        "geared-fivebar",
+        "--l1",
+        lengths[0],
+        "--l3",
+        lengths[1],
+        "--l4",
+        lengths[2],
+        "--l5",
+        lengths[3],
+        "--ratio",
+        ratio,
+        "--phase",
+        phase,
+    ];
+    args.extend_from_slice(rest);
+    run(&args)
+}
+
+#[test]
+fn curve_json_is_the_librarys_over_the_period() {
+    let out = geared(
+        ["3", "3", "3", "1"],
+        "-1/2",
+        "30",
+        &["--point", "1,1", "--step", "5", "--circuit", "crossed"],
+    );
+    let j = json(&out);
+    assert_eq!(j["mechanism"], "geared-fivebar");
+    assert_eq!(j["linkage"]["ratio"], "-1/2");
+    assert_eq!(j["linkage"]["l5"], 1.0);
+    assert_eq!(j["class"], "I");
+    assert_eq!(j["rotatability"], "full");
+    assert_eq!(j["period_deg"], 720.0);
+    assert_eq!(j["circuit"], "crossed");
+    assert_eq!(j["flags"], serde_json::json!([]));
+    let bound = j["error_bound"].as_f64().unwrap();
+    assert!(bound > 0.0 && bound < 1e-12, "{bound}");
+    let samples = j["samples"].as_array().unwrap();
+    assert_eq!(samples.len(), 144, "two input turns at 5°");
+    let g = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), 30.0).unwrap();
+    let p = CouplerPoint::new(1.0, 1.0);
+    for (k, s) in samples.iter().enumerate() {
+        let theta = 5.0 * k as f64;
+        assert_eq!(s["theta_deg"].as_f64().unwrap(), theta);
+        let pose = g.pose_at(Circuit::Crossed, theta).unwrap();
+        let (m, v) = (pose.point(p), pose.velocity(p).unwrap());
+        // The printed numbers are the library's, to the bit.
+        assert_eq!(s["x"].as_f64().unwrap(), m.x);
+        assert_eq!(s["y"].as_f64().unwrap(), m.y);
+        assert_eq!(s["vx"].as_f64().unwrap(), v.x);
+        assert_eq!(s["vy"].as_f64().unwrap(), v.y);
+        let t5 = s["theta5_deg"].as_f64().unwrap();
+        assert!(((-0.5 * theta + 30.0).rem_euclid(360.0) - t5).abs() < 1e-12);
+    }
+    // CSV and table carry the same samples.
+    let csv = geared(
+        ["3", "3", "3", "1"],
+        "-1/2",
+        "30",
+        &["--point", "1,1", "--step", "5", "--format", "csv"],
+    );
+    assert!(csv.status.success());
+    assert_eq!(String::from_utf8_lossy(&csv.stdout).lines().count(), 145);
+}
+
+#[test]
+fn rocking_input_prints_nulls_and_traces_fully_across_toggles() {
+    // λ = 1, φ = 180°: the dyad cannot close around θ2 = 180° (docs/geared-fivebar.md).
+    let args = ["2.5", "2", "2", "1"];
+    let j = json(&geared(
+        args,
+        "1",
+        "180",
+        &["--point", "1,0.5", "--step", "2"],
+    ));
+    assert_eq!(j["rotatability"], "rocks");
+    let samples = j["samples"].as_array().unwrap();
+    let nulls = samples.iter().filter(|s| s["x"].is_null()).count();
+    assert!(nulls > 0 && nulls < samples.len(), "{nulls}");
+    for s in samples.iter().filter(|s| s["x"].is_null()) {
+        for key in ["y", "vx", "vy", "transmission_deg"] {
+            assert!(s[key].is_null(), "{s}");
+        }
+    }
+    let flags = j["flags"].as_array().unwrap();
+    assert!(flags.contains(&"not_assembled".into()), "{flags:?}");
+
+    let full = json(&geared(
+        args,
+        "1",
+        "180",
+        &["--point", "1,0.5", "--step", "2", "--trace", "full"],
+    ));
+    assert_eq!(full["trace"], "full");
+    assert_eq!(full["mechanism"], "geared-fivebar");
+    assert_eq!(full["input_range"]["kind"], "rocks");
+    let branches = full["branches"].as_array().unwrap();
+    assert_eq!(branches.len(), 1);
+    let s = branches[0]["samples"].as_array().unwrap();
+    let (first, last) = (&s[0], &s[s.len() - 1]);
+    assert_eq!(first["toggle"], true);
+    assert_eq!((&first["x"], &first["y"]), (&last["x"], &last["y"]));
+    assert!(s.iter().all(|x| x["x"].is_f64() && x["y"].is_f64()));
+    // Out on one circuit, back on the other, without a jump.
+    let xy = |v: &serde_json::Value| (v["x"].as_f64().unwrap(), v["y"].as_f64().unwrap());
+    for w in s.windows(2) {
+        let ((x0, y0), (x1, y1)) = (xy(&w[0]), xy(&w[1]));
+        assert!((x1 - x0).hypot(y1 - y0) < 0.2, "{} {}", w[0], w[1]);
+    }
+    assert!(s.iter().any(|x| x["circuit"] == "open"));
+    assert!(s.iter().any(|x| x["circuit"] == "crossed"));
+}
+
+#[test]
+fn straight_line_classic_is_straight_to_rounding() {
+    // λ = −1, φ = 180°, L5 = 1, L3 = L4: the joint (u, v) = (L3, 0) runs on x = L1/2.
+    let j = json(&geared(
+        ["3", "3", "3", "1"],
+        "-1",
+        "180",
+        &["--point", "3,0", "--step", "0.5"],
+    ));
+    let samples = j["samples"].as_array().unwrap();
+    assert_eq!(samples.len(), 720);
+    let worst = samples
+        .iter()
+        .map(|s| (s["x"].as_f64().unwrap() - 1.5).abs())
+        .fold(0.0, f64::max);
+    assert!(worst <= 4.0 * f64::EPSILON * 3.0, "{worst:e}");
+}
+
+#[test]
+fn bad_geared_input_is_refused_clearly() {
+    let err = |out: Output, want: &str| {
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{}",
+            String::from_utf8_lossy(&out.stdout)
+        );
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(e.contains(want), "{e}");
+    };
+    err(
+        run(&[
+            "curve",
+            "--mechanism",
+            "geared-fivebar",
+            "--l1",
+            "3",
+            "--l3",
+            "3",
+            "--l4",
+            "3",
+            "--l5",
+            "1",
+            "--point",
+            "1,1",
+        ]),
+        "--ratio is missing",
+    );
+    err(
+        geared(["3", "3", "3", "1"], "1.5", "0", &["--point", "1,1"]),
+        "is not a gear ratio",
+    );
+    err(
+        geared(["3", "3", "3", "1"], "0", "0", &["--point", "1,1"]),
+        "must not be 0",
+    );
+    err(
+        geared(["3", "-3", "3", "1"], "1", "0", &["--point", "1,1"]),
+        "a length must be > 0",
+    );
+    err(
+        geared(
+            ["3", "3", "3", "1"],
+            "1",
+            "0",
+            &["--point", "1,1", "--step", "0"],
+        ),
+        "--step must be > 0",
+    );
+    err(
+        geared(
+            ["3", "3", "3", "1"],
+            "1",
+            "0",
+            &["--point", "1,1", "--coupler", "2"],
+        ),
+        "name a four-bar",
+    );
+    err(
+        run(&["curve", "--l1", "3", "--point", "1,1"]),
+        "add --mechanism geared-fivebar",
+    );
+    err(
+        run(&["curve", "--coupler", "2", "--rocker", "2", "--point", "1,1"]),
+        "--ground is missing",
+    );
+}
+
+#[test]
+fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = root.join("atlas-spec/geared-quick.toml");
+    let dirs: Vec<_> = ["j1", "j2"]
+        .iter()
+        .map(|j| std::env::temp_dir().join(format!("geared-atlas-{}-{j}", std::process::id())))
+        .collect();
+    for (dir, jobs) in dirs.iter().zip(["1", "2"]) {
+        let _ = std::fs::remove_dir_all(dir);
+        let out = run(&[
+            "generate",
+            spec.to_str().unwrap(),
+            "--out",
+            dir.to_str().unwrap(),
+            "--jobs",
+            jobs,
+            "--quiet",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let bytes = std::fs::read(dirs[0].join("index.json")).unwrap();
+    assert!(
+        bytes == std::fs::read(dirs[1].join("index.json")).unwrap(),
+        "index.json differs between --jobs 1 and --jobs 2"
+    );
+    for k in 1..=8 {
+        let name = format!("pages/geared-quick-{k:04}.png");
+        assert!(
+            std::fs::read(dirs[0].join(&name)).unwrap()
+                == std::fs::read(dirs[1].join(&name)).unwrap(),
+            "{name} differs between --jobs 1 and --jobs 2"
+        );
+    }
+    let index: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+    assert_eq!(index["spec"]["linkages"]["mechanism"], "geared-fivebar");
+    assert_eq!(index["summary"]["linkages"], 8);
+    let curves = index["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), 16);
+    for c in curves {
+        assert_eq!(c["class"], "I");
+        assert!(c["features"].is_object() && c["page"].is_object());
+        // The index's measures are the library's curve over the whole period (one turn
+        // of a λ = −1/2 curve would be about half its length): the trapezoid length at
+        // 0.1° agrees with the index's from 2° samples (1.2e-5 relative at worst here,
+        // on λ = −2's quicker loops).
+        let l = &c["linkage"];
+        let g = GearedFiveBar::new(
+            l["l1"].as_f64().unwrap(),
+            l["l3"].as_f64().unwrap(),
+            l["l4"].as_f64().unwrap(),
+            l["l5"].as_f64().unwrap(),
+            l["ratio"].as_str().unwrap().parse().unwrap(),
+            l["phase"].as_f64().unwrap(),
+        )
+        .unwrap();
+        let p = CouplerPoint::new(
+            c["point"]["u"].as_f64().unwrap(),
+            c["point"]["v"].as_f64().unwrap(),
+        );
+        let fine = g.trace(Circuit::Open, p, 0.1).unwrap();
+        let speed: f64 = (0..fine.len()).map(|k| fine.vx[k].hypot(fine.vy[k])).sum();
+        let length = speed * 0.1f64.to_radians();
+        let got = c["length"].as_f64().unwrap();
+        assert!((got - length).abs() < 1e-4 * length, "{got} vs {length}");
+    }
+    // λ = −1/2 curves run two input turns.
+    let half: Vec<_> = curves
+        .iter()
+        .filter(|c| c["linkage"]["ratio"] == "-1/2")
+        .collect();
+    assert_eq!(half.len(), 4);
+    // search reads the index by features and class.
+    let out = run(&[
+        "search",
+        dirs[0].join("index.json").to_str().unwrap(),
+        "--class",
+        "I",
+        "--limit",
+        "0",
+        "--format",
+        "json",
+    ]);
+    let found = json(&out);
+    assert_eq!(found["total"], 16);
+    let hits = found["hits"].as_array().unwrap();
+    assert_eq!(hits.len(), 16);
+    assert!(hits[0]["linkage"].is_null());
+    for dir in &dirs {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
+#[test]
+fn cognates_geared_fivebar_gives_the_librarys_equivalent() {
+    // A triple rocker (1 + 3.5 > 2 + 2): its equivalent's input rocks with the coupler.
+    let out = run(&[
+        "cognates",
+        "--coupler",
+        "2",
+        "--rocker",
+        "2",
+        "--ground",
+        "3.5",
+        "--point",
+        "1,0.5",
+        "--geared-fivebar",
+        "--format",
+        "json",
+    ]);
+    let j = json(&out);
+    let l = coupler_atlas::FourBar::new(2.0, 2.0, 3.5).unwrap();
+    let eq = coupler_atlas::geared_equivalent(&l, CouplerPoint::new(1.0, 0.5)).unwrap();
+    assert_eq!(
+        j["geared_fivebar"],
+        serde_json::to_value(eq.linkage).unwrap()
+    );
+    assert_eq!(j["scale"].as_f64().unwrap(), eq.scale);
+    assert_eq!(j["geared_fivebar"]["ratio"], "1");
+    assert_eq!(j["rotatability"], "rocks");
+    assert_eq!(j["input_range"]["kind"], "rocks");
+    assert_eq!(j["four_bar"]["class"], l.class().code());
+    // The crank and rocker pins themselves have no equivalent (a zero-length crank).
+    let bad = run(&[
+        "cognates",
+        "--coupler",
+        "2",
+        "--rocker",
+        "2",
+        "--ground",
+        "3.5",
+        "--point",
+        "0,0",
+        "--geared-fivebar",
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+}
+
+#[test]
+fn straight_line_page_set_measures_its_line_at_rounding_level() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = root.join("atlas-spec/geared-straight-line.toml");
+    let dir = std::env::temp_dir().join(format!("geared-straight-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--dpi",
+        "72",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.join("pages/geared-straight-line-0001.png").exists());
+    let index: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
+    let joint = index["curves"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["point"]["u"] == 3.0 && c["point"]["v"] == 0.0)
+        .expect("the dyad joint's curve");
+    // Its box is the line x = L1/2 = 1.5, a few ulps wide (at most 4 ulps of L3 = 3).
+    let b = joint["bbox"].as_array().unwrap();
+    let (x0, x1) = (b[0].as_f64().unwrap(), b[2].as_f64().unwrap());
+    let tol = 4.0 * f64::EPSILON * 3.0;
+    assert!(
+        (x0 - 1.5).abs() <= tol && (x1 - 1.5).abs() <= tol,
+        "{x0} {x1}"
+    );
+    // And the index's straight-segment measure finds it straight at rounding level.
+    let segs = joint["features"]["straight_segments"].as_array().unwrap();
+    assert!(!segs.is_empty());
+    for s in segs {
+        assert!(s["straightness_pct"].as_f64().unwrap() < 1e-12, "{s}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
