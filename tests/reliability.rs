@@ -25,6 +25,10 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     fn walk(base: &Path, dir: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
         for e in std::fs::read_dir(dir).unwrap().flatten() {
             let p = e.path();
+            // The lock records who holds it (process id, time): not output.
+            if p.ends_with(".coupler-atlas/lock") {
+                continue;
+            }
             if p.is_dir() {
                 walk(base, &p, out);
             } else {

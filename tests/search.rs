@@ -202,10 +202,15 @@ proptest! {
 #[test]
 fn cache_round_trip() {
     let (_, _, table) = atlas();
-    let bytes = table.to_bytes([1, 2]);
-    assert_eq!(&SearchTable::from_bytes(&bytes, [1, 2]).unwrap(), table);
-    assert!(SearchTable::from_bytes(&bytes, [1, 3]).is_err());
-    assert!(SearchTable::from_bytes(&bytes[..bytes.len() - 1], [1, 2]).is_err());
+    let key = |bytes, hash| coupler_atlas::IndexKey { bytes, hash };
+    let bytes = table.to_cache_bytes(key(1, 2));
+    assert_eq!(
+        &SearchTable::from_cache_bytes(&bytes, key(1, 2)).unwrap(),
+        table
+    );
+    // Another index (same length, other content), and a cut cache, are refused.
+    assert!(SearchTable::from_cache_bytes(&bytes, key(1, 3)).is_err());
+    assert!(SearchTable::from_cache_bytes(&bytes[..bytes.len() - 1], key(1, 2)).is_err());
 }
 
 /// docs/conventions.md §7: `search --straight` finds the Hoeken linkage, point (5, 0).

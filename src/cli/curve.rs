@@ -76,12 +76,19 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .into());
     }
     let (linkage, circuit, point) = args.linkage.resolve()?;
-    let table = CrankTable::new(args.step).ok_or_else(|| {
-        UsageError(format!(
-            "--step must be > 0 and at most 360 degrees, got {}",
-            args.step
-        ))
-    })?;
+    if let Err(m) = coupler_atlas::samples_per_turn(args.step) {
+        return Err(UsageError(if args.step > 0.0 && args.step <= 360.0 {
+            format!("--step: {m}")
+        } else {
+            format!(
+                "--step must be > 0 and at most 360 degrees, got {}",
+                args.step
+            )
+        })
+        .into());
+    }
+    let table = CrankTable::new(args.step)
+        .ok_or_else(|| UsageError(format!("--step {} is not usable", args.step)))?;
     let p = point;
     let window = match &args.window {
         None => None,

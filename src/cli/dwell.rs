@@ -366,6 +366,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ))
         .into());
     }
+    coupler_atlas::samples_per_turn(args.step).map_err(|m| UsageError(format!("--step: {m}")))?;
     if let Some(swing) = args.swing {
         if !(swing > 0.0 && swing < 180.0) {
             return Err(

@@ -4,7 +4,9 @@
 use super::UsageError;
 use anyhow::{Context, Result};
 use coupler_atlas::CurveList;
-use coupler_atlas::generate::{self, GenerateError, Job, NoPages, Renderer, Shard};
+use coupler_atlas::generate::{
+    self, GenerateError, Identity, Job, Limits, NoPages, Plan, Renderer, Shard, read_identity,
+};
 use coupler_atlas::generate::{CurveJob, run_curve_set};
 use coupler_atlas::generate::{PageOptions, PageRenderer};
 use coupler_atlas::render::PageFormat;
@@ -16,8 +18,11 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-/// Over this many curves, `generate` asks for `--yes` (a typo in a step is the usual cause).
-const CONFIRM_OVER: u64 = 5_000_000;
+/// At most this many worker threads (more only adds memory and contention).
+const MAX_JOBS: usize = 512;
+
+/// A spec file larger than this is not a spec (and /dev/zero is never read whole).
+const MAX_SPEC_BYTES: u64 = 16 << 20;
 
 /// What makes the output: the spec and the rendering flags. `merge` takes the same, and
 /// refuses shards made with anything else.
@@ -29,7 +34,8 @@ pub struct JobArgs {
     /// Index only: do not render pages.
     #[arg(long)]
     no_pages: bool,
-    /// Page formats, comma-separated: png, svg (default: png).
+    /// Page formats, comma-separated: png, svg (default: png). With --dry-run, `json`
+    /// prints the plan as JSON.
     #[arg(long, value_delimiter = ',', default_value = "png")]
     format: Vec<String>,
     /// Raster resolution of pages, dots per inch (default: the spec's).
@@ -58,7 +64,8 @@ pub struct Args {
     /// Compute only shard K of N (chunks c with c mod N = K − 1); combine with `merge`.
     #[arg(long, value_parser = parse_shard)]
     shard: Option<Shard>,
-    /// Run even if the spec enumerates more than 5,000,000 curves.
+    /// Run even if the plan is over a limit: 5,000,000 curves, 20,000 page files, or
+    /// about 20 GB on disk (see --dry-run).
     #[arg(long)]
     yes: bool,
     /// Do not show a progress bar.
@@ -68,11 +75,29 @@ pub struct Args {
 
 #[derive(clap::Args, Debug)]
 pub struct MergeArgs {
-    /// The atlas spec the shards were made from (default: the built-in one).
+    /// Check that the shards were made from this spec (the spec and settings are taken
+    /// from the shards themselves).
     #[arg(long)]
     spec: Option<PathBuf>,
-    #[command(flatten)]
-    job: JobArgs,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Check that the shards were made without pages.
+    #[arg(long)]
+    no_pages: bool,
+    /// Check that the shards' pages are in these formats.
+    #[arg(long, value_delimiter = ',')]
+    format: Option<Vec<String>>,
+    /// Check that the shards' pages have this resolution.
+    #[arg(long)]
+    dpi: Option<f64>,
+    /// Check that the shards' pages have this size.
+    #[arg(long)]
+    page_size: Option<String>,
+    /// Write into a folder that holds files coupler-atlas did not write (none of them is
+    /// touched).
+    #[arg(long)]
+    force: bool,
     /// Shard output folders (from `generate --shard K/N`), in any order.
     #[arg(required = true)]
     shards: Vec<PathBuf>,
@@ -82,6 +107,29 @@ fn parse_shard(s: &str) -> Result<Shard, String> {
     s.parse()
 }
 
+/// Reads a spec file: at most 16 MiB (a device or a pipe that never ends is refused
+/// after that much), UTF-8.
+fn read_spec_file(path: &std::path::Path) -> Result<String> {
+    use std::io::Read;
+    let cannot = |e: String| UsageError(format!("cannot read spec {}: {e}", path.display()));
+    let file = std::fs::File::open(path).map_err(|e| cannot(e.to_string()))?;
+    if file.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(cannot("Is a directory (os error 21)".into()).into());
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_SPEC_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| cannot(e.to_string()))?;
+    if bytes.len() as u64 > MAX_SPEC_BYTES {
+        return Err(cannot(format!(
+            "it is larger than {} MiB, which is not an atlas spec",
+            MAX_SPEC_BYTES >> 20
+        ))
+        .into());
+    }
+    String::from_utf8(bytes).map_err(|_| cannot("stream did not contain valid UTF-8".into()).into())
+}
+
 /// The spec's text and where it came from (the built-in default when no path is given).
 fn read_spec(spec: &Option<PathBuf>) -> Result<(String, String)> {
     Ok(match spec {
@@ -89,30 +137,21 @@ fn read_spec(spec: &Option<PathBuf>) -> Result<(String, String)> {
             DEFAULT_SPEC_TEXT.to_string(),
             DEFAULT_SPEC_SOURCE.to_string(),
         ),
-        Some(path) => (
-            std::fs::read_to_string(path)
-                .map_err(|e| UsageError(format!("cannot read spec {}: {e}", path.display())))?,
-            path.display().to_string(),
-        ),
+        Some(path) => (read_spec_file(path)?, path.display().to_string()),
     })
-}
-
-/// The validated job and its renderer, from the flags.
-fn plan(spec: &Option<PathBuf>, args: &JobArgs, jobs: usize) -> Result<(Job, Box<dyn Renderer>)> {
-    let (text, source) = read_spec(spec)?;
-    let spec = Spec::parse(&text, &source)?;
-    plan_grid(spec, source, args, jobs)
 }
 
 fn plan_grid(
     spec: Spec,
     source: String,
+    text: String,
     args: &JobArgs,
     jobs: usize,
 ) -> Result<(Job, Box<dyn Renderer>)> {
     let out = out_dir(args, &spec.name)?;
     let mut job = Job::new(spec, source, out, jobs);
     job.force = args.force;
+    job.spec_text = Some(text);
     let renderer: Box<dyn Renderer> = if args.no_pages {
         Box::new(NoPages)
     } else {
@@ -162,13 +201,17 @@ fn page_renderer(spec: &Spec, args: &JobArgs) -> Result<PageRenderer> {
 /// Page options with the page flags applied.
 fn page_options(mut opts: PageOptions, args: &JobArgs) -> Result<PageOptions> {
     let mut formats = Vec::new();
-    for f in &args.format {
+    // `json` selects the dry run's output format, not a page format.
+    for f in args.format.iter().filter(|f| f.as_str() != "json") {
         let f: PageFormat = f
             .parse()
             .map_err(|e| UsageError(format!("--format: {e}")))?;
         if !formats.contains(&f) {
             formats.push(f);
         }
+    }
+    if formats.is_empty() {
+        formats.push(PageFormat::Png);
     }
     opts.formats = formats;
     if let Some(dpi) = args.dpi {
@@ -194,9 +237,31 @@ fn classify(e: GenerateError) -> anyhow::Error {
     }
 }
 
+/// Installs the handler that turns SIGINT, SIGTERM and SIGHUP into a clean stop (the
+/// work in progress finishes, nothing is left half-written); a second signal stops at
+/// once, which is safe too.
+fn stop_flag() -> Arc<AtomicBool> {
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let flag = interrupt.clone();
+    // If a handler cannot be installed (e.g. one already is), a signal just kills the
+    // run, which is safe too: every file is renamed into place only when complete.
+    let _ = ctrlc::set_handler(move || {
+        if flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+        eprintln!("\nstopping after the work in progress (signal again to stop at once)…");
+    });
+    interrupt
+}
+
 pub fn run(args: Args) -> Result<ExitCode> {
     let jobs = match args.jobs {
-        Some(0) => return Err(UsageError("--jobs must be at least 1".into()).into()),
+        Some(n) if !(1..=MAX_JOBS).contains(&n) => {
+            return Err(UsageError(format!(
+                "--jobs must be at least 1 and at most {MAX_JOBS}, got {n}"
+            ))
+            .into());
+        }
         Some(n) => n,
         None => std::thread::available_parallelism()
             .map(|n| n.get())
@@ -204,41 +269,28 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let (text, source) = read_spec(&args.spec)?;
     let (mut job, renderer) = match AtlasSpec::parse(&text, &source)? {
-        AtlasSpec::Grid(spec) => plan_grid(*spec, source, &args.job, jobs)?,
+        AtlasSpec::Grid(spec) => plan_grid(*spec, source, text, &args.job, jobs)?,
         AtlasSpec::Curves(list) => return run_curves(list, source, &args, jobs),
     };
     if let Some(shard) = args.shard {
         job.shard = shard;
     }
+    let plan = Plan::new(&job, renderer.as_ref(), Limits::DEFAULT);
     if args.dry_run {
-        outln!("{}", job.describe())?;
+        if args.job.format.iter().any(|f| f == "json") {
+            outln!("{}", serde_json::to_string_pretty(&plan)?)?;
+        } else {
+            outln!("{}", plan.describe())?;
+        }
         return Ok(ExitCode::SUCCESS);
     }
-    if job.curves() > CONFIRM_OVER && !args.yes {
-        return Err(UsageError(format!(
-            "{} enumerates {} curves ({} linkages × {} points × {} circuit(s)), more than {CONFIRM_OVER}; check the ranges with --dry-run, or pass --yes to run it",
-            job.source,
-            job.curves(),
-            job.enumeration.linkages.len(),
-            job.spec.points.len(),
-            job.spec.circuits.len()
-        ))
-        .into());
+    if let Some(r) = plan.refused.first() {
+        return Err(UsageError(format!("{}: {r}", job.source)).into());
     }
-    let interrupt = Arc::new(AtomicBool::new(false));
-    {
-        let flag = interrupt.clone();
-        // If a handler cannot be installed (e.g. one already is), SIGINT just kills the
-        // run, which is safe too: every file is renamed into place only when complete.
-        let _ = ctrlc::set_handler(move || {
-            if flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
-                std::process::exit(130);
-            }
-            eprintln!(
-                "\nstopping after the groups in progress (press Ctrl-C again to stop at once)…"
-            );
-        });
+    if let (Some(m), false) = (plan.confirmation(), args.yes) {
+        return Err(UsageError(m).into());
     }
+    let interrupt = stop_flag();
     let total = job.curves();
     let bar = progress_bar(args.quiet, total);
     let start = Instant::now();
@@ -258,17 +310,36 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let s = &report.summary;
     let skipped: u64 = s.skipped.values().sum();
-    let reused = if report.reused_chunks > 0 {
-        format!(
+    if report.verified {
+        eprintln!(
+            "{}: complete and verified ({} curves, {} pages; every file has its recorded size and hash), nothing rewritten, in {:.2} s; index: {}",
+            job.spec.name,
+            s.curves,
+            s.pages,
+            start.elapsed().as_secs_f64(),
+            job.out.join("index.json").display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    let mut notes = String::new();
+    if report.reused_chunks > 0 {
+        notes.push_str(&format!(
             ", {} of {} chunks reused from an earlier run",
             report.reused_chunks, report.total_chunks
-        )
-    } else {
-        String::new()
-    };
+        ));
+    }
+    if report.replaced {
+        notes.push_str(", replacing the atlas made with other settings");
+    }
+    if report.removed_files > 0 {
+        notes.push_str(&format!(
+            ", {} file(s) of an earlier run removed",
+            report.removed_files
+        ));
+    }
     match &report.index_path {
         Some(index) => eprintln!(
-            "{}: {} curves of {} linkages ({} combinations, {} skipped as {}), {} pages, in {:.2} s{reused}; index: {}",
+            "{}: {} curves of {} linkages ({} combinations, {} skipped as {}), {} pages, in {:.2} s{notes}; index: {}",
             job.spec.name,
             s.curves,
             s.linkages,
@@ -284,7 +355,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             index.display()
         ),
         None => eprintln!(
-            "{}: shard {}/{} complete in {} ({:.2} s{reused}); combine the shards with: coupler-atlas merge [--spec SPEC] --out DIR SHARD_DIR…",
+            "{}: shard {}/{} complete in {} ({:.2} s{notes}); combine the shards with: coupler-atlas merge --out DIR SHARD_DIR…",
             job.spec.name,
             job.shard.index,
             job.shard.count,
@@ -295,8 +366,137 @@ pub fn run(args: Args) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The job recorded in shard folders: their spec and page settings, which must agree
+/// (the folders that disagree are named).
+fn job_from_shards(args: &MergeArgs) -> Result<(Job, Box<dyn Renderer>)> {
+    let mut first: Option<(&PathBuf, Identity)> = None;
+    for d in &args.shards {
+        let id = read_identity(d)
+            .map_err(|e| UsageError(format!("shard folder {}: {e}", d.display())))?
+            .ok_or_else(|| {
+                UsageError(format!(
+                    "{} is not a shard folder of this version of coupler-atlas (it has no .coupler-atlas/atlas.json recording its spec); run `generate --shard K/N --out {}` to make it",
+                    d.display(),
+                    d.display()
+                ))
+            })?;
+        match &first {
+            None => first = Some((d, id)),
+            Some((d0, id0)) => {
+                if id.run_key != id0.run_key {
+                    let what = if id.spec_toml != id0.spec_toml || id.name != id0.name {
+                        format!(
+                            "{} (atlas `{}`) and {} (atlas `{}`)",
+                            id0.source, id0.name, id.source, id.name
+                        )
+                    } else if id.pages != id0.pages {
+                        format!(
+                            "the same spec with other page settings ({} vs {})",
+                            describe_pages(&id0.pages),
+                            describe_pages(&id.pages)
+                        )
+                    } else {
+                        format!("{} and {}", id0.generator, id.generator)
+                    };
+                    return Err(UsageError(format!(
+                        "the shards do not make one atlas: {} and {} were made from {what}",
+                        d0.display(),
+                        d.display()
+                    ))
+                    .into());
+                }
+            }
+        }
+    }
+    let (d0, id) = first.ok_or_else(|| UsageError("no shard folders given".into()))?;
+    let text = id.spec_toml.clone().ok_or_else(|| {
+        UsageError(format!(
+            "{} does not record its spec's text; pass --spec SPEC",
+            d0.display()
+        ))
+    })?;
+    let spec = Spec::parse(&text, &id.source)?;
+    let job_args = JobArgs {
+        out: Some(args.out.clone()),
+        no_pages: id.pages.is_none(),
+        format: id
+            .pages
+            .as_ref()
+            .map(|p| p.formats.clone())
+            .unwrap_or_else(|| vec!["png".into()]),
+        dpi: id.pages.as_ref().map(|p| p.dpi),
+        page_size: id.pages.as_ref().map(|p| p.page_size.clone()),
+        force: args.force,
+    };
+    let (job, renderer) = plan_grid(spec, id.source.clone(), text, &job_args, 1)?;
+    // What the flags given to merge say must hold.
+    if let Some(path) = &args.spec {
+        let (text, source) = read_spec(&Some(path.clone()))?;
+        let given = Spec::parse(&text, &source)?;
+        if given != job.spec {
+            return Err(UsageError(format!(
+                "the shards were made from {} (atlas `{}`), not from --spec {} (atlas `{}`)",
+                id.source, id.name, source, given.name
+            ))
+            .into());
+        }
+    }
+    let mut wrong = Vec::new();
+    if args.no_pages && id.pages.is_some() {
+        wrong.push(format!(
+            "--no-pages, but the shards have pages ({})",
+            describe_pages(&id.pages)
+        ));
+    }
+    if let (Some(f), Some(p)) = (&args.format, &id.pages) {
+        if f != &p.formats {
+            wrong.push(format!(
+                "--format {}, but the shards' pages are {}",
+                f.join(","),
+                p.formats.join(",")
+            ));
+        }
+    }
+    if let (Some(d), Some(p)) = (args.dpi, &id.pages) {
+        if d != p.dpi {
+            wrong.push(format!(
+                "--dpi {d}, but the shards' pages are {} dpi",
+                p.dpi
+            ));
+        }
+    }
+    if let (Some(s), Some(p)) = (&args.page_size, &id.pages) {
+        if s.parse::<coupler_atlas::layout::PageSize>()
+            .map(|x| x.to_string())
+            .ok()
+            .as_deref()
+            != Some(p.page_size.as_str())
+        {
+            wrong.push(format!(
+                "--page-size {s}, but the shards' pages are {}",
+                p.page_size
+            ));
+        }
+    }
+    if (args.format.is_some() || args.dpi.is_some() || args.page_size.is_some())
+        && id.pages.is_none()
+    {
+        wrong.push("page flags, but the shards were made without pages".into());
+    }
+    if !wrong.is_empty() {
+        return Err(UsageError(format!("merge was given {}", wrong.join("; "))).into());
+    }
+    Ok((job, renderer))
+}
+
+fn describe_pages(p: &Option<coupler_atlas::generate::PageFlags>) -> String {
+    match p {
+        None => "no pages".into(),
+        Some(p) => format!("{} at {} dpi, {}", p.formats.join(","), p.dpi, p.page_size),
+    }
+}
+
 pub fn merge(args: MergeArgs) -> Result<ExitCode> {
-    let (job, renderer) = plan(&args.spec, &args.job, 1)?;
     for d in &args.shards {
         if !d.is_dir() {
             return Err(UsageError(format!(
@@ -306,9 +506,21 @@ pub fn merge(args: MergeArgs) -> Result<ExitCode> {
             .into());
         }
     }
-    let index = generate::merge(&job, renderer.as_ref(), &args.shards)
-        .map_err(classify)
-        .with_context(|| format!("merging into {}", job.out.display()))?;
+    let (job, renderer) = job_from_shards(&args)?;
+    let interrupt = stop_flag();
+    let index = match generate::merge(&job, renderer.as_ref(), &args.shards, &interrupt) {
+        Ok(i) => i,
+        Err(e @ GenerateError::Interrupted { .. }) => {
+            eprintln!(
+                "merge stopped: {} is incomplete (no temporary file is left); run the same command again to finish",
+                e_dir(&e)
+            );
+            return Ok(ExitCode::from(130));
+        }
+        Err(e) => {
+            return Err(classify(e)).with_context(|| format!("merging into {}", job.out.display()));
+        }
+    };
     eprintln!(
         "{}: merged {} shard folder(s); index: {}",
         job.spec.name,
@@ -316,6 +528,13 @@ pub fn merge(args: MergeArgs) -> Result<ExitCode> {
         index.display()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+fn e_dir(e: &GenerateError) -> String {
+    match e {
+        GenerateError::Interrupted { dir, .. } => dir.display().to_string(),
+        _ => String::new(),
+    }
 }
 
 /// `generate` for a full-curve page set (`[[curve]]` entries): one page per curve.
@@ -375,7 +594,7 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
     };
     let bar = progress_bar(args.quiet, job.list.curves.len() as u64);
     let start = Instant::now();
-    // No SIGINT handler here: a page set takes well under a second, and Ctrl-C leaves
+    // No SIGINT handler here: a page set takes well under a second, and a signal leaves
     // only complete files (every file is renamed into place when written).
     let renderer = pages.map(PageRenderer::new);
     let result = run_curve_set(&job, renderer.as_ref(), &|n| bar.inc(n));
@@ -383,11 +602,24 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
     let report = result
         .map_err(classify)
         .with_context(|| format!("generating {} into {}", job.list.name, job.out.display()))?;
+    let removed = if report.removed_files > 0 {
+        format!(
+            ", {} file(s) of an earlier run removed",
+            report.removed_files
+        )
+    } else {
+        String::new()
+    };
     eprintln!(
-        "{}: {} curves traced in full, {} pages, in {:.2} s; measures: {}",
+        "{}: {} curves traced in full, {} pages, {} in {:.2} s{removed}; measures: {}",
         job.list.name,
         report.curves,
         report.pages,
+        if report.verified {
+            "complete and verified (nothing rewritten)"
+        } else {
+            "written"
+        },
         start.elapsed().as_secs_f64(),
         report.record_path.display()
     );

@@ -10,11 +10,11 @@
 //! is recomputed whole on every run rather than resumed.
 
 use crate::error::io_err;
-use crate::files::{remove_stale_temporaries, write_manifest};
-use crate::run::write_rendered;
+use crate::files::{PAGES_DIR, write_manifest};
+use crate::run::{prepare, verifies_complete, write_rendered};
+use crate::state::{Identity, Names, PageFlags, prune, remove_atlas, write_identity};
 use crate::{
-    FileEntry, GenerateError, PageFailure, PageOptions, PageRenderer, Rendered, STATE_DIR,
-    check_out_dir, write_atomically,
+    FileEntry, GenerateError, PageFailure, PageOptions, PageRenderer, Rendered, write_atomically,
 };
 use coupler_features::{ClassicCurve, NamedCurve, StraightMeasure};
 use coupler_index::PageRef;
@@ -52,7 +52,15 @@ pub struct CurveRunReport {
     pub pages: usize,
     /// `curves.json`.
     pub record_path: PathBuf,
+    /// The set was complete: every file verified, nothing written.
+    pub verified: bool,
+    /// Files an earlier run wrote that this set no longer has (e.g. pages of curves no
+    /// longer listed), removed.
+    pub removed_files: usize,
 }
+
+/// Files of a page set in its folder, in the order an earlier set is taken out.
+const ROOT_FILES: [&str; 2] = ["manifest.json", "curves.json"];
 
 /// One curve's record in `curves.json`.
 #[derive(Clone, Debug, Serialize)]
@@ -148,10 +156,46 @@ pub fn run(
     pages: Option<&PageRenderer>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<CurveRunReport, GenerateError> {
-    check_out_dir(&job.out, job.force)?;
-    let state = job.out.join(STATE_DIR);
-    std::fs::create_dir_all(&state).map_err(io_err(&state))?;
-    remove_stale_temporaries(&job.out);
+    let key = run_key(job, pages.map(|r| &r.opts));
+    let mut id = Identity::new("page set", &job.list.name, &job.source, &key);
+    id.pages = pages.map(|r| PageFlags::of(&r.opts));
+    let stem = pages
+        .map(|r| r.opts.stem.clone())
+        .unwrap_or_else(|| job.list.name.clone());
+    let names = Names {
+        root: &ROOT_FILES,
+        stem: &stem,
+    };
+    let prep = prepare(&job.out, job.force, &id, &names)?;
+    let record_path = job.out.join("curves.json");
+    if !prep.replaced && verifies_complete(&job.out, &key, "curves.json") {
+        // A complete set of these settings: verified, nothing rewritten.
+        let m = crate::files::read_manifest(&job.out);
+        let n_pages = m
+            .map(|m| {
+                let mut pages: Vec<&str> = m
+                    .files
+                    .iter()
+                    .filter_map(|f| f.name.strip_prefix("pages/"))
+                    .filter_map(|n| n.rsplit_once('.').map(|(stem, _)| stem))
+                    .collect();
+                pages.sort_unstable();
+                pages.dedup();
+                pages.len()
+            })
+            .unwrap_or(0);
+        return Ok(CurveRunReport {
+            curves: job.list.curves.len(),
+            pages: n_pages,
+            record_path,
+            verified: true,
+            removed_files: 0,
+        });
+    }
+    if prep.replaced {
+        remove_atlas(&job.out, &prep.ledger, &ROOT_FILES)?;
+    }
+    write_identity(&job.out, &id)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(job.jobs.max(1))
         .build()
@@ -196,14 +240,14 @@ pub fn run(
     let mut failed: Vec<PageFailure> = Vec::new();
     let mut n_pages = 0;
     if pages.is_some() {
-        let pages_dir = job.out.join("pages");
+        let pages_dir = job.out.join(PAGES_DIR);
         std::fs::create_dir_all(&pages_dir).map_err(io_err(&pages_dir))?;
     }
     for (rec, rendered) in done {
         if !rendered.is_empty() {
             n_pages += 1;
         }
-        let (files, page_failed) = write_rendered(&job.out, rendered);
+        let (files, page_failed) = write_rendered(&job.out, rendered, &prep.ledger);
         entries.extend(files);
         failed.extend(page_failed);
         records.push(rec);
@@ -214,7 +258,6 @@ pub fn run(
             dir: job.out.clone(),
         });
     }
-    let record_path = job.out.join("curves.json");
     let doc = CurvesFile {
         schema_version: CURVES_SCHEMA_VERSION,
         kind: "full-curve page set",
@@ -227,16 +270,23 @@ pub fn run(
         sampling: &job.list.sampling,
         curves: &records,
     };
+    crate::files::sync_files(&job.out, entries.iter().map(|f| f.name.as_str()))?;
+    prep.ledger.add(ROOT_FILES)?;
     write_atomically(&record_path, |w| {
         serde_json::to_writer_pretty(&mut *w, &doc)?;
         std::io::Write::write_all(w, b"\n")
     })?;
     entries.push(FileEntry::of_file(&job.out, "curves.json").map_err(io_err(&record_path))?);
-    write_manifest(&job.out, &run_key(job, pages.map(|r| &r.opts)), entries)?;
+    write_manifest(&job.out, &key, entries.clone())?;
+    let mut keep: Vec<String> = entries.into_iter().map(|f| f.name).collect();
+    keep.push("manifest.json".into());
+    let removed_files = prune(&job.out, &prep.ledger, &keep)?;
     Ok(CurveRunReport {
         curves: records.len(),
         pages: n_pages,
         record_path,
+        verified: false,
+        removed_files,
     })
 }
 

@@ -47,6 +47,43 @@ pub enum GenerateError {
     /// Shard folders that do not make one atlas.
     #[error("cannot merge: {0}")]
     Merge(String),
+    /// A `pages/` or `.coupler-atlas/` that is not a real folder (e.g. a symbolic link).
+    #[error("{} is not a folder (a symbolic link or a file); coupler-atlas writes and cleans up only inside the output folder: replace it with a folder, or choose another --out", path.display())]
+    NotAFolder {
+        /// The path.
+        path: PathBuf,
+    },
+    /// Another run is writing into the output folder (it holds the folder's lock).
+    #[error("{} is in use by another coupler-atlas run ({holder}); wait for it to finish, or stop it, then run again", dir.display())]
+    Busy {
+        /// The folder.
+        dir: PathBuf,
+        /// Who holds the lock: process id, start time and command, as it recorded them.
+        holder: String,
+    },
+    /// A file this atlas would write is already there and this program did not write it.
+    #[error("{} exists and was not written by coupler-atlas, so it is left alone: move it away or choose another --out ({more})", path.display())]
+    UserFile {
+        /// The file.
+        path: PathBuf,
+        /// How many such files there are.
+        more: String,
+    },
+    /// The output folder holds another atlas.
+    #[error("{} holds the atlas `{existing}` ({source_name}); writing `{new}` there would replace it: choose another --out, or delete that atlas first", dir.display())]
+    OtherAtlas {
+        /// The folder.
+        dir: PathBuf,
+        /// The atlas in it.
+        existing: String,
+        /// Where that atlas's spec came from.
+        source_name: String,
+        /// The atlas of this run.
+        new: String,
+    },
+    /// The plan is over a limit that no flag lifts.
+    #[error("{0}")]
+    Plan(String),
     /// Pages could not be made or written; every other page was (no index or manifest
     /// is written for an incomplete atlas). The same command again redoes what is missing.
     #[error("{} failed (every other page is written; once the cause is fixed, run the same command again to redo only what is missing):{}", pages(failed.len()), failed.iter().map(|f| format!("\n  {}: {}", f.page, f.message)).collect::<String>())]
@@ -64,7 +101,12 @@ impl GenerateError {
     pub fn is_user_error(&self) -> bool {
         matches!(
             self,
-            GenerateError::ForeignFolder { .. } | GenerateError::Merge(_)
+            GenerateError::ForeignFolder { .. }
+                | GenerateError::Merge(_)
+                | GenerateError::NotAFolder { .. }
+                | GenerateError::UserFile { .. }
+                | GenerateError::OtherAtlas { .. }
+                | GenerateError::Plan(_)
         )
     }
 }

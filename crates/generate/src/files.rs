@@ -1,16 +1,27 @@
-//! The files of an atlas folder: every file written under a temporary name and renamed
-//! into place when complete, recorded with its size and XXH3-128 hash (chunk records and
-//! the manifest), checked on reuse; the folder refused if it holds files this program did
-//! not write; temporaries a killed run left behind removed.
+//! The files of an atlas folder: every file written under an unpredictable temporary name
+//! (created exclusively, so a planted file or symbolic link is never followed), made
+//! durable (fsync) and renamed into place when complete, the rename made durable too;
+//! recorded with its size and XXH3-128 hash (chunk records and the manifest) and checked
+//! on reuse; names read back from any record checked to be plain relative names inside
+//! the folder; the folder refused if it holds files this program did not write;
+//! temporaries of dead runs removed.
 
 use crate::error::io_err;
 use crate::{Artifact, GenerateError};
 use serde::{Deserialize, Serialize};
-use std::io::Write as _;
-use std::path::Path;
+use std::io::{Read, Write as _};
+use std::path::{Path, PathBuf};
 
-/// The folder (inside the output folder) that holds chunk records.
+/// The folder (inside the output folder) that holds chunk records, the lock, the
+/// record of the atlas's settings and of the files it wrote.
 pub const STATE_DIR: &str = ".coupler-atlas";
+
+/// The folder (inside the output folder) that holds pages.
+pub const PAGES_DIR: &str = "pages";
+
+/// The longest file name a record may give (bytes; file systems allow 255, and a
+/// temporary name adds about 40).
+const MAX_NAME_BYTES: usize = 200;
 
 /// One file recorded in a chunk record or the manifest.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -23,6 +34,34 @@ pub struct FileEntry {
     pub xxh3: String,
 }
 
+/// Checks that `name` (read from a record, so possibly damaged or hostile) is a plain
+/// relative name inside the atlas folder: `FILE` or `pages/FILE`, where `FILE` is made
+/// of ASCII letters, digits, `-`, `_` and `.`, does not start with `.`, and is at most
+/// 200 bytes. So `../x`, `/etc/x`, `a/../../x`, `.`, `..`, NUL bytes, backslashes and
+/// deeper paths are all refused.
+pub fn check_name(name: &str) -> Result<(), String> {
+    let plain = |part: &str| {
+        !part.is_empty()
+            && part.len() <= MAX_NAME_BYTES
+            && !part.starts_with('.')
+            && part
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'))
+    };
+    let ok = match name.split_once('/') {
+        None => plain(name),
+        Some((dir, file)) => dir == PAGES_DIR && plain(file),
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "`{}` is not a plain file name inside the atlas folder",
+            name.escape_debug()
+        ))
+    }
+}
+
 impl FileEntry {
     pub(crate) fn of(name: &str, bytes: &[u8]) -> FileEntry {
         FileEntry {
@@ -33,37 +72,80 @@ impl FileEntry {
     }
 
     /// The entry of file `name` in `dir`, hashed in blocks (memory stays small whatever
-    /// the file's size).
+    /// the file's size). A symbolic link or anything but a regular file is an error.
     pub fn of_file(dir: &Path, name: &str) -> std::io::Result<FileEntry> {
-        use std::io::Read;
-        let mut file = std::fs::File::open(dir.join(name))?;
-        let mut hasher = xxhash_rust::xxh3::Xxh3::new();
-        let mut buf = vec![0u8; 1 << 20];
-        let mut bytes = 0u64;
-        loop {
-            let n = file.read(&mut buf)?;
-            if n == 0 {
-                break;
-            }
-            hasher.update(&buf[..n]);
-            bytes += n as u64;
-        }
+        let file = open_regular(&dir.join(name))?;
+        let (bytes, xxh3) = hash_reader(file)?;
         Ok(FileEntry {
             name: name.to_string(),
             bytes,
-            xxh3: format!("{:032x}", hasher.digest128()),
+            xxh3,
         })
     }
 
-    /// Whether the file is in `dir` with this size and hash.
+    /// Whether the file is in `dir` (a regular file, not a link) with this size and
+    /// hash, and its name is a plain name inside the folder.
     pub fn verify(&self, dir: &Path) -> bool {
-        match std::fs::metadata(dir.join(&self.name)) {
-            Ok(m) if m.len() == self.bytes => {
+        if check_name(&self.name).is_err() {
+            return false;
+        }
+        match std::fs::symlink_metadata(dir.join(&self.name)) {
+            Ok(m) if m.is_file() && m.len() == self.bytes => {
                 FileEntry::of_file(dir, &self.name).is_ok_and(|e| e == *self)
             }
             _ => false,
         }
     }
+}
+
+/// Size and XXH3-128 (hex) of everything `r` yields, read in 1 MiB blocks (the same
+/// streaming hash that keys the search cache).
+pub(crate) fn hash_reader(r: impl Read) -> std::io::Result<(u64, String)> {
+    let key = coupler_index::IndexKey::of_reader(r)?;
+    Ok((key.bytes, format!("{:032x}", key.hash)))
+}
+
+/// Opens `path` for reading if it is a regular file (a symbolic link, a folder, a device
+/// or a pipe is an error: records name regular files only).
+pub(crate) fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+    let meta = std::fs::symlink_metadata(path)?;
+    if !meta.is_file() {
+        return Err(std::io::Error::other(format!(
+            "{} is not a regular file",
+            path.display()
+        )));
+    }
+    let file = std::fs::File::open(path)?;
+    // The path may have been swapped between the two calls: check what was opened.
+    if !file.metadata()?.is_file() {
+        return Err(std::io::Error::other(format!(
+            "{} is not a regular file",
+            path.display()
+        )));
+    }
+    Ok(file)
+}
+
+/// Reads a whole small file (a manifest, a record of settings), refusing anything that
+/// is not a regular file or is larger than `max` bytes, before reading it.
+pub(crate) fn read_small(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
+    let file = open_regular(path)?;
+    let len = file.metadata()?.len();
+    if len > max {
+        return Err(std::io::Error::other(format!(
+            "{} is {len} bytes, more than the {max} expected",
+            path.display()
+        )));
+    }
+    let mut out = Vec::with_capacity(len as usize);
+    file.take(max + 1).read_to_end(&mut out)?;
+    if out.len() as u64 > max {
+        return Err(std::io::Error::other(format!(
+            "{} grew past {max} bytes while read",
+            path.display()
+        )));
+    }
+    Ok(out)
 }
 
 /// Checks that `dir` is new, empty, or this program's output (unless `force`).
@@ -88,13 +170,67 @@ pub fn check_out_dir(dir: &Path, force: bool) -> Result<(), GenerateError> {
     })
 }
 
+/// Refuses a `pages/` or `.coupler-atlas/` (or its `chunks/`) that is not a real folder
+/// inside `out` (a symbolic link would carry writes and clean-up outside the output
+/// folder).
+pub(crate) fn check_subfolders(out: &Path) -> Result<(), GenerateError> {
+    for sub in [
+        out.join(PAGES_DIR),
+        out.join(STATE_DIR),
+        out.join(STATE_DIR).join("chunks"),
+    ] {
+        match std::fs::symlink_metadata(&sub) {
+            Ok(m) if !m.is_dir() => {
+                return Err(GenerateError::NotAFolder { path: sub });
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Writes an artifact (its name checked) into `dir`, whose `pages/` folder exists:
+/// atomically, but not yet durably: [`sync_files`] makes a chunk's files durable at once,
+/// before the record that claims them is written.
 pub(crate) fn write_artifact(dir: &Path, a: &Artifact) -> Result<FileEntry, GenerateError> {
     let path = dir.join(&a.name);
-    if let Some(parent) = path.parent() {
-        std::fs::create_dir_all(parent).map_err(io_err(parent))?;
-    }
-    write_atomically(&path, |w| w.write_all(&a.bytes))?;
+    check_name(&a.name).map_err(|m| GenerateError::Io {
+        path: path.clone(),
+        source: std::io::Error::other(m),
+    })?;
+    write_file(&path, false, |w| w.write_all(&a.bytes))?;
     Ok(FileEntry::of(&a.name, &a.bytes))
+}
+
+/// Makes files `names` of `dir` durable (fsync each, in parallel, so the file system
+/// can commit them together), then the folders they are in.
+pub(crate) fn sync_files<'a>(
+    dir: &Path,
+    names: impl IntoIterator<Item = &'a str>,
+) -> Result<(), GenerateError> {
+    use rayon::prelude::*;
+    let names: Vec<&str> = names.into_iter().collect();
+    names.par_iter().try_for_each(|n| {
+        let path = dir.join(n);
+        std::fs::File::open(&path)
+            .and_then(|f| f.sync_all())
+            .map_err(io_err(&path))
+    })?;
+    let mut folders: Vec<PathBuf> = names
+        .iter()
+        .map(|n| {
+            dir.join(n)
+                .parent()
+                .map(Path::to_path_buf)
+                .unwrap_or_default()
+        })
+        .collect();
+    folders.sort();
+    folders.dedup();
+    for f in folders {
+        sync_dir(&f).map_err(io_err(&f))?;
+    }
+    Ok(())
 }
 
 /// Writes `manifest.json` in `dir`: the run key and every file (sorted by name) with its
@@ -118,49 +254,228 @@ pub(crate) fn write_manifest(
     })
 }
 
-/// Removes temporary files a killed run of this program left (`.NAME.tmp-PID`, as
-/// [`write_atomically`] names them) from the output folder, its `pages/` and its chunk
-/// records. Nothing else is touched.
+/// The manifest as read back.
+#[derive(Debug, Deserialize)]
+pub(crate) struct Manifest {
+    pub run_key: String,
+    pub files: Vec<FileEntry>,
+}
+
+/// Reads `manifest.json` of `dir` (at most 1 GiB), or `None` if it is missing or is not
+/// a manifest.
+pub(crate) fn read_manifest(dir: &Path) -> Option<Manifest> {
+    let bytes = read_small(&dir.join("manifest.json"), 1 << 30).ok()?;
+    serde_json::from_slice(&bytes).ok()
+}
+
+/// The temporary name of a file being written as `name`: `.NAME.tmp-PID-RANDOM`. The
+/// process id says whose it is (so clean-up removes only a dead run's); the random part
+/// makes it unpredictable, and it is created exclusively, so nothing planted under it
+/// (a file, a symbolic link) is ever opened.
+fn temporary_name(name: &str) -> String {
+    use std::hash::{BuildHasher, Hasher};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    // RandomState's keys are random per process; the counter and time make each call's
+    // value distinct.
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u64(COUNTER.fetch_add(1, Ordering::Relaxed));
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0),
+    );
+    format!(".{name}.tmp-{}-{:016x}", std::process::id(), h.finish())
+}
+
+/// Creates a new temporary file beside `path`, exclusively (never an existing file or
+/// link).
+pub(crate) fn create_temporary(path: &Path) -> std::io::Result<(PathBuf, std::fs::File)> {
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    loop {
+        let tmp = path.with_file_name(temporary_name(name));
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+        {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+/// Makes a rename or removal in `dir` durable (fsync of the folder).
+pub(crate) fn sync_dir(dir: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::fs::File::open(dir)?.sync_all()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = dir;
+        Ok(())
+    }
+}
+
+/// Writes a file under a temporary name in the same folder, makes it durable (fsync),
+/// and renames it into place when complete, then makes the rename durable (fsync of the
+/// folder): no partial file ever stands under the final name, even after a power cut.
+/// Every file that commits work (chunk records, the index, the manifest) is written so.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), GenerateError> {
+    write_file(path, true, write)
+}
+
+/// [`write_atomically`], the fsyncs only when `durable`.
+pub(crate) fn write_file(
+    path: &Path,
+    durable: bool,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), GenerateError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let (tmp, file) = create_temporary(path).map_err(io_err(path))?;
+    let result = (|| {
+        let mut w = std::io::BufWriter::new(file);
+        write(&mut w)?;
+        w.flush()?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        if durable {
+            file.sync_all()?;
+        }
+        drop(file);
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io_err(path))?;
+    if durable {
+        sync_dir(&dir).map_err(io_err(&dir))?;
+    }
+    Ok(())
+}
+
+/// Whether process `pid` may still be running (`/proc/PID` exists). Where `/proc` is not
+/// available, every other process counts as dead: the folder's lock already keeps other
+/// runs out, so only a `search` building its cache could lose its temporary (it then just
+/// does not keep the cache).
+fn alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    let proc = Path::new("/proc");
+    proc.join("self").exists() && proc.join(pid.to_string()).exists()
+}
+
+/// The process id in a temporary name `.NAME.tmp-PID-RANDOM` (or `.NAME.tmp-PID`, as
+/// earlier versions named them).
+fn temporary_pid(name: &str) -> Option<u32> {
+    if !name.starts_with('.') {
+        return None;
+    }
+    let (_, tail) = name.rsplit_once(".tmp-")?;
+    let (pid, rand) = match tail.split_once('-') {
+        Some((p, r)) => (p, Some(r)),
+        None => (tail, None),
+    };
+    let digits = |s: &str, hex: bool| {
+        !s.is_empty()
+            && s.bytes().all(|b| {
+                if hex {
+                    b.is_ascii_hexdigit()
+                } else {
+                    b.is_ascii_digit()
+                }
+            })
+    };
+    if !digits(pid, false) || rand.is_some_and(|r| !digits(r, true)) {
+        return None;
+    }
+    pid.parse().ok()
+}
+
+/// Removes temporary files that runs of this program which are no longer running left
+/// (named as [`write_atomically`] names them) from the output folder, its `pages/`, its
+/// state folder and chunk records. Only regular files and links directly in those
+/// folders are removed, and a `pages/` that is a link is not entered: nothing outside the
+/// output folder is touched. Best effort (a read-only folder keeps them).
 pub(crate) fn remove_stale_temporaries(out: &Path) {
     for dir in [
         out.to_path_buf(),
-        out.join("pages"),
+        out.join(PAGES_DIR),
+        out.join(STATE_DIR),
         out.join(STATE_DIR).join("chunks"),
     ] {
+        if !std::fs::symlink_metadata(&dir).is_ok_and(|m| m.is_dir()) {
+            continue;
+        }
         let Ok(entries) = std::fs::read_dir(&dir) else {
             continue;
         };
         for e in entries.flatten() {
             let name = e.file_name().to_string_lossy().into_owned();
-            let ours = name.starts_with('.')
-                && name.rsplit_once(".tmp-").is_some_and(|(_, pid)| {
-                    !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit())
-                });
-            if ours && e.file_type().is_ok_and(|t| t.is_file()) {
+            let dead = temporary_pid(&name).is_some_and(|pid| !alive(pid));
+            if dead && e.file_type().is_ok_and(|t| t.is_file() || t.is_symlink()) {
                 let _ = std::fs::remove_file(e.path());
             }
         }
     }
 }
 
-/// Writes a file under a temporary name in the same folder and renames it into place
-/// when complete, so no partial file ever stands under the final name.
-pub fn write_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<(), GenerateError> {
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
-    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::new(file);
-        write(&mut w)?;
-        w.flush()?;
-        drop(w.into_inner().map_err(|e| e.into_error())?);
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_from_records_must_be_plain() {
+        for ok in [
+            "index.json",
+            "manifest.json",
+            "pages/hrones-nelson-0001.png",
+            "pages/quick-contents-1.svg",
+        ] {
+            assert!(check_name(ok).is_ok(), "{ok}");
+        }
+        for bad in [
+            "",
+            "../x",
+            "../../x",
+            "/etc/passwd",
+            "pages/../../x",
+            "pages/..",
+            "..",
+            ".",
+            "pages/",
+            "pages/a/b.png",
+            "other/a.png",
+            "a\0b",
+            "pages\\x.png",
+            ".hidden",
+            "pages/.index.json.tmp-1-2",
+            "a b",
+            &"x".repeat(201),
+        ] {
+            assert!(check_name(bad).is_err(), "{bad:?}");
+        }
     }
-    result.map_err(io_err(path))
+
+    #[test]
+    fn temporary_names_carry_the_pid_and_differ() {
+        let a = temporary_name("index.json");
+        let b = temporary_name("index.json");
+        assert_ne!(a, b);
+        assert_eq!(temporary_pid(&a), Some(std::process::id()));
+        assert_eq!(temporary_pid(".index.json.tmp-123"), Some(123));
+        assert_eq!(temporary_pid("index.json"), None);
+        assert_eq!(temporary_pid(".x.tmp-12a"), None);
+        assert_eq!(temporary_pid(".x.tmp-12-zz"), None);
+    }
 }

@@ -8,19 +8,22 @@ use coupler_index::{IndexCurve, IndexSummary};
 use coupler_kinematics::{
     Circuit, CouplerPoint, CrankTable, CurveSummary, DashPattern, Linkage, Mechanism,
 };
-use coupler_specs::{Enumeration, Spec};
-use std::fmt::Write as _;
+use coupler_specs::Spec;
 use std::path::PathBuf;
 
-/// A validated generate job: the spec, what it enumerates, and where output goes.
+/// A validated generate job: the spec, what it enumerates (counted, never held), and
+/// where output goes.
 #[derive(Clone, Debug)]
 pub struct Job {
     /// The spec.
     pub spec: Spec,
     /// Where the spec came from (for messages).
     pub source: String,
-    /// Its linkages and skipped combinations.
-    pub enumeration: Enumeration,
+    /// The spec's TOML text, when known: recorded in the output folder, so that `merge`
+    /// takes the spec from the shards.
+    pub spec_text: Option<String>,
+    /// Number of strict crank-rockers (counted arithmetically: [`Spec::count_linkages`]).
+    pub linkages: u64,
     /// Output folder.
     pub out: PathBuf,
     /// Worker threads.
@@ -29,7 +32,13 @@ pub struct Job {
     pub shard: Shard,
     /// Write into a folder that holds files this program did not write.
     pub force: bool,
+    skipped: std::sync::OnceLock<std::collections::BTreeMap<String, u64>>,
 }
+
+/// At most this many coupler points in one unit of work: a linkage's grid larger than
+/// this (possible only without pages: a page draws its linkage's whole grid) is cut into
+/// units of this many points, so memory stays bounded whatever the grid.
+pub const UNIT_POINTS: u64 = 1024;
 
 /// A deterministic slice of the work: chunks `c` with `c mod count = index − 1`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -104,6 +113,17 @@ pub trait Renderer: Sync {
     /// Everything about it that changes output bytes (formats, resolution…): part of the
     /// key that decides whether a chunk record from an earlier run can be reused.
     fn settings(&self) -> String;
+    /// Its page options, if it renders pages (recorded in the output folder so that
+    /// `merge` rebuilds the same renderer, and used for the plan's estimates).
+    fn page_options(&self) -> Option<&crate::PageOptions> {
+        None
+    }
+    /// The names of the files [`Renderer::render_group`] will return for `group`, when
+    /// known in advance: the run records them (durably) once per chunk before rendering,
+    /// rather than once per group. `None`: recorded as they come (correct, slower).
+    fn group_files(&self, _job: &Job, _group: &Group) -> Option<Vec<String>> {
+        None
+    }
 }
 
 /// No pages: index only.
@@ -111,6 +131,9 @@ pub trait Renderer: Sync {
 pub struct NoPages;
 
 impl Renderer for NoPages {
+    fn group_files(&self, _: &Job, _: &Group) -> Option<Vec<String>> {
+        Some(Vec::new())
+    }
     fn render_group(&self, _: &Job, _: &Group, _: &mut [IndexCurve]) -> Rendered {
         Vec::new()
     }
@@ -133,7 +156,8 @@ pub struct Group {
     pub linkage: Linkage,
     /// The circuit.
     pub circuit: Circuit,
-    /// Its coupler points, in atlas order.
+    /// Its coupler points, in atlas order: the linkage's whole grid, or for a grid of
+    /// more than [`UNIT_POINTS`] points (index only) one slice of it.
     pub points: Vec<CouplerPoint>,
     /// Id of its first curve.
     pub first_id: u64,
@@ -142,167 +166,147 @@ pub struct Group {
 }
 
 impl Job {
-    /// A job for `spec` writing into `out` with `jobs` threads (at least 1).
+    /// A job for `spec` writing into `out` with `jobs` threads (at least 1). Counts the
+    /// linkages arithmetically; enumerates nothing.
     pub fn new(spec: Spec, source: impl Into<String>, out: impl Into<PathBuf>, jobs: usize) -> Job {
-        let enumeration = spec.enumerate();
         Job {
+            linkages: spec.count_linkages(),
             spec,
             source: source.into(),
-            enumeration,
+            spec_text: None,
             out: out.into(),
             jobs: jobs.max(1),
             shard: Shard::ALL,
             force: false,
+            skipped: Default::default(),
         }
     }
 
-    /// The groups in atlas order: linkage (A, then B, then C ascending), circuit, points.
-    pub fn groups(&self) -> Vec<Group> {
-        let per_page = self.spec.pages.curves_per_page as u64;
-        let mut groups = Vec::new();
-        let (mut id, mut page) = (0u64, 1u64);
-        for l in &self.enumeration.linkages {
-            let points = self.spec.points.points(l.coupler_length());
-            for &circuit in &self.spec.circuits {
-                let n = points.len() as u64;
-                groups.push(Group {
-                    linkage: *l,
-                    circuit,
-                    points: points.clone(),
-                    first_id: id,
-                    first_page: page,
-                });
-                id += n;
-                page += n.div_ceil(per_page);
-            }
+    /// Coupler points per unit of work: the whole grid, or [`UNIT_POINTS`] for a larger
+    /// grid (a multiple of the curves per page).
+    pub fn unit_points(&self) -> u64 {
+        let n = self.spec.points.len();
+        if n <= UNIT_POINTS {
+            n.max(1)
+        } else {
+            let per = u64::from(self.spec.pages.curves_per_page.max(1));
+            (UNIT_POINTS / per).max(1) * per
         }
-        groups
     }
 
-    /// Number of curves.
+    /// Units of work per (linkage, circuit).
+    fn units_per_group(&self) -> u64 {
+        self.spec.points.len().div_ceil(self.unit_points()).max(1)
+    }
+
+    /// Number of units of work.
+    pub fn unit_count(&self) -> u64 {
+        self.linkages
+            .saturating_mul(self.spec.circuits.len() as u64)
+            .saturating_mul(self.units_per_group())
+    }
+
+    /// Number of chunks ([`crate::CHUNK_GROUPS`] units each).
+    pub fn chunk_count(&self) -> u64 {
+        self.unit_count().div_ceil(crate::CHUNK_GROUPS as u64)
+    }
+
+    /// The units of work in atlas order (linkage: A, then B, then C ascending; circuit;
+    /// points), made one at a time: for an ordinary grid each unit is a whole group (one
+    /// linkage in one circuit with all its coupler points); a grid of more than
+    /// [`UNIT_POINTS`] points is cut into slices.
+    pub fn units(&self) -> impl Iterator<Item = Group> + '_ {
+        let circuits = self.spec.circuits.clone();
+        let (n, per_unit) = (self.spec.points.len(), self.unit_points());
+        let per_page = u64::from(self.spec.pages.curves_per_page.max(1));
+        let pages_per_group = n.div_ceil(per_page);
+        self.spec
+            .atlas_linkages()
+            .enumerate()
+            .flat_map(move |(li, l)| {
+                let circuits = circuits.clone();
+                circuits
+                    .into_iter()
+                    .enumerate()
+                    .flat_map(move |(ci, circuit)| {
+                        let g = li as u64 * self.spec.circuits.len() as u64 + ci as u64;
+                        (0..n.div_ceil(per_unit).max(1)).map(move |u| {
+                            let first = u * per_unit;
+                            Group {
+                                linkage: l,
+                                circuit,
+                                points: self.spec.points.points_in(
+                                    l.coupler_length(),
+                                    first,
+                                    per_unit,
+                                ),
+                                first_id: g * n + first,
+                                first_page: g * pages_per_group + first / per_page + 1,
+                            }
+                        })
+                    })
+            })
+    }
+
+    /// The groups in atlas order (one per linkage and circuit, each with its whole
+    /// grid), made one at a time.
+    pub fn groups(&self) -> impl Iterator<Item = Group> + '_ {
+        let per_page = u64::from(self.spec.pages.curves_per_page.max(1));
+        let n = self.spec.points.len();
+        let pages_per_group = n.div_ceil(per_page);
+        let circuits = self.spec.circuits.clone();
+        self.spec
+            .atlas_linkages()
+            .enumerate()
+            .flat_map(move |(li, l)| {
+                let points = self.spec.points.points(l.coupler_length());
+                circuits
+                    .clone()
+                    .into_iter()
+                    .enumerate()
+                    .map(move |(ci, circuit)| {
+                        let g = li as u64 * self.spec.circuits.len() as u64 + ci as u64;
+                        Group {
+                            linkage: l,
+                            circuit,
+                            points: points.clone(),
+                            first_id: g * n,
+                            first_page: g * pages_per_group + 1,
+                        }
+                    })
+            })
+    }
+
+    /// Number of curves (saturating: see [`crate::Plan`] for exact counts of any size).
     pub fn curves(&self) -> u64 {
-        self.enumeration.linkages.len() as u64
-            * self.spec.circuits.len() as u64
-            * self.spec.points.len()
+        self.linkages
+            .saturating_mul(self.spec.circuits.len() as u64)
+            .saturating_mul(self.spec.points.len())
     }
 
-    /// Number of pages (each group starts a new page).
+    /// Number of pages (each group starts a new page; saturating).
     pub fn pages(&self) -> u64 {
         let per_page = self.spec.pages.curves_per_page as u64;
-        self.enumeration.linkages.len() as u64
-            * self.spec.circuits.len() as u64
-            * self.spec.points.len().div_ceil(per_page)
+        self.linkages
+            .saturating_mul(self.spec.circuits.len() as u64)
+            .saturating_mul(self.spec.points.len().div_ceil(per_page))
+    }
+
+    /// Combinations that are not strict crank-rockers, by class (counted arithmetically
+    /// once, on first use).
+    pub fn skipped(&self) -> &std::collections::BTreeMap<String, u64> {
+        self.skipped.get_or_init(|| self.spec.skipped())
     }
 
     /// The counts written into the index.
     pub fn summary(&self, pages: u64) -> IndexSummary {
         IndexSummary {
             combinations: self.spec.combinations(),
-            linkages: self.enumeration.linkages.len() as u64,
-            skipped: self.enumeration.skipped.clone(),
+            linkages: self.linkages,
+            skipped: self.skipped().clone(),
             curves: self.curves(),
             pages,
         }
-    }
-
-    /// A human-readable plan (what `--dry-run` prints).
-    pub fn describe(&self) -> String {
-        let s = &self.spec;
-        let mut t = String::new();
-        let _ = writeln!(t, "spec:         {} ({})", s.name, self.source);
-        if let Some(g) = &s.geared {
-            // A geared five-bar atlas (crates/specs/src/geared.rs).
-            let _ = writeln!(
-                t,
-                "combinations: {} (L1: {} values, L3: {}, L4: {}, L5: {}, ratios: {}, phases: {})",
-                s.combinations(),
-                g.l1.len(),
-                g.l3.len(),
-                g.l4.len(),
-                g.l5.len(),
-                g.ratios.len(),
-                g.phases.len()
-            );
-            let _ = writeln!(
-                t,
-                "linkages:     {} geared five-bars whose input turns fully",
-                self.enumeration.linkages.len()
-            );
-        } else {
-            let _ = writeln!(
-                t,
-                "combinations: {} (A: {} values, B: {}, C: {})",
-                s.combinations(),
-                s.linkages.coupler.len(),
-                s.linkages.rocker.len(),
-                s.linkages.ground.len()
-            );
-            let _ = writeln!(
-                t,
-                "linkages:     {} strict crank-rockers",
-                self.enumeration.linkages.len()
-            );
-        }
-        let skipped: u64 = self.enumeration.skipped.values().sum();
-        let detail: Vec<String> = self
-            .enumeration
-            .skipped
-            .iter()
-            .map(|(k, v)| format!("{k} {v}"))
-            .collect();
-        let _ = writeln!(
-            t,
-            "skipped:      {skipped} {}{}",
-            if s.geared.is_some() {
-                "whose input does not turn fully"
-            } else {
-                "not strict crank-rockers"
-            },
-            if detail.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", detail.join(", "))
-            }
-        );
-        let _ = writeln!(
-            t,
-            "points:       {} per linkage ({} u × {} v)",
-            s.points.len(),
-            s.points.u.len(),
-            s.points.v.len()
-        );
-        let _ = writeln!(
-            t,
-            "circuits:     {}",
-            s.circuits
-                .iter()
-                .map(|c| c.name())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-        let _ = writeln!(t, "curves:       {}", self.curves());
-        let _ = writeln!(
-            t,
-            "samples:      {} per curve (every {}°){}",
-            (360.0 / s.sampling.crank_step_deg).round(),
-            s.sampling.crank_step_deg,
-            if s.geared.is_some() {
-                " per turn of input; a gear ratio p/q takes q turns"
-            } else {
-                ""
-            }
-        );
-        let _ = writeln!(
-            t,
-            "pages:        {} ({} curves per page, {} {}, {} dpi)",
-            self.pages(),
-            s.pages.curves_per_page,
-            s.pages.size,
-            s.pages.orientation,
-            s.pages.dpi
-        );
-        let _ = write!(t, "output:       {}", self.out.display());
-        t
     }
 }
 
@@ -376,7 +380,8 @@ mod tests {
     fn groups_cover_ids_and_pages_in_order() {
         let spec = Spec::parse(include_str!("../../../atlas-spec/quick.toml"), "quick").unwrap();
         let job = Job::new(spec, "quick", "unused", 1);
-        let groups = job.groups();
+        let groups: Vec<Group> = job.groups().collect();
+        assert_eq!(job.units().collect::<Vec<_>>(), groups);
         let mut id = 0;
         for g in &groups {
             assert_eq!(g.first_id, id);

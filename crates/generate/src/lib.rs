@@ -19,21 +19,28 @@ mod curves;
 mod error;
 mod files;
 mod job;
+mod lock;
 mod measure;
 mod pages;
+mod plan;
 mod run;
+mod state;
 
 pub use curves::{
     CURVES_SCHEMA_VERSION, CurveJob, CurveRecord, CurveRunReport, run as run_curve_set,
 };
 pub use error::GenerateError;
-pub use files::{FileEntry, STATE_DIR, check_out_dir, write_atomically};
+pub use files::{FileEntry, PAGES_DIR, STATE_DIR, check_name, check_out_dir, write_atomically};
 pub use job::{
-    Artifact, Group, Job, NoPages, PageFailure, Rendered, Renderer, Shard, compute_group,
+    Artifact, Group, Job, NoPages, PageFailure, Rendered, Renderer, Shard, UNIT_POINTS,
+    compute_group,
 };
+pub use lock::FolderLock;
 pub use measure::{machine, median, thread_cpu_seconds};
 pub use pages::{
     BufferPool, PageError, PageOptions, PageRenderer, PageTimings, RenderedPage, render_classic,
     render_contents, render_page,
 };
-pub use run::{CHUNK_GROUPS, RunReport, merge, run, run_key};
+pub use plan::{DiskEstimate, Limits, MAX_CURVES, Plan, human_bytes};
+pub use run::{CHUNK_FORMAT, CHUNK_GROUPS, RunReport, merge, run, run_key};
+pub use state::{Identity, PageFlags, read_identity};

@@ -433,7 +433,6 @@ impl Renderer for PageRenderer {
         let per = self.opts.setup.curves_per_page.max(1) as u64;
         let entries: Vec<ContentsEntry> = job
             .groups()
-            .iter()
             .map(|g| ContentsEntry {
                 linkage: g.linkage,
                 circuit: g.circuit,
@@ -461,6 +460,25 @@ impl Renderer for PageRenderer {
 
     fn pages(&self, job: &Job) -> u64 {
         job.pages()
+    }
+
+    fn page_options(&self) -> Option<&PageOptions> {
+        Some(&self.opts)
+    }
+
+    fn group_files(&self, _job: &Job, group: &Group) -> Option<Vec<String>> {
+        let per = self.opts.setup.curves_per_page.max(1);
+        let pages = group.points.len().div_ceil(per) as u64;
+        Some(
+            (group.first_page..group.first_page + pages)
+                .flat_map(|n| {
+                    self.opts
+                        .formats
+                        .iter()
+                        .map(move |&f| format!("pages/{}", self.opts.page_file(n, f)))
+                })
+                .collect(),
+        )
     }
 
     fn settings(&self) -> String {

@@ -1,28 +1,46 @@
-//! Running a job: work cut into fixed chunks of groups in atlas order; each chunk's
-//! pages written as they finish and its record (index lines, files with sizes and hashes)
-//! written last, so a killed run resumes where it stopped; a shard computes its share of
-//! the chunks; [`merge`] gathers shard folders; the index and manifest are assembled from
-//! the chunk records.
+//! Running a job: work cut into fixed chunks of units in atlas order; each chunk's pages
+//! written as they finish and its record (index lines with their hash, files with sizes
+//! and hashes) written last, so a killed run resumes where it stopped; a shard computes
+//! its share of the chunks; [`merge`] gathers shard folders; the index and manifest are
+//! assembled from the chunk records, every record verified as it is read.
 
 use crate::error::io_err;
-use crate::files::{remove_stale_temporaries, write_artifact, write_manifest};
+use crate::files::{
+    PAGES_DIR, check_name, check_out_dir, check_subfolders, hash_reader, open_regular,
+    read_manifest, remove_stale_temporaries, sync_files, write_artifact, write_file,
+    write_manifest,
+};
+use crate::lock::FolderLock;
+use crate::plan::{Limits, Plan};
+use crate::state::{
+    Identity, Ledger, Names, PageFlags, check_user_files, prune, read_identity, remove_atlas,
+    write_identity,
+};
 use crate::{
-    Artifact, FileEntry, GenerateError, Group, Job, PageFailure, Rendered, Renderer, STATE_DIR,
-    check_out_dir, compute_group, write_atomically,
+    FileEntry, GenerateError, Group, Job, PageFailure, Rendered, Renderer, STATE_DIR,
+    compute_group, write_atomically,
 };
 use coupler_index::{
-    IndexCurve, IndexSummary, curve_line, write_curve_line, write_index_footer, write_index_header,
+    IndexCurve, IndexSummary, MAX_INDEX_LINE, curve_line, read_line_bounded, write_curve_line,
+    write_index_footer, write_index_header,
 };
 use coupler_kinematics::CrankTable;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::io::{BufRead, Write as _};
+use std::io::{BufReader, Write as _};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-/// Groups per chunk: the unit of resumption and sharding. Fixed, so chunk boundaries do
+/// Units per chunk: the unit of resumption and sharding. Fixed, so chunk boundaries do
 /// not depend on the machine.
 pub const CHUNK_GROUPS: usize = 32;
+
+/// Version of the chunk record format: 2 added the curve lines' size and hash, and the
+/// first curve id. Records of other versions are recomputed.
+pub const CHUNK_FORMAT: u32 = 2;
+
+/// Longest header line of a chunk record read back.
+const MAX_HEADER_LINE: usize = 64 << 20;
 
 /// What a run did.
 #[derive(Clone, Debug, PartialEq)]
@@ -37,15 +55,49 @@ pub struct RunReport {
     pub reused_chunks: usize,
     /// Chunks of the whole job.
     pub total_chunks: usize,
+    /// The atlas was complete: every file verified, nothing written.
+    pub verified: bool,
+    /// An atlas of the same name made with other settings was removed first.
+    pub replaced: bool,
+    /// Files an earlier run wrote that this atlas no longer has, removed at the end.
+    pub removed_files: usize,
 }
 
 /// First line of a chunk record; its curve lines follow, one per line, as in the index.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 struct ChunkHeader {
+    format: u32,
     run_key: String,
-    chunk: usize,
-    curves: usize,
+    chunk: u64,
+    curves: u64,
+    first_id: u64,
+    lines_bytes: u64,
+    lines_xxh3: String,
     files: Vec<FileEntry>,
+}
+
+/// Why a chunk record cannot be used.
+#[derive(Debug)]
+enum ChunkProblem {
+    /// No record (or not readable).
+    Missing,
+    /// Of another run key, chunk number or format: another spec, settings or version.
+    Other,
+    /// The record is damaged (what is wrong).
+    Damaged(String),
+    /// A file it lists is missing or changed.
+    FileChanged(String),
+}
+
+impl std::fmt::Display for ChunkProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ChunkProblem::Missing => write!(f, "no record"),
+            ChunkProblem::Other => write!(f, "a record of another spec, settings or version"),
+            ChunkProblem::Damaged(m) => write!(f, "a damaged record ({m})"),
+            ChunkProblem::FileChanged(n) => write!(f, "its file {n} is missing or changed"),
+        }
+    }
 }
 
 /// The key that says whether an earlier run's chunk records can be reused: the program
@@ -60,44 +112,159 @@ pub fn run_key(job: &Job, renderer: &dyn Renderer) -> String {
     format!("{:032x}", xxhash_rust::xxh3::xxh3_128(text.as_bytes()))
 }
 
-fn chunk_path(dir: &Path, chunk: usize) -> PathBuf {
+fn chunk_path(dir: &Path, chunk: u64) -> PathBuf {
     dir.join(STATE_DIR)
         .join("chunks")
         .join(format!("{chunk:06}.jsonl"))
 }
 
-/// Reads a chunk record if it is complete, of this run key, and all its files verify.
-fn read_valid_chunk(dir: &Path, chunk: usize, key: &str) -> Option<(ChunkHeader, Vec<String>)> {
-    let file = std::fs::File::open(chunk_path(dir, chunk)).ok()?;
-    let mut lines = std::io::BufReader::new(file).lines();
-    let header: ChunkHeader = serde_json::from_str(&lines.next()?.ok()?).ok()?;
+/// Receives the curve lines of a chunk record as they are read.
+type LineSink<'a> = &'a mut dyn FnMut(&str) -> std::io::Result<()>;
+
+/// Reads chunk record `chunk` of `dir` and checks everything in it: format, run key and
+/// chunk number; every file name a plain name inside the folder; the curve lines
+/// complete, numbered from the header's first id, and equal to their recorded size and
+/// hash; with `verify_files`, every file it lists present with its size and hash. Each
+/// curve line is passed to `sink` as it is read (an error there stops the read), so a
+/// caller that writes them must discard what it wrote unless this returns `Ok`.
+fn read_chunk(
+    dir: &Path,
+    chunk: u64,
+    key: &str,
+    verify_files: bool,
+    mut sink: Option<LineSink<'_>>,
+) -> Result<ChunkHeader, ChunkProblem> {
+    let path = chunk_path(dir, chunk);
+    let file = open_regular(&path).map_err(|_| ChunkProblem::Missing)?;
+    let mut r = BufReader::with_capacity(1 << 16, file);
+    let mut line = Vec::new();
+    let damaged = |m: &str| ChunkProblem::Damaged(m.to_string());
+    read_line_bounded(&mut r, &mut line, MAX_HEADER_LINE)
+        .map_err(|e| ChunkProblem::Damaged(e.to_string()))?;
+    #[derive(Deserialize)]
+    struct Version {
+        format: u32,
+    }
+    let version: Version = serde_json::from_slice(&line).map_err(|_| damaged("header"))?;
+    if version.format != CHUNK_FORMAT {
+        return Err(ChunkProblem::Other);
+    }
+    let header: ChunkHeader = serde_json::from_slice(&line).map_err(|_| damaged("header"))?;
     if header.run_key != key || header.chunk != chunk {
-        return None;
+        return Err(ChunkProblem::Other);
     }
-    let curves: Vec<String> = lines.collect::<Result<_, _>>().ok()?;
-    if curves.len() != header.curves || !header.files.iter().all(|f| f.verify(dir)) {
-        return None;
+    for f in &header.files {
+        check_name(&f.name).map_err(|m| ChunkProblem::Damaged(format!("it lists {m}")))?;
     }
-    Some((header, curves))
+    let mut hasher = xxhash_rust::xxh3::Xxh3::new();
+    let (mut bytes, mut count) = (0u64, 0u64);
+    loop {
+        let n = read_line_bounded(&mut r, &mut line, MAX_INDEX_LINE)
+            .map_err(|e| ChunkProblem::Damaged(e.to_string()))?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&line);
+        bytes += n as u64;
+        if count >= header.curves || bytes > header.lines_bytes {
+            return Err(damaged("more curve lines than recorded"));
+        }
+        let text = std::str::from_utf8(&line).map_err(|_| damaged("a curve line is not UTF-8"))?;
+        let text = text
+            .strip_suffix('\n')
+            .ok_or_else(|| damaged("the last curve line is cut"))?;
+        let id = header.first_id + count;
+        let numbered = text
+            .strip_prefix("{\"id\":")
+            .and_then(|t| t.strip_prefix(id.to_string().as_str()))
+            .is_some_and(|t| t.starts_with(','));
+        if !numbered || !text.ends_with('}') {
+            return Err(ChunkProblem::Damaged(format!(
+                "curve line {} is not the record of curve {id}",
+                count + 1
+            )));
+        }
+        if let Some(s) = sink.as_mut() {
+            s(text).map_err(|e| ChunkProblem::Damaged(e.to_string()))?;
+        }
+        count += 1;
+    }
+    if count != header.curves
+        || bytes != header.lines_bytes
+        || format!("{:032x}", hasher.digest128()) != header.lines_xxh3
+    {
+        return Err(damaged(
+            "its curve lines do not match their recorded size and hash",
+        ));
+    }
+    if verify_files {
+        if let Some(f) = header.files.iter().find(|f| !f.verify(dir)) {
+            return Err(ChunkProblem::FileChanged(f.name.clone()));
+        }
+    }
+    Ok(header)
 }
 
-/// The curve lines of a chunk record of this run key (files not re-verified).
-fn read_chunk_lines(dir: &Path, chunk: usize, key: &str) -> Option<Vec<String>> {
-    let file = std::fs::File::open(chunk_path(dir, chunk)).ok()?;
-    let mut lines = std::io::BufReader::new(file).lines();
-    let header: ChunkHeader = serde_json::from_str(&lines.next()?.ok()?).ok()?;
-    let curves: Vec<String> = lines.collect::<Result<_, _>>().ok()?;
-    (header.run_key == key && header.chunk == chunk && curves.len() == header.curves)
-        .then_some(curves)
+/// Writes chunk record `chunk` of `curves` (and the files its pages are in).
+fn write_chunk(
+    dir: &Path,
+    chunk: u64,
+    key: &str,
+    curves: &[&IndexCurve],
+    files: Vec<FileEntry>,
+) -> Result<(), GenerateError> {
+    let mut lines = String::new();
+    for c in curves {
+        let line = curve_line(c).map_err(io_err(&chunk_path(dir, chunk)))?;
+        lines.push_str(&line);
+        lines.push('\n');
+    }
+    let header = ChunkHeader {
+        format: CHUNK_FORMAT,
+        run_key: key.to_string(),
+        chunk,
+        curves: curves.len() as u64,
+        first_id: curves.first().map(|c| c.id).unwrap_or(0),
+        lines_bytes: lines.len() as u64,
+        lines_xxh3: format!("{:032x}", xxhash_rust::xxh3::xxh3_128(lines.as_bytes())),
+        files,
+    };
+    write_atomically(&chunk_path(dir, chunk), |w| {
+        serde_json::to_writer(&mut *w, &header)?;
+        w.write_all(b"\n")?;
+        w.write_all(lines.as_bytes())
+    })
 }
 
 /// A group's index records, the files it wrote, and the pages that failed.
 type GroupOutput = (Vec<IndexCurve>, Vec<FileEntry>, Vec<PageFailure>);
 
-/// Writes what a renderer made: each file atomically; a page that failed, or a file that
-/// could not be written, becomes a [`PageFailure`] and the others go on.
-pub(crate) fn write_rendered(dir: &Path, rendered: Rendered) -> (Vec<FileEntry>, Vec<PageFailure>) {
+/// Writes what a renderer made: the names recorded in the ledger first (durably), then
+/// each file atomically; a page that failed, or a file that could not be written,
+/// becomes a [`PageFailure`] and the others go on.
+pub(crate) fn write_rendered(
+    dir: &Path,
+    rendered: Rendered,
+    ledger: &Ledger,
+) -> (Vec<FileEntry>, Vec<PageFailure>) {
     let (mut files, mut failed) = (Vec::new(), Vec::new());
+    let names: Vec<&str> = rendered
+        .iter()
+        .filter_map(|r| r.as_ref().ok().map(|a| a.name.as_str()))
+        .collect();
+    if let Err(e) = ledger.add(names) {
+        let message = error_chain(&e);
+        for r in rendered {
+            failed.push(match r {
+                Ok(a) => PageFailure {
+                    page: a.name,
+                    message: message.clone(),
+                },
+                Err(f) => f,
+            });
+        }
+        return (files, failed);
+    }
     for r in rendered {
         match r.and_then(|a| {
             write_artifact(dir, &a).map_err(|e| PageFailure {
@@ -124,10 +291,98 @@ fn error_chain(e: &dyn std::error::Error) -> String {
     s
 }
 
+/// An output folder prepared for a run: locked, its leftovers of dead runs removed, its
+/// ledger read, and checked to hold nothing of the user's where this atlas writes.
+pub(crate) struct Prepared {
+    _lock: FolderLock,
+    pub ledger: Ledger,
+    /// The folder held the same atlas made with other settings.
+    pub replaced: bool,
+}
+
+/// Prepares `out` for writing the atlas `id` (whose files are `names`): refuses a folder
+/// holding files this program did not write (unless `force`), a `pages/` that is a link,
+/// another atlas, and any file of the user's where this atlas writes; takes the folder's
+/// lock; removes temporaries of dead runs. Writes nothing into a folder that already is
+/// this atlas's (a complete atlas verifies on a read-only disk).
+pub(crate) fn prepare(
+    out: &Path,
+    force: bool,
+    id: &Identity,
+    names: &Names,
+) -> Result<Prepared, GenerateError> {
+    check_out_dir(out, force)?;
+    check_subfolders(out)?;
+    let had_state = out.join(STATE_DIR).is_dir();
+    std::fs::create_dir_all(out).map_err(io_err(out))?;
+    let chunks = out.join(STATE_DIR).join("chunks");
+    std::fs::create_dir_all(&chunks).map_err(io_err(&chunks))?;
+    let lock = FolderLock::acquire(out)?;
+    remove_stale_temporaries(out);
+    let ledger = Ledger::read(out, had_state);
+    let replaced = match read_identity(out).ok().flatten() {
+        Some(prev) if !prev.same_run(id) => {
+            if !prev.same_atlas(id) {
+                return Err(GenerateError::OtherAtlas {
+                    dir: out.to_path_buf(),
+                    existing: prev.name,
+                    source_name: prev.source,
+                    new: id.name.clone(),
+                });
+            }
+            true
+        }
+        _ => false,
+    };
+    check_user_files(out, &ledger, names)?;
+    Ok(Prepared {
+        _lock: lock,
+        ledger,
+        replaced,
+    })
+}
+
+/// Whether `out` holds a complete atlas of run key `key`: its manifest is of this key and
+/// every file it lists (the index among them) has its recorded size and hash.
+pub(crate) fn verifies_complete(out: &Path, key: &str, index_name: &str) -> bool {
+    match read_manifest(out) {
+        Some(m) => {
+            m.run_key == key
+                && m.files.iter().any(|f| f.name == index_name)
+                && m.files.iter().all(|f| f.verify(out))
+        }
+        None => false,
+    }
+}
+
+/// The identity `job` records in its folder.
+fn identity(job: &Job, renderer: &dyn Renderer, key: &str) -> Identity {
+    let mut id = Identity::new("grid", &job.spec.name, &job.source, key);
+    id.spec_toml = job.spec_text.clone();
+    id.pages = renderer.page_options().map(PageFlags::of);
+    id.shard = (job.shard.count > 1).then(|| format!("{}/{}", job.shard.index, job.shard.count));
+    id
+}
+
+/// The stem of the page files (the spec's name unless the renderer says otherwise).
+fn stem(job: &Job, renderer: &dyn Renderer) -> String {
+    renderer
+        .page_options()
+        .map(|o| o.stem.clone())
+        .unwrap_or_else(|| job.spec.name.clone())
+}
+
+const ROOT_FILES: [&str; 2] = ["manifest.json", "index.json"];
+
 /// Runs the job (its shard of it): computes the chunks not already complete, on
 /// `job.jobs` threads, writing pages as they finish; for a whole job (shard 1/1) then
 /// assembles `index.json` and `manifest.json`. `progress` is called with the number of
 /// curves finished, from any thread; `interrupt` is polled before each group.
+///
+/// The output folder is locked for the run; a folder holding a complete atlas of this
+/// spec and settings is verified without writing anything; one holding the same atlas
+/// made with other settings is replaced as a whole; files the user put where the atlas
+/// writes are never touched (the run refuses to start).
 ///
 /// A page that fails (cannot be made or written) does not stop the run: it is recorded,
 /// its chunk is not recorded as complete (so the same command redoes it), every other
@@ -139,18 +394,43 @@ pub fn run(
     progress: &(dyn Fn(u64) + Sync),
     interrupt: &AtomicBool,
 ) -> Result<RunReport, GenerateError> {
-    check_out_dir(&job.out, job.force)?;
+    let plan = Plan::new(job, renderer, Limits::DEFAULT);
+    if let Some(r) = plan.refused.first() {
+        return Err(GenerateError::Plan(r.clone()));
+    }
     let table = CrankTable::new(job.spec.sampling.crank_step_deg)
         .ok_or(GenerateError::BadStep(job.spec.sampling.crank_step_deg))?;
-    std::fs::create_dir_all(&job.out).map_err(io_err(&job.out))?;
-    let chunks_dir = job.out.join(STATE_DIR).join("chunks");
-    std::fs::create_dir_all(&chunks_dir).map_err(io_err(&chunks_dir))?;
-    remove_stale_temporaries(&job.out);
     let key = run_key(job, renderer);
+    let id = identity(job, renderer, &key);
+    let stem = stem(job, renderer);
+    let names = Names {
+        root: &ROOT_FILES,
+        stem: &stem,
+    };
+    let prep = prepare(&job.out, job.force, &id, &names)?;
+    let total = job.chunk_count();
+    let whole = job.shard.count == 1;
+    if whole && !prep.replaced && verifies_complete(&job.out, &key, "index.json") {
+        return Ok(RunReport {
+            summary: job.summary(renderer.pages(job)),
+            index_path: Some(job.out.join("index.json")),
+            computed_chunks: 0,
+            reused_chunks: total as usize,
+            total_chunks: total as usize,
+            verified: true,
+            replaced: false,
+            removed_files: 0,
+        });
+    }
+    if prep.replaced {
+        remove_atlas(&job.out, &prep.ledger, &ROOT_FILES)?;
+    }
+    write_identity(&job.out, &id)?;
+    if renderer.page_options().is_some() {
+        let pages = job.out.join(PAGES_DIR);
+        std::fs::create_dir_all(&pages).map_err(io_err(&pages))?;
+    }
     let dash = job.spec.sampling.dash_pattern();
-    let groups = job.groups();
-    let chunks: Vec<&[Group]> = groups.chunks(CHUNK_GROUPS).collect();
-    let mine: Vec<usize> = (0..chunks.len()).filter(|&c| job.shard.owns(c)).collect();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(job.jobs)
         .build()
@@ -158,22 +438,53 @@ pub fn run(
             path: job.out.clone(),
             source: std::io::Error::other(e),
         })?;
+    let mine = (0..total).filter(|&c| job.shard.owns(c as usize)).count();
     let (mut computed, mut reused) = (0, 0);
     let mut failed: Vec<PageFailure> = Vec::new();
-    for (done, &c) in mine.iter().enumerate() {
-        if let Some((header, _)) = read_valid_chunk(&job.out, c, &key) {
-            progress(header.curves as u64);
-            reused += 1;
+    // The files of every chunk found complete (for the manifest), in chunk order.
+    let mut chunk_files: Vec<Option<Vec<FileEntry>>> = Vec::new();
+    let mut units = job.units();
+    for c in 0..total {
+        let chunk: Vec<Group> = units.by_ref().take(CHUNK_GROUPS).collect();
+        if !job.shard.owns(c as usize) {
+            if whole {
+                chunk_files.push(None);
+            }
             continue;
         }
+        let done = reused + computed;
+        if interrupt.load(Ordering::Relaxed) {
+            return Err(GenerateError::Interrupted {
+                done,
+                total: mine,
+                dir: job.out.clone(),
+            });
+        }
+        if let Ok(header) = read_chunk(&job.out, c, &key, true, None) {
+            progress(header.curves);
+            reused += 1;
+            if whole {
+                chunk_files.push(Some(header.files));
+            }
+            continue;
+        }
+        // The names this chunk will write, recorded (durably) before any is written.
+        let known: Option<Vec<String>> = chunk
+            .iter()
+            .map(|g| renderer.group_files(job, g))
+            .collect::<Option<Vec<Vec<String>>>>()
+            .map(|v| v.concat());
+        if let Some(names) = &known {
+            prep.ledger.add(names.iter().map(String::as_str))?;
+        }
         let results: Result<Vec<GroupOutput>, GenerateError> = pool.install(|| {
-            chunks[c]
+            chunk
                 .par_iter()
                 .map(|g| {
                     if interrupt.load(Ordering::Relaxed) {
                         return Err(GenerateError::Interrupted {
-                            done: reused + computed,
-                            total: mine.len(),
+                            done,
+                            total: mine,
                             dir: job.out.clone(),
                         });
                     }
@@ -184,50 +495,38 @@ pub fn run(
                         .then_some(&job.spec.features.tolerances);
                     let mut curves = compute_group(&table, g, features, &dash)?;
                     let rendered = renderer.render_group(job, g, &mut curves);
-                    let (files, failed) = write_rendered(&job.out, rendered);
+                    let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
                     progress(curves.len() as u64);
                     Ok((curves, files, failed))
                 })
                 .collect()
         });
-        let results = results.map_err(|e| match e {
-            GenerateError::Interrupted { .. } => GenerateError::Interrupted {
-                done,
-                total: mine.len(),
-                dir: job.out.clone(),
-            },
-            other => other,
-        })?;
+        let results = results?;
         let chunk_failed: Vec<PageFailure> =
             results.iter().flat_map(|r| r.2.iter().cloned()).collect();
         if !chunk_failed.is_empty() {
             // Not recorded as complete: the same command redoes this chunk.
             failed.extend(chunk_failed);
+            if whole {
+                chunk_files.push(None);
+            }
             continue;
         }
         let curves: Vec<&IndexCurve> = results.iter().flat_map(|r| &r.0).collect();
         let files: Vec<FileEntry> = results.iter().flat_map(|r| r.1.iter().cloned()).collect();
-        let header = ChunkHeader {
-            run_key: key.clone(),
-            chunk: c,
-            curves: curves.len(),
-            files,
-        };
-        let path = chunk_path(&job.out, c);
-        write_atomically(&path, |w| {
-            serde_json::to_writer(&mut *w, &header)?;
-            for curve in &curves {
-                w.write_all(b"\n")?;
-                w.write_all(curve_line(curve)?.as_bytes())?;
-            }
-            w.write_all(b"\n")
-        })?;
+        // The pages are durable before the record that claims them.
+        pool.install(|| sync_files(&job.out, files.iter().map(|f| f.name.as_str())))?;
+        write_chunk(&job.out, c, &key, &curves, files.clone())?;
+        if whole {
+            chunk_files.push(Some(files));
+        }
         computed += 1;
     }
     if !failed.is_empty() {
-        if job.shard.count == 1 {
+        if whole {
             // The atlas-level pages (contents) do not depend on the failed ones.
-            let (_, atlas_failed) = write_rendered(&job.out, renderer.render_atlas(job));
+            let (_, atlas_failed) =
+                write_rendered(&job.out, renderer.render_atlas(job), &prep.ledger);
             failed.extend(atlas_failed);
         }
         return Err(GenerateError::PagesFailed {
@@ -236,43 +535,61 @@ pub fn run(
         });
     }
     let summary = job.summary(renderer.pages(job));
-    let index_path = if job.shard.count == 1 {
-        Some(assemble(job, renderer, &key, chunks.len())?)
+    let (index_path, removed_files) = if whole {
+        let (p, removed) = assemble(job, renderer, &key, chunk_files, &prep.ledger)?;
+        (Some(p), removed)
     } else {
-        None
+        (None, 0)
     };
     Ok(RunReport {
         summary,
         index_path,
         computed_chunks: computed,
         reused_chunks: reused,
-        total_chunks: chunks.len(),
+        total_chunks: total as usize,
+        verified: false,
+        replaced: prep.replaced,
+        removed_files,
     })
 }
 
-/// Writes `index.json` (streamed from the chunk records, in chunk order), the
-/// atlas-level files, and `manifest.json` into `job.out`. Every chunk must be present,
-/// complete and valid there.
+/// Writes `index.json` (streamed from the chunk records, in chunk order, each verified
+/// against its hash as it is read), the atlas-level files, and `manifest.json` into
+/// `job.out`, then removes files of earlier runs this atlas no longer has. `known` holds
+/// the files of the chunks already verified (the others are verified here). Returns the
+/// index's path and how many old files were removed.
 fn assemble(
     job: &Job,
     renderer: &dyn Renderer,
     key: &str,
-    total: usize,
-) -> Result<PathBuf, GenerateError> {
+    known: Vec<Option<Vec<FileEntry>>>,
+    ledger: &Ledger,
+) -> Result<(PathBuf, usize), GenerateError> {
+    let total = job.chunk_count();
     let mut files: Vec<FileEntry> = Vec::new();
     for c in 0..total {
-        let (header, _) = read_valid_chunk(&job.out, c, key).ok_or_else(|| {
-            GenerateError::Merge(format!("chunk {c} of {total} is missing or incomplete in {}; rerun the same command to complete it", job.out.display()))
-        })?;
-        files.extend(header.files);
+        match known.get(c as usize) {
+            Some(Some(f)) => files.extend(f.iter().cloned()),
+            _ => {
+                let header = read_chunk(&job.out, c, key, true, None).map_err(|p| {
+                    GenerateError::Merge(format!(
+                        "chunk {c} of {total} is not complete in {} ({p}); run the same command again to complete it",
+                        job.out.display()
+                    ))
+                })?;
+                files.extend(header.files);
+            }
+        }
     }
-    let (atlas_files, failed) = write_rendered(&job.out, renderer.render_atlas(job));
+    ledger.add(ROOT_FILES)?;
+    let (atlas_files, failed) = write_rendered(&job.out, renderer.render_atlas(job), ledger);
     if !failed.is_empty() {
         return Err(GenerateError::PagesFailed {
             failed,
             dir: job.out.clone(),
         });
     }
+    sync_files(&job.out, atlas_files.iter().map(|f| f.name.as_str()))?;
     files.extend(atlas_files);
     let summary = job.summary(renderer.pages(job));
     let index_path = job.out.join("index.json");
@@ -280,75 +597,220 @@ fn assemble(
         write_index_header(&mut *w, &job.spec, &summary)?;
         let mut first = true;
         for c in 0..total {
-            // Checked (files and all) just above; the curve lines are read again here so
-            // that only one chunk's lines are in memory at a time.
-            let curves = read_chunk_lines(&job.out, c, key).ok_or_else(|| {
-                std::io::Error::other(format!("chunk {c} changed while assembling"))
-            })?;
-            for line in curves {
-                write_curve_line(&mut *w, first, &line)?;
+            // Only one chunk's lines are in memory at a time; a record that changed
+            // since it was checked stops the write (the temporary index is discarded).
+            let mut sink = |line: &str| {
+                let r = write_curve_line(&mut *w, first, line);
                 first = false;
-            }
+                r
+            };
+            read_chunk(&job.out, c, key, false, Some(&mut sink)).map_err(|p| {
+                std::io::Error::other(format!("chunk {c} changed while assembling: {p}"))
+            })?;
         }
         write_index_footer(&mut *w)
     })?;
     files.push(FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?);
-    write_manifest(&job.out, key, files)?;
-    Ok(index_path)
+    write_manifest(&job.out, key, files.clone())?;
+    let mut keep: Vec<String> = files.into_iter().map(|f| f.name).collect();
+    keep.push("manifest.json".into());
+    let removed = prune(&job.out, ledger, &keep)?;
+    Ok((index_path, removed))
 }
 
-/// Merges shard folders into `job.out` (which may be one of them): copies every chunk
-/// record and its files (verified by hash) into `job.out`, then assembles the index and
-/// manifest exactly as a single run writes them. Refuses if the shards are of another
-/// spec or settings, or if any chunk is missing.
+/// Copies file `f` of shard folder `src` into `out` (atomically), checking its size and
+/// hash as it is copied: nothing that differs from the record is ever put in place.
+fn copy_verified(src: &Path, out: &Path, f: &FileEntry) -> Result<(), GenerateError> {
+    let from = src.join(&f.name);
+    let file = open_regular(&from).map_err(io_err(&from))?;
+    let to = out.join(&f.name);
+    write_file(&to, false, |w| {
+        let mut tee = Tee {
+            inner: file,
+            out: w,
+            error: None,
+        };
+        let (bytes, hash) = hash_reader(&mut tee)?;
+        if let Some(e) = tee.error {
+            return Err(e);
+        }
+        if bytes != f.bytes || hash != f.xxh3 {
+            return Err(std::io::Error::other(format!(
+                "{} does not match its record (size or hash)",
+                from.display()
+            )));
+        }
+        Ok(())
+    })
+}
+
+/// A reader that writes what it reads to `out`.
+struct Tee<'a, R, W> {
+    inner: R,
+    out: &'a mut W,
+    error: Option<std::io::Error>,
+}
+
+impl<R: std::io::Read, W: std::io::Write> std::io::Read for Tee<'_, R, W> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if let Err(e) = self.out.write_all(&buf[..n]) {
+            self.error = Some(e);
+            return Ok(0);
+        }
+        Ok(n)
+    }
+}
+
+/// Merges shard folders into `job.out` (which may be one of them): checks that every
+/// shard was made from this job's spec and settings (naming any that was not), copies
+/// every chunk record and its files (verified by hash) into `job.out`, then assembles the
+/// index and manifest exactly as a single run writes them. Refuses if any chunk is
+/// missing, naming the shard that should hold it. `interrupt` is polled between files:
+/// a stopped merge leaves no temporary file.
 pub fn merge(
     job: &Job,
     renderer: &dyn Renderer,
     shards: &[PathBuf],
+    interrupt: &AtomicBool,
 ) -> Result<PathBuf, GenerateError> {
-    check_out_dir(&job.out, job.force)?;
     let key = run_key(job, renderer);
-    let total = job.groups().chunks(CHUNK_GROUPS).count();
+    let total = job.chunk_count();
+    // Which shard each folder is (K, N), from its record.
+    let mut which: Vec<Option<(u64, u64)>> = Vec::new();
+    for d in shards {
+        let id = read_identity(d)
+            .map_err(GenerateError::Merge)?
+            .ok_or_else(|| {
+                GenerateError::Merge(format!(
+                    "{} has no record of its spec and settings (.coupler-atlas/atlas.json): it is not a shard folder of this version of coupler-atlas",
+                    d.display()
+                ))
+            })?;
+        if id.run_key != key {
+            return Err(GenerateError::Merge(format!(
+                "{} was made from {} (atlas `{}`) with other settings than this merge's {} (atlas `{}`)",
+                d.display(),
+                id.source,
+                id.name,
+                job.source,
+                job.spec.name
+            )));
+        }
+        which.push(id.shard.as_deref().and_then(|s| {
+            let (k, n) = s.split_once('/')?;
+            Some((k.parse().ok()?, n.parse().ok()?))
+        }));
+    }
+    let mut id = identity(job, renderer, &key);
+    id.shard = None;
+    let stem = stem(job, renderer);
+    let names = Names {
+        root: &ROOT_FILES,
+        stem: &stem,
+    };
+    let prep = prepare(&job.out, job.force, &id, &names)?;
+    if prep.replaced {
+        remove_atlas(&job.out, &prep.ledger, &ROOT_FILES)?;
+    }
     // Find every chunk before writing anything.
-    let mut sources: Vec<Option<&PathBuf>> = Vec::with_capacity(total);
+    let mut sources: Vec<Option<&PathBuf>> = Vec::with_capacity(total as usize);
     for c in 0..total {
-        if read_valid_chunk(&job.out, c, &key).is_some() {
+        if read_chunk(&job.out, c, &key, true, None).is_ok() {
             sources.push(None);
             continue;
         }
-        let Some(src) = shards
-            .iter()
-            .find(|d| read_valid_chunk(d, c, &key).is_some())
-        else {
+        let mut problems = Vec::new();
+        let mut found = None;
+        for d in shards {
+            match read_chunk(d, c, &key, true, None) {
+                Ok(_) => {
+                    found = Some(d);
+                    break;
+                }
+                Err(ChunkProblem::Damaged(m)) => {
+                    return Err(GenerateError::Merge(format!(
+                        "chunk {c} in {} is damaged ({m}); run that shard again to redo it",
+                        d.display()
+                    )));
+                }
+                Err(p) => problems.push((d, p)),
+            }
+        }
+        let Some(src) = found else {
+            let owner = which.iter().flatten().next().map(|&(_, n)| (c % n + 1, n));
+            let hint = match owner {
+                Some((k, n)) => match which.iter().position(|w| *w == Some((k, n))) {
+                    Some(i) => format!(
+                        "it belongs to shard {k}/{n}, whose folder {} has {}: run that shard again to finish it",
+                        shards[i].display(),
+                        problems
+                            .iter()
+                            .find(|(d, _)| *d == &shards[i])
+                            .map(|(_, p)| p.to_string())
+                            .unwrap_or_else(|| "no record".into())
+                    ),
+                    None => format!(
+                        "it belongs to shard {k}/{n} (chunks c with c mod {n} = {}), whose folder is not among those given",
+                        k - 1
+                    ),
+                },
+                None => "check that every shard finished".into(),
+            };
             return Err(GenerateError::Merge(format!(
-                "chunk {c} of {total} is in none of the shard folders (complete and of this spec and settings); check that every shard finished and that all were run with the same spec and flags"
+                "chunk {c} of {total} is in none of the shard folders: {hint}"
             )));
         };
         sources.push(Some(src));
     }
-    let chunks_dir = job.out.join(STATE_DIR).join("chunks");
-    std::fs::create_dir_all(&chunks_dir).map_err(io_err(&chunks_dir))?;
+    write_identity(&job.out, &id)?;
+    let pages = job.out.join(PAGES_DIR);
+    if renderer.page_options().is_some() {
+        std::fs::create_dir_all(&pages).map_err(io_err(&pages))?;
+    }
+    let stopped = || GenerateError::Interrupted {
+        done: 0,
+        total: total as usize,
+        dir: job.out.clone(),
+    };
+    let mut chunk_files: Vec<Option<Vec<FileEntry>>> = Vec::with_capacity(total as usize);
     for (c, src) in sources.into_iter().enumerate() {
-        let Some(src) = src else { continue };
-        let (header, _) = read_valid_chunk(src, c, &key).ok_or_else(|| {
+        let c = c as u64;
+        let Some(src) = src else {
+            chunk_files.push(None);
+            continue;
+        };
+        let header = read_chunk(src, c, &key, false, None).map_err(|p| {
             GenerateError::Merge(format!(
-                "chunk {c} changed in {} while merging",
+                "chunk {c} changed in {} while merging ({p})",
                 src.display()
             ))
         })?;
+        prep.ledger
+            .add(header.files.iter().map(|f| f.name.as_str()))?;
         for f in &header.files {
-            let from = src.join(&f.name);
-            let bytes = std::fs::read(&from).map_err(io_err(&from))?;
-            write_artifact(
-                &job.out,
-                &Artifact {
-                    name: f.name.clone(),
-                    bytes,
-                },
-            )?;
+            if interrupt.load(Ordering::Relaxed) {
+                return Err(stopped());
+            }
+            copy_verified(src, &job.out, f)?;
         }
-        let record = std::fs::read(chunk_path(src, c)).map_err(io_err(&chunk_path(src, c)))?;
-        write_atomically(&chunk_path(&job.out, c), |w| w.write_all(&record))?;
+        sync_files(&job.out, header.files.iter().map(|f| f.name.as_str()))?;
+        let from = chunk_path(src, c);
+        let record = open_regular(&from).map_err(io_err(&from))?;
+        write_atomically(&chunk_path(&job.out, c), |w| {
+            std::io::copy(&mut BufReader::new(record), w).map(|_| ())
+        })?;
+        // Checked again where it now is (lines and files).
+        let header = read_chunk(&job.out, c, &key, true, None).map_err(|p| {
+            GenerateError::Merge(format!(
+                "chunk {c} of {} did not verify once copied ({p})",
+                src.display()
+            ))
+        })?;
+        chunk_files.push(Some(header.files));
     }
-    assemble(job, renderer, &key, total)
+    if interrupt.load(Ordering::Relaxed) {
+        return Err(stopped());
+    }
+    assemble(job, renderer, &key, chunk_files, &prep.ledger).map(|(p, _)| p)
 }

@@ -6,10 +6,17 @@
 //! cache beside the index.
 
 mod cache;
+mod columns;
+mod lines;
 mod schema;
 mod search;
 
-pub use cache::{LoadError, TableSource, cache_path, load_table};
+pub use cache::{
+    CACHE_FORMAT, CACHE_MAGIC, CacheError, Column, IndexKey, LoadError, Section, TableSource,
+    cache_path, load_table, read_container, write_container,
+};
+pub use columns::TABLE_VERSION;
+pub use lines::{MAX_INDEX_LINE, read_line_bounded};
 pub use schema::{
     Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
     write_curve_line, write_index, write_index_footer, write_index_header,

@@ -4,7 +4,7 @@
 //! it takes seconds per million curves. So `search` reads it once into a [`SearchTable`]
 //! (one fixed-size row per curve plus flat arrays of segments and arcs), saves that as a
 //! binary cache next to the index (`INDEX.search`, keyed by the index's length and
-//! modification time), and answers queries from the cache: a linear scan with cheap
+//! content hash, checksummed: see `cache.rs`), and answers queries from the cache: a linear scan with cheap
 //! tests, milliseconds per million curves. The filtered quantities are kept as `f64`,
 //! so a result satisfies its filters exactly as the index's own numbers do.
 
@@ -201,10 +201,29 @@ impl SearchTable {
     pub fn from_index_reader<R: std::io::BufRead>(
         mut reader: R,
     ) -> Result<SearchTable, SearchError> {
+        use crate::lines::{MAX_INDEX_LINE, read_line_bounded};
         use rayon::prelude::*;
-        let io = |e: std::io::Error| SearchError::Header(e.to_string());
-        let mut first = String::new();
-        reader.read_line(&mut first).map_err(io)?;
+        let mut buf = Vec::new();
+        let mut line_no = 1;
+        // Lines are read with a bound on their length: a file without newlines (a
+        // gigabyte of anything) is refused after 16 MiB, never read whole.
+        let mut next_line = |reader: &mut R,
+                             line_no: usize|
+         -> Result<Option<String>, SearchError> {
+            match read_line_bounded(reader, &mut buf, MAX_INDEX_LINE) {
+                Ok(0) => Ok(None),
+                Ok(_) => Ok(Some(String::from_utf8_lossy(&buf).into_owned())),
+                Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Err(SearchError::Line {
+                    line: line_no,
+                    message: format!(
+                        "the line is longer than {} MiB: this is not a coupler-atlas index",
+                        MAX_INDEX_LINE >> 20
+                    ),
+                }),
+                Err(e) => Err(SearchError::Header(e.to_string())),
+            }
+        };
+        let first = next_line(&mut reader, 1)?.unwrap_or_default();
         // An index's header names its generator second; other files of an atlas
         // (`manifest.json`) share the first key only.
         if !first.starts_with(&format!(
@@ -213,19 +232,20 @@ impl SearchTable {
             return Err(SearchError::Header(first.chars().take(60).collect()));
         }
         let mut t = SearchTable::default();
-        let mut line_no = 1;
         let mut batch: Vec<(usize, String)> = Vec::with_capacity(1 << 14);
         let mut done = false;
         let mut closed = false;
         while !done {
             batch.clear();
-            while batch.len() < 1 << 14 {
-                let mut l = String::new();
-                if reader.read_line(&mut l).map_err(io)? == 0 {
+            // A batch holds at most 16,384 lines and about 64 MiB.
+            let mut batch_bytes = 0;
+            while batch.len() < 1 << 14 && batch_bytes < 64 << 20 {
+                let Some(l) = next_line(&mut reader, line_no + 1)? else {
                     done = true;
                     break;
-                }
+                };
                 line_no += 1;
+                batch_bytes += l.len();
                 if l.starts_with("{\"id\":") {
                     batch.push((line_no, l));
                 } else if !l.trim().is_empty() {
@@ -267,179 +287,6 @@ impl SearchTable {
     /// The arcs of a row.
     pub fn arcs_of(&self, r: &CurveRow) -> &[ArcRow] {
         &self.arcs[r.arc_start as usize..(r.arc_start + r.arc_count) as usize]
-    }
-
-    /// Serialises the table (little-endian, versioned) with a key identifying its index.
-    pub fn to_bytes(&self, key: [u64; 2]) -> Vec<u8> {
-        let mut w = Vec::with_capacity(64 + self.rows.len() * 160);
-        w.extend_from_slice(MAGIC);
-        for x in [
-            key[0],
-            key[1],
-            self.rows.len() as u64,
-            self.segments.len() as u64,
-            self.arcs.len() as u64,
-        ] {
-            w.extend_from_slice(&x.to_le_bytes());
-        }
-        let f = |w: &mut Vec<u8>, x: f64| w.extend_from_slice(&x.to_le_bytes());
-        let u = |w: &mut Vec<u8>, x: u32| w.extend_from_slice(&x.to_le_bytes());
-        u(&mut w, self.pages.len() as u32);
-        for p in &self.pages {
-            u(&mut w, p.len() as u32);
-            w.extend_from_slice(p.as_bytes());
-        }
-        for r in &self.rows {
-            w.extend_from_slice(&r.id.to_le_bytes());
-            for x in r
-                .linkage
-                .iter()
-                .chain(&r.point)
-                .chain(&r.transmission_deg)
-                .chain(&r.page_bbox)
-            {
-                f(&mut w, *x);
-            }
-            for x in [
-                r.page,
-                r.seg_start,
-                r.seg_count,
-                r.arc_start,
-                r.arc_count,
-                r.crunodes,
-                r.cusps,
-            ] {
-                u(&mut w, x);
-            }
-            let class = LinkageClass::ALL
-                .iter()
-                .position(|&c| c == r.class)
-                .unwrap_or(0) as u8;
-            w.extend_from_slice(&[
-                (r.circuit == Circuit::Crossed) as u8,
-                class,
-                r.symmetric as u8,
-                r.has_features as u8,
-                r.trivial as u8,
-            ]);
-        }
-        for s in &self.segments {
-            for x in [
-                s.start_deg,
-                s.span_deg,
-                s.straightness_pct,
-                s.velocity_variation_pct,
-                s.length,
-                s.direction_deg,
-            ] {
-                f(&mut w, x);
-            }
-        }
-        for a in &self.arcs {
-            for x in [
-                a.start_deg,
-                a.span_deg,
-                a.radius,
-                a.deviation_pct,
-                a.center[0],
-                a.center[1],
-                a.turn_deg,
-            ] {
-                f(&mut w, x);
-            }
-            w.push((a.concave == Side::Right) as u8);
-        }
-        w
-    }
-
-    /// Reads a table written by [`SearchTable::to_bytes`] if its key matches.
-    pub fn from_bytes(b: &[u8], key: [u64; 2]) -> Result<SearchTable, SearchError> {
-        let mut r = Reader { b, at: 0 };
-        if r.take(MAGIC.len())? != MAGIC || [r.u64()?, r.u64()?] != key {
-            return Err(SearchError::Cache);
-        }
-        let (nrows, nsegs, narcs) = (r.u64()? as usize, r.u64()? as usize, r.u64()? as usize);
-        let npages = r.u32()? as usize;
-        let mut t = SearchTable::default();
-        for _ in 0..npages {
-            let len = r.u32()? as usize;
-            t.pages
-                .push(String::from_utf8(r.take(len)?.to_vec()).map_err(|_| SearchError::Cache)?);
-        }
-        t.rows.reserve_exact(nrows);
-        for _ in 0..nrows {
-            let id = r.u64()?;
-            let mut v = [0.0; 11];
-            for x in &mut v {
-                *x = r.f64()?;
-            }
-            let mut k = [0u32; 7];
-            for x in &mut k {
-                *x = r.u32()?;
-            }
-            let flags = r.take(5)?;
-            t.rows.push(CurveRow {
-                id,
-                linkage: [v[0], v[1], v[2]],
-                point: [v[3], v[4]],
-                transmission_deg: [v[5], v[6]],
-                page_bbox: [v[7], v[8], v[9], v[10]],
-                page: k[0],
-                seg_start: k[1],
-                seg_count: k[2],
-                arc_start: k[3],
-                arc_count: k[4],
-                crunodes: k[5],
-                cusps: k[6],
-                circuit: if flags[0] == 1 {
-                    Circuit::Crossed
-                } else {
-                    Circuit::Open
-                },
-                class: *LinkageClass::ALL
-                    .get(flags[1] as usize)
-                    .ok_or(SearchError::Cache)?,
-                symmetric: flags[2] == 1,
-                has_features: flags[3] == 1,
-                trivial: flags[4] == 1,
-            });
-        }
-        t.segments.reserve_exact(nsegs);
-        for _ in 0..nsegs {
-            let mut v = [0.0; 6];
-            for x in &mut v {
-                *x = r.f64()?;
-            }
-            t.segments.push(SegmentRow {
-                start_deg: v[0],
-                span_deg: v[1],
-                straightness_pct: v[2],
-                velocity_variation_pct: v[3],
-                length: v[4],
-                direction_deg: v[5],
-            });
-        }
-        t.arcs.reserve_exact(narcs);
-        for _ in 0..narcs {
-            let mut v = [0.0; 7];
-            for x in &mut v {
-                *x = r.f64()?;
-            }
-            let side = r.take(1)?[0];
-            t.arcs.push(ArcRow {
-                start_deg: v[0],
-                span_deg: v[1],
-                radius: v[2],
-                deviation_pct: v[3],
-                center: [v[4], v[5]],
-                concave: if side == 1 { Side::Right } else { Side::Left },
-                turn_deg: v[6],
-            });
-        }
-        if r.at != b.len() {
-            return Err(SearchError::Cache);
-        }
-        Ok(t)
     }
 
     /// Runs a query: every row that passes all filters, sorted and limited. Sort keys
@@ -509,34 +356,6 @@ impl SearchTable {
         }
         keyed.sort_by(order);
         (keyed.into_iter().map(|(_, _, h)| h).collect(), total)
-    }
-}
-
-const MAGIC: &[u8] = b"coupler-atlas search v2\n";
-
-struct Reader<'a> {
-    b: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize) -> Result<&'a [u8], SearchError> {
-        let s = self.b.get(self.at..self.at + n).ok_or(SearchError::Cache)?;
-        self.at += n;
-        Ok(s)
-    }
-    fn u64(&mut self) -> Result<u64, SearchError> {
-        Ok(u64::from_le_bytes(
-            self.take(8)?.try_into().map_err(|_| SearchError::Cache)?,
-        ))
-    }
-    fn u32(&mut self) -> Result<u32, SearchError> {
-        Ok(u32::from_le_bytes(
-            self.take(4)?.try_into().map_err(|_| SearchError::Cache)?,
-        ))
-    }
-    fn f64(&mut self) -> Result<f64, SearchError> {
-        Ok(f64::from_bits(self.u64()?))
     }
 }
 

@@ -19,12 +19,45 @@ pub struct CrankTable {
     angles: Vec<CrankAngle>,
 }
 
+/// At most this many samples per crank turn (a step of at least 0.00036°): a guard
+/// against typos like `--step 1e-9`, which would ask for gigabytes.
+pub const MAX_SAMPLES_PER_TURN: u64 = 1_000_000;
+
+/// The number of samples `0, step, 2·step, …` below 360° when `0 < step ≤ 360` is finite
+/// and the count is at most [`MAX_SAMPLES_PER_TURN`]; `Err` says why not (for messages).
+///
+/// ```
+/// use coupler_kinematics::samples_per_turn;
+/// assert_eq!(samples_per_turn(7.0), Ok(52));
+/// assert!(samples_per_turn(1e-9).unwrap_err().contains("more than the 1000000 allowed"));
+/// ```
+pub fn samples_per_turn(step_deg: f64) -> Result<u64, String> {
+    if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
+        return Err(format!(
+            "must be > 0 and at most 360 degrees, got {step_deg}"
+        ));
+    }
+    let n = (360.0 / step_deg).ceil();
+    if n > MAX_SAMPLES_PER_TURN as f64 {
+        return Err(format!(
+            "a step of {step_deg}° gives {n:.0} samples per turn, more than the {MAX_SAMPLES_PER_TURN} allowed (use a step of at least {}°)",
+            360.0 / MAX_SAMPLES_PER_TURN as f64
+        ));
+    }
+    let n = n as u64;
+    // The last k·step may round to 360 exactly: it is not below 360.
+    Ok(if (n - 1) as f64 * step_deg < 360.0 {
+        n
+    } else {
+        n - 1
+    })
+}
+
 impl CrankTable {
-    /// Angles `0, step, 2·step, …` below 360°. `None` unless `0 < step ≤ 360` and finite.
+    /// Angles `0, step, 2·step, …` below 360°. `None` unless `0 < step ≤ 360` is finite
+    /// and gives at most [`MAX_SAMPLES_PER_TURN`] samples ([`samples_per_turn`]).
     pub fn new(step_deg: f64) -> Option<CrankTable> {
-        if !(step_deg.is_finite() && step_deg > 0.0 && step_deg <= 360.0) {
-            return None;
-        }
+        samples_per_turn(step_deg).ok()?;
         let n = (360.0 / step_deg).ceil() as usize;
         let angles = (0..n)
             .map(|k| k as f64 * step_deg)

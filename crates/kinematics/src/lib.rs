@@ -26,7 +26,10 @@ mod pose;
 mod trace;
 
 pub use cognates::{Cognate, CognateError, cognates};
-pub use curve::{CrankTable, Curve, CurveSummary, PoseTable, transmission_range};
+pub use curve::{
+    CrankTable, Curve, CurveSummary, MAX_SAMPLES_PER_TURN, PoseTable, samples_per_turn,
+    transmission_range,
+};
 pub use dash::{
     DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
     DashPattern, DashedCurve, MAX_SUBDIVISION_DEPTH, dash_curve, dash_leg, distance_to_segment,

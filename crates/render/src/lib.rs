@@ -18,7 +18,9 @@ mod pdf;
 mod raster;
 mod svg;
 
-pub use diff::{DiffError, ImageDiff, diff_files, diff_images, read_image};
+pub use diff::{
+    DiffError, ImageDiff, MAX_DIFF_PIXELS, MAX_DIFF_WIDTH, diff_files, diff_images, read_image,
+};
 #[cfg(feature = "pdf")]
 pub use pdf::PdfPage;
 pub use raster::{RasterPage, encode_png};

@@ -41,6 +41,8 @@ impl FeatureSettings {
             .try_into()
             .map_err(|e: toml::de::Error| format!("in [features]: {}", e.message()))?;
         tolerances.validate()?;
+        coupler_kinematics::samples_per_turn(tolerances.step_deg)
+            .map_err(|m| format!("features.step_deg: {m}"))?;
         Ok(FeatureSettings {
             enabled,
             tolerances,

@@ -5,17 +5,19 @@
 //! page set. Parsing validates everything before any work starts; every error names the
 //! file, the line, the column and the key.
 
+mod count;
 mod curves;
 mod features;
 mod geared;
 mod settings;
 mod spec;
 
+pub use count::CrankRockers;
 pub use curves::CurveList;
 pub use features::FeatureSettings;
 pub use geared::GearedRanges;
 pub use settings::{PageSettings, Sampling};
 pub use spec::{
-    AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration, LinkageRanges,
-    MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
+    AtlasLinkages, AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration,
+    LinkageRanges, MAX_NAME_LEN, MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
 };

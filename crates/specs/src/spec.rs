@@ -4,6 +4,7 @@
 //!
 //! The format is documented in `docs/spec-format.md`.
 
+use crate::count::{self, CrankRockers};
 use crate::curves::CurveList;
 use crate::features::FeatureSettings;
 use crate::geared::GearedRanges;
@@ -11,6 +12,7 @@ use crate::settings::{PageSettings, Sampling};
 use coupler_features::{NamedCurve, TraceMode};
 use coupler_kinematics::{
     Circuit, Class, CouplerPoint, Decimal, FourBar, GearRatio, GearedError, Linkage, divides_turn,
+    samples_per_turn,
 };
 use coupler_layout::{DPI_RANGE, Orientation, PaperSize};
 use serde::{Deserialize, Serialize};
@@ -198,6 +200,32 @@ impl PointGrid {
                 us.iter().map(move |&u| {
                     CouplerPoint::new(scale(u, self.u_relative), scale(v, self.v_relative))
                 })
+            })
+            .collect()
+    }
+
+    /// The points `first..first + count` of [`PointGrid::points`] (same order, same
+    /// values), without making the others: a slice of a grid too large to hold.
+    pub fn points_in(&self, a: f64, first: u64, count: u64) -> Vec<CouplerPoint> {
+        let nu = self.u.len().max(1);
+        let value = |r: &DecimalRange, k: u64, rel: bool| {
+            let x = r
+                .start
+                .checked_add(
+                    r.step
+                        .checked_mul_int(i128::from(k))
+                        .unwrap_or(Decimal::ZERO),
+                )
+                .unwrap_or(r.start)
+                .to_f64();
+            if rel { x * a } else { x }
+        };
+        (first..first.saturating_add(count).min(self.len()))
+            .map(|i| {
+                CouplerPoint::new(
+                    value(&self.u, i % nu, self.u_relative),
+                    value(&self.v, i / nu, self.v_relative),
+                )
             })
             .collect()
     }
@@ -418,6 +446,17 @@ impl Ctx<'_> {
             ));
         }
         let range = DecimalRange { start, end, step };
+        if positive && !fits_f64_exactly(&range) {
+            return Err(self.error(
+                r.span(),
+                Some(key),
+                format!(
+                    "values from {} by {} need more than {MAX_DIGITS} significant digits, which a length cannot hold exactly",
+                    raw.start.get_ref(),
+                    raw.step.get_ref()
+                ),
+            ));
+        }
         if range.len() > MAX_RANGE_VALUES {
             return Err(self.error(
                 r.span(),
@@ -448,12 +487,40 @@ impl Ctx<'_> {
                 format!("must be > 0 and divide 360 exactly, got {}", x.get_ref()),
             ));
         }
+        samples_per_turn(*x.get_ref()).map_err(|m| self.error(x.span(), Some(key), m))?;
         Ok(*x.get_ref())
     }
 }
 
 /// At most this many values in one range (a guard against typos like `step = 1e-9`).
 pub const MAX_RANGE_VALUES: u64 = 100_000;
+
+/// At most this many characters in an atlas name: it names the output folder and every
+/// page file (`NAME-contents-1.png`, and while written `.NAME-0001.png.tmp-…`), and file
+/// names are limited to 255 bytes.
+pub const MAX_NAME_LEN: usize = 100;
+
+/// Significant digits a link length may need: every value then reads back from its
+/// `f64` as the same decimal, so classes decided on the decimals and on the lengths
+/// agree (and the arithmetic counts of `count.rs` are exact).
+const MAX_DIGITS: u32 = 15;
+
+/// Whether every value of the range has at most [`MAX_DIGITS`] significant digits.
+fn fits_f64_exactly(r: &DecimalRange) -> bool {
+    let e = r.start.exponent().min(r.step.exponent());
+    let scale = |d: Decimal| -> Option<i128> {
+        let mut m = d.mantissa();
+        for _ in 0..(d.exponent() - e) {
+            m = m.checked_mul(10)?;
+        }
+        Some(m)
+    };
+    let (Some(start), Some(step)) = (scale(r.start), scale(r.step)) else {
+        return false;
+    };
+    let last = start + step * (r.len().max(1) as i128 - 1);
+    last.abs() < 10i128.pow(MAX_DIGITS)
+}
 
 /// What a spec file describes: a Hrones–Nelson grid (`[linkages]` and `[points]`), or a
 /// full-curve page set (a list of `[[curve]]` entries, e.g. `atlas-spec/classics.toml`).
@@ -574,6 +641,16 @@ impl Ctx<'_> {
                 .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
         {
             return Err(self.error(atlas.name.span(), Some("atlas.name"), "name must be non-empty and use only ASCII letters, digits, `-` and `_` (it names files)".into()));
+        }
+        if name.len() > MAX_NAME_LEN {
+            return Err(self.error(
+                atlas.name.span(),
+                Some("atlas.name"),
+                format!(
+                    "name is {} characters long, more than the {MAX_NAME_LEN} allowed (it names the output folder and every page file, and file names are limited to 255 bytes)",
+                    name.len()
+                ),
+            ));
         }
         let title = atlas
             .title
@@ -965,29 +1042,77 @@ impl Spec {
 
     /// Enumerates the linkages: every (A, B, C) in the ranges (A outer, then B, then C,
     /// each ascending) that is a strict crank-rocker, and counts the others by class.
+    /// This holds every linkage in memory: a run streams them instead
+    /// ([`Spec::crank_rockers`]) and counts them arithmetically ([`Spec::count_linkages`]).
     pub fn enumerate(&self) -> Enumeration {
         if let Some(g) = &self.geared {
             let (linkages, skipped) = g.enumerate();
             return Enumeration { linkages, skipped };
         }
-        let mut linkages = Vec::new();
-        let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
-        for a in self.linkages.coupler.values() {
-            for b in self.linkages.rocker.values() {
-                for c in self.linkages.ground.values() {
-                    let Ok(l) = FourBar::new(a.to_f64(), b.to_f64(), c.to_f64()) else {
-                        continue;
-                    };
-                    let class = l.class();
-                    if class == Class::Gcrr {
-                        linkages.push(Linkage::FourBar(l));
-                    } else {
-                        *skipped.entry(class.code().to_string()).or_default() += 1;
-                    }
-                }
-            }
+        Enumeration {
+            linkages: self.crank_rockers().collect(),
+            skipped: self.skipped(),
         }
-        Enumeration { linkages, skipped }
+    }
+
+    /// The strict crank-rockers in atlas order, one at a time (constant memory).
+    pub fn crank_rockers(&self) -> CrankRockers {
+        CrankRockers::new(&self.linkages)
+    }
+
+    /// The atlas's linkages in atlas order, one at a time: the strict crank-rockers of a
+    /// four-bar grid (constant memory), or the fully turning five-bars of a `[geared]`
+    /// grid (a geared grid is small: it is enumerated at once).
+    pub fn atlas_linkages(&self) -> AtlasLinkages {
+        match &self.geared {
+            Some(g) => AtlasLinkages::Listed(g.enumerate().0.into_iter()),
+            None => AtlasLinkages::CrankRockers(Box::new(self.crank_rockers())),
+        }
+    }
+
+    /// The number of the atlas's linkages: strict crank-rockers counted arithmetically
+    /// (milliseconds, whatever the ranges: `docs/scale.md`), or a geared grid's fully
+    /// turning five-bars.
+    pub fn count_linkages(&self) -> u64 {
+        match &self.geared {
+            Some(g) => g.enumerate().0.len() as u64,
+            None => count::count_crank_rockers(&self.linkages),
+        }
+    }
+
+    /// The combinations that are not in the atlas, by class: for four-bars those that are
+    /// not strict crank-rockers, by Barker class code, counted arithmetically (work grows
+    /// with the number of coupler lengths A only); for a geared grid those whose input
+    /// does not turn fully.
+    pub fn skipped(&self) -> BTreeMap<String, u64> {
+        if let Some(g) = &self.geared {
+            return g.enumerate().1;
+        }
+        count::count_by_class(&self.linkages)
+            .into_iter()
+            .filter(|(c, _)| *c != Class::Gcrr.code())
+            .map(|(c, n)| (c.to_string(), n))
+            .collect()
+    }
+}
+
+/// The atlas's linkages in atlas order ([`Spec::atlas_linkages`]).
+#[derive(Clone, Debug)]
+pub enum AtlasLinkages {
+    /// A four-bar grid's strict crank-rockers, made one at a time.
+    CrankRockers(Box<CrankRockers>),
+    /// A listed set (a geared grid's fully turning five-bars).
+    Listed(std::vec::IntoIter<Linkage>),
+}
+
+impl Iterator for AtlasLinkages {
+    type Item = Linkage;
+
+    fn next(&mut self) -> Option<Linkage> {
+        match self {
+            AtlasLinkages::CrankRockers(c) => c.next(),
+            AtlasLinkages::Listed(l) => l.next(),
+        }
     }
 }
 
@@ -1130,6 +1255,17 @@ mod tests {
         }
         assert_eq!(want.len(), 10);
         assert_eq!(got, want);
+    }
+
+    #[test]
+    fn slices_of_the_grid_are_the_grid() {
+        let spec = Spec::default_atlas();
+        for a in [1.5, 3.0, 4.5] {
+            let all = spec.points.points(a);
+            assert_eq!(spec.points.points_in(a, 0, spec.points.len()), all);
+            assert_eq!(spec.points.points_in(a, 7, 9), all[7..16].to_vec());
+            assert_eq!(spec.points.points_in(a, 38, 10), all[38..].to_vec());
+        }
     }
 
     #[test]
