@@ -24,6 +24,7 @@ fn main() {
         grid,
         page_number: 3,
         page_count: 12,
+        features: Vec::new(),
     };
     let setup = PageSetup {
         dpi,

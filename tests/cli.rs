@@ -103,8 +103,10 @@ fn dry_run_prints_the_plan_and_writes_nothing() {
     assert!(out.status.success());
     let t = text(&out.stdout);
     assert!(t.contains("linkages:     175 strict crank-rockers"), "{t}");
-    assert!(t.contains("curves:       7000"), "{t}");
-    assert!(t.contains("pages:        700"), "{t}");
+    // 50 coupler points (10 along the coupler, u up to 2A, × 5 rows) per linkage, one
+    // row per page.
+    assert!(t.contains("curves:       8750"), "{t}");
+    assert!(t.contains("pages:        875"), "{t}");
     assert!(!dir.exists());
 }
 
@@ -332,8 +334,8 @@ fn default_atlas_generates_completely() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let index: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
-    assert_eq!(index["summary"]["curves"], 7000);
-    assert_eq!(index["curves"].as_array().unwrap().len(), 7000);
+    assert_eq!(index["summary"]["curves"], 8750);
+    assert_eq!(index["curves"].as_array().unwrap().len(), 8750);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -348,11 +348,10 @@ pub(super) fn render(
             draw(display, &mut svg);
             svg.finish().into_bytes()
         }
-        #[cfg(feature = "pdf")]
         PageFormat::Pdf => {
             let mut pdf = coupler_atlas::render::PdfPage::new(display.width, display.height);
             draw(display, &mut pdf);
-            pdf.finish()
+            coupler_atlas::render::write_pdf(&[pdf.finish(Vec::new())], &[], &[], "design card")?
         }
     })
 }

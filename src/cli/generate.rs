@@ -34,8 +34,9 @@ pub struct JobArgs {
     /// Index only: do not render pages.
     #[arg(long)]
     no_pages: bool,
-    /// Page formats, comma-separated: png, svg (default: png). With --dry-run, `json`
-    /// prints the plan as JSON.
+    /// Page formats, comma-separated: png, svg (one file per page), pdf (one PDF of the
+    /// whole atlas, contents first); default: png. With --dry-run, `json` prints the plan
+    /// as JSON.
     #[arg(long, value_delimiter = ',', default_value = "png")]
     format: Vec<String>,
     /// Raster resolution of pages, dots per inch (default: the spec's).

@@ -17,29 +17,50 @@ use super::{FeatureTolerances, PseudoArc, Side, dash_count};
 use crate::maximal::Candidates;
 use coupler_kinematics::{Curve, DashPattern};
 
-/// The samples of the periodic window `[i, j]`, or `None` if one is invalid.
-fn gather(c: &Curve, i: usize, j: usize, xs: &mut Vec<f64>, ys: &mut Vec<f64>) -> Option<()> {
-    let n = c.len();
-    xs.clear();
-    ys.clear();
-    for k in i..=j {
-        let k = if k < n { k } else { k - n }; // k < 2n: no division
-        if !(c.is_valid(k) && c.vx[k].is_finite() && c.vy[k].is_finite()) {
-            return None;
+/// The samples of a closed curve taken twice round (so that a window passing the last
+/// sample is one slice), and which of them are valid.
+struct Samples {
+    n: usize,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    vx: Vec<f64>,
+    vy: Vec<f64>,
+    /// `invalid[k]`: invalid samples (position or velocity not finite) before `k`.
+    invalid: Vec<u32>,
+}
+
+impl Samples {
+    fn new(c: &Curve) -> Samples {
+        let n = c.len();
+        let twice = |v: &[f64]| v.iter().chain(v).copied().collect::<Vec<f64>>();
+        let mut invalid = vec![0u32; 2 * n + 1];
+        for k in 0..2 * n {
+            let q = if k < n { k } else { k - n };
+            let ok = c.is_valid(q) && c.vx[q].is_finite() && c.vy[q].is_finite();
+            invalid[k + 1] = invalid[k] + u32::from(!ok);
         }
-        xs.push(c.x[k]);
-        ys.push(c.y[k]);
+        Samples {
+            n,
+            x: twice(&c.x),
+            y: twice(&c.y),
+            vx: twice(&c.vx),
+            vy: twice(&c.vy),
+            invalid,
+        }
     }
-    Some(())
+
+    /// The positions of window `[i, j]` (`j < 2n`), or `None` if a sample is invalid.
+    #[inline]
+    fn window(&self, i: usize, j: usize) -> Option<(&[f64], &[f64])> {
+        (self.invalid[j + 1] == self.invalid[i]).then(|| (&self.x[i..=j], &self.y[i..=j]))
+    }
 }
 
 /// The sign (+1 / −1) with which the window runs round `center` if it runs one way
 /// (every `(M − c) × V` of that sign), else 0.
-fn winding(c: &Curve, i: usize, j: usize, center: [f64; 2]) -> f64 {
-    let n = c.len();
+fn winding(c: &Samples, i: usize, j: usize, center: [f64; 2]) -> f64 {
     let (mut pos, mut neg) = (true, true);
     for k in i..=j {
-        let k = if k < n { k } else { k - n };
         let cross = (c.x[k] - center[0]) * c.vy[k] - (c.y[k] - center[1]) * c.vx[k];
         pos &= cross > 0.0;
         neg &= cross < 0.0;
@@ -56,12 +77,8 @@ fn winding(c: &Curve, i: usize, j: usize, center: [f64; 2]) -> f64 {
 /// The angle (radians) a window turns about `center` in the direction `sign`: the sum of
 /// the polar angle's steps between consecutive samples (each in (−π, π]), times `sign`.
 /// With `stop_at`, the sum stops once it reaches that angle (enough to pass a test).
-fn turn(c: &Curve, i: usize, j: usize, center: [f64; 2], sign: f64, stop_at: f64) -> f64 {
-    let n = c.len();
-    let r = |k: usize| {
-        let k = if k < n { k } else { k - n };
-        [c.x[k] - center[0], c.y[k] - center[1]]
-    };
+fn turn(c: &Samples, i: usize, j: usize, center: [f64; 2], sign: f64, stop_at: f64) -> f64 {
+    let r = |k: usize| [c.x[k] - center[0], c.y[k] - center[1]];
     let mut total = 0.0;
     let mut a = r(i);
     for k in i + 1..=j {
@@ -81,12 +98,24 @@ fn turn(c: &Curve, i: usize, j: usize, center: [f64; 2], sign: f64, stop_at: f64
 /// `[i, i + l]` about its first sample (so that a small window far from the origin keeps
 /// its digits), grown by one sample per round of `l`; from them its circle, and whether
 /// that circle holds the window's first, middle and last samples within the tolerance
-/// (0.1 % slack on it, and more than the rounding of a circle fitted from sums). Windows
-/// whose samples are (nearly) collinear pass: the exact test decides.
-fn filter_windows(c: &Curve, tol: f64, min_steps: usize, cand: &mut Candidates) {
-    let n = c.len();
-    let x2: Vec<f64> = c.x.iter().chain(&c.x).copied().collect();
-    let y2: Vec<f64> = c.y.iter().chain(&c.y).copied().collect();
+/// (0.1 % slack on it, and more than the rounding of a circle fitted from sums), and
+/// whether the point runs one way round that circle's centre at those three samples.
+/// Windows whose samples are (nearly) collinear pass: the exact test decides.
+///
+/// **Why the winding filter never rejects a qualifying window.** The exact test takes the
+/// winding about [`kasa_circle`]'s centre `c`, the filter about its own centre `c'`, the
+/// same centred normal equations solved from sums accumulated in another order: they
+/// differ only by rounding, `|c − c'| ≤ κ·O(m·ε)·R` with `κ` the condition number of the
+/// 2 × 2 scatter matrix. The filter trusts its centre only where `κ ≤ 10⁴` (`det >
+/// 10⁻⁴·scale²`; the exact test decides the rest), so `|c − c'| < 10⁻⁹·R` there, and it
+/// rejects a window only when two of the three samples have cross products
+/// `(M − c')×V` of opposite signs, each larger in size than `10⁻⁶·2R·|V|`: moving the centre
+/// by less than that cannot change either sign (`|δ×V| ≤ |δ|·|V|`), so the window does
+/// not run one way round `c` either.
+fn filter_windows(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
+    let n = c.n;
+    let (x2, y2) = (&c.x, &c.y);
+    let (vx2, vy2) = (&c.vx, &c.vy);
     let (x0, y0) = (&x2[..n], &y2[..n]);
     let mut sx = vec![0.0; n];
     let mut sy = vec![0.0; n];
@@ -95,7 +124,6 @@ fn filter_windows(c: &Curve, tol: f64, min_steps: usize, cand: &mut Candidates) 
     let mut syy = vec![0.0; n];
     let mut szx = vec![0.0; n];
     let mut szy = vec![0.0; n];
-    let mut pass = vec![false; n];
     let lo_f = (1.0 - 1.001 * tol - 1e-9).max(0.0).powi(2);
     let hi_f = (1.0 + 1.001 * tol + 1e-9).powi(2);
     for l in 1..n {
@@ -119,6 +147,10 @@ fn filter_windows(c: &Curve, tol: f64, min_steps: usize, cand: &mut Candidates) 
         let inv_m = 1.0 / m;
         let h = l / 2;
         let (xh, yh) = (&x2[h..h + n], &y2[h..h + n]);
+        let (ux0, uy0) = (&vx2[..n], &vy2[..n]);
+        let (uxh, uyh) = (&vx2[h..h + n], &vy2[h..h + n]);
+        let (uxl, uyl) = (&vx2[l..l + n], &vy2[l..l + n]);
+        let pass = cand.row_mut(l);
         for i in 0..n {
             let (mx, my) = (sx[i] * inv_m, sy[i] * inv_m);
             let sz = sxx[i] + syy[i];
@@ -144,28 +176,38 @@ fn filter_windows(c: &Curve, tol: f64, min_steps: usize, cand: &mut Candidates) 
             let de = ex * ex + ey * ey;
             let round = (lo <= d0) & (d0 <= hi) & (lo <= dh) & (dh <= hi) & (lo <= de) & (de <= hi);
             let fitted = (det > 1e-9 * scale * scale) & (r2 > 0.0);
-            pass[i] = round | !fitted;
-        }
-        for (i, &p) in pass.iter().enumerate() {
-            if p {
-                cand.set(i, l);
-            }
+            // Winding at the three samples: (M − c) × V, and (its margin)² over |V|².
+            let w0 = -a * uy0[i] + b * ux0[i];
+            let wh = hx * uyh[i] - hy * uxh[i];
+            let we = ex * uyl[i] - ey * uxl[i];
+            let margin = 4e-12 * r2;
+            let sure = |w: f64, ux: f64, uy: f64| w * w > margin * (ux * ux + uy * uy);
+            let (p0, ph, pe) = (
+                sure(w0, ux0[i], uy0[i]),
+                sure(wh, uxh[i], uyh[i]),
+                sure(we, uxl[i], uyl[i]),
+            );
+            let (s0, sh, se) = (w0 > 0.0, wh > 0.0, we > 0.0);
+            let reverses = (p0 & ph & (s0 != sh)) | (p0 & pe & (s0 != se)) | (ph & pe & (sh != se));
+            let trusted = det > 1e-4 * scale * scale;
+            pass[i] = (round & !(trusted & reverses)) | !fitted;
         }
     }
 }
 
 /// A window's circle if the window qualifies (the contract above): Kåsa's circle, the
-/// winding sign, and Kåsa's largest relative deviation.
+/// winding sign, and Kåsa's largest relative deviation. The conditions are tested
+/// cheapest and most often failing first (the radial test on squared distances, the
+/// winding, the exact deviation, the turn); all must hold, so the order changes nothing
+/// but the cost.
 fn qualifying(
-    c: &Curve,
+    c: &Samples,
     i: usize,
     j: usize,
     limit: f64,
     min_turn: f64,
-    xs: &mut Vec<f64>,
-    ys: &mut Vec<f64>,
 ) -> Option<(Circle, f64, f64)> {
-    gather(c, i, j, xs, ys)?;
+    let (xs, ys) = c.window(i, j)?;
     let k = kasa_circle(xs, ys)?;
     // |‖M − c‖ − R| ≤ limit·R ⟺ (R(1 − limit))² ≤ ‖M − c‖² ≤ (R(1 + limit))²: a cheap
     // test first (ends first, where a window usually fails), the exact maximum after.
@@ -181,12 +223,15 @@ fn qualifying(
             return None;
         }
     }
+    let sign = winding(c, i, j, k.center);
+    if sign == 0.0 {
+        return None;
+    }
     let dev = k.max_deviation(xs, ys);
     if dev.is_nan() || dev > limit * k.radius {
         return None;
     }
-    let sign = winding(c, i, j, k.center);
-    if sign == 0.0 || turn(c, i, j, k.center, sign, min_turn) < min_turn {
+    if turn(c, i, j, k.center, sign, min_turn) < min_turn {
         return None;
     }
     Some((k, sign, dev / k.radius))
@@ -205,25 +250,25 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
     let limit = tol.arc_pct / 100.0;
     let min_turn = tol.arc_min_turn_deg.to_radians();
     let min_steps = (tol.arc_min_span_deg / tol.step_deg - 1e-9).ceil().max(2.0) as usize;
+    let samples = Samples::new(c);
+    let c = &samples;
     let mut cand = Candidates::new(n, true);
     filter_windows(c, limit, min_steps, &mut cand);
-    let (mut xs, mut ys) = (Vec::with_capacity(n), Vec::with_capacity(n));
     let chosen = cand.pick(
         |i, j| (j - i) as f64,
         1.0,
         min_steps as f64,
         usize::MAX,
-        |i, j| qualifying(c, i, j, limit, min_turn, &mut xs, &mut ys).map(|q| q.2),
+        |i, j| qualifying(c, i, j, limit, min_turn).map(|q| q.2),
     );
     chosen
         .into_iter()
         .filter_map(|w| {
             let (i, j) = (w.start, w.end);
-            let (k, k_sign, _) = qualifying(c, i, j, limit, min_turn, &mut xs, &mut ys)?;
-            let geometric = fit_circle(&xs, &ys, Some(k), &CircleFitOptions::DEFAULT)
-                .filter(|g| {
-                    g.max_deviation(&xs, &ys) / g.radius < k.max_deviation(&xs, &ys) / k.radius
-                })
+            let (k, k_sign, _) = qualifying(c, i, j, limit, min_turn)?;
+            let (xs, ys) = c.window(i, j)?;
+            let geometric = fit_circle(xs, ys, Some(k), &CircleFitOptions::DEFAULT)
+                .filter(|g| g.max_deviation(xs, ys) / g.radius < k.max_deviation(xs, ys) / k.radius)
                 .and_then(|g| {
                     let sign = winding(c, i, j, g.center);
                     (sign != 0.0 && turn(c, i, j, g.center, sign, f64::INFINITY) >= min_turn)
@@ -238,7 +283,7 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
                 dashes: dash_count(span, dash),
                 center: circle.center,
                 radius: circle.radius,
-                deviation_pct: circle.max_deviation(&xs, &ys) / circle.radius * 100.0,
+                deviation_pct: circle.max_deviation(xs, ys) / circle.radius * 100.0,
                 turn_deg: turned.to_degrees(),
                 // (M − c) × V > 0: counter-clockwise about c, so c is on the left.
                 concave: if sign > 0.0 { Side::Left } else { Side::Right },

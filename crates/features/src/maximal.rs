@@ -26,8 +26,9 @@ pub(crate) struct Window {
     pub error: f64,
 }
 
-/// Which windows passed the O(1) filter: `pass[i·n + l]` for the window of `l` steps
-/// starting at sample `i`.
+/// Which windows passed the O(1) filter: `pass[l·n + i]` for the window of `l` steps
+/// starting at sample `i` (by length, then start: the greedy choice scans one length at a
+/// time).
 pub(crate) struct Candidates {
     n: usize,
     periodic: bool,
@@ -57,7 +58,14 @@ impl Candidates {
     /// Marks the window of `l` steps from `i` as passing the filter.
     #[inline]
     pub fn set(&mut self, i: usize, l: usize) {
-        self.pass[i * self.n + l] = true;
+        self.pass[l * self.n + i] = true;
+    }
+
+    /// Whether each window of `l` steps passes, by start (`n` entries; windows longer
+    /// than [`Candidates::max_steps`] are never tested, whatever their entry says).
+    #[inline]
+    pub fn row_mut(&mut self, l: usize) -> &mut [bool] {
+        &mut self.pass[l * self.n..(l + 1) * self.n]
     }
 
     /// The greedy choice above. `travel(i, j)` is the window's travel and `h_max` the
@@ -133,8 +141,9 @@ impl Candidates {
             if picked.len() >= max_picks {
                 break;
             }
-            for i in 0..n {
-                if l > self.max_steps(i) || !self.pass[i * n + l] {
+            let row = &self.pass[l * n..(l + 1) * n];
+            for i in (0..n).filter(|&i| row[i]) {
+                if l > self.max_steps(i) {
                     continue;
                 }
                 let j = i + l;

@@ -239,11 +239,19 @@ impl Track<'_> {
                 (!zero && v[0].is_finite() && v[1].is_finite()).then(|| libm::atan2(v[1], v[0]))
             })
             .collect();
-        // Polyline length, prefix sums over two turns.
+        // Polyline length, prefix sums over two turns. `sqrt(dx² + dy²)`, not `hypot`:
+        // the length only bounds the filter below (1 % slack), and `hypot`'s guard
+        // against overflow and underflow of the squares is not needed: the samples are
+        // finite coupler positions (|x|, |y| far below 1e150, so dx² cannot overflow), and
+        // a step below 1e-154, whose square underflows, is shorter than the slack by
+        // hundreds of orders of magnitude. Non-finite samples never reach the bound (their
+        // windows are cut first). The `sqrt` form may differ from `hypot` in the last
+        // bit, which the slack absorbs; no reported number uses it.
         let mut chord = vec![0.0; 2 * n];
         for k in 1..2 * n {
             let (a, b) = ((k - 1) % n, k % n);
-            chord[k] = chord[k - 1] + (self.x[b] - self.x[a]).hypot(self.y[b] - self.y[a]);
+            let (dx, dy) = (self.x[b] - self.x[a], self.y[b] - self.y[a]);
+            chord[k] = chord[k - 1] + (dx * dx + dy * dy).sqrt();
         }
         // Any window's extent is at most the diameter of all samples: a window whose
         // spread already exceeds `tol` times that cannot qualify, nor can any window

@@ -5,15 +5,20 @@
 //! is a pure function of its linkage, points and settings, so files are byte-identical
 //! for any thread count.
 
-use crate::{Artifact, Group, Job, PageFailure, Rendered, Renderer};
+use crate::{Artifact, Group, Job, PageFailure, Rendered, Renderer, compute_group};
+use coupler_features::CurveFeatures;
 use coupler_index::{IndexCurve, PageRef};
-use coupler_kinematics::{Circuit, CouplerPoint, Linkage};
+use coupler_kinematics::{Circuit, CouplerPoint, CrankTable, Linkage};
 use coupler_layout::{
-    ContentsEntry, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page, layout_contents,
-    layout_page,
+    ContentsEntry, CurvePlacement, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page,
+    layout_contents, layout_page,
 };
-use coupler_render::{PageFormat, RasterPage, SvgPage, draw};
+use coupler_render::{
+    Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, RasterPage, SvgPage, draw,
+    write_pdf,
+};
 use coupler_specs::{PageSettings, Sampling, Spec};
+use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -26,7 +31,7 @@ pub struct PageOptions {
     /// Formats to write (one file per page per format).
     pub formats: Vec<PageFormat>,
     /// File name stem (the spec's name): pages are `STEM-0001.png`, contents
-    /// `STEM-contents-1.png`.
+    /// `STEM-0000-contents-001.png` (so that they come first in file order).
     pub stem: String,
 }
 
@@ -70,9 +75,32 @@ impl PageOptions {
         format!("{}-{:04}.{}", self.stem, number, format.extension())
     }
 
-    /// The file name of contents page `number` (1-based) in `format`.
+    /// The file name of contents page `number` (1-based) in `format`: numbered 0000 so
+    /// that the contents come first in file order.
     pub fn contents_file(&self, number: usize, format: PageFormat) -> String {
-        format!("{}-contents-{}.{}", self.stem, number, format.extension())
+        format!(
+            "{}-0000-contents-{:03}.{}",
+            self.stem,
+            number,
+            format.extension()
+        )
+    }
+
+    /// The file of the whole atlas as one PDF.
+    pub fn pdf_file(&self) -> String {
+        format!("{}.pdf", self.stem)
+    }
+
+    /// Formats written page by page (all but PDF, which is one document).
+    fn page_formats(&self) -> impl Iterator<Item = PageFormat> + '_ {
+        self.formats
+            .iter()
+            .copied()
+            .filter(|f| *f != PageFormat::Pdf)
+    }
+
+    fn wants_pdf(&self) -> bool {
+        self.formats.contains(&PageFormat::Pdf)
     }
 }
 
@@ -94,6 +122,12 @@ pub enum PageError {
     /// The raster size is zero.
     #[error("page size {0}×{1} px is empty")]
     EmptyRaster(u32, u32),
+    /// The PDF could not be written.
+    #[error(transparent)]
+    Pdf(#[from] coupler_render::PdfError),
+    /// The atlas's curves could not be computed again for the PDF.
+    #[error("{0}")]
+    Curves(String),
 }
 
 /// Raster buffers shared by workers: a worker takes one for a page and gives it back, so
@@ -168,7 +202,7 @@ impl PageTimings {
     }
 }
 
-/// Renders one display list in every format: `(format, bytes)` per format.
+/// Renders one display list in every page-by-page format (PNG, SVG): `(format, bytes)`.
 fn emit(
     display: &DisplayList,
     opts: &PageOptions,
@@ -177,7 +211,7 @@ fn emit(
     mut t: Instant,
 ) -> Result<Vec<(PageFormat, Vec<u8>)>, PageError> {
     let mut out = Vec::with_capacity(opts.formats.len());
-    for format in &opts.formats {
+    for format in opts.page_formats() {
         match format {
             PageFormat::Png => {
                 let (w, h) = opts.setup.size_px();
@@ -189,21 +223,15 @@ fn emit(
                 pool.give(buf);
                 r.map_err(PageError::Png)?;
                 t = PageTimings::add(&timings.encode, t);
-                out.push((*format, bytes));
+                out.push((format, bytes));
             }
             PageFormat::Svg => {
                 let mut svg = SvgPage::new(display.width, display.height);
                 draw(display, &mut svg);
-                out.push((*format, svg.finish().into_bytes()));
+                out.push((format, svg.finish().into_bytes()));
                 t = PageTimings::add(&timings.draw, t);
             }
-            #[cfg(feature = "pdf")]
-            PageFormat::Pdf => {
-                let mut pdf = coupler_render::PdfPage::new(display.width, display.height);
-                draw(display, &mut pdf);
-                out.push((*format, pdf.finish()));
-                t = PageTimings::add(&timings.draw, t);
-            }
+            PageFormat::Pdf => {}
         }
     }
     Ok(out)
@@ -215,8 +243,8 @@ fn emit(
 pub struct RenderedPage {
     /// `(file name, bytes)`, one per format, in the order of `PageOptions::formats`.
     pub files: Vec<(String, Vec<u8>)>,
-    /// Each curve's box `[x0, y0, x1, y1]` in pixels at the page DPI, in point order.
-    pub bbox_px: Vec<[u32; 4]>,
+    /// Where each curve is on the page (points), in point order.
+    pub curves: Vec<CurvePlacement>,
 }
 
 /// Encodes a laid-out page in every format and counts it.
@@ -235,45 +263,75 @@ fn finish_page(
     timings.pages.fetch_add(1, Ordering::Relaxed);
     Ok(RenderedPage {
         files,
-        bbox_px: layout
-            .curves
-            .iter()
-            .map(|c| c.bbox_px(opts.setup.dpi))
-            .collect(),
+        curves: layout.curves.clone(),
     })
 }
 
-/// Renders atlas page `number` of `page_count`: `points` of `linkage` (whose whole grid is
-/// `grid`). Pure apart from the shared buffer pool and timing counters.
-#[allow(clippy::too_many_arguments)]
+/// An atlas page to render: `points` of `linkage` (whose whole grid is `grid`), with the
+/// features of their curves (same order; may be shorter), page `number` of `page_count`.
+#[derive(Clone, Copy, Debug)]
+pub struct PageJob<'a> {
+    /// The mechanism.
+    pub linkage: Linkage,
+    /// Its circuit.
+    pub circuit: Circuit,
+    /// The page's coupler points.
+    pub points: &'a [CouplerPoint],
+    /// The linkage's grid.
+    pub grid: &'a [CouplerPoint],
+    /// The curves' features, marked on the page.
+    pub features: &'a [Option<CurveFeatures>],
+    /// Page number (1-based).
+    pub number: u64,
+    /// Pages in the atlas.
+    pub page_count: u64,
+}
+
+impl PageJob<'_> {
+    /// Computes and lays out the page.
+    pub fn layout(
+        &self,
+        setup: &PageSetup,
+        timings: &PageTimings,
+    ) -> Result<coupler_layout::PageLayout, PageError> {
+        let t0 = Instant::now();
+        let page = LinkagePage {
+            linkage: self.linkage,
+            circuit: self.circuit,
+            points: self.points.to_vec(),
+            grid: self.grid.to_vec(),
+            page_number: self.number as usize,
+            page_count: self.page_count as usize,
+            features: self.features.to_vec(),
+        };
+        let geometry = compute_page(&page, setup).map_err(|source| PageError::Layout {
+            page: self.number,
+            source,
+        })?;
+        let t = PageTimings::add(&timings.compute, t0);
+        let layout = layout_page(&page, &geometry, setup);
+        PageTimings::add(&timings.layout, t);
+        Ok(layout)
+    }
+}
+
+/// Renders an atlas page in the page-by-page formats. Pure apart from the shared buffer
+/// pool and timing counters.
 pub fn render_page(
     opts: &PageOptions,
     pool: &BufferPool,
     timings: &PageTimings,
-    linkage: Linkage,
-    circuit: Circuit,
-    points: &[CouplerPoint],
-    grid: &[CouplerPoint],
-    number: u64,
-    page_count: u64,
+    job: &PageJob<'_>,
 ) -> Result<RenderedPage, PageError> {
-    let t0 = Instant::now();
-    let page = LinkagePage {
-        linkage,
-        circuit,
-        points: points.to_vec(),
-        grid: grid.to_vec(),
-        page_number: number as usize,
-        page_count: page_count as usize,
-    };
-    let geometry = compute_page(&page, &opts.setup).map_err(|source| PageError::Layout {
-        page: number,
-        source,
-    })?;
-    let t = PageTimings::add(&timings.compute, t0);
-    let layout = layout_page(&page, &geometry, &opts.setup);
-    let t = PageTimings::add(&timings.layout, t);
-    finish_page(opts, pool, timings, number, &layout, t)
+    let layout = job.layout(&opts.setup, timings)?;
+    finish_page(opts, pool, timings, job.number, &layout, Instant::now())
+}
+
+/// A page as PDF content (links: none).
+fn pdf_content(display: &DisplayList) -> PdfPageContent {
+    let mut pdf = PdfPage::new(display.width, display.height);
+    draw(display, &mut pdf);
+    pdf.finish(Vec::new())
 }
 
 /// Renders page `page.page_number` of a full-curve page set (one named curve).
@@ -296,7 +354,8 @@ pub fn render_classic(
     finish_page(opts, pool, timings, number, &layout, t)
 }
 
-/// Renders the contents pages: `(file name, bytes)` per page and format.
+/// Renders the contents pages in the page-by-page formats: `(file name, bytes)` per page
+/// and format.
 pub fn render_contents(
     opts: &PageOptions,
     pool: &BufferPool,
@@ -304,8 +363,8 @@ pub fn render_contents(
 ) -> Result<Vec<(String, Vec<u8>)>, PageError> {
     let timings = PageTimings::default();
     let mut files = Vec::new();
-    for (i, display) in layout_contents(entries, &opts.setup).iter().enumerate() {
-        for (f, bytes) in emit(display, opts, pool, &timings, Instant::now())? {
+    for (i, page) in layout_contents(entries, &opts.setup).iter().enumerate() {
+        for (f, bytes) in emit(&page.display, opts, pool, &timings, Instant::now())? {
             files.push((opts.contents_file(i + 1, f), bytes));
         }
     }
@@ -337,11 +396,7 @@ impl PageRenderer {
 impl PageRenderer {
     /// The format whose file names a page in messages and in the index.
     fn first_format(&self) -> PageFormat {
-        self.opts
-            .formats
-            .first()
-            .copied()
-            .unwrap_or(PageFormat::Png)
+        self.opts.page_formats().next().unwrap_or(PageFormat::Pdf)
     }
 
     /// A page that could not be made: `file` in the pages folder.
@@ -361,11 +416,11 @@ impl PageRenderer {
         let number = page.page_number as u64;
         let rendered = render_classic(&self.opts, &self.pool, &self.timings, page)
             .map_err(|e| self.failure(self.opts.page_file(number, self.first_format()), e))?;
-        let place = match (rendered.files.first(), rendered.bbox_px.first()) {
-            (Some(first), Some(b)) => Some(PageRef {
-                file: format!("pages/{}", first.0),
-                bbox_px: b.map(f64::from),
-            }),
+        let place = match (rendered.files.first(), rendered.curves.first()) {
+            (Some(first), Some(c)) => Some(PageRef::new(
+                format!("pages/{}", first.0),
+                c.bbox_px(self.opts.setup.dpi).map(f64::from),
+            )),
             _ => None,
         };
         let files = rendered
@@ -380,24 +435,168 @@ impl PageRenderer {
     }
 }
 
+/// A curve's place on its page, for the index.
+fn page_ref(file: &str, number: u64, c: &CurvePlacement, dpi: f64) -> PageRef {
+    PageRef {
+        file: file.to_string(),
+        bbox_px: c.bbox_px(dpi).map(f64::from),
+        number: Some(number),
+        dot_px: Some(c.dot_px(dpi)),
+        label_bbox_px: Some(c.label_bbox_px(dpi).map(f64::from)),
+        label: Some(c.label.clone()),
+        ghost: c.ghost,
+    }
+}
+
+impl PageRenderer {
+    /// The atlas as one PDF: the contents first (linked to the pages), then every page,
+    /// an outline entry per linkage (and per page under it), page labels that match the
+    /// printed numbers. The pages are laid out again here, in parallel on `job.jobs`
+    /// threads, with their curves' features computed again (the index's are in the chunk
+    /// records, but the PDF is one file made once the chunks are done).
+    fn atlas_pdf(&self, job: &Job, entries: &[ContentsEntry]) -> Result<Vec<u8>, PageError> {
+        let per = self.opts.setup.curves_per_page.max(1);
+        let page_count = job.pages();
+        // A paged atlas is bounded (docs/scale.md), so its groups fit in memory.
+        let groups: Vec<Group> = job.groups().collect();
+        let table = CrankTable::new(job.spec.sampling.crank_step_deg)
+            .ok_or_else(|| PageError::Curves("bad crank step".into()))?;
+        let features = job
+            .spec
+            .features
+            .enabled
+            .then_some(&job.spec.features.tolerances);
+        let dash = job.spec.sampling.dash_pattern();
+        let timings = PageTimings::default();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(job.jobs)
+            .build()
+            .map_err(|e| PageError::Curves(e.to_string()))?;
+        let pages: Result<Vec<Vec<PdfPageContent>>, PageError> = pool.install(|| {
+            groups
+                .par_iter()
+                .map(|g| {
+                    let curves = compute_group(&table, g, features, &dash)
+                        .map_err(|e| PageError::Curves(e.to_string()))?;
+                    let feats: Vec<Option<CurveFeatures>> =
+                        curves.into_iter().map(|c| c.features).collect();
+                    g.points
+                        .chunks(per)
+                        .zip(feats.chunks(per))
+                        .enumerate()
+                        .map(|(k, (pts, fs))| {
+                            let pj = PageJob {
+                                linkage: g.linkage,
+                                circuit: g.circuit,
+                                points: pts,
+                                grid: &g.points,
+                                features: fs,
+                                number: g.first_page + k as u64,
+                                page_count,
+                            };
+                            Ok(pdf_content(&pj.layout(&self.opts.setup, &timings)?.display))
+                        })
+                        .collect()
+                })
+                .collect()
+        });
+        let atlas: Vec<PdfPageContent> = pages?.into_iter().flatten().collect();
+        let contents = layout_contents(entries, &self.opts.setup);
+        let n_contents = contents.len();
+        let mut doc: Vec<PdfPageContent> = contents
+            .iter()
+            .map(|c| {
+                let mut pdf = PdfPage::new(c.display.width, c.display.height);
+                draw(&c.display, &mut pdf);
+                let links = c
+                    .links
+                    .iter()
+                    .map(|(r, number)| (*r, n_contents + number - 1))
+                    .collect();
+                pdf.finish(links)
+            })
+            .collect();
+        doc.extend(atlas);
+        let mut bookmarks = vec![Bookmark {
+            title: "Contents".into(),
+            page: 0,
+            children: Vec::new(),
+        }];
+        for e in entries {
+            let dims = coupler_kinematics::Mechanism::dimensions(&e.linkage)
+                .iter()
+                .map(|(n, v)| format!("{n} = {}", coupler_layout::fmt_sig(*v)))
+                .collect::<Vec<_>>()
+                .join("  ");
+            let title = if job.spec.circuits.len() > 1 {
+                format!("{dims} ({})", e.circuit.name())
+            } else {
+                dims
+            };
+            bookmarks.push(Bookmark {
+                title,
+                page: n_contents + e.first_page - 1,
+                children: (e.first_page..=e.last_page)
+                    .map(|p| Bookmark {
+                        title: format!("page {p}"),
+                        page: n_contents + p - 1,
+                        children: Vec::new(),
+                    })
+                    .collect(),
+            });
+        }
+        let labels = [
+            PageLabelRange {
+                start: 0,
+                prefix: "contents ".into(),
+                first: 1,
+            },
+            PageLabelRange {
+                start: n_contents,
+                prefix: String::new(),
+                first: 1,
+            },
+        ];
+        Ok(write_pdf(&doc, &bookmarks, &labels, &job.spec.title)?)
+    }
+
+    /// The contents entries of a job.
+    fn contents_entries(&self, job: &Job) -> Vec<ContentsEntry> {
+        let per = self.opts.setup.curves_per_page.max(1);
+        job.groups()
+            .map(|g| ContentsEntry {
+                linkage: g.linkage,
+                circuit: g.circuit,
+                curves: g.points.len(),
+                first_page: g.first_page as usize,
+                last_page: (g.first_page + (g.points.len() as u64).div_ceil(per as u64))
+                    .saturating_sub(1) as usize,
+                pages: g.points.chunks(per).map(|c| c.to_vec()).collect(),
+            })
+            .collect()
+    }
+}
+
 impl Renderer for PageRenderer {
     fn render_group(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered {
         let per = self.opts.setup.curves_per_page.max(1);
         let page_count = job.pages();
+        let features: Vec<Option<CurveFeatures>> =
+            curves.iter().map(|c| c.features.clone()).collect();
         let mut out = Vec::new();
         for (k, chunk) in group.points.chunks(per).enumerate() {
             let number = group.first_page + k as u64;
-            let page = match render_page(
-                &self.opts,
-                &self.pool,
-                &self.timings,
-                group.linkage,
-                group.circuit,
-                chunk,
-                &group.points,
+            let fs = features.get(k * per..).unwrap_or(&[]);
+            let pj = PageJob {
+                linkage: group.linkage,
+                circuit: group.circuit,
+                points: chunk,
+                grid: &group.points,
+                features: &fs[..fs.len().min(chunk.len())],
                 number,
                 page_count,
-            ) {
+            };
+            let page = match render_page(&self.opts, &self.pool, &self.timings, &pj) {
                 Ok(page) => page,
                 Err(e) => {
                     out.push(Err(
@@ -406,17 +605,13 @@ impl Renderer for PageRenderer {
                     continue;
                 }
             };
-            let first = page
-                .files
-                .first()
-                .map(|f| format!("pages/{}", f.0))
-                .unwrap_or_default();
-            for (i, b) in page.bbox_px.iter().enumerate() {
-                if let Some(c) = curves.get_mut(k * per + i) {
-                    c.page = Some(PageRef {
-                        file: first.clone(),
-                        bbox_px: b.map(f64::from),
-                    });
+            let first = match page.files.first() {
+                Some(f) => format!("pages/{}", f.0),
+                None => format!("pages/{}", self.opts.pdf_file()),
+            };
+            for (i, c) in page.curves.iter().enumerate() {
+                if let Some(ic) = curves.get_mut(k * per + i) {
+                    ic.page = Some(page_ref(&first, number, c, self.opts.setup.dpi));
                 }
             }
             out.extend(page.files.into_iter().map(|(name, bytes)| {
@@ -430,19 +625,8 @@ impl Renderer for PageRenderer {
     }
 
     fn render_atlas(&self, job: &Job) -> Rendered {
-        let per = self.opts.setup.curves_per_page.max(1) as u64;
-        let entries: Vec<ContentsEntry> = job
-            .groups()
-            .map(|g| ContentsEntry {
-                linkage: g.linkage,
-                circuit: g.circuit,
-                curves: g.points.len(),
-                first_page: g.first_page as usize,
-                last_page: (g.first_page + (g.points.len() as u64).div_ceil(per)).saturating_sub(1)
-                    as usize,
-            })
-            .collect();
-        match render_contents(&self.opts, &self.pool, &entries) {
+        let entries = self.contents_entries(job);
+        let mut out: Rendered = match render_contents(&self.opts, &self.pool, &entries) {
             Ok(files) => files
                 .into_iter()
                 .map(|(name, bytes)| {
@@ -455,7 +639,17 @@ impl Renderer for PageRenderer {
             Err(e) => vec![Err(
                 self.failure(self.opts.contents_file(1, self.first_format()), e)
             )],
+        };
+        if self.opts.wants_pdf() {
+            out.push(match self.atlas_pdf(job, &entries) {
+                Ok(bytes) => Ok(Artifact {
+                    name: format!("pages/{}", self.opts.pdf_file()),
+                    bytes,
+                }),
+                Err(e) => Err(self.failure(self.opts.pdf_file(), e)),
+            });
         }
+        out
     }
 
     fn pages(&self, job: &Job) -> u64 {

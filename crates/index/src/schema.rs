@@ -10,13 +10,45 @@ use std::io::{self, Write};
 pub const SCHEMA_VERSION: u32 = 1;
 
 /// Where a curve is drawn: its page file (relative to the atlas folder) and its bounding
-/// box on that page in pixels `[x_min, y_min, x_max, y_max]` (origin top-left).
+/// box on that page in pixels `[x_min, y_min, x_max, y_max]` (origin top-left); its θ = 0
+/// dot and its label's box on the page (atlas pages).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PageRef {
     /// Page file, e.g. `pages/hrones-nelson-0001.png`.
     pub file: String,
     /// Bounding box in page pixels.
     pub bbox_px: [f64; 4],
+    /// The page's number in the atlas (as printed on it; in the atlas PDF it follows the
+    /// contents pages).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub number: Option<u64>,
+    /// The θ = 0 dot (the coupler point where the linkage is drawn) in page pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dot_px: Option<[f64; 2]>,
+    /// The label's box in page pixels (rounded outwards, like `bbox_px`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub label_bbox_px: Option<[f64; 4]>,
+    /// The label as printed: `(u, v)`, or the curve's number in the page's key.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
+    /// Drawn as a gray ghost: the curve of a pin (the crank circle or the rocker arc).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub ghost: bool,
+}
+
+impl PageRef {
+    /// A reference with only the file and the box.
+    pub fn new(file: String, bbox_px: [f64; 4]) -> PageRef {
+        PageRef {
+            file,
+            bbox_px,
+            number: None,
+            dot_px: None,
+            label_bbox_px: None,
+            label: None,
+            ghost: false,
+        }
+    }
 }
 
 /// One curve of the atlas.

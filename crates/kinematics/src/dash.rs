@@ -344,6 +344,50 @@ pub fn dash_leg<M: Mechanism>(
     from_deg: f64,
     to_deg: f64,
 ) -> Result<Vec<Dash>, DashError> {
+    dash_leg_intervals(
+        linkage, circuit, point, pattern, tolerance, from_deg, to_deg, None,
+    )
+}
+
+/// The dashes of one leg as [`dash_leg`] gives them, but counted from the start of a
+/// branch's travel instead of from θ = 0: the input has already travelled `travel0_deg`
+/// when the leg starts at `from_deg`, and dash `k` covers travel `[kΔ, kΔ + fΔ]` (so a
+/// branch that starts at a toggle starts with a whole dash there, and the pattern runs on
+/// unbroken across the toggle where the leg turns back). `Dash::index` is `k`.
+#[allow(clippy::too_many_arguments)]
+pub fn dash_leg_from<M: Mechanism>(
+    linkage: &M,
+    circuit: Circuit,
+    point: CouplerPoint,
+    pattern: &DashPattern,
+    tolerance: f64,
+    from_deg: f64,
+    to_deg: f64,
+    travel0_deg: f64,
+) -> Result<Vec<Dash>, DashError> {
+    dash_leg_intervals(
+        linkage,
+        circuit,
+        point,
+        pattern,
+        tolerance,
+        from_deg,
+        to_deg,
+        Some(travel0_deg),
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn dash_leg_intervals<M: Mechanism>(
+    linkage: &M,
+    circuit: Circuit,
+    point: CouplerPoint,
+    pattern: &DashPattern,
+    tolerance: f64,
+    from_deg: f64,
+    to_deg: f64,
+    travel0: Option<f64>,
+) -> Result<Vec<Dash>, DashError> {
     pattern.validate()?;
     if !(tolerance.is_finite() && tolerance > 0.0) {
         return Err(DashError::BadTolerance(tolerance));
@@ -352,11 +396,26 @@ pub fn dash_leg<M: Mechanism>(
     let step = pattern.step_deg;
     let drawn = pattern.fraction * step;
     let mut dashes = Vec::new();
-    let first = (lo / step).floor() as i64;
-    let last = (hi / step).floor() as i64;
+    // Dash k as an input interval [a, b] (ascending): by θ from 0, or by travel from the
+    // leg's start.
+    let sign = if to_deg >= from_deg { 1.0 } else { -1.0 };
+    let (first, last) = match travel0 {
+        None => ((lo / step).floor() as i64, (hi / step).floor() as i64),
+        Some(t0) => (
+            (t0 / step).floor() as i64,
+            ((t0 + (hi - lo)) / step).floor() as i64,
+        ),
+    };
     for k in first..=last {
-        let a = (k as f64 * step).max(lo);
-        let b = (k as f64 * step + drawn).min(hi);
+        let (a, b) = match travel0 {
+            None => (k as f64 * step, k as f64 * step + drawn),
+            Some(t0) => {
+                let s0 = from_deg + sign * (k as f64 * step - t0);
+                let s1 = from_deg + sign * (k as f64 * step + drawn - t0);
+                (s0.min(s1), s0.max(s1))
+            }
+        };
+        let (a, b) = (a.max(lo), b.min(hi));
         if b - a < 0.01 * drawn {
             continue;
         }
@@ -396,7 +455,7 @@ pub fn dash_leg<M: Mechanism>(
             points,
         });
     }
-    if to_deg < from_deg {
+    if to_deg < from_deg && travel0.is_none() {
         dashes.reverse();
     }
     Ok(dashes)

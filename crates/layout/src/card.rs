@@ -34,6 +34,7 @@ fn text(dl: &mut DisplayList, pos: PagePoint, size: f64, anchor: Anchor, s: impl
         size,
         anchor,
         text: s.into(),
+        halo: 0.0,
     });
 }
 

@@ -10,23 +10,29 @@
 //! straight run, with the coupler triangle to M; the longest straight run at ε_S ≤ 0.1 %
 //! bracketed; and the measured straightness at 1 %, 0.1 % and 0.01 % in a box.
 
+use crate::atlas::fmt_sig;
+use crate::atlas::{CurvePlacement, Inset, PageLayout, place_inset};
 use crate::font;
 use crate::page::{
-    Anchor, CurvePlacement, DisplayList, LayoutError, Occupancy, PageLayout, PagePoint, PageSetup,
-    WorldToPage, draw_dashes, draw_links, fit_transform, fmt_num, footer_settings, pivot_labels,
-    rects_overlap, start_marker, style, union,
+    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, PagePoint, PageSetup,
+    WorldToPage, draw_dashes, draw_links_width, fit_transform, fmt_num, footer_settings,
+    pivot_labels, rects_overlap, start_marker, style, union,
 };
-use coupler_features::{ClassicCurve, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure};
+use coupler_features::{
+    ClassicCurve, CrankWindow, LineDirection, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure,
+    WindowMeasures,
+};
 use coupler_kinematics::{
-    Circuit, CrankAngle, Dash, InputRange, Mechanism, Pose, dash_curve, dash_leg,
+    Circuit, CrankAngle, Dash, InputRange, Mechanism, Pose, dash_curve, dash_leg_from,
 };
 use nalgebra::Vector2;
 
 /// Inches per input unit offered for the page scale: the atlas's list, continued for the
 /// small linkages of this set (Chebyshev's spans 1.3 units).
-const NICE_INCHES_PER_UNIT: [f64; 33] = [
+const NICE_INCHES_PER_UNIT: [f64; 37] = [
     0.1, 0.125, 0.15, 0.175, 0.2, 0.225, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.7, 0.75, 0.8, 0.9,
-    1.0, 1.1, 1.2, 1.25, 1.4, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0, 8.0, 10.0,
+    1.0, 1.1, 1.2, 1.25, 1.4, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0,
+    20.0, 25.0,
 ];
 
 /// Index of the tolerance in [`STRAIGHTNESS_TOLERANCES`] whose run is
@@ -70,6 +76,9 @@ pub struct ClassicGeometry {
     pub frame: [f64; 4],
     /// Input angle (degrees) and circuit at which the linkage is drawn.
     pub drawn: (f64, Circuit),
+    /// Where the linkage is drawn small, when at the curve's scale it would take most of
+    /// the sheet (`None`: with the curve).
+    pub inset: Option<Inset>,
 }
 
 /// The pose the linkage is drawn in: the middle sample of the bracketed straight run (the
@@ -111,14 +120,28 @@ pub fn compute_classic(
     let drawn = drawn_state(page).unwrap_or((0.0, Circuit::Open));
     // Both pivots, the input's path (its circle, or the arcs it rocks over), the branches.
     let mut world = [0.0, 0.0, l.ground, 0.0];
-    for (a0, a1) in input_arcs(&page.measured.range) {
+    let mut curve_world = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+    let mut samples = Vec::new();
+    let mirror = mirror_branch(page);
+    for (i, (a0, a1)) in input_arcs(&page.measured.range).into_iter().enumerate() {
+        if Some(i) == mirror {
+            continue;
+        }
         for q in arc_points(a0, a1) {
             world = union(world, [q.0, q.1, q.0, q.1]);
         }
     }
-    for b in &page.measured.branches {
+    for b in page
+        .measured
+        .branches
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| Some(*i) != mirror)
+        .map(|(_, b)| b)
+    {
         for s in &b.samples {
-            world = union(world, [s.point.x, s.point.y, s.point.x, s.point.y]);
+            curve_world = union(curve_world, [s.point.x, s.point.y, s.point.x, s.point.y]);
+            samples.push((s.point.x, s.point.y));
         }
     }
     if let Some(pose) = drawn_pose(page, drawn) {
@@ -126,7 +149,27 @@ pub fn compute_classic(
             world = union(world, [q.x, q.y, q.x, q.y]);
         }
     }
-    let (transform, frame) = fit_transform(world, setup, &NICE_INCHES_PER_UNIT);
+    if let Some(pose) = drawn_pose(page, drawn) {
+        let q = pose.crank_pin;
+        world = union(world, [q.x, q.y, q.x, q.y]);
+    }
+    if !curve_world[0].is_finite() {
+        curve_world = world;
+    }
+    let (t_all, frame) = fit_transform(union(world, curve_world), setup, &NICE_INCHES_PER_UNIT);
+    let (t_cur, _) = fit_transform(curve_world, setup, &NICE_INCHES_PER_UNIT);
+    let (transform, inset) = if t_all.scale >= 0.8 * t_cur.scale {
+        (t_all, None)
+    } else {
+        let inner = crate::page::inset_rect(frame, style::FRAME_PAD);
+        place_inset(
+            curve_world,
+            union(world, curve_world),
+            &samples,
+            inner,
+            &NICE_INCHES_PER_UNIT,
+        )
+    };
     let tol = setup.chord_tolerance_px / setup.px_per_pt() / transform.scale;
     let mut legs = Vec::new();
     match &page.measured.range {
@@ -147,12 +190,20 @@ pub fn compute_classic(
             }
         }
         InputRange::Rocks { intervals } => {
+            let mirror = mirror_branch(page);
             for (bi, (lo, hi)) in intervals.iter().enumerate() {
-                for (circuit, from, to) in [
-                    (Circuit::Open, lo.degrees, hi.degrees),
-                    (Circuit::Crossed, hi.degrees, lo.degrees),
+                if Some(bi) == mirror {
+                    continue;
+                }
+                // Dashes counted by input travel from the branch's start (its lower
+                // toggle), out on the open circuit and back on the crossed one.
+                let span = hi.degrees - lo.degrees;
+                for (circuit, from, to, travel0) in [
+                    (Circuit::Open, lo.degrees, hi.degrees, 0.0),
+                    (Circuit::Crossed, hi.degrees, lo.degrees, span),
                 ] {
-                    let dashes = dash_leg(&l, circuit, p, &setup.dash, tol, from, to)?;
+                    let dashes =
+                        dash_leg_from(&l, circuit, p, &setup.dash, tol, from, to, travel0)?;
                     legs.push(Leg {
                         branch: bi,
                         circuit,
@@ -167,7 +218,40 @@ pub fn compute_classic(
         transform,
         frame,
         drawn,
+        inset,
     })
+}
+
+/// The branch of a rocking input that is the mirror assembly of the drawn one: when the
+/// input rocks in two intervals that are mirror images in the ground line (the linkage
+/// reflected: its curve is this curve reflected), the one without the bracketed straight
+/// run. It is not drawn (the page says so).
+pub fn mirror_branch(page: &ClassicPage) -> Option<usize> {
+    let InputRange::Rocks { intervals } = &page.measured.range else {
+        return None;
+    };
+    if intervals.len() != 2 {
+        return None;
+    }
+    let norm = |d: f64| (d % 360.0 + 360.0) % 360.0;
+    let (a, b) = (intervals[0], intervals[1]);
+    let close = |x: f64, y: f64| {
+        let d = norm(x - y);
+        d.min(360.0 - d) < 1e-6
+    };
+    let mirrored = close(a.0.degrees, -b.1.degrees) && close(a.1.degrees, -b.0.degrees);
+    if !mirrored {
+        return None;
+    }
+    let kept = page
+        .measured
+        .straight
+        .get(BRACKETED_TOLERANCE)
+        .copied()
+        .flatten()
+        .map(|s| s.branch)
+        .unwrap_or(0);
+    Some(1 - kept.min(1))
 }
 
 /// The input's path as angle intervals (degrees): the full circle for a crank, else each
@@ -214,18 +298,78 @@ fn kind_text(page: &ClassicPage) -> String {
     format!("class {} ({family}): {input}", class.code())
 }
 
-fn straight_text(s: &Option<StraightMeasure>, tolerance: f64) -> String {
-    let tol = fmt_num(tolerance * 100.0);
+/// ε_V over a straight run (percent), measured on its circuit over its input window with
+/// the fitted line (`WindowMeasures`); `None` for a run through a toggle (two circuits).
+pub fn run_velocity_variation(page: &ClassicPage, s: &StraightMeasure) -> Option<f64> {
+    let b = page.measured.branches.get(s.branch)?;
+    let samples = b.samples.get(s.samples[0]..s.samples[0] + s.samples[1])?;
+    let circuit = samples.first()?.circuit;
+    if samples.iter().any(|q| q.circuit != circuit || q.toggle) {
+        return None;
+    }
+    let (a, e) = (
+        s.input_deg[0].min(s.input_deg[1]),
+        s.input_deg[0].max(s.input_deg[1]),
+    );
+    let window = CrankWindow::new(a, e, page.step_deg.min(e - a)).ok()?;
+    WindowMeasures::measure(
+        &page.curve.linkage,
+        circuit,
+        page.curve.point,
+        &window,
+        LineDirection::Fitted,
+    )
+    .ok()?
+    .velocity_variation_pct
+}
+
+/// A tolerance as printed: `1 %`, `0.1 %`, `0.01 %`.
+fn tol_text(tolerance: f64) -> String {
+    format!("{} %", fmt_sig(tolerance * 100.0))
+}
+
+fn straight_text(
+    page: &ClassicPage,
+    s: &Option<StraightMeasure>,
+    tolerance: f64,
+    dash: f64,
+) -> String {
+    let tol = tol_text(tolerance);
     match s {
-        Some(s) => format!(
-            "ε_S ≤ {tol} %:  {:.1}° of input,  Δx = {:.3},  ε_S = {:.3} %",
-            s.input_span_deg,
-            s.extent,
-            s.straightness * 100.0
-        ),
-        None => format!("ε_S ≤ {tol} %:  no run of three samples"),
+        Some(s) => {
+            let ev = match run_velocity_variation(page, s) {
+                Some(v) => format!("εᵥ = {} %", fmt_sig(v)),
+                None => "εᵥ: through a toggle".into(),
+            };
+            format!(
+                "εₛ ≤ {tol}:  {}° of input ({} dashes),  Δx = {},  εₛ = {} %,  {ev}",
+                fmt_sig(s.input_span_deg),
+                fmt_sig(s.input_span_deg / dash),
+                fmt_sig(s.extent),
+                fmt_sig(s.straightness * 100.0)
+            )
+        }
+        None => format!("εₛ ≤ {tol}:  no run of three samples"),
     }
 }
+
+/// The line saying that a mirror assembly is not drawn (none if there is none).
+fn mirror_note(page: &ClassicPage, mirror: Option<usize>) -> Option<String> {
+    let m = mirror?;
+    match &page.measured.range {
+        InputRange::Rocks { intervals } => intervals.get(m).map(|(lo, hi)| {
+            format!(
+                "Not drawn: the mirror assembly (input {}° to {}°), which traces this curve reflected in the ground line.",
+                fmt_sig(lo.degrees),
+                fmt_sig(hi.degrees)
+            )
+        }),
+        _ => None,
+    }
+}
+
+/// Ink of the ghost linkage and the input's path.
+const GHOST: Ink = Ink::Gray(110);
 
 /// Lays out a classic page from its geometry. The placement's box covers every branch.
 pub fn layout_classic(
@@ -239,6 +383,7 @@ pub fn layout_classic(
     let frame = geometry.frame;
     let l = page.curve.linkage;
     let p = page.curve.point;
+    let step = setup.dash.step_deg;
 
     // Header.
     crate::page::header(
@@ -247,25 +392,103 @@ pub fn layout_classic(
         format!(
             "{}    A = {}   B = {}   C = {}   M = ({}, {})",
             page.curve.name,
-            fmt_num(l.coupler),
-            fmt_num(l.rocker),
-            fmt_num(l.ground),
-            fmt_num(p.u),
-            fmt_num(p.v)
+            fmt_sig(l.coupler),
+            fmt_sig(l.rocker),
+            fmt_sig(l.ground),
+            fmt_sig(p.u),
+            fmt_sig(p.v)
         ),
-        format!(
-            "{};  input = 1, coupler A, rocker B, ground C",
-            kind_text(page)
-        ),
+        format!("{};  input = 1", kind_text(page)),
         [page.page_number, page.page_count],
     );
     dl.rect(frame, style::FRAME);
-
-    // Curve: every leg; the first dash of each branch bold, with the start marker.
     let mut occ = Occupancy::new(frame, 3.0);
+
+    // The input's path and the linkage, first and as a thin gray ghost, so that the
+    // curve is drawn over them; in an inset (with the curve, small) when at the curve's
+    // scale they would take most of the sheet.
+    let main_t = t;
+    let t = match &geometry.inset {
+        None => t,
+        Some(inset) => {
+            let r = inset.rect;
+            dl.rect(r, style::THIN);
+            dl.text(
+                [r[0] + 5.0, r[1] + 4.0 + font::ascent(style::SMALL_SIZE)],
+                style::SMALL_SIZE,
+                Anchor::Start,
+                format!(
+                    "the linkage and its curve, input 1 = {} in",
+                    fmt_num(
+                        (inset.transform.scale / crate::page::PT_PER_INCH * 1000.0).round()
+                            / 1000.0
+                    )
+                ),
+            );
+            let lt = inset.transform;
+            let mirror = mirror_branch(page);
+            let lines: Vec<Vec<PagePoint>> = page
+                .measured
+                .branches
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| Some(*i) != mirror)
+                .map(|(_, b)| {
+                    b.samples
+                        .iter()
+                        .map(|s| lt.map(s.point.x, s.point.y))
+                        .collect()
+                })
+                .collect();
+            dl.items
+                .push(crate::page::Primitive::Polylines { lines, width: 0.5 });
+            lt
+        }
+    };
+    dl.ink(GHOST);
+    let mirror = mirror_branch(page);
+    for (a0, a1) in input_arcs(&page.measured.range)
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| Some(*i) != mirror)
+        .map(|(_, a)| a)
+    {
+        let arc: Vec<PagePoint> = arc_points(a0, a1)
+            .into_iter()
+            .map(|(x, y)| t.map(x, y))
+            .collect();
+        dl.line(arc, style::THIN);
+    }
+    let mut segments = Vec::new();
+    let mut pins = Vec::new();
+    if let Some(pose) = drawn_pose(page, geometry.drawn) {
+        let drawing = l.drawing(
+            geometry.drawn.1,
+            &CrankAngle::from_degrees(geometry.drawn.0),
+        );
+        pins = draw_links_width(&mut dl, &t, &drawing, &mut segments, 0.7);
+        let (pa, pb) = (pins[2].0, pins[3].0);
+        let mq = pose.point(p);
+        let mp = t.map(mq.x, mq.y);
+        for a in [pa, pb] {
+            if libm::hypot(mp[0] - a[0], mp[1] - a[1]) > 2.0 * style::PIN_RADIUS {
+                dl.line(vec![a, mp], style::THIN);
+                segments.push((a, mp));
+            }
+        }
+        dl.circle(mp, style::GRID_RADIUS + 0.5, Some(style::THIN + 0.3));
+        pins.push((mp, "M"));
+    }
+    dl.ink(Ink::Black);
+    let t = main_t;
+
+    // Curve: every leg drawn (but a mirror assembly's); the first dash of each branch
+    // bold, a heavier dash every 90° of input travel.
     let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
     let mut centroid = [0.0, 0.0, 0.0];
     let mut branch_started = Vec::new();
+    let mut start_dot: PagePoint = [0.0, 0.0];
+    let mut markers = Vec::new();
     for leg in &geometry.legs {
         let pts: Vec<Vec<PagePoint>> = leg
             .dashes
@@ -282,11 +505,23 @@ pub fn layout_classic(
         }
         let first = !branch_started.contains(&leg.branch);
         let bold = (first && !leg.dashes.is_empty()).then_some(0);
-        bbox = union(bbox, draw_dashes(&mut dl, &t, &leg.dashes, &pts, bold));
+        bbox = union(
+            bbox,
+            draw_dashes(
+                &mut dl,
+                &t,
+                &leg.dashes,
+                &pts,
+                bold,
+                &CurveStyle::BLACK,
+                step,
+                0,
+            ),
+        );
         if let (true, Some(d0)) = (first, leg.dashes.first()) {
             branch_started.push(leg.branch);
-            // The dot at the branch's true start (θ = 0, or the lower toggle, which may
-            // fall in a gap), the arrowhead at the end of its first dash.
+            // The dot at the branch's start (θ = 0, or the lower toggle, where its first
+            // dash now starts), the arrowhead at the end of its first dash.
             let start = page.measured.branches[leg.branch]
                 .samples
                 .first()
@@ -294,12 +529,18 @@ pub fn layout_classic(
                 .unwrap_or(d0.points[0]);
             let end = d0.points[d0.points.len() - 1];
             let dir = travel_direction(page, leg.circuit, d0);
-            bbox = union(bbox, start_marker(&mut dl, &t, start, end, dir));
+            if start_dot == [0.0, 0.0] {
+                start_dot = t.map(start.x, start.y);
+            }
+            markers.push((start, end, dir));
         }
     }
     // Toggles: small open squares where the input reverses (a rocking branch starts and
     // ends at the same toggle: its closing sample stands for both).
-    for b in &page.measured.branches {
+    for (bi, b) in page.measured.branches.iter().enumerate() {
+        if Some(bi) == mirror {
+            continue;
+        }
         for s in b.samples.iter().filter(|s| s.toggle).skip(1) {
             let q = t.map(s.point.x, s.point.y);
             let r = 2.6;
@@ -307,57 +548,43 @@ pub fn layout_classic(
             occ.mark_point(q, 2);
         }
     }
-    // Input path: the crank circle, or the arc of each rocking interval.
-    for (a0, a1) in input_arcs(&page.measured.range) {
-        let arc: Vec<PagePoint> = arc_points(a0, a1)
-            .into_iter()
-            .map(|(x, y)| t.map(x, y))
-            .collect();
-        dl.line(arc, style::THIN);
-    }
-
-    // Linkage, with the coupler triangle to M.
-    let mut segments = Vec::new();
-    let mut taken: Vec<[f64; 4]> = Vec::new();
-    if let Some(pose) = drawn_pose(page, geometry.drawn) {
-        let drawing = l.drawing(
-            geometry.drawn.1,
-            &CrankAngle::from_degrees(geometry.drawn.0),
-        );
-        let mut pins = draw_links(&mut dl, &t, &drawing, &mut segments);
-        let (pa, pb) = (pins[2].0, pins[3].0);
-        let mq = pose.point(p);
-        let mp = t.map(mq.x, mq.y);
-        for a in [pa, pb] {
-            if libm::hypot(mp[0] - a[0], mp[1] - a[1]) > 2.0 * style::PIN_RADIUS {
-                dl.line(vec![a, mp], style::THIN);
-                segments.push((a, mp));
-            }
-        }
-        dl.circle(mp, style::GRID_RADIUS + 0.5, Some(style::THIN + 0.3));
-        pins.push((mp, "M"));
-        taken.extend(pivot_labels(&mut dl, pins));
-    }
     for (a, b) in &segments {
-        occ.mark_segment(*a, *b, 4);
+        occ.mark_segment(*a, *b, 2);
     }
+    // The inset box is taken: neither the measures nor a bracket label may cover it.
+    let mut taken: Vec<[f64; 4]> = geometry.inset.iter().map(|i| i.rect).collect();
+    dl.ink(GHOST);
+    taken.extend(pivot_labels(&mut dl, pins));
+    dl.ink(Ink::Black);
     occ.build();
 
-    // The bracketed straight run.
+    // Nested brackets: the 0.01 % run nearest the curve, then 0.1 %, then 1 %.
     let centroid = if centroid[2] > 0.0 {
         [centroid[0] / centroid[2], centroid[1] / centroid[2]]
     } else {
         [0.5 * (frame[0] + frame[2]), 0.5 * (frame[1] + frame[3])]
     };
-    if let Some(s) = page
-        .measured
-        .straight
-        .get(BRACKETED_TOLERANCE)
-        .copied()
-        .flatten()
-    {
-        let r = bracket(&mut dl, &t, &s, centroid, &taken, &occ);
+    for (i, s) in page.measured.straight.iter().enumerate().rev() {
+        let Some(mut s) = *s else { continue };
+        if mirror == Some(s.branch) {
+            // Its mirror image lies on the drawn branch.
+            s.ends = s.ends.map(|[x, y]| [x, -y]);
+        }
+        let depth = (page.measured.straight.len() - 1 - i) as f64;
+        let off = 6.0 + 11.0 * depth;
+        let text = format!(
+            "εₛ ≤ {}: {}°, {} dashes",
+            tol_text(s.tolerance),
+            fmt_sig(s.input_span_deg),
+            fmt_sig(s.input_span_deg / step)
+        );
+        let r = bracket(&mut dl, &t, &s, centroid, &taken, &occ, off, text);
         taken.push(r);
+    }
+
+    // Markers last: each branch's start dot and arrowhead.
+    for (start, end, dir) in markers {
+        bbox = union(bbox, start_marker(&mut dl, &t, start, end, dir));
     }
 
     // The measures, in the frame corner with the least ink.
@@ -370,15 +597,9 @@ pub fn layout_classic(
             .straight
             .iter()
             .zip(STRAIGHTNESS_TOLERANCES)
-            .enumerate()
-            .map(|(i, (s, tol))| {
-                let mut text = straight_text(s, tol);
-                if i == BRACKETED_TOLERANCE && s.is_some() {
-                    text.push_str("   (bracketed)");
-                }
-                text
-            }),
+            .map(|(s, tol)| straight_text(page, s, tol, step)),
     )
+    .chain(mirror_note(page, mirror))
     .collect();
     let size = style::SMALL_SIZE + 0.5;
     let row = size + 3.5;
@@ -421,8 +642,13 @@ pub fn layout_classic(
             point: p,
             bbox_pt: bbox,
             label_pt: best,
+            dot_pt: start_dot,
+            label: page.curve.name.clone(),
+            ghost: false,
         }],
         scale_pt_per_unit: t.scale,
+        keyed: false,
+        label_failures: 0,
     }
 }
 
@@ -451,6 +677,7 @@ fn travel_direction(page: &ClassicPage, circuit: Circuit, d: &Dash) -> Vector2<f
 
 /// A bracket beside the straight run, on the side away from the curve's centroid, with
 /// ticks at its ends and the run's input span; returns the label's box.
+#[allow(clippy::too_many_arguments)]
 fn bracket(
     dl: &mut DisplayList,
     t: &WorldToPage,
@@ -458,6 +685,8 @@ fn bracket(
     centroid: PagePoint,
     taken: &[[f64; 4]],
     occ: &Occupancy,
+    off: f64,
+    text: String,
 ) -> [f64; 4] {
     let a = t.map(s.ends[0][0], s.ends[0][1]);
     let b = t.map(s.ends[1][0], s.ends[1][1]);
@@ -468,23 +697,19 @@ fn bracket(
     if n[0] * (centroid[0] - mid[0]) + n[1] * (centroid[1] - mid[1]) > 0.0 {
         n = [-n[0], -n[1]];
     }
+    let base = off;
     let off = |p: PagePoint, d: f64| [p[0] + n[0] * d, p[1] + n[1] * d];
-    dl.line(vec![off(a, 5.0), off(a, 13.0)], 0.6);
-    dl.line(vec![off(b, 5.0), off(b, 13.0)], 0.6);
-    dl.line(vec![off(a, 10.0), off(b, 10.0)], 0.6);
-    let text = format!(
-        "ε_S ≤ {} %: {:.1}° of input",
-        fmt_num(s.tolerance * 100.0),
-        s.input_span_deg
-    );
+    dl.line(vec![off(a, base), off(a, base + 6.0)], 0.6);
+    dl.line(vec![off(b, base), off(b, base + 6.0)], 0.6);
+    dl.line(vec![off(a, base + 4.0), off(b, base + 4.0)], 0.6);
     let size = style::LABEL_SIZE;
     let tw = font::text_width(size, &text);
     let (asc, desc) = (font::ascent(size), font::descent(size));
     // Horizontal text beside the bracket's middle, on its outer side: the nearest of a
     // few distances out that covers no pivot label, then the least ink.
     let mut best: Option<(u64, [f64; 4])> = None;
-    for (k, d) in [16.0, 26.0, 38.0, 52.0].into_iter().enumerate() {
-        let at = off(mid, d);
+    for (k, d) in [10.0, 20.0, 32.0, 46.0, 60.0].into_iter().enumerate() {
+        let at = off(mid, base + d);
         let x0 = if n[0] > 0.35 {
             at[0]
         } else if n[0] < -0.35 {
@@ -507,7 +732,13 @@ fn bracket(
     let r = best
         .map(|b| b.1)
         .unwrap_or([mid[0], mid[1], mid[0], mid[1]]);
-    dl.text([r[0] + 1.0, r[1] + 1.0 + asc], size, Anchor::Start, text);
+    dl.text_halo(
+        [r[0] + 1.0, r[1] + 1.0 + asc],
+        size,
+        Anchor::Start,
+        text,
+        1.2,
+    );
     r
 }
 
@@ -518,13 +749,13 @@ fn legend(dl: &mut DisplayList, geometry: &ClassicGeometry, setup: &PageSetup, r
     let y = crate::page::dash_legend(
         dl,
         setup,
-        "one dash = {step}° of input ({drawn}° drawn); dot: start of a branch (θ = 0 for a crank, the lower toggle for a rocking input); bold: its first dash; arrowhead: direction of travel",
+        "one dash = {step}° of input ({drawn}° drawn), counted from the start of a branch (θ = 0 for a crank, the lower toggle for a rocking input: the dot); bold: its first dash, heavier: every 90°",
     );
     let y2 = y + 14.0;
     let (deg, circuit) = geometry.drawn;
     let drawn = format!(
-        "linkage drawn at θ = {}° ({} circuit), mid-way along the bracketed run",
-        fmt_num((deg * 100.0).round() / 100.0),
+        "linkage (gray) at θ = {}° ({} circuit), mid-way along the 0.1 % run; brackets: the longest runs at εₛ ≤ 1 %, 0.1 %, 0.01 %",
+        fmt_sig(deg),
         circuit.name()
     );
     let text = if rocks {
@@ -545,6 +776,7 @@ fn legend(dl: &mut DisplayList, geometry: &ClassicGeometry, setup: &PageSetup, r
         geometry.transform.scale,
         "input link 1 = {} in on this page",
     );
+
     crate::page::footer(
         dl,
         setup,

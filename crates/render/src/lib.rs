@@ -13,20 +13,19 @@
 //!   the page looks the same without the font installed).
 
 mod diff;
-#[cfg(feature = "pdf")]
 mod pdf;
 mod raster;
 mod svg;
+mod svg_font;
 
 pub use diff::{
     DiffError, ImageDiff, MAX_DIFF_PIXELS, MAX_DIFF_WIDTH, diff_files, diff_images, read_image,
 };
-#[cfg(feature = "pdf")]
-pub use pdf::PdfPage;
+pub use pdf::{Bookmark, PageLabelRange, PdfError, PdfPage, PdfPageContent, write_pdf};
 pub use raster::{RasterPage, encode_png};
 pub use svg::SvgPage;
 
-use coupler_layout::{Anchor, DisplayList, PagePoint, Primitive};
+use coupler_layout::{Anchor, DisplayList, Ink, PagePoint, Primitive};
 
 /// A surface that can draw the layout's primitives, in page points.
 pub trait Canvas {
@@ -58,8 +57,11 @@ pub trait Canvas {
     fn fill_polygon(&mut self, points: &[PagePoint]);
     /// A circle outline of `width` points, or a filled disc when `width` is `None`.
     fn circle(&mut self, center: PagePoint, radius: f64, width: Option<f64>);
-    /// One line of text, baseline through `pos`, em size `size` points.
-    fn text(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str);
+    /// One line of text, baseline through `pos`, em size `size` points, with a
+    /// paper-white halo of `halo` points around its glyphs (0: none).
+    fn text(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str, halo: f64);
+    /// The ink of what is drawn next (black until set).
+    fn set_ink(&mut self, ink: Ink);
 }
 
 /// Draws a display list on a canvas, in order.
@@ -80,7 +82,9 @@ pub fn draw(display: &DisplayList, canvas: &mut impl Canvas) {
                 size,
                 anchor,
                 text,
-            } => canvas.text(*pos, *size, *anchor, text),
+                halo,
+            } => canvas.text(*pos, *size, *anchor, text, *halo),
+            Primitive::Ink(ink) => canvas.set_ink(*ink),
         }
     }
 }
@@ -92,8 +96,7 @@ pub enum PageFormat {
     Png,
     /// SVG (vector).
     Svg,
-    /// PDF (vector; built with the `pdf` cargo feature).
-    #[cfg(feature = "pdf")]
+    /// PDF (vector): one document of the whole atlas.
     Pdf,
 }
 
@@ -103,20 +106,14 @@ impl PageFormat {
         match self {
             PageFormat::Png => "png",
             PageFormat::Svg => "svg",
-            #[cfg(feature = "pdf")]
             PageFormat::Pdf => "pdf",
         }
     }
 }
 
-#[cfg(feature = "pdf")]
-const FORMATS_MORE: &str = " or pdf";
-#[cfg(not(feature = "pdf"))]
-const FORMATS_MORE: &str = "; pdf needs a build with --features pdf";
-
 /// An unknown page format name.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("unknown page format {0:?} (expected png, svg{more})", more = FORMATS_MORE)]
+#[error("unknown page format {0:?} (expected png, svg or pdf)")]
 pub struct UnknownFormat(pub String);
 
 impl std::str::FromStr for PageFormat {
@@ -125,7 +122,6 @@ impl std::str::FromStr for PageFormat {
         match s.trim().to_ascii_lowercase().as_str() {
             "png" => Ok(PageFormat::Png),
             "svg" => Ok(PageFormat::Svg),
-            #[cfg(feature = "pdf")]
             "pdf" => Ok(PageFormat::Pdf),
             _ => Err(UnknownFormat(s.to_string())),
         }

@@ -1,125 +1,167 @@
-//! Vector backend: a one-page PDF (1.4) of the display list, written by hand (no
-//! dependency; behind the `pdf` cargo feature). Dashes are exact polylines in page
-//! points; text is filled glyph outlines of the embedded font, so no font is embedded or
-//! needed. The content stream is uncompressed (a page is a few hundred KB).
+//! Vector backend: PDF with `pdf-writer` (typst's PDF writer) and the embedded font as a
+//! subset (typst's `subsetter`).
+//!
+//! Pages are drawn one at a time into [`PdfPage`]s (in parallel: a page's content stream
+//! is compressed on its own), and [`write_pdf`] assembles them into one document: the
+//! pages in order with their page labels, an outline (bookmarks), links, and one font for
+//! all pages, a subset of DejaVu Sans with the glyphs the document uses, embedded as a
+//! CID font with a `ToUnicode` map, so that every word on a page can be searched,
+//! selected and copied. Curves are exact polylines in page points; gray inks overprint
+//! (the Multiply blend mode, as the raster pages composite), paper halos erase.
 
-use super::{Canvas, anchored_x, num};
-use coupler_layout::{self as font, Anchor, PagePoint};
-use std::fmt::Write;
+use super::{Canvas, anchored_x};
+use coupler_layout::{self as font, Anchor, Ink, PagePoint};
+use pdf_writer::types::{
+    ActionType, AnnotationType, BlendMode, CidFontType, FontFlags, LineCapStyle, LineJoinStyle,
+    NumberingStyle, SystemInfo, TextRenderingMode,
+};
+use pdf_writer::writers::PageLabel;
+use pdf_writer::{Content, Filter, Finish, Name, Pdf, Rect, Ref, Str, TextStr};
+use std::collections::BTreeMap;
 
 /// Bézier constant for a quarter circle: 4/3·(√2 − 1).
 const KAPPA: f64 = 0.552_284_749_830_793_4;
 
-/// A PDF page being built. Page points map to PDF user space through a y-flip
+/// A page being drawn. Page points map to PDF user space through a y-flip
 /// (`1 0 0 −1 0 H cm`), so the display list's y-down coordinates are used as they are.
 pub struct PdfPage {
-    ops: String,
+    content: Content,
     width: f64,
     height: f64,
+    ink: Ink,
+    /// Glyphs used, by original glyph id, with the text each stands for.
+    glyphs: BTreeMap<u16, char>,
+    font: ab_glyph::FontRef<'static>,
+}
+
+/// A finished page: its size, compressed content stream and the glyphs it uses.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PdfPageContent {
+    /// Width, points.
+    pub width: f64,
+    /// Height, points.
+    pub height: f64,
+    /// The content stream, deflated.
+    pub stream: Vec<u8>,
+    /// Glyphs used (original glyph id → character).
+    pub glyphs: BTreeMap<u16, char>,
+    /// Link areas on the page (`[x0, y0, x1, y1]` in page points, y down) and the index
+    /// of the page (in the document) each one goes to.
+    pub links: Vec<([f64; 4], usize)>,
+}
+
+/// A bookmark: its title and the index of its page in the document; children below it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bookmark {
+    /// Shown in the viewer's outline.
+    pub title: String,
+    /// Page index (0-based, in the document).
+    pub page: usize,
+    /// Bookmarks under it.
+    pub children: Vec<Bookmark>,
+}
+
+/// How pages are numbered in the viewer, from `start` (0-based page index) on: `prefix`
+/// then a decimal number from `first`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PageLabelRange {
+    /// First page of the range (0-based index in the document).
+    pub start: usize,
+    /// Text before the number.
+    pub prefix: String,
+    /// The number of the range's first page.
+    pub first: u32,
+}
+
+fn f(x: f64) -> f32 {
+    x as f32
 }
 
 impl PdfPage {
     /// An empty page of `width × height` points.
     pub fn new(width: f64, height: f64) -> PdfPage {
-        let mut ops = String::with_capacity(1 << 16);
-        let _ = writeln!(ops, "1 0 0 -1 0 {} cm 0 g 0 G", num(height));
-        PdfPage { ops, width, height }
-    }
-
-    /// A cubic Bézier segment to `p` with control points `a`, `b`.
-    fn curve_to(&mut self, a: PagePoint, b: PagePoint, p: PagePoint) {
-        let _ = write!(
-            self.ops,
-            "{} {} {} {} {} {} c ",
-            num(a[0]),
-            num(a[1]),
-            num(b[0]),
-            num(b[1]),
-            num(p[0]),
-            num(p[1])
-        );
+        let mut content = Content::new();
+        content.transform([1.0, 0.0, 0.0, -1.0, 0.0, f(height)]);
+        content.set_fill_gray(0.0).set_stroke_gray(0.0);
+        PdfPage {
+            content,
+            width,
+            height,
+            ink: Ink::Black,
+            glyphs: BTreeMap::new(),
+            font: font::embedded_font(),
+        }
     }
 
     fn path(&mut self, points: &[PagePoint]) {
         for (i, p) in points.iter().enumerate() {
-            let _ = write!(
-                self.ops,
-                "{} {} {} ",
-                num(p[0]),
-                num(p[1]),
-                if i == 0 { "m" } else { "l" }
-            );
+            if i == 0 {
+                self.content.move_to(f(p[0]), f(p[1]));
+            } else {
+                self.content.line_to(f(p[0]), f(p[1]));
+            }
         }
     }
 
-    /// The finished PDF file.
-    pub fn finish(self) -> Vec<u8> {
-        let mut out: Vec<u8> = Vec::with_capacity(self.ops.len() + 1024);
-        let mut offsets = Vec::new();
-        out.extend_from_slice(b"%PDF-1.4\n%\xe2\xe3\xcf\xd3\n");
-        let objects = [
-            "<< /Type /Catalog /Pages 2 0 R >>".to_string(),
-            "<< /Type /Pages /Kids [3 0 R] /Count 1 >>".to_string(),
-            format!(
-                "<< /Type /Page /Parent 2 0 R /MediaBox [0 0 {} {}] /Resources << >> /Contents 4 0 R >>",
-                num(self.width),
-                num(self.height)
-            ),
-        ];
-        for (i, body) in objects.iter().enumerate() {
-            offsets.push(out.len());
-            out.extend_from_slice(format!("{} 0 obj\n{body}\nendobj\n", i + 1).as_bytes());
+    /// The finished page, with `links` (areas and the page index each goes to).
+    pub fn finish(self, links: Vec<([f64; 4], usize)>) -> PdfPageContent {
+        let raw = self.content.finish();
+        PdfPageContent {
+            width: self.width,
+            height: self.height,
+            stream: miniz_oxide::deflate::compress_to_vec_zlib(&raw, 6),
+            glyphs: self.glyphs,
+            links,
         }
-        offsets.push(out.len());
-        out.extend_from_slice(
-            format!("4 0 obj\n<< /Length {} >>\nstream\n", self.ops.len()).as_bytes(),
-        );
-        out.extend_from_slice(self.ops.as_bytes());
-        out.extend_from_slice(b"\nendstream\nendobj\n");
-        let xref = out.len();
-        out.extend_from_slice(b"xref\n0 5\n0000000000 65535 f \n");
-        for o in offsets {
-            out.extend_from_slice(format!("{o:010} 00000 n \n").as_bytes());
-        }
-        out.extend_from_slice(
-            format!("trailer\n<< /Size 5 /Root 1 0 R >>\nstartxref\n{xref}\n%%EOF\n").as_bytes(),
-        );
-        out
     }
 }
 
 impl Canvas for PdfPage {
+    fn set_ink(&mut self, ink: Ink) {
+        self.ink = ink;
+        let g = f32::from(ink.gray()) / 255.0;
+        self.content.set_fill_gray(g).set_stroke_gray(g);
+        // Grays overprint (multiply), paper and black paint normally.
+        let gs = match ink {
+            Ink::Gray(_) => "Ov",
+            _ => "Nm",
+        };
+        self.content.set_parameters(Name(gs.as_bytes()));
+    }
+
     fn stroke_polyline(&mut self, points: &[PagePoint], width: f64) {
         self.stroke_polylines(&[points.to_vec()], width);
     }
 
     fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
-        let _ = write!(self.ops, "{} w 1 J 1 j ", num(width));
         let mut any = false;
         for l in lines.iter().filter(|l| !l.is_empty()) {
+            if !any {
+                self.content
+                    .set_line_width(f(width))
+                    .set_line_cap(LineCapStyle::RoundCap)
+                    .set_line_join(LineJoinStyle::RoundJoin);
+            }
             self.path(l);
             if l.len() == 1 {
                 // A dot: a zero-length segment, drawn by the round cap.
-                let _ = write!(self.ops, "{} {} l ", num(l[0][0]), num(l[0][1]));
+                self.content.line_to(f(l[0][0]), f(l[0][1]));
             }
             any = true;
         }
         if any {
-            self.ops.push_str("S\n");
+            self.content.stroke();
         }
     }
 
     fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
         let [x0, y0, x1, y1] = rect;
-        let _ = writeln!(
-            self.ops,
-            "{} w 0 J 0 j {} {} {} {} re S",
-            num(width),
-            num(x0),
-            num(y0),
-            num(x1 - x0),
-            num(y1 - y0)
-        );
+        self.content
+            .set_line_width(f(width))
+            .set_line_cap(LineCapStyle::ButtCap)
+            .set_line_join(LineJoinStyle::MiterJoin)
+            .rect(f(x0), f(y0), f(x1 - x0), f(y1 - y0))
+            .stroke();
     }
 
     fn fill_polygon(&mut self, points: &[PagePoint]) {
@@ -127,13 +169,13 @@ impl Canvas for PdfPage {
             return;
         }
         self.path(points);
-        self.ops.push_str("h f\n");
+        self.content.close_path().fill_nonzero();
     }
 
     fn circle(&mut self, c: PagePoint, r: f64, width: Option<f64>) {
         let k = KAPPA * r;
         let (x, y) = (c[0], c[1]);
-        let _ = write!(self.ops, "{} {} m ", num(x + r), num(y));
+        self.content.move_to(f(x + r), f(y));
         let quads = [
             ([x + r, y + k], [x + k, y + r], [x, y + r]),
             ([x - k, y + r], [x - r, y + k], [x - r, y]),
@@ -141,53 +183,341 @@ impl Canvas for PdfPage {
             ([x + k, y - r], [x + r, y - k], [x + r, y]),
         ];
         for (a, b, e) in quads {
-            self.curve_to(a, b, e);
+            self.content
+                .cubic_to(f(a[0]), f(a[1]), f(b[0]), f(b[1]), f(e[0]), f(e[1]));
         }
+        self.content.close_path();
         match width {
-            None => self.ops.push_str("h f\n"),
+            None => {
+                self.content.fill_nonzero();
+            }
             Some(w) => {
-                let _ = writeln!(self.ops, "h {} w S", num(w));
+                self.content.set_line_width(f(w)).stroke();
             }
         }
     }
 
-    fn text(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str) {
+    fn text(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str, halo: f64) {
         if text.is_empty() {
             return;
         }
-        let x = anchored_x(pos[0], font::text_width(size, text), anchor);
-        let mut cur = [0.0, 0.0];
-        for c in font::text_outline(size, [x, pos[1]], text) {
-            match c {
-                font::OutlineCmd::MoveTo(p) => {
-                    let _ = write!(self.ops, "{} {} m ", num(p[0]), num(p[1]));
-                    cur = p;
+        let (glyphs, width) = font::shape_line(&self.font, size, text);
+        let x = anchored_x(pos[0], width, anchor);
+        for (g, ch) in glyphs.iter().zip(text.chars()) {
+            self.glyphs.entry(g.id.0).or_insert(ch);
+        }
+        let upem = f64::from(ab_glyph::Font::units_per_em(&self.font).unwrap_or(2048.0));
+        let advance = |id| f64::from(ab_glyph::Font::h_advance_unscaled(&self.font, id));
+        // Glyph codes (2 bytes each: CID = the font's glyph id) with the kerning between
+        // them as TJ adjustments (thousandths of an em, negative moves right).
+        let mut runs: Vec<(Vec<u8>, f32)> = Vec::new();
+        let mut pen = 0.0;
+        let mut cur: Vec<u8> = Vec::new();
+        for g in &glyphs {
+            let adj = g.x - pen;
+            if adj.abs() > 1e-6 && !cur.is_empty() {
+                runs.push((std::mem::take(&mut cur), -(adj * 1000.0 / size) as f32));
+            }
+            cur.extend_from_slice(&g.id.0.to_be_bytes());
+            pen = g.x + advance(g.id) * size / upem;
+        }
+        runs.push((cur, 0.0));
+        let show = |c: &mut Content, mode: TextRenderingMode| {
+            c.begin_text();
+            c.set_font(Name(b"F0"), f(size));
+            c.set_text_rendering_mode(mode);
+            c.set_text_matrix([1.0, 0.0, 0.0, -1.0, f(x), f(pos[1])]);
+            {
+                let mut sp = c.show_positioned();
+                let mut items = sp.items();
+                for (bytes, adj) in &runs {
+                    items.show(Str(bytes));
+                    if *adj != 0.0 {
+                        items.adjust(*adj);
+                    }
                 }
-                font::OutlineCmd::LineTo(p) => {
-                    let _ = write!(self.ops, "{} {} l ", num(p[0]), num(p[1]));
-                    cur = p;
-                }
-                font::OutlineCmd::QuadTo(q, p) => {
-                    // Quadratic → cubic: c1 = p0 + ⅔(q − p0), c2 = p + ⅔(q − p).
-                    let c1 = [
-                        cur[0] + 2.0 / 3.0 * (q[0] - cur[0]),
-                        cur[1] + 2.0 / 3.0 * (q[1] - cur[1]),
-                    ];
-                    let c2 = [
-                        p[0] + 2.0 / 3.0 * (q[0] - p[0]),
-                        p[1] + 2.0 / 3.0 * (q[1] - p[1]),
-                    ];
-                    self.curve_to(c1, c2, p);
-                    cur = p;
-                }
-                font::OutlineCmd::CubicTo(a, b, p) => {
-                    self.curve_to(a, b, p);
-                    cur = p;
-                }
-                font::OutlineCmd::Close => self.ops.push_str("h "),
+            }
+            c.end_text();
+        };
+        if halo > 0.0 {
+            let ink = self.ink;
+            self.set_ink(Ink::Paper);
+            self.content
+                .set_line_width(f(2.0 * halo))
+                .set_line_join(LineJoinStyle::RoundJoin);
+            show(&mut self.content, TextRenderingMode::Stroke);
+            self.set_ink(ink);
+        }
+        show(&mut self.content, TextRenderingMode::Fill);
+    }
+}
+
+/// Why a PDF could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum PdfError {
+    /// The font could not be subset.
+    #[error("cannot subset the embedded font: {0}")]
+    Font(String),
+}
+
+/// Writes one PDF of `pages` (in order) with `bookmarks` (the outline), page labels
+/// (`labels`, by range) and document `title`. Deterministic: the same pages give the same
+/// bytes.
+pub fn write_pdf(
+    pages: &[PdfPageContent],
+    bookmarks: &[Bookmark],
+    labels: &[PageLabelRange],
+    title: &str,
+) -> Result<Vec<u8>, PdfError> {
+    let mut next = 1;
+    let mut alloc = || {
+        let r = Ref::new(next);
+        next += 1;
+        r
+    };
+    let catalog = alloc();
+    let tree = alloc();
+    let info = alloc();
+    let type0 = alloc();
+    let cid = alloc();
+    let descriptor = alloc();
+    let font_file = alloc();
+    let cid_map = alloc();
+    let to_unicode = alloc();
+    let gs_over = alloc();
+    let gs_normal = alloc();
+    let outline = alloc();
+    let page_ids: Vec<Ref> = pages.iter().map(|_| alloc()).collect();
+    let content_ids: Vec<Ref> = pages.iter().map(|_| alloc()).collect();
+    let label_ids: Vec<Ref> = labels.iter().map(|_| alloc()).collect();
+
+    // Every glyph the document uses.
+    let mut glyphs: BTreeMap<u16, char> = BTreeMap::new();
+    for p in pages {
+        for (g, c) in &p.glyphs {
+            glyphs.entry(*g).or_insert(*c);
+        }
+    }
+
+    let mut pdf = Pdf::new();
+    pdf.set_version(1, 7);
+    pdf.document_info(info)
+        .title(TextStr(title))
+        .producer(TextStr(concat!(
+            "coupler-atlas ",
+            env!("CARGO_PKG_VERSION")
+        )));
+
+    {
+        let mut cat = pdf.catalog(catalog);
+        cat.pages(tree);
+        if !bookmarks.is_empty() {
+            cat.outlines(outline);
+            cat.page_mode(pdf_writer::types::PageMode::UseOutlines);
+        }
+        if !labels.is_empty() {
+            let mut nums = cat.page_labels();
+            let mut entries = nums.nums();
+            for (l, id) in labels.iter().zip(&label_ids) {
+                entries.insert(l.start as i32, *id);
             }
         }
-        self.ops.push_str("f\n");
+    }
+    for (l, id) in labels.iter().zip(&label_ids) {
+        let mut label = pdf.indirect(*id).start::<PageLabel>();
+        label.style(NumberingStyle::Arabic);
+        if !l.prefix.is_empty() {
+            label.prefix(TextStr(&l.prefix));
+        }
+        label.offset(l.first as i32);
+    }
+    pdf.pages(tree)
+        .kids(page_ids.iter().copied())
+        .count(pages.len() as i32);
+
+    // Link annotations, one object each.
+    let mut annots: Vec<Vec<Ref>> = vec![Vec::new(); pages.len()];
+    for (i, p) in pages.iter().enumerate() {
+        for (rect, target) in &p.links {
+            let Some(&dest) = page_ids.get(*target) else {
+                continue;
+            };
+            let id = alloc();
+            annots[i].push(id);
+            let mut a = pdf.annotation(id);
+            a.subtype(AnnotationType::Link)
+                .rect(Rect::new(
+                    f(rect[0]),
+                    f(p.height - rect[3]),
+                    f(rect[2]),
+                    f(p.height - rect[1]),
+                ))
+                .border(0.0, 0.0, 0.0, None);
+            a.action()
+                .action_type(ActionType::GoTo)
+                .destination()
+                .page(dest)
+                .fit();
+        }
+    }
+
+    for (i, p) in pages.iter().enumerate() {
+        let mut page = pdf.page(page_ids[i]);
+        page.parent(tree)
+            .media_box(Rect::new(0.0, 0.0, f(p.width), f(p.height)))
+            .contents(content_ids[i]);
+        if !annots[i].is_empty() {
+            page.annotations(annots[i].iter().copied());
+        }
+        let mut res = page.resources();
+        res.fonts().pair(Name(b"F0"), type0);
+        res.ext_g_states()
+            .pair(Name(b"Ov"), gs_over)
+            .pair(Name(b"Nm"), gs_normal);
+        res.finish();
+        page.finish();
+        pdf.stream(content_ids[i], &p.stream)
+            .filter(Filter::FlateDecode);
+    }
+    pdf.ext_graphics(gs_over).blend_mode(BlendMode::Multiply);
+    pdf.ext_graphics(gs_normal).blend_mode(BlendMode::Normal);
+
+    // Outline.
+    if !bookmarks.is_empty() {
+        write_outline(&mut pdf, outline, bookmarks, &page_ids, &mut alloc);
+    }
+
+    // The font: a subset with the used glyphs, CID = the original glyph id, mapped to
+    // the subset's glyph ids by a CIDToGIDMap stream.
+    let face = font::embedded_font();
+    let upem = f64::from(ab_glyph::Font::units_per_em(&face).unwrap_or(2048.0));
+    let mut remapper = subsetter::GlyphRemapper::new();
+    for g in glyphs.keys() {
+        remapper.remap(*g);
+    }
+    let subset = subsetter::subset(font::FONT_BYTES, 0, &remapper)
+        .map_err(|e| PdfError::Font(e.to_string()))?;
+    let base = Name(b"CAAAAA+DejaVuSans");
+    pdf.type0_font(type0)
+        .base_font(base)
+        .encoding_predefined(Name(b"Identity-H"))
+        .descendant_font(cid)
+        .to_unicode(to_unicode);
+    {
+        let mut c = pdf.cid_font(cid);
+        c.subtype(CidFontType::Type2)
+            .base_font(base)
+            .system_info(SystemInfo {
+                registry: Str(b"Adobe"),
+                ordering: Str(b"Identity"),
+                supplement: 0,
+            })
+            .font_descriptor(descriptor)
+            .default_width(0.0)
+            .cid_to_gid_map_stream(cid_map);
+        let mut w = c.widths();
+        for g in glyphs.keys() {
+            let adv = f64::from(ab_glyph::Font::h_advance_unscaled(
+                &face,
+                ab_glyph::GlyphId(*g),
+            ));
+            w.consecutive(*g, [f((adv * 1000.0 / upem).round())]);
+        }
+    }
+    let k = 1000.0 / upem;
+    pdf.font_descriptor(descriptor)
+        .name(base)
+        .flags(FontFlags::NON_SYMBOLIC)
+        .bbox(Rect::new(
+            f(-2090.0 * k),
+            f(-948.0 * k),
+            f(3673.0 * k),
+            f(2524.0 * k),
+        ))
+        .italic_angle(0.0)
+        .ascent(f(f64::from(ab_glyph::Font::ascent_unscaled(&face)) * k))
+        .descent(f(f64::from(ab_glyph::Font::descent_unscaled(&face)) * k))
+        .cap_height(f(1493.0 * k))
+        .stem_v(80.0)
+        .font_file2(font_file);
+    let compressed = miniz_oxide::deflate::compress_to_vec_zlib(&subset, 6);
+    pdf.stream(font_file, &compressed)
+        .filter(Filter::FlateDecode)
+        .pair(Name(b"Length1"), subset.len() as i32);
+    let max_cid = glyphs.keys().next_back().copied().unwrap_or(0) as usize;
+    let mut map = vec![0u8; 2 * (max_cid + 1)];
+    for g in glyphs.keys() {
+        let new = remapper.get(*g).unwrap_or(0);
+        map[2 * *g as usize..2 * *g as usize + 2].copy_from_slice(&new.to_be_bytes());
+    }
+    let map = miniz_oxide::deflate::compress_to_vec_zlib(&map, 6);
+    pdf.stream(cid_map, &map).filter(Filter::FlateDecode);
+    let mut cmap = pdf_writer::types::UnicodeCmap::new(
+        Name(b"Custom"),
+        SystemInfo {
+            registry: Str(b"Adobe"),
+            ordering: Str(b"UCS"),
+            supplement: 0,
+        },
+    );
+    for (g, c) in &glyphs {
+        cmap.pair(*g, *c);
+    }
+    let cmap = cmap.finish();
+    pdf.cmap(to_unicode, cmap.as_slice());
+    Ok(pdf.finish())
+}
+
+/// Writes the outline's items (one level of children).
+fn write_outline(
+    pdf: &mut Pdf,
+    root: Ref,
+    bookmarks: &[Bookmark],
+    page_ids: &[Ref],
+    alloc: &mut impl FnMut() -> Ref,
+) {
+    let ids: Vec<Ref> = bookmarks.iter().map(|_| alloc()).collect();
+    let child_ids: Vec<Vec<Ref>> = bookmarks
+        .iter()
+        .map(|b| b.children.iter().map(|_| alloc()).collect())
+        .collect();
+    let total: usize = bookmarks.len();
+    pdf.outline(root)
+        .first(ids[0])
+        .last(ids[ids.len() - 1])
+        .count(total as i32);
+    for (i, b) in bookmarks.iter().enumerate() {
+        let mut item = pdf.outline_item(ids[i]);
+        item.title(TextStr(&b.title)).parent(root);
+        if i > 0 {
+            item.prev(ids[i - 1]);
+        }
+        if i + 1 < ids.len() {
+            item.next(ids[i + 1]);
+        }
+        let kids = &child_ids[i];
+        if !kids.is_empty() {
+            item.first(kids[0])
+                .last(kids[kids.len() - 1])
+                .count(-(kids.len() as i32));
+        }
+        if let Some(&p) = page_ids.get(b.page) {
+            item.dest().page(p).fit();
+        }
+        item.finish();
+        for (j, c) in b.children.iter().enumerate() {
+            let mut ci = pdf.outline_item(kids[j]);
+            ci.title(TextStr(&c.title)).parent(ids[i]);
+            if j > 0 {
+                ci.prev(kids[j - 1]);
+            }
+            if j + 1 < kids.len() {
+                ci.next(kids[j + 1]);
+            }
+            if let Some(&p) = page_ids.get(c.page) {
+                ci.dest().page(p).fit();
+            }
+        }
     }
 }
 
@@ -196,28 +526,23 @@ mod tests {
     use super::*;
 
     #[test]
-    fn xref_offsets_point_at_objects() {
+    fn a_document_with_text_links_and_an_outline() {
         let mut p = PdfPage::new(100.0, 50.0);
         p.stroke_polyline(&[[1.0, 2.0], [3.0, 4.0]], 0.5);
-        p.text([5.0, 20.0], 10.0, Anchor::Start, "(1, 2)");
-        let pdf = p.finish();
-        let find = |needle: &[u8]| {
-            pdf.windows(needle.len())
-                .rposition(|w| w == needle)
-                .unwrap()
-        };
-        let tail = std::str::from_utf8(&pdf[find(b"startxref\n") + 10..]).unwrap();
-        let start: usize = tail.lines().next().unwrap().parse().unwrap();
-        let xref = std::str::from_utf8(&pdf[start..]).unwrap();
-        assert!(xref.starts_with("xref\n0 5\n"));
-        for (i, line) in xref.lines().skip(3).take(4).enumerate() {
-            let off: usize = line[..10].parse().unwrap();
-            assert!(
-                pdf[off..].starts_with(format!("{} 0 obj", i + 1).as_bytes()),
-                "object {}",
-                i + 1
-            );
-        }
-        assert!(find(b"1 2 m 3 4 l S") > 0);
+        p.text([5.0, 20.0], 10.0, Anchor::Start, "A = 2.5", 1.0);
+        let a = p.finish(vec![([0.0, 0.0, 10.0, 10.0], 1)]);
+        let b = PdfPage::new(100.0, 50.0).finish(Vec::new());
+        let bm = [Bookmark {
+            title: "A = 2.5".into(),
+            page: 1,
+            children: Vec::new(),
+        }];
+        let pdf = write_pdf(&[a, b], &bm, &[], "test").unwrap();
+        assert!(pdf.starts_with(b"%PDF-1.7"));
+        let has = |needle: &[u8]| pdf.windows(needle.len()).any(|w| w == needle);
+        assert!(has(b"/Type /Annot"));
+        assert!(has(b"/Outlines"));
+        assert!(has(b"/ToUnicode"));
+        assert!(has(b"/FontFile2"));
     }
 }

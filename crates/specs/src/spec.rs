@@ -580,6 +580,16 @@ impl AtlasSpec {
                 let pr = p.get_ref();
                 let (u, u_relative) = cx.range(&pr.u, "points.u", false)?;
                 let (v, v_relative) = cx.range(&pr.v, "points.v", false)?;
+                // One family per page (as in the 1951 atlas): unless the spec says
+                // otherwise, a page holds one row of the grid (constant v).
+                let per_page_given = raw
+                    .pages
+                    .as_ref()
+                    .is_some_and(|p| p.get_ref().curves_per_page.is_some());
+                let mut pages = pages;
+                if !per_page_given {
+                    pages.curves_per_page = u.len().clamp(1, 100) as u32;
+                }
                 Ok(AtlasSpec::Grid(Box::new(Spec {
                     name,
                     title,
@@ -1264,7 +1274,9 @@ mod tests {
             let all = spec.points.points(a);
             assert_eq!(spec.points.points_in(a, 0, spec.points.len()), all);
             assert_eq!(spec.points.points_in(a, 7, 9), all[7..16].to_vec());
-            assert_eq!(spec.points.points_in(a, 38, 10), all[38..].to_vec());
+            // A slice that runs past the grid's end stops at it.
+            let n = all.len();
+            assert_eq!(spec.points.points_in(a, n as u64 - 3, 10), all[n - 3..].to_vec());
         }
     }
 

@@ -1,0 +1,195 @@
+//! Curve labels at their own coupler points.
+//!
+//! Every curve of an atlas page is labelled at its θ = 0 dot (its coupler point, where the
+//! linkage is drawn). A label box may sit in any direction around its dot, a little way
+//! off, but never where another curve's dot would be as near to it as its own (a reader
+//! pairs a label with the nearest dot), never over another label, and preferably where it
+//! covers the least ink. Labels are placed greedily, the most crowded dots first. When a
+//! page is too dense for full `(u, v)` labels, every curve gets a short number instead
+//! and the page carries a key (number → (u, v)).
+
+use crate::font;
+use crate::page::{Occupancy, PagePoint, rects_overlap};
+
+/// Distance from point `p` to the rectangle `r` (0 inside).
+pub fn rect_distance(r: [f64; 4], p: PagePoint) -> f64 {
+    let dx = (r[0] - p[0]).max(0.0).max(p[0] - r[2]);
+    let dy = (r[1] - p[1]).max(0.0).max(p[1] - r[3]);
+    libm::hypot(dx, dy)
+}
+
+/// The rule every label keeps: its own dot is nearer to its box than any other dot, by a
+/// clear margin (another dot at least `1.5·d + 2` pt away when its own is `d` pt away).
+pub fn own_dot_is_nearest(r: [f64; 4], own: usize, dots: &[PagePoint]) -> bool {
+    let d = rect_distance(r, dots[own]);
+    dots.iter()
+        .enumerate()
+        .filter(|(i, _)| *i != own)
+        .all(|(_, q)| rect_distance(r, *q) >= 1.5 * d + 2.0)
+}
+
+/// How the labels of a page came out.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct LabelPlacement {
+    /// Each label's box (points), and the text to print in it (baseline at box top +
+    /// ascent + pad).
+    pub boxes: Vec<[f64; 4]>,
+    /// The texts placed (full labels, or numbers when `keyed`).
+    pub texts: Vec<String>,
+    /// Whether the page uses numbers and a key.
+    pub keyed: bool,
+    /// Labels that could not keep the rule (placed at their least bad spot): none on a
+    /// well-formed page.
+    pub failed: usize,
+}
+
+/// Padding between a label's text and its box edge, points.
+pub(crate) const LABEL_PAD: f64 = 0.8;
+
+/// Gaps tried between a dot and the near side of its label box, points (nearest first).
+const LABEL_GAPS: [f64; 9] = [1.5, 3.0, 5.0, 8.0, 12.0, 16.0, 22.0, 30.0, 40.0];
+
+/// Directions tried around a dot (evenly spaced).
+const LABEL_DIRECTIONS: usize = 24;
+
+/// Places labels for `dots` (the θ = 0 dots, page points): `full[i]` if every label fits
+/// by the rule, else `numbers[i]` for all. `taken` are boxes labels must not cover (pivot
+/// names, the inset, the key), `frame` the area they must stay in, `occ` the ink.
+pub(crate) fn place_labels(
+    dots: &[PagePoint],
+    full: &[String],
+    numbers: &[String],
+    size: f64,
+    occ: &Occupancy,
+    taken: &[[f64; 4]],
+    frame: [f64; 4],
+) -> LabelPlacement {
+    let first = place_all(dots, full, size, occ, taken, frame);
+    if first.1 == 0 {
+        return LabelPlacement {
+            boxes: first.0,
+            texts: full.to_vec(),
+            keyed: false,
+            failed: 0,
+        };
+    }
+    let second = place_all(dots, numbers, size, occ, taken, frame);
+    LabelPlacement {
+        boxes: second.0,
+        texts: numbers.to_vec(),
+        keyed: true,
+        failed: second.1,
+    }
+}
+
+/// Greedy placement of `texts` at `dots`, the most crowded first: (boxes, failures).
+fn place_all(
+    dots: &[PagePoint],
+    texts: &[String],
+    size: f64,
+    occ: &Occupancy,
+    taken: &[[f64; 4]],
+    frame: [f64; 4],
+) -> (Vec<[f64; 4]>, usize) {
+    let n = dots.len();
+    let asc = font::ascent(size);
+    let desc = font::descent(size);
+    // Crowdedness: distance to the nearest other dot.
+    let nearest = |i: usize| {
+        dots.iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, q)| libm::hypot(q[0] - dots[i][0], q[1] - dots[i][1]))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&a, &b| nearest(a).total_cmp(&nearest(b)).then(a.cmp(&b)));
+    let mut boxes = vec![[0.0; 4]; n];
+    let mut placed: Vec<[f64; 4]> = taken.to_vec();
+    let mut failed = 0;
+    for i in order {
+        let tw = font::text_width(size, &texts[i]);
+        let (hw, hh) = (0.5 * tw + LABEL_PAD, 0.5 * (asc + desc) + LABEL_PAD);
+        let p = dots[i];
+        let mut best: Option<(f64, [f64; 4])> = None;
+        let mut fallback: Option<(f64, [f64; 4])> = None;
+        for (gi, gap) in LABEL_GAPS.into_iter().enumerate() {
+            for k in 0..LABEL_DIRECTIONS {
+                let phi = std::f64::consts::TAU * k as f64 / LABEL_DIRECTIONS as f64;
+                let (s, c) = (libm::sin(phi), libm::cos(phi));
+                // Centre so that the box's near side is `gap` from the dot along (c, s).
+                let t = gap + (hw * c.abs()).max(hh * s.abs()).min(hw.hypot(hh));
+                let ctr = [p[0] + c * t, p[1] + s * t];
+                let r = [ctr[0] - hw, ctr[1] - hh, ctr[0] + hw, ctr[1] + hh];
+                if r[0] < frame[0] || r[1] < frame[1] || r[2] > frame[2] || r[3] > frame[3] {
+                    continue;
+                }
+                let clash = placed.iter().any(|q| rects_overlap(*q, grow(r, 0.5)));
+                let ink = occ.cost(r).unwrap_or(1_000_000) as f64;
+                // Prefer little ink, then a small gap, then labels right of or above
+                // their dot (the way one reads).
+                let cost = ink * 4.0 + gi as f64 * 3.0 + if c < -0.1 { 1.0 } else { 0.0 };
+                let rule = own_dot_is_nearest(r, i, dots);
+                if rule && !clash {
+                    if best.is_none_or(|b| cost < b.0) {
+                        best = Some((cost, r));
+                    }
+                } else {
+                    let penalty = if rule { 0.0 } else { 1e6 } + if clash { 1e7 } else { 0.0 };
+                    if fallback.is_none_or(|b| cost + penalty < b.0) {
+                        fallback = Some((cost + penalty, r));
+                    }
+                }
+            }
+        }
+        let r = match (best, fallback) {
+            (Some((_, r)), _) => r,
+            (None, Some((_, r))) => {
+                failed += 1;
+                r
+            }
+            (None, None) => {
+                failed += 1;
+                [p[0], p[1] - 2.0 * hh, p[0] + 2.0 * hw, p[1]]
+            }
+        };
+        boxes[i] = r;
+        placed.push(r);
+    }
+    (boxes, failed)
+}
+
+fn grow(r: [f64; 4], d: f64) -> [f64; 4] {
+    [r[0] - d, r[1] - d, r[2] + d, r[3] + d]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distance_to_a_box() {
+        let r = [0.0, 0.0, 10.0, 5.0];
+        assert_eq!(rect_distance(r, [5.0, 2.0]), 0.0);
+        assert_eq!(rect_distance(r, [13.0, 2.0]), 3.0);
+        assert_eq!(rect_distance(r, [13.0, 9.0]), 5.0);
+    }
+
+    #[test]
+    fn a_row_of_close_dots_gets_labels_by_the_rule() {
+        let dots: Vec<PagePoint> = (0..10).map(|i| [100.0 + 30.0 * i as f64, 200.0]).collect();
+        let full: Vec<String> = (0..10).map(|i| format!("({i}.25, -1.5)")).collect();
+        let nums: Vec<String> = (1..=10).map(|i| i.to_string()).collect();
+        let frame = [0.0, 0.0, 600.0, 400.0];
+        let mut occ = Occupancy::new(frame, 3.0);
+        occ.build();
+        let p = place_labels(&dots, &full, &nums, 7.5, &occ, &[], frame);
+        assert_eq!(p.failed, 0);
+        for (i, a) in p.boxes.iter().enumerate() {
+            assert!(own_dot_is_nearest(*a, i, &dots));
+            for b in &p.boxes[i + 1..] {
+                assert!(!rects_overlap(*a, *b));
+            }
+        }
+    }
+}
