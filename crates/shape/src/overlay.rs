@@ -98,12 +98,14 @@ pub fn overlay(
         size: 10.5,
         anchor: Anchor::Start,
         text: text.title.clone(),
+        halo: 0.0,
     });
     d.items.push(Primitive::Text {
         pos: [36.0, 52.0],
         size: 9.5,
         anchor: Anchor::Start,
         text: text.detail.clone(),
+        halo: 0.0,
     });
     // The curve, dashed by crank angle.
     let mut dashes = Vec::new();
@@ -176,12 +178,14 @@ pub fn overlay(
         size: 8.5,
         anchor: Anchor::Middle,
         text: format!("{} user units", fmt_short(bar)),
+        halo: 0.0,
     });
     d.items.push(Primitive::Text {
         pos: [36.0, h - 12.0],
         size: 8.0,
         anchor: Anchor::Start,
         text: "rings: target points · ticks: error to the matched point · dashes: the curve, one per 10° of crank · bold: the linkage at the first point".into(),
+        halo: 0.0,
     });
     Some(d)
 }
