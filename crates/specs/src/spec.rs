@@ -1276,7 +1276,10 @@ mod tests {
             assert_eq!(spec.points.points_in(a, 7, 9), all[7..16].to_vec());
             // A slice that runs past the grid's end stops at it.
             let n = all.len();
-            assert_eq!(spec.points.points_in(a, n as u64 - 3, 10), all[n - 3..].to_vec());
+            assert_eq!(
+                spec.points.points_in(a, n as u64 - 3, 10),
+                all[n - 3..].to_vec()
+            );
         }
     }
 
