@@ -100,13 +100,18 @@ fn classics_pages_and_measures() {
         );
     }
     // Watt's curve is one branch, out on the open circuit and back on the crossed;
-    // Chebyshev's two; Hoeken (a crank) is drawn on its open circuit only.
+    // Chebyshev's two; Hoeken and Evans (cranks) are drawn on their open circuits only.
     let branches: Vec<u64> = curves
         .iter()
         .map(|c| c["branches"].as_u64().unwrap())
         .collect();
-    assert_eq!(branches, [1, 2, 1, 1, 1]);
+    assert_eq!(branches, [1, 2, 1, 1, 1, 1]);
     assert_eq!(curves[2]["input"]["kind"], "rocks");
+    // Evans from its design condition (frame 3, a = 4) is a crank-rocker whose line is
+    // straight to 0.1 % over more than 100° of crank (Hoeken's proportions give 38.5°).
+    assert_eq!(curves[5]["name"], "Evans");
+    assert_eq!(curves[5]["input"]["kind"], "full");
+    assert!(curves[5]["straight"][1]["input_span_deg"].as_f64().unwrap() > 100.0);
 
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
@@ -144,7 +149,9 @@ fn page_set_refuses_shards_and_dry_run_writes_nothing() {
     assert!(o.status.success());
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
-        text.contains("curve 5: Evans") && text.contains("pages:    5"),
+        text.contains("curve 5: Evans grasshopper")
+            && text.contains("curve 6: Evans")
+            && text.contains("pages:    6"),
         "{text}"
     );
     assert!(!out.exists());
