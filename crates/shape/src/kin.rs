@@ -4,6 +4,15 @@
 use crate::geom::C64;
 use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose, ToggleGaps};
 
+/// A curve a search can return: its id (in the atlas) and what traces it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AtlasCurve {
+    /// Id in the atlas (index order).
+    pub id: u64,
+    /// Linkage, circuit and coupler point.
+    pub curve: CouplerCurve,
+}
+
 /// A coupler point on one circuit of a linkage: the curve a candidate traces.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CouplerCurve {

@@ -30,10 +30,10 @@ mod traced;
 pub use code::{CODE_BYTES, CODE_LEN, ClosedQuery, HARMONICS, ShapeCode};
 pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
-pub use kin::{CouplerCurve, PointAt, PointSensitivity};
+pub use kin::{AtlasCurve, CouplerCurve, PointAt, PointSensitivity};
 pub use matching::{
-    AtlasCurve, Candidate, Match, MatchError, MatchOptions, OpenScan, coarse_candidates,
-    find_matches, open_finish, open_scan, rank_candidates,
+    Candidate, Match, MatchError, MatchOptions, OpenScan, coarse_candidates, find_matches,
+    open_finish, open_scan, rank_candidates,
 };
 pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;

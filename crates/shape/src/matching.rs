@@ -3,20 +3,11 @@
 
 use crate::code::{ClosedQuery, ShapeCode};
 use crate::fit::{CurveFit, FitOptions, Start, fit_timed, fit_untimed, fit_with};
-use crate::kin::CouplerCurve;
+use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{OpenQuery, Stage1, open_candidates, open_stage1, open_stage2};
 use crate::placement::Placement;
 use crate::target::Target;
 use crate::traced::Traced;
-
-/// A curve a search can return: its id (in the atlas) and what traces it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AtlasCurve {
-    /// Id in the atlas (index order).
-    pub id: u64,
-    /// Linkage, circuit and coupler point.
-    pub curve: CouplerCurve,
-}
 
 /// Settings of a search.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -26,7 +26,7 @@
 
 use crate::fit::Start;
 use crate::geom::C64;
-use crate::matching::AtlasCurve;
+use crate::kin::AtlasCurve;
 use crate::smooth::{default_terms, smooth_resample};
 use crate::target::{Target, Timing};
 use coupler_kinematics::{Circuit, CrankTable, FourBar, PoseTable};

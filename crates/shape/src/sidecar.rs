@@ -21,8 +21,8 @@
 //! assemble all round or has no length).
 
 use crate::code::{CODE_BYTES, HARMONICS, ShapeCode};
+use crate::kin::AtlasCurve;
 use crate::kin::CouplerCurve;
-use crate::matching::AtlasCurve;
 use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
 
 /// The sidecar's file name in an atlas folder.

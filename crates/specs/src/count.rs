@@ -20,7 +20,7 @@
 //! the same decimal, and the counts agree with [`FourBar::class`] exactly; tested against
 //! enumeration).
 
-use crate::spec::{DecimalRange, LinkageRanges};
+use crate::ranges::{DecimalRange, LinkageRanges};
 use coupler_kinematics::{Class, Decimal, FourBar, Linkage};
 use std::cmp::Ordering;
 use std::collections::BTreeMap;

@@ -4,7 +4,7 @@
 //! fully ([`Rotatability::Full`], as the four-bar atlas holds crank-rockers); the others
 //! are counted by Ting class.
 
-use crate::spec::DecimalRange;
+use crate::ranges::DecimalRange;
 use coupler_kinematics::{GearRatio, GearedFiveBar, Linkage, MARGIN_TOL, Rotatability};
 use serde::Serialize;
 use std::collections::BTreeMap;

@@ -9,6 +9,7 @@ mod count;
 mod curves;
 mod features;
 mod geared;
+mod ranges;
 mod settings;
 mod spec;
 mod target_file;
@@ -17,9 +18,10 @@ pub use count::CrankRockers;
 pub use curves::CurveList;
 pub use features::FeatureSettings;
 pub use geared::GearedRanges;
+pub use ranges::{DecimalRange, LinkageRanges};
 pub use settings::{PageSettings, Sampling};
 pub use spec::{
-    AtlasLinkages, AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, DecimalRange, Enumeration,
-    LinkageRanges, MAX_NAME_LEN, MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
+    AtlasLinkages, AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Enumeration, MAX_NAME_LEN,
+    MAX_RANGE_VALUES, PointGrid, Spec, SpecError,
 };
 pub use target_file::{TargetFile, TargetFileError};
