@@ -118,7 +118,8 @@ fn failed_page_of_a_page_set_is_reported() {
     // Every curve of the set but the blocked one has its page.
     let curves = std::fs::read_to_string(spec("classics.toml"))
         .unwrap()
-        .matches("[[curve]]")
+        .lines()
+        .filter(|l| l.trim() == "[[curve]]")
         .count();
     assert_eq!(pages_in(&out).len(), curves - 1, "{:?}", pages_in(&out));
     assert!(!out.join("curves.json").exists());
