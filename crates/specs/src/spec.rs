@@ -570,7 +570,7 @@ impl CurveList {
     /// ```
     /// let text = include_str!("../../../atlas-spec/classics.toml");
     /// let list = coupler_specs::CurveList::parse(text, "classics.toml").unwrap();
-    /// assert_eq!(list.curves.len(), 5);
+    /// assert_eq!(list.curves.len(), 6);
     /// ```
     pub fn parse(text: &str, source_name: &str) -> Result<CurveList, SpecError> {
         match AtlasSpec::parse(text, source_name)? {
