@@ -210,12 +210,40 @@ impl CurveFlags {
         } else if gap < tol.change_point_gap {
             flags.push(CurveFlag::NearChangePoint);
         }
-        if links[3] / links[0] > tol.extreme_ratio {
+        CurveFlags::push_size_flags(&mut flags, links[0], links[3], point, tol);
+        flags
+    }
+
+    /// `extreme_ratio` and `far_point`, from the shortest and longest links of any
+    /// mechanism (four-bar or geared five-bar).
+    pub(crate) fn push_size_flags(
+        flags: &mut Vec<CurveFlag>,
+        shortest: f64,
+        longest: f64,
+        point: CouplerPoint,
+        tol: &FlagTolerances,
+    ) {
+        if longest / shortest > tol.extreme_ratio {
             flags.push(CurveFlag::ExtremeRatio);
         }
-        if point.u.abs().max(point.v.abs()) > tol.far_point * links[3] {
+        if point.u.abs().max(point.v.abs()) > tol.far_point * longest {
             flags.push(CurveFlag::FarPoint);
         }
+    }
+
+    /// Adds `near_toggle` from the transmission angle's extremes (`[min, max]`, radians)
+    /// to `flags`, sorted and unique.
+    pub(crate) fn with_toggle_flag(
+        mut flags: Vec<CurveFlag>,
+        transmission: [f64; 2],
+        tol: &FlagTolerances,
+    ) -> Vec<CurveFlag> {
+        let min_sin = libm::sin(transmission[0]).min(libm::sin(transmission[1]));
+        if min_sin < tol.toggle_sin_mu {
+            flags.push(CurveFlag::NearToggle);
+        }
+        flags.sort();
+        flags.dedup();
         flags
     }
 
@@ -229,14 +257,11 @@ impl CurveFlags {
         transmission: [f64; 2],
         tol: &FlagTolerances,
     ) -> Vec<CurveFlag> {
-        let mut flags = CurveFlags::static_flags(linkage, point, tol);
-        let min_sin = libm::sin(transmission[0]).min(libm::sin(transmission[1]));
-        if min_sin < tol.toggle_sin_mu {
-            flags.push(CurveFlag::NearToggle);
-        }
-        flags.sort();
-        flags.dedup();
-        flags
+        CurveFlags::with_toggle_flag(
+            CurveFlags::static_flags(linkage, point, tol),
+            transmission,
+            tol,
+        )
     }
 
     /// The flags' names, for printing.

@@ -74,12 +74,7 @@ impl CurveFlags {
         } else if gap < tol.change_point_gap {
             flags.push(CurveFlag::NearChangePoint);
         }
-        if l[4] / l[0] > tol.extreme_ratio {
-            flags.push(CurveFlag::ExtremeRatio);
-        }
-        if point.u.abs().max(point.v.abs()) > tol.far_point * l[4] {
-            flags.push(CurveFlag::FarPoint);
-        }
+        CurveFlags::push_size_flags(&mut flags, l[0], l[4], point, tol);
         flags
     }
 
@@ -91,14 +86,11 @@ impl CurveFlags {
         transmission: [f64; 2],
         tol: &FlagTolerances,
     ) -> Vec<CurveFlag> {
-        let mut flags = CurveFlags::static_flags_geared(linkage, point, tol);
-        let min_sin = libm::sin(transmission[0]).min(libm::sin(transmission[1]));
-        if min_sin < tol.toggle_sin_mu {
-            flags.push(CurveFlag::NearToggle);
-        }
-        flags.sort();
-        flags.dedup();
-        flags
+        CurveFlags::with_toggle_flag(
+            CurveFlags::static_flags_geared(linkage, point, tol),
+            transmission,
+            tol,
+        )
     }
 }
 
