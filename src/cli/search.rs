@@ -104,13 +104,28 @@ fn parse_min_transmission(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The search table of `index` (from its cache when it matches): a usage error when the
-/// index cannot be read or is not an index.
-pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
+/// `index` opened for searching (its columns mapped, or its cache, or the index parsed:
+/// `coupler_atlas::load`): a usage error when the index cannot be read or is not an index.
+pub(super) fn load(index: &Path, use_cache: bool) -> Result<coupler_atlas::Loaded> {
     let index = resolve_index(index)?;
-    let (table, source) =
-        coupler_atlas::load_table(&index, use_cache).map_err(|e| UsageError(e.to_string()))?;
-    Ok((table, source.name()))
+    coupler_atlas::load(&index, use_cache).map_err(|e| UsageError(e.to_string()).into())
+}
+
+/// The curve `id` of `index` as a table of one row (empty if the index has no such
+/// curve), read through the columns or the cache like a search.
+pub(super) fn load_curve(index: &Path, id: u64) -> Result<SearchTable> {
+    let mut loaded = load(index, true)?;
+    let table = loaded.find(id).map_err(|e| UsageError(e.to_string()))?;
+    note_columns(&loaded);
+    Ok(table)
+}
+
+/// Says on stderr why a columns file beside the index was not used (the answer then
+/// comes from the cache or the index).
+fn note_columns(loaded: &coupler_atlas::Loaded) {
+    if let Some(n) = loaded.note() {
+        eprintln!("note: {n}; answered from the {} instead", loaded.source().name());
+    }
 }
 
 /// An atlas folder stands for its `index.json`; the other JSON files of an atlas are
@@ -199,15 +214,23 @@ pub fn run(args: Args) -> Result<ExitCode> {
         limit: args.limit,
     };
     let t0 = Instant::now();
-    let (table, source) = load(&args.index, !args.no_cache)?;
+    let mut loaded = load(&args.index, !args.no_cache)?;
     let t1 = Instant::now();
     let extracted = extraction_tolerances(&resolve_index(&args.index)?);
-    let curves = table.rows.len();
+    let curves = loaded.curves();
     let tight = extracted.and_then(|t| tighter(&query, &t));
+    // Only the curves the query can show are read out of the index's columns (or
+    // table): the query's best `--limit`, or every candidate of a refinement.
+    let select = |loaded: &mut coupler_atlas::Loaded, q: &Query| {
+        loaded.select(q).map_err(|e| UsageError(e.to_string()))
+    };
+    let (selected, mut total) = select(&mut loaded, &tight.map_or(query.clone(), |_| candidates(&query)))?;
+    note_columns(&loaded);
+    let source = loaded.source().name();
     let refined;
     let table = match tight {
         Some(t) => {
-            let (r, n) = refine(&table, &query, &t)?;
+            let (r, n) = refine(&selected, &query, &t)?;
             eprintln!(
                 "refined: the query is tighter than the index's extraction tolerance (straight {} %, arc {} %), so its {n} candidate curve(s) were re-measured at straight {} %, arc {} % in {:.3} s",
                 extracted.map_or(f64::NAN, |e| e.straight_pct),
@@ -219,7 +242,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             refined = r;
             &refined
         }
-        None => &table,
+        None => &selected,
     };
     if let Some(e) = extracted {
         for (flag, f, stored) in [
@@ -234,7 +257,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
         }
     }
-    let (hits, total) = table.search_counted(&query);
+    let (hits, matched) = table.search_counted(&query);
+    if tight.is_some() {
+        // The re-measured candidates are all there: they count themselves.
+        total = matched;
+    }
     let t2 = Instant::now();
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
@@ -547,22 +574,16 @@ fn tighter(q: &Query, e: &FeatureTolerances) -> Option<FeatureTolerances> {
     })
 }
 
-/// Exact answers below the extraction tolerance without regenerating. A window within a
-/// tighter tolerance is also within the extraction's, so (the listed windows being
-/// maximal, `docs/features.md`) it shares a step with a listed window at least as long:
-/// only curves with a listed segment (arc) of at least the query's span can match. Those
-/// candidates are re-measured at the tighter tolerances (the same extraction `generate`
-/// runs, so the answer equals that of an atlas generated at them) into a table of their
-/// own, which the query then runs on. Returns that table and the number of candidates.
-fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(SearchTable, usize)> {
+/// The candidates of a refinement of `q`: every filter but the features' errors and
+/// measures (which change when re-measured), all of them, in id order.
+fn candidates(q: &Query) -> Query {
     let relax = |f: Option<SpanFilter>| {
         f.map(|f| SpanFilter {
             max_error_pct: f64::INFINITY,
             ..f
         })
     };
-    // Candidates: every filter but the features' errors and measures (which change).
-    let candidates = Query {
+    Query {
         straight: relax(q.straight),
         arc: relax(q.arc),
         double_dwell: false,
@@ -572,8 +593,18 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
         sort: SortKey::Id,
         limit: 0,
         ..q.clone()
-    };
-    let rows: Vec<usize> = table.search(&candidates).iter().map(|h| h.row).collect();
+    }
+}
+
+/// Exact answers below the extraction tolerance without regenerating. A window within a
+/// tighter tolerance is also within the extraction's, so (the listed windows being
+/// maximal, `docs/features.md`) it shares a step with a listed window at least as long:
+/// only curves with a listed segment (arc) of at least the query's span can match. Those
+/// candidates are re-measured at the tighter tolerances (the same extraction `generate`
+/// runs, so the answer equals that of an atlas generated at them) into a table of their
+/// own, which the query then runs on. Returns that table and the number of candidates.
+fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(SearchTable, usize)> {
+    let rows: Vec<usize> = table.search(&candidates(q)).iter().map(|h| h.row).collect();
     let dash = DashPattern::default();
     let crank = CrankTable::new(t.step_deg)
         .ok_or_else(|| anyhow::anyhow!("the index's feature step {} is not valid", t.step_deg))?;

@@ -6,16 +6,25 @@
 //! cache beside the index.
 
 mod cache;
+mod colfile;
 mod columns;
 mod lines;
+mod load;
 mod schema;
 mod search;
+mod stamp;
 
 pub use cache::{
     CACHE_FORMAT, CACHE_MAGIC, CacheError, Column, IndexKey, LoadError, Section, TableSource,
     cache_path, load_table, read_container, write_container,
 };
+pub use colfile::{
+    COLUMNS_FILE, COLUMNS_FORMAT, ColumnTable, ColumnsError, ColumnsWriter, GROUP_ROWS,
+    columns_path,
+};
 pub use columns::TABLE_VERSION;
+pub use load::{Loaded, load};
+pub use stamp::{SETTLED, stamp_path};
 pub use lines::{MAX_INDEX_LINE, read_line_bounded};
 pub use schema::{
     Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
