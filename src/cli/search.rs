@@ -124,7 +124,10 @@ pub(super) fn load_curve(index: &Path, id: u64) -> Result<SearchTable> {
 /// comes from the cache or the index).
 fn note_columns(loaded: &coupler_atlas::Loaded) {
     if let Some(n) = loaded.note() {
-        eprintln!("note: {n}; answered from the {} instead", loaded.source().name());
+        eprintln!(
+            "note: {n}; answered from the {} instead",
+            loaded.source().name()
+        );
     }
 }
 
@@ -224,7 +227,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let select = |loaded: &mut coupler_atlas::Loaded, q: &Query| {
         loaded.select(q).map_err(|e| UsageError(e.to_string()))
     };
-    let (selected, mut total) = select(&mut loaded, &tight.map_or(query.clone(), |_| candidates(&query)))?;
+    let (selected, mut total) = select(
+        &mut loaded,
+        &tight.map_or(query.clone(), |_| candidates(&query)),
+    )?;
     note_columns(&loaded);
     let source = loaded.source().name();
     let refined;

@@ -42,8 +42,7 @@ pub(crate) fn write_columns(
     };
     let index_key = IndexKey {
         bytes: index.bytes,
-        hash: u128::from_str_radix(&index.xxh3, 16)
-            .map_err(|e| io(std::io::Error::other(e)))?,
+        hash: u128::from_str_radix(&index.xxh3, 16).map_err(|e| io(std::io::Error::other(e)))?,
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(job.jobs)

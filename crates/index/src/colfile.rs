@@ -351,7 +351,8 @@ impl<W: Write> ColumnsWriter<W> {
 
     /// Adds the next curve.
     pub fn push(&mut self, c: &IndexCurve) -> std::io::Result<()> {
-        let too_many = || std::io::Error::other("more features than the search columns hold (2^32)");
+        let too_many =
+            || std::io::Error::other("more features than the search columns hold (2^32)");
         let page = match &c.page {
             Some(p) => match self.page_ix.get(&p.file) {
                 Some(&i) => i,
@@ -411,7 +412,8 @@ impl<W: Write> ColumnsWriter<W> {
             .par_iter()
             .map(|l| {
                 let l = l.trim_end();
-                serde_json::from_str(l.strip_suffix(',').unwrap_or(l)).map_err(std::io::Error::other)
+                serde_json::from_str(l.strip_suffix(',').unwrap_or(l))
+                    .map_err(std::io::Error::other)
             })
             .collect::<std::io::Result<_>>()?;
         for c in &curves {
@@ -438,7 +440,8 @@ impl<W: Write> ColumnsWriter<W> {
         }
         let nsegs = self.segs - self.first_seg;
         let narcs = self.arcs - self.first_arc;
-        self.directory.extend_from_slice(&self.group_rows.to_le_bytes());
+        self.directory
+            .extend_from_slice(&self.group_rows.to_le_bytes());
         self.directory.extend_from_slice(&0u32.to_le_bytes());
         for x in [self.first_row, self.first_seg, nsegs, self.first_arc, narcs] {
             self.directory.extend_from_slice(&x.to_le_bytes());
@@ -447,10 +450,13 @@ impl<W: Write> ColumnsWriter<W> {
         for b in &bufs {
             self.chunk(b)?;
         }
-        self.bufs = bufs.into_iter().map(|mut b| {
-            b.clear();
-            b
-        }).collect();
+        self.bufs = bufs
+            .into_iter()
+            .map(|mut b| {
+                b.clear();
+                b
+            })
+            .collect();
         self.groups += 1;
         self.first_row = self.rows;
         self.first_seg = self.segs;
@@ -580,7 +586,10 @@ impl View<'_> {
 
 impl Features for View<'_> {
     fn segment(&self, k: usize) -> SegmentRow {
-        segment_at(self.cols[SEG], k.wrapping_sub(self.group.segs.start as usize))
+        segment_at(
+            self.cols[SEG],
+            k.wrapping_sub(self.group.segs.start as usize),
+        )
     }
     fn arc(&self, k: usize) -> ArcRow {
         let k = k.wrapping_sub(self.group.arcs.start as usize);
@@ -636,10 +645,13 @@ impl ColumnTable {
             hash: u128::from_le_bytes(t[96..112].try_into().unwrap_or([0; 16])),
         };
         if key != index {
-            return Err(bad("made for another index (its content hash differs: stale or foreign)"));
+            return Err(bad(
+                "made for another index (its content hash differs: stale or foreign)",
+            ));
         }
         let ngroups = u32_at(t, 24) as u64;
-        let (rows, nsegs, narcs, pages) = (u64_at(t, 32), u64_at(t, 40), u64_at(t, 48), u64_at(t, 56));
+        let (rows, nsegs, narcs, pages) =
+            (u64_at(t, 32), u64_at(t, 40), u64_at(t, 48), u64_at(t, 56));
         let (dir_at, dir_len) = (u64_at(t, 64), u64_at(t, 72));
         let body_end = (b.len() - TRAILER) as u64;
         if ngroups
@@ -647,7 +659,9 @@ impl ColumnTable {
             .and_then(|l| l.checked_add(2 * CHUNK_ENTRY as u64))
             != Some(dir_len)
             || dir_at.checked_add(dir_len) != Some(body_end)
-            || ngroups.checked_mul(GROUP_ROWS as u64).is_none_or(|cap| cap < rows)
+            || ngroups
+                .checked_mul(GROUP_ROWS as u64)
+                .is_none_or(|cap| cap < rows)
         {
             return Err(bad("directory extent"));
         }
@@ -659,10 +673,7 @@ impl ColumnTable {
         let mut chunk = |e: &[u8], element: u64, count: u64| -> Result<Chunk, ColumnsError> {
             let (at, len, hash) = (u64_at(e, 0), u64_at(e, 8), u64_at(e, 16));
             let end = at.checked_add(len).ok_or_else(|| bad("chunk extent"))?;
-            if at != next
-                || end > dir_at
-                || count.checked_mul(element) != Some(len)
-            {
+            if at != next || end > dir_at || count.checked_mul(element) != Some(len) {
                 return Err(bad("chunk extent"));
             }
             next = align(end);
@@ -676,8 +687,13 @@ impl ColumnTable {
         let (mut row, mut seg, mut arc) = (0u64, 0u64, 0u64);
         for g in dir[..ngroups as usize * GROUP_ENTRY].chunks_exact(GROUP_ENTRY) {
             let n = u64::from(u32_at(g, 0));
-            let (first_row, first_seg, gsegs, first_arc, garcs) =
-                (u64_at(g, 8), u64_at(g, 16), u64_at(g, 24), u64_at(g, 32), u64_at(g, 40));
+            let (first_row, first_seg, gsegs, first_arc, garcs) = (
+                u64_at(g, 8),
+                u64_at(g, 16),
+                u64_at(g, 24),
+                u64_at(g, 32),
+                u64_at(g, 40),
+            );
             let full = groups.len() as u64 + 1 < ngroups;
             if n == 0
                 || n > GROUP_ROWS as u64
@@ -691,7 +707,11 @@ impl ColumnTable {
             {
                 return Err(bad("group counts"));
             }
-            let mut chunks = [Chunk { at: 0, len: 0, hash: 0 }; NCOLS];
+            let mut chunks = [Chunk {
+                at: 0,
+                len: 0,
+                hash: 0,
+            }; NCOLS];
             for (c, (_, element)) in COLS.iter().enumerate() {
                 let count = match c {
                     SEG => gsegs,
@@ -716,7 +736,11 @@ impl ColumnTable {
             return Err(bad("groups do not cover the rows"));
         }
         let pe = &dir[ngroups as usize * GROUP_ENTRY..];
-        let off = chunk(&pe[..CHUNK_ENTRY], 8, pages.checked_add(1).ok_or_else(|| bad("pages"))?)?;
+        let off = chunk(
+            &pe[..CHUNK_ENTRY],
+            8,
+            pages.checked_add(1).ok_or_else(|| bad("pages"))?,
+        )?;
         let text_len = u64_at(&pe[CHUNK_ENTRY..], 8);
         let text = chunk(&pe[CHUNK_ENTRY..], 1, text_len)?;
         if align((text.at + text.len) as u64) != dir_at {
@@ -845,14 +869,13 @@ impl ColumnTable {
         let mut pages: std::collections::HashMap<u32, u32> = Default::default();
         let mut g = 0;
         for &row in rows {
-            while g < self.groups.len()
-                && self.groups[g].first_row + self.groups[g].rows <= row
-            {
+            while g < self.groups.len() && self.groups[g].first_row + self.groups[g].rows <= row {
                 g += 1;
             }
             let v = self.view(g.min(self.groups.len().saturating_sub(1)), &all)?;
             let mut r = v.row(row.wrapping_sub(v.group.first_row))?;
-            let segs: Vec<SegmentRow> = (r.seg_start as usize..(r.seg_start + r.seg_count) as usize)
+            let segs: Vec<SegmentRow> = (r.seg_start as usize
+                ..(r.seg_start + r.seg_count) as usize)
                 .map(|k| v.segment(k))
                 .collect();
             let arcs: Vec<ArcRow> = (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)

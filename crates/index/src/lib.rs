@@ -23,9 +23,8 @@ pub use colfile::{
     columns_path,
 };
 pub use columns::TABLE_VERSION;
-pub use load::{Loaded, load};
-pub use stamp::{SETTLED, stamp_path};
 pub use lines::{MAX_INDEX_LINE, read_line_bounded};
+pub use load::{Loaded, load};
 pub use schema::{
     Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
     write_curve_line, write_index, write_index_footer, write_index_header,
@@ -34,3 +33,4 @@ pub use search::{
     ArcRow, CurveRow, DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchError, SearchTable, SegmentRow,
     SortKey, SpanFilter,
 };
+pub use stamp::{SETTLED, stamp_path};

@@ -369,7 +369,10 @@ impl SearchTable {
             .rows
             .iter()
             .enumerate()
-            .filter_map(|(i, r)| q.matches(self, i, r).map(|h| (q.sort_key(self, r, &h), r.id, h)))
+            .filter_map(|(i, r)| {
+                q.matches(self, i, r)
+                    .map(|h| (q.sort_key(self, r, &h), r.id, h))
+            })
             .collect();
         let total = keyed.len();
         if q.limit > 0 && keyed.len() > q.limit {
@@ -538,12 +541,10 @@ impl Query {
             SortKey::Transmission => -r.transmission_deg[0],
             SortKey::Turn => -max(&mut h.arcs.iter().map(|&k| t.arc(k).turn_deg)),
             SortKey::Radius => min(&mut h.arcs.iter().map(|&k| t.arc(k).radius)),
-            SortKey::Velocity => min(
-                &mut h
-                    .straight
-                    .iter()
-                    .map(|&k| t.segment(k).velocity_variation_pct),
-            ),
+            SortKey::Velocity => min(&mut h
+                .straight
+                .iter()
+                .map(|&k| t.segment(k).velocity_variation_pct)),
         }
     }
 

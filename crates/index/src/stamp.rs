@@ -133,7 +133,11 @@ pub fn index_key(
                     .is_ok_and(|age| age >= SETTLED)
             })
         };
-        if now == Some(id) && key.bytes == id.0[2] && settled(id.0[5], id.0[6]) && settled(id.0[3], id.0[4]) {
+        if now == Some(id)
+            && key.bytes == id.0[2]
+            && settled(id.0[5], id.0[6])
+            && settled(id.0[3], id.0[4])
+        {
             write_stamp(&stamp, id, key);
         }
     }

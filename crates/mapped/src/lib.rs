@@ -47,10 +47,12 @@ impl Mapped {
     /// Maps all of `file` (its length as `fstat` reports it now) read-only.
     pub fn of_file(file: &File) -> std::io::Result<Mapped> {
         let len = file.metadata()?.len();
-        let len = usize::try_from(len)
-            .map_err(|_| std::io::Error::other("file too large to map"))?;
+        let len =
+            usize::try_from(len).map_err(|_| std::io::Error::other("file too large to map"))?;
         if len == 0 {
-            return Ok(Mapped { inner: Inner::Empty });
+            return Ok(Mapped {
+                inner: Inner::Empty,
+            });
         }
         Mapped::map(file, len)
     }
