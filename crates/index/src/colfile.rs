@@ -399,7 +399,7 @@ impl<W: Write> ColumnsWriter<W> {
     /// without the trailing comma). Lines are parsed in batches, in parallel.
     pub fn push_line(&mut self, line: &str) -> std::io::Result<()> {
         self.lines.push(line.to_string());
-        if self.lines.len() >= 4096 {
+        if self.lines.len() >= 1024 {
             self.parse_lines()?;
         }
         Ok(())
