@@ -152,6 +152,12 @@ fn queries() -> Vec<Query> {
             limit: 3,
             ..Query::default()
         },
+        Query {
+            linkage: Some([2.5, 2.5, 3.0]),
+            circuit: Some(coupler_atlas::Circuit::Open),
+            include_trivial: true,
+            ..Query::default()
+        },
     ]
 }
 

@@ -80,7 +80,6 @@ const COLS: [(&str, usize); 13] = [
     ("arc.side", 1),
 ];
 const NCOLS: usize = COLS.len();
-const ROW_COLS: usize = 10;
 const SEG: usize = 10;
 const ARC: usize = 11;
 const SIDE: usize = 12;
@@ -198,6 +197,9 @@ pub(crate) fn push_arc(col: &mut Vec<u8>, side: &mut Vec<u8>, a: &ArcRow) {
 /// Row `i` of the row columns, checked: flags and class valid, values finite (a geared
 /// five-bar's linkage is NaN throughout: it has no A, B, C), its segments inside
 /// `segs` and arcs inside `arcs` (global ranges), its page below `pages` (or none).
+/// A column given as an empty slice was not read (a scan reads only what its query
+/// needs): its fields are left at zero (the page at none) and not checked; the id, the
+/// segment and arc ranges and the flags are always needed.
 pub(crate) fn row_at(
     cols: &[&[u8]],
     i: usize,
@@ -205,7 +207,17 @@ pub(crate) fn row_at(
     arcs: std::ops::Range<u64>,
     pages: u64,
 ) -> Result<CurveRow, String> {
-    let f = |c: usize, k: usize| f64_at(cols[c], (i * (COLS[c].1 / 8) + k) * 8);
+    let read = |c: usize| !cols[c].is_empty();
+    if !(read(0) && read(6) && read(7) && read(9)) {
+        return Err("the row's id, ranges and flags were not read".into());
+    }
+    let f = |c: usize, k: usize| {
+        if read(c) {
+            f64_at(cols[c], (i * (COLS[c].1 / 8) + k) * 8)
+        } else {
+            0.0
+        }
+    };
     let linkage = [f(1, 0), f(1, 1), f(1, 2)];
     let point = [f(2, 0), f(2, 1)];
     let transmission_deg = [f(3, 0), f(3, 1)];
@@ -218,7 +230,15 @@ pub(crate) fn row_at(
     {
         return Err(format!("row {i}: a value is not finite"));
     }
-    let u = |c: usize, k: usize| u32_at(cols[c], (i * (COLS[c].1 / 4) + k) * 4);
+    let u = |c: usize, k: usize| {
+        if read(c) {
+            u32_at(cols[c], (i * (COLS[c].1 / 4) + k) * 4)
+        } else if c == 5 {
+            u32::MAX
+        } else {
+            0
+        }
+    };
     let (page, seg_start, seg_count, arc_start, arc_count, crunodes, cusps) = (
         u(5, 0),
         u(6, 0),
@@ -818,7 +838,17 @@ impl ColumnTable {
     pub fn select(&self, q: &Query) -> Result<(SearchTable, usize), ColumnsError> {
         use rayon::prelude::*;
         let (want_straight, want_arc) = q.wants();
-        let mut need: Vec<usize> = (0..ROW_COLS).collect();
+        // The row columns the query reads: id, ranges and flags always; the linkage and
+        // the transmission range only if it filters or sorts on them (the others are
+        // read for the selected rows only).
+        let mut need: Vec<usize> = vec![0, 6, 7, 9];
+        let (linkage, transmission) = q.reads_row();
+        if linkage {
+            need.push(1);
+        }
+        if transmission {
+            need.push(3);
+        }
         if want_straight {
             need.push(SEG);
         }

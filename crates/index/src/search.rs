@@ -526,6 +526,17 @@ impl Query {
         )
     }
 
+    /// Which row fields beyond the id, the segment and arc ranges and the flags (class,
+    /// circuit, symmetric, features, trivial) [`Query::matches`] and [`Query::sort_key`]
+    /// read: (linkage, transmission range). A search of the columns file reads only
+    /// those columns for every row, so a filter on another row field must be added here.
+    pub(crate) fn reads_row(&self) -> (bool, bool) {
+        (
+            self.linkage.is_some(),
+            self.min_transmission_deg.is_some() || self.sort == SortKey::Transmission,
+        )
+    }
+
     /// The sort key of hit `h` of row `r` (smaller first).
     pub(crate) fn sort_key(&self, t: &impl Features, r: &CurveRow, h: &Hit) -> f64 {
         let min = |xs: &mut dyn Iterator<Item = f64>| xs.fold(f64::INFINITY, f64::min);
@@ -548,6 +559,8 @@ impl Query {
         }
     }
 
+    /// Hit of row `r` (number `i`), if it passes. Row fields read here beyond those
+    /// [`Query::reads_row`] names must be added there.
     pub(crate) fn matches(&self, t: &impl Features, i: usize, r: &CurveRow) -> Option<Hit> {
         if let Some(c) = self.class {
             if r.class != c {
