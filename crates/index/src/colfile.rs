@@ -855,7 +855,7 @@ impl ColumnTable {
         if want_arc {
             need.extend([ARC, SIDE]);
         }
-        let per_group: Vec<(Vec<(f64, u64, Hit)>, usize)> = (0..self.groups.len())
+        let per_group: Vec<(Vec<Keyed>, usize)> = (0..self.groups.len())
             .into_par_iter()
             .map(|g| {
                 let v = self.view(g, &need)?;
@@ -932,11 +932,14 @@ impl ColumnTable {
     }
 }
 
+/// A hit with its sort key and curve id.
+type Keyed = (f64, u64, Hit);
+
 /// The best `limit` hits seen (all of them for 0) and how many were seen: kept by
 /// selecting the best half whenever twice the limit has gathered.
 struct Best {
     limit: usize,
-    hits: Vec<(f64, u64, Hit)>,
+    hits: Vec<Keyed>,
     seen: usize,
 }
 
@@ -949,7 +952,7 @@ impl Best {
         }
     }
 
-    fn push(&mut self, h: (f64, u64, Hit)) {
+    fn push(&mut self, h: Keyed) {
         self.seen += 1;
         self.hits.push(h);
         if self.limit > 0 && self.hits.len() >= 2 * self.limit.max(512) {
@@ -964,7 +967,7 @@ impl Best {
         }
     }
 
-    fn finish(mut self) -> (Vec<(f64, u64, Hit)>, usize) {
+    fn finish(mut self) -> (Vec<Keyed>, usize) {
         self.trim();
         (self.hits, self.seen)
     }
