@@ -105,6 +105,38 @@ fn write_stamp(path: &Path, id: Identity, key: IndexKey) {
     crate::cache::write_beside(path, |w| w.write_all(&id.encode(key)));
 }
 
+/// Stamps the index at `index` now (hashing it once more) if it has already settled:
+/// what `generate` calls after writing the search columns, which for a large atlas takes
+/// longer than [`SETTLED`], so that the first search of a large new atlas need not hash
+/// its index. Best effort; does nothing for an index written less than [`SETTLED`] ago.
+pub fn remember_key(index: &Path) {
+    let Ok(file) = crate::cache::open_file(index) else {
+        return;
+    };
+    if file
+        .metadata()
+        .ok()
+        .and_then(|m| Identity::of(&m))
+        .is_some_and(|id| settled(&id))
+    {
+        let _ = index_key(&file, index, true);
+    }
+}
+
+/// Whether the file was last modified and changed at least [`SETTLED`] ago.
+fn settled(id: &Identity) -> bool {
+    let at = |secs: u64, nanos: u64| {
+        SystemTime::UNIX_EPOCH
+            .checked_add(Duration::new(secs, nanos.min(999_999_999) as u32))
+            .is_some_and(|t| {
+                SystemTime::now()
+                    .duration_since(t)
+                    .is_ok_and(|age| age >= SETTLED)
+            })
+    };
+    at(id.0[3], id.0[4]) && at(id.0[5], id.0[6])
+}
+
 /// The content key of the open index `file` (at `index`): from its stamp if the stamp is
 /// this file's, else by hashing the file whole (and stamping it when it has settled and
 /// `remember`). Returns the key and whether it came from the stamp.
@@ -122,22 +154,9 @@ pub fn index_key(
     let key = IndexKey::of_reader(file)?;
     if let Some(id) = id.filter(|_| remember) {
         // The file as it is now must be the one hashed (size and times unchanged), and
-        // settled: written at least SETTLED ago.
+        // settled.
         let now = file.metadata().ok().and_then(|m| Identity::of(&m));
-        let settled = |secs: u64, nanos: u64| {
-            let t = SystemTime::UNIX_EPOCH
-                .checked_add(Duration::new(secs, nanos.min(999_999_999) as u32));
-            t.is_some_and(|t| {
-                SystemTime::now()
-                    .duration_since(t)
-                    .is_ok_and(|age| age >= SETTLED)
-            })
-        };
-        if now == Some(id)
-            && key.bytes == id.0[2]
-            && settled(id.0[5], id.0[6])
-            && settled(id.0[3], id.0[4])
-        {
+        if now == Some(id) && key.bytes == id.0[2] && settled(&id) {
             write_stamp(&stamp, id, key);
         }
     }
