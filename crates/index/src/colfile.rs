@@ -251,7 +251,7 @@ pub(crate) fn row_at(
     let fl = cols[9].get(i * 5..i * 5 + 5).ok_or("row flags")?;
     let inside = |start: u32, count: u32, r: &std::ops::Range<u64>| {
         let (s, e) = (u64::from(start), u64::from(start) + u64::from(count));
-        r.start <= s && e <= r.end
+        r.start <= s && e <= r.end && e <= u64::from(u32::MAX)
     };
     if !inside(seg_start, seg_count, &segs)
         || !inside(arc_start, arc_count, &arcs)
@@ -902,8 +902,11 @@ impl ColumnTable {
             while g < self.groups.len() && self.groups[g].first_row + self.groups[g].rows <= row {
                 g += 1;
             }
-            let v = self.view(g.min(self.groups.len().saturating_sub(1)), &all)?;
-            let mut r = v.row(row.wrapping_sub(v.group.first_row))?;
+            if g == self.groups.len() || row < self.groups[g].first_row {
+                return Err(bad(format!("row {row} is in no group")));
+            }
+            let v = self.view(g, &all)?;
+            let mut r = v.row(row - v.group.first_row)?;
             let segs: Vec<SegmentRow> = (r.seg_start as usize
                 ..(r.seg_start + r.seg_count) as usize)
                 .map(|k| v.segment(k))
