@@ -64,7 +64,10 @@ const GROUP_HEAD: usize = 48;
 const CHUNK_ENTRY: usize = 24;
 
 /// The columns: (tag, bytes per element). Rows first, then segments, arcs, arcs' sides.
-const COLS: [(&str, usize); 13] = [
+/// One encoding for both the columns file and the search cache (`columns.rs`): a new
+/// field is a new column here, in [`push_row`] and [`row_at`] (and a new
+/// [`crate::TABLE_VERSION`]); both files then carry it.
+pub(crate) const COLS: [(&str, usize); 13] = [
     ("row.id", 8),
     ("row.link", 24),
     ("row.pt", 16),
@@ -79,10 +82,10 @@ const COLS: [(&str, usize); 13] = [
     ("arc", 56),
     ("arc.side", 1),
 ];
-const NCOLS: usize = COLS.len();
-const SEG: usize = 10;
-const ARC: usize = 11;
-const SIDE: usize = 12;
+pub(crate) const NCOLS: usize = COLS.len();
+pub(crate) const SEG: usize = 10;
+pub(crate) const ARC: usize = 11;
+pub(crate) const SIDE: usize = 12;
 const GROUP_ENTRY: usize = GROUP_HEAD + NCOLS * CHUNK_ENTRY;
 
 /// The columns file of `index`: `index.columns` for `…/index.json`, else `INDEX.columns`.
