@@ -2,8 +2,9 @@
 //!
 //! The JSON index of an atlas: one record per curve with its measures and features,
 //! written with a stable key order and number format (schema: `docs/index-schema.md`),
-//! read back, and searched: composable filters over a compact columnar table, saved as a
-//! cache beside the index.
+//! read back, and searched: composable filters over compact columns, written beside the
+//! index by `generate` (`index.columns`, mapped by [`load`]) or, for an index without
+//! them, saved as a cache beside it on its first search.
 
 mod cache;
 mod colfile;

@@ -1,12 +1,15 @@
 //! Searching an index by features: composable filters over a compact columnar table.
 //!
-//! The JSON index of a large atlas is big (≈1.5 KB per curve with features), and parsing
-//! it takes seconds per million curves. So `search` reads it once into a [`SearchTable`]
-//! (one fixed-size row per curve plus flat arrays of segments and arcs), saves that as a
-//! binary cache next to the index (`INDEX.search`, keyed by the index's length and
-//! content hash, checksummed: see `cache.rs`), and answers queries from the cache: a linear scan with cheap
-//! tests, milliseconds per million curves. The filtered quantities are kept as `f64`,
-//! so a result satisfies its filters exactly as the index's own numbers do.
+//! The JSON index of a large atlas is big (≈2 KB per curve with features), and parsing
+//! it takes seconds per million curves. So `generate` writes the same rows as columns
+//! beside the index (`index.columns`, `colfile.rs`), which `search` scans in place
+//! through a memory map ([`crate::ColumnTable`]); an index without them is read once
+//! into a [`SearchTable`] (one fixed-size row per curve plus flat arrays of segments and
+//! arcs), saved as a binary cache next to the index (`INDEX.search`, keyed by the index's
+//! length and content hash, checksummed: see `cache.rs`). Either way a query is a linear
+//! scan with cheap tests ([`Query`]'s `matches`, one code for both). The filtered
+//! quantities are kept as `f64`, so a result satisfies its filters exactly as the index's
+//! own numbers do.
 
 use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
 use coupler_features::{CurveFeatures, Side, Trivial};
