@@ -29,8 +29,7 @@ impl<W: Write> Write for Hashing<W> {
 }
 
 /// Writes `index.columns` into `job.out` for the index just written (`index`, its entry)
-/// from the chunk records of run `key`, stamps the index when it has settled, and
-/// returns the columns' entry.
+/// from the chunk records of run `key`, and returns its entry.
 pub(crate) fn write_columns(
     job: &Job,
     key: &str,
@@ -74,8 +73,5 @@ pub(crate) fn write_columns(
             Ok(())
         })
     })?;
-    // A large index has settled by now: stamp it, so that its first search need not
-    // hash it (`coupler_index::remember_key`).
-    coupler_index::remember_key(&job.out.join("index.json"));
     entry.ok_or_else(|| io(std::io::Error::other("the search columns were not written")))
 }

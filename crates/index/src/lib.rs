@@ -34,4 +34,4 @@ pub use search::{
     ArcRow, CurveRow, DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchError, SearchTable, SegmentRow,
     SortKey, SpanFilter,
 };
-pub use stamp::{SETTLED, remember_key, stamp_path};
+pub use stamp::{SETTLED, stamp_path};

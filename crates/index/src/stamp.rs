@@ -105,24 +105,6 @@ fn write_stamp(path: &Path, id: Identity, key: IndexKey) {
     crate::cache::write_beside(path, |w| w.write_all(&id.encode(key)));
 }
 
-/// Stamps the index at `index` now (hashing it once more) if it has already settled:
-/// what `generate` calls after writing the search columns, which for a large atlas takes
-/// longer than [`SETTLED`], so that the first search of a large new atlas need not hash
-/// its index. Best effort; does nothing for an index written less than [`SETTLED`] ago.
-pub fn remember_key(index: &Path) {
-    let Ok(file) = crate::cache::open_file(index) else {
-        return;
-    };
-    if file
-        .metadata()
-        .ok()
-        .and_then(|m| Identity::of(&m))
-        .is_some_and(|id| settled(&id))
-    {
-        let _ = index_key(&file, index, true);
-    }
-}
-
 /// Whether the file was last modified and changed at least [`SETTLED`] ago.
 fn settled(id: &Identity) -> bool {
     let at = |secs: u64, nanos: u64| {
