@@ -489,11 +489,11 @@ pub fn run(
     // of its own while the next chunk is computed. At most one chunk waits for it.
     let (computed, reused, failed, chunk_files) = std::thread::scope(|scope| {
         let (records, pending) = std::sync::mpsc::sync_channel::<ChunkLines>(1);
-        let (out, key) = (&job.out, &key);
+        let (out, record_key) = (&job.out, key.as_str());
         let writer = scope.spawn(move || {
             pending
                 .into_iter()
-                .try_for_each(|lines| write_chunk(out, key, lines))
+                .try_for_each(|lines| write_chunk(out, record_key, lines))
         });
         let mut computed = 0;
         let mut reused = 0;
