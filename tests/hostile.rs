@@ -393,6 +393,42 @@ fn huge_specs_are_planned_at_once() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// More curves than an index can number exactly (2^53) is refused even with `--yes`,
+/// before anything is written; `--dry-run` says so.
+#[test]
+fn more_curves_than_ids_can_number_are_refused_even_with_yes() {
+    let dir = tmp("2pow53");
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("huge.toml");
+    std::fs::write(
+        &spec,
+        "[atlas]\nname = \"huge\"\n\n[linkages]\n\
+         coupler = { start = 1.0, end = 100000.0, step = 1.0 }\n\
+         rocker = { start = 1.0, end = 100000.0, step = 1.0 }\n\
+         ground = { start = 1.0, end = 100000.0, step = 1.0 }\n\n[points]\n\
+         u = { start = 0.0, end = 1.0, step = 0.1, relative = true }\n\
+         v = { start = 0.0, end = 1.0, step = 0.1, relative = true }\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = generate(&spec, &out, &["--dry-run", "--no-pages"]);
+    assert_ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("refused:      60498185024199879 curves is more than the 9007199254740992"),
+        "{text}"
+    );
+    let o = generate(&spec, &out, &["--no-pages", "--yes"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("an index can number exactly"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists(), "a refused plan wrote into its folder");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The limits on page files (20,000) and on the estimated disk (20 GB) need `--yes` as the
 /// curve limit does: `dense.toml` with pages (186,108 page files, about 76 GB) is over
 /// both and refused without it; index only it is under all three.
