@@ -311,6 +311,32 @@ fn a_folder_removed_mid_run_stops_the_run_and_the_rerun_starts_afresh() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// Start-up removes the temporaries of runs that are no longer running and leaves those of
+/// a live process (here the test itself) alone; a file that only looks like one is not
+/// touched either.
+#[test]
+fn start_up_removes_only_dead_runs_temporaries() {
+    let dir = tmp("stale");
+    assert_ok(&generate(&ok_spec(), &dir, &["--no-pages"]));
+    let dead = [
+        dir.join(".index.json.tmp-999999999-deadbeef"),
+        dir.join(".coupler-atlas/chunks/.000000.jsonl.tmp-999999998-cafe"),
+    ];
+    let live = dir.join(format!(".index.json.tmp-{}-feed", std::process::id()));
+    let lookalike = dir.join("notes.tmp-999999999-x");
+    for f in dead.iter().chain([&live, &lookalike]) {
+        std::fs::write(f, b"partial").unwrap();
+    }
+    std::fs::remove_file(dir.join("manifest.json")).unwrap();
+    assert_ok(&generate(&ok_spec(), &dir, &["--no-pages", "--force"]));
+    for f in &dead {
+        assert!(!f.exists(), "{} (of a dead run) was left", f.display());
+    }
+    assert_eq!(std::fs::read(&live).unwrap(), b"partial");
+    assert_eq!(std::fs::read(&lookalike).unwrap(), b"partial");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Waits for `child` at most `limit`; kills it and fails if it is still running.
 fn wait_at_most(mut child: std::process::Child, limit: Duration) -> Output {
     let start = Instant::now();
