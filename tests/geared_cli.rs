@@ -536,3 +536,70 @@ fn geared_tighter_tolerance_equals_regenerating() {
     assert!(half_turns > 0, "a feature in the second input turn");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `curve --window` on a geared five-bar: the library's window measures through the
+/// mechanism, to the bit (JSON), anywhere in the period (a λ = −1/2 window in the second
+/// input turn differs from the same angles a turn earlier); the exact straight line's
+/// window is straight at rounding level; a window that meets a dead input is refused.
+#[test]
+fn window_measures_are_the_librarys_for_the_geared_five_bar() {
+    use coupler_atlas::{CrankWindow, LineDirection, WindowMeasures};
+    let g = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), 30.0).unwrap();
+    let p = CouplerPoint::new(1.0, 1.0);
+    let measured = |window: &str, line: &str| {
+        let out = geared(
+            ["3", "3", "3", "1"],
+            "-1/2",
+            "30",
+            &["--point", "1,1", "--window", window, "--window-line", line],
+        );
+        json(&out)["window"].clone()
+    };
+    let library = |a: f64, b: f64, line: LineDirection| {
+        let w = CrankWindow::new(a, b, 1.0).unwrap();
+        let m = WindowMeasures::measure(&g, Circuit::Open, p, &w, line).unwrap();
+        serde_json::to_value(&m).unwrap()
+    };
+    let second = measured("500:600", "fitted");
+    assert_eq!(second, library(500.0, 600.0, LineDirection::Fitted));
+    assert_ne!(second, library(140.0, 240.0, LineDirection::Fitted));
+    assert_eq!(
+        measured("10:60", "ground"),
+        library(10.0, 60.0, LineDirection::Given(0.0))
+    );
+    // The straight line: the joint (L3, 0) of λ = −1, φ = 180°.
+    let out = geared(
+        ["3", "3", "3", "1"],
+        "-1",
+        "180",
+        &["--point", "3,0", "--window", "20:80", "--format", "table"],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let line = text.lines().find(|l| l.starts_with("# window ")).unwrap();
+    let eps: f64 = line
+        .split("ε_S ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(eps < 1e-12, "{line}");
+    // A rocking input (the dyad cannot close everywhere) is refused by the window.
+    let out = geared(
+        ["2", "1", "1", "1.5"],
+        "2",
+        "0",
+        &["--point", "1,1", "--window", "0:359"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("does not assemble at θ ="),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

@@ -421,8 +421,8 @@ mod tests {
 
     #[test]
     fn gear_cells_are_checked() {
-        let g = GearedFiveBar::new(3.0, 2.0, 4.0, 0.5, GearRatio::integer(2).unwrap(), 90.0)
-            .unwrap();
+        let g =
+            GearedFiveBar::new(3.0, 2.0, 4.0, 0.5, GearRatio::integer(2).unwrap(), 90.0).unwrap();
         let (link, gear) = linkage_cells(&Linkage::GearedFiveBar(g));
         assert_eq!(linkage_of_cells(link, &gear), Some(g.into()));
         // A ratio not in lowest terms, a zero denominator, a NaN phase: refused.
