@@ -365,6 +365,22 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
         "json",
     ]);
     assert_eq!(json(&out)["total"], 0);
+    // match compares four-bar curves only: it says so (exit 2), not "made by an older
+    // version".
+    let target = dirs[0].join("target.csv");
+    std::fs::write(&target, "0,0\n1,0\n1,1\n0,1\n0.2,0.5\n").unwrap();
+    let out = run(&[
+        "match",
+        target.to_str().unwrap(),
+        "--atlas",
+        dirs[0].to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("is a geared-fivebar atlas: match compares four-bar coupler curves only"),
+        "{err}"
+    );
     for dir in &dirs {
         let _ = std::fs::remove_dir_all(dir);
     }
