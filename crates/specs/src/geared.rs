@@ -34,7 +34,10 @@ pub struct GearedRanges {
 /// the skipped classes and the job's linkages all read it. A cache, not part of the
 /// value: every two compare equal.
 #[derive(Clone, Default)]
-pub(crate) struct Enumerated(Arc<OnceLock<(Vec<Linkage>, BTreeMap<String, u64>)>>);
+pub(crate) struct Enumerated(Arc<OnceLock<GearedEnumeration>>);
+
+/// The fully turning linkages in atlas order, and the others counted by class.
+pub type GearedEnumeration = (Vec<Linkage>, BTreeMap<String, u64>);
 
 impl PartialEq for Enumerated {
     fn eq(&self, _: &Enumerated) -> bool {
@@ -84,12 +87,12 @@ impl GearedRanges {
     /// ([`GearedFiveBar::rotatability`] is `Full`); the others counted by Ting class and
     /// what the input does (`"II rocks"`, `"III touches a toggle"`). Made on first use,
     /// then shared (by clones of the ranges too).
-    pub fn enumeration(&self) -> &(Vec<Linkage>, BTreeMap<String, u64>) {
+    pub fn enumeration(&self) -> &GearedEnumeration {
         self.enumerated.0.get_or_init(|| self.enumerate())
     }
 
     /// [`GearedRanges::enumeration`], made afresh.
-    fn enumerate(&self) -> (Vec<Linkage>, BTreeMap<String, u64>) {
+    fn enumerate(&self) -> GearedEnumeration {
         let mut linkages = Vec::new();
         let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
         let f =
