@@ -381,6 +381,22 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
         err.contains("is a geared-fivebar atlas: match compares four-bar coupler curves only"),
         "{err}"
     );
+    // dwell designs four-bar dwell linkages: a five-bar curve is refused, naming it.
+    let out = run(&[
+        "dwell",
+        "--index",
+        dirs[0].to_str().unwrap(),
+        "--curve",
+        "0",
+        "--arc",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("curve 0 is of a geared five-bar (L1=3 L3=3 L4=3 L5=1 ratio=-1 phase=0): dwell designs four-bar dwell linkages only"),
+        "{err}"
+    );
     for dir in &dirs {
         let _ = std::fs::remove_dir_all(dir);
     }
