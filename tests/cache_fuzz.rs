@@ -153,7 +153,7 @@ fn queries() -> Vec<Query> {
             ..Query::default()
         },
         Query {
-            linkage: Some([2.5, 2.5, 3.0]),
+            linkage: Some(coupler_atlas::FourBar::new(2.5, 2.5, 3.0).unwrap().into()),
             circuit: Some(coupler_atlas::Circuit::Open),
             include_trivial: true,
             ..Query::default()
@@ -279,7 +279,12 @@ fn same_size_same_time_other_index_is_not_answered_from_the_cache() {
     let (after, source) = load_table(&idx, true).unwrap();
     assert_eq!(source.name(), "index", "answered from the old cache");
     assert_ne!(after, before);
-    assert!(after.rows.iter().any(|r| r.linkage[2] == 3.5));
+    assert!(
+        after
+            .rows
+            .iter()
+            .any(|r| r.linkage.four_bar().is_some_and(|l| l.ground == 3.5))
+    );
 }
 
 /// `search` and `dwell --index` over a cache whose header fields (counts, lengths,
@@ -365,16 +370,16 @@ fn reseal_columns(b: &mut [u8]) {
         return;
     }
     let groups = u32::from_le_bytes(b[t + 24..t + 28].try_into().unwrap()) as usize;
-    if groups * (48 + 13 * 24) + 48 != dir_len {
+    if groups * (48 + 14 * 24) + 48 != dir_len {
         return;
     }
     let mut entries: Vec<usize> = Vec::new();
     for g in 0..groups {
-        for c in 0..13 {
-            entries.push(dir_at + g * (48 + 13 * 24) + 48 + c * 24);
+        for c in 0..14 {
+            entries.push(dir_at + g * (48 + 14 * 24) + 48 + c * 24);
         }
     }
-    let pages = dir_at + groups * (48 + 13 * 24);
+    let pages = dir_at + groups * (48 + 14 * 24);
     entries.extend([pages, pages + 24]);
     for e in entries {
         if e + 24 > t {

@@ -6,7 +6,7 @@
 //! ## File format (version 1, little-endian)
 //!
 //! The rows are cut into **groups** of [`GROUP_ROWS`] curves; each group holds its rows'
-//! 13 columns (the search cache's, [`crate::TABLE_VERSION`]) and those rows' straight
+//! 14 columns (the search cache's, [`crate::TABLE_VERSION`]) and those rows' straight
 //! segments and arcs, each column in its own **chunk** starting on a 64-byte boundary,
 //! padded with zeros. Every chunk has its own XXH3-64 in the directory, so a search
 //! checks exactly the chunks it reads, once each, and a writer holds one group at a time.
@@ -18,7 +18,7 @@
 //! | 20–23 | table version |
 //! | 24–63 | 0 |
 //! | 64… | the groups' chunks, then the page names' two chunks (offsets: `u64` × (pages + 1); text) |
-//! | directory | per group 48 bytes (rows `u32`, 0 `u32`, first row, first segment, segments, first arc, arcs: `u64` each) and 13 × 24 bytes (chunk offset, length, XXH3-64: `u64` each); then the page chunks' 2 × 24 bytes |
+//! | directory | per group 48 bytes (rows `u32`, 0 `u32`, first row, first segment, segments, first arc, arcs: `u64` each) and 14 × 24 bytes (chunk offset, length, XXH3-64: `u64` each); then the page chunks' 2 × 24 bytes |
 //! | last 128 | trailer: magic `CPLATLAS-COLEND\n`; format, table version, groups, columns (`u32` each); rows, segments, arcs, pages, directory offset, directory length, directory XXH3-64, index length (`u64` each); the index's XXH3-128; group rows (`u64`); XXH3-64 of the trailer's first 120 bytes |
 //!
 //! ## What is checked, and when
@@ -43,7 +43,7 @@ use crate::cache::IndexKey;
 use crate::schema::IndexCurve;
 use crate::search::{ArcRow, CurveRow, Features, Hit, Query, SearchTable, SegmentRow, order};
 use coupler_features::Side;
-use coupler_kinematics::{Circuit, LinkageClass};
+use coupler_kinematics::{Circuit, FourBar, GearRatio, GearedFiveBar, Linkage, LinkageClass};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -67,7 +67,7 @@ const CHUNK_ENTRY: usize = 24;
 /// One encoding for both the columns file and the search cache (`columns.rs`): a new
 /// field is a new column here, in [`push_row`] and [`row_at`] (and a new
 /// [`crate::TABLE_VERSION`]); both files then carry it.
-pub(crate) const COLS: [(&str, usize); 13] = [
+pub(crate) const COLS: [(&str, usize); 14] = [
     ("row.id", 8),
     ("row.link", 24),
     ("row.pt", 16),
@@ -81,11 +81,14 @@ pub(crate) const COLS: [(&str, usize); 13] = [
     ("seg", 48),
     ("arc", 56),
     ("arc.side", 1),
+    ("row.gear", 24),
 ];
 pub(crate) const NCOLS: usize = COLS.len();
 pub(crate) const SEG: usize = 10;
 pub(crate) const ARC: usize = 11;
 pub(crate) const SIDE: usize = 12;
+/// A geared five-bar's L5, φ and λ (zero for a four-bar): see [`linkage_cells`].
+pub(crate) const GEAR: usize = 13;
 const GROUP_ENTRY: usize = GROUP_HEAD + NCOLS * CHUNK_ENTRY;
 
 /// The columns file of `index`: `index.columns` for `…/index.json`, else `INDEX.columns`.
@@ -141,10 +144,52 @@ fn f64_at(b: &[u8], at: usize) -> f64 {
         .map_or(f64::NAN, f64::from_le_bytes)
 }
 
-/// Appends one row to the row columns (`cols[0..10]`).
+/// A row's linkage as the columns `row.link` (three lengths: a four-bar's A, B, C, a
+/// geared five-bar's L1, L3, L4) and `row.gear` (a geared five-bar's L5 and φ as `f64`,
+/// λ = p/q as `i32` p and q; all zero for a four-bar).
+pub(crate) fn linkage_cells(l: &Linkage) -> ([f64; 3], [u8; 24]) {
+    let mut gear = [0u8; 24];
+    match l {
+        Linkage::FourBar(l) => ([l.coupler, l.rocker, l.ground], gear),
+        Linkage::GearedFiveBar(g) => {
+            gear[0..8].copy_from_slice(&g.l5.to_le_bytes());
+            gear[8..16].copy_from_slice(&g.phase.to_le_bytes());
+            // Terms are at most MAX_GEAR_TERM (1000) in lowest terms: they fit an i32.
+            gear[16..20].copy_from_slice(&(g.ratio.num() as i32).to_le_bytes());
+            gear[20..24].copy_from_slice(&(g.ratio.den() as i32).to_le_bytes());
+            ([g.l1, g.l3, g.l4], gear)
+        }
+    }
+}
+
+/// The linkage of [`linkage_cells`]' columns, or `None` unless they hold a valid one
+/// (a valid ratio in lowest terms, positive finite lengths, a finite phase).
+pub(crate) fn linkage_of_cells(link: [f64; 3], gear: &[u8]) -> Option<Linkage> {
+    if gear.len() != 24 {
+        return None;
+    }
+    let f = |a: usize| f64::from_le_bytes(gear[a..a + 8].try_into().unwrap_or([0; 8]));
+    let i = |a: usize| i32::from_le_bytes(gear[a..a + 4].try_into().unwrap_or([0; 4]));
+    let [a, b, c] = link;
+    if gear.iter().all(|&x| x == 0) {
+        return FourBar::new(a, b, c).ok().map(Linkage::FourBar);
+    }
+    let (num, den) = (i64::from(i(16)), i64::from(i(20)));
+    let ratio = GearRatio::new(num, den).ok()?;
+    if (ratio.num(), ratio.den()) != (num, den) {
+        return None;
+    }
+    GearedFiveBar::new(a, b, c, f(0), ratio, f(8))
+        .ok()
+        .map(Linkage::GearedFiveBar)
+}
+
+/// Appends one row to the row columns.
 pub(crate) fn push_row(cols: &mut [Vec<u8>], r: &CurveRow) {
     cols[0].extend_from_slice(&r.id.to_le_bytes());
-    f64s(&mut cols[1], &r.linkage);
+    let (link, gear) = linkage_cells(&r.linkage);
+    f64s(&mut cols[1], &link);
+    cols[GEAR].extend_from_slice(&gear);
     f64s(&mut cols[2], &r.point);
     f64s(&mut cols[3], &r.transmission_deg);
     f64s(&mut cols[4], &r.page_bbox);
@@ -197,9 +242,9 @@ pub(crate) fn push_arc(col: &mut Vec<u8>, side: &mut Vec<u8>, a: &ArcRow) {
     side.push((a.concave == Side::Right) as u8);
 }
 
-/// Row `i` of the row columns, checked: flags and class valid, values finite (a geared
-/// five-bar's linkage is NaN throughout: it has no A, B, C), its segments inside
-/// `segs` and arcs inside `arcs` (global ranges), its page below `pages` (or none).
+/// Row `i` of the row columns, checked: flags and class valid, a valid linkage (see
+/// [`linkage_of_cells`]), values finite, its segments inside `segs` and arcs inside
+/// `arcs` (global ranges), its page below `pages` (or none).
 /// A column given as an empty slice was not read (a scan reads only what its query
 /// needs): its fields are left at zero (the page at none) and not checked; the id, the
 /// segment and arc ranges and the flags are always needed.
@@ -211,8 +256,8 @@ pub(crate) fn row_at(
     pages: u64,
 ) -> Result<CurveRow, String> {
     let read = |c: usize| !cols[c].is_empty();
-    if !(read(0) && read(6) && read(7) && read(9)) {
-        return Err("the row's id, ranges and flags were not read".into());
+    if !(read(0) && read(1) && read(6) && read(7) && read(9) && read(GEAR)) {
+        return Err("the row's id, linkage, ranges and flags were not read".into());
     }
     let f = |c: usize, k: usize| {
         if read(c) {
@@ -221,16 +266,16 @@ pub(crate) fn row_at(
             0.0
         }
     };
-    let linkage = [f(1, 0), f(1, 1), f(1, 2)];
+    let linkage = linkage_of_cells(
+        [f(1, 0), f(1, 1), f(1, 2)],
+        cols[GEAR].get(i * 24..i * 24 + 24).unwrap_or(&[]),
+    )
+    .ok_or_else(|| format!("row {i}: not a valid linkage"))?;
     let point = [f(2, 0), f(2, 1)];
     let transmission_deg = [f(3, 0), f(3, 1)];
     let page_bbox = [f(4, 0), f(4, 1), f(4, 2), f(4, 3)];
     let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
-    if !(finite(&point)
-        && finite(&transmission_deg)
-        && finite(&page_bbox)
-        && (finite(&linkage) || linkage.iter().all(|x| x.is_nan())))
-    {
+    if !(finite(&point) && finite(&transmission_deg) && finite(&page_bbox)) {
         return Err(format!("row {i}: a value is not finite"));
     }
     let u = |c: usize, k: usize| {
@@ -844,11 +889,9 @@ impl ColumnTable {
         // The row columns the query reads: id, ranges and flags always; the linkage and
         // the transmission range only if it filters or sorts on them (the others are
         // read for the selected rows only).
-        let mut need: Vec<usize> = vec![0, 6, 7, 9];
-        let (linkage, transmission) = q.reads_row();
-        if linkage {
-            need.push(1);
-        }
+        // (A row's linkage is decoded whole, so its two columns are always read.)
+        let mut need: Vec<usize> = vec![0, 1, GEAR, 6, 7, 9];
+        let (_, transmission) = q.reads_row();
         if transmission {
             need.push(3);
         }

@@ -11,8 +11,9 @@ use crate::search::SearchTable;
 use crate::{CacheError, read_container};
 
 /// Version of the column set (the cache's and the columns file's table version): 2
-/// added arcs' turn and the rows' `trivial` flag.
-pub const TABLE_VERSION: u32 = 2;
+/// added arcs' turn and the rows' `trivial` flag; 3 the rows' `row.gear` (a geared
+/// five-bar's L5, φ and λ).
+pub const TABLE_VERSION: u32 = 3;
 
 fn bad(m: impl Into<String>) -> CacheError {
     CacheError(m.into())
@@ -188,5 +189,81 @@ impl SearchTable {
             t.arcs.push(a);
         }
         Ok(t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::IndexKey;
+    use crate::colfile::{linkage_cells, linkage_of_cells};
+    use crate::search::CurveRow;
+    use coupler_kinematics::{Circuit, FourBar, GearRatio, GearedFiveBar, Linkage, LinkageClass};
+
+    fn row(id: u64, linkage: Linkage) -> CurveRow {
+        CurveRow {
+            id,
+            linkage,
+            point: [0.5, -0.25],
+            circuit: Circuit::Open,
+            class: LinkageClass::ALL[14],
+            transmission_deg: [40.0, 120.0],
+            page: u32::MAX,
+            page_bbox: [0.0; 4],
+            seg_start: 0,
+            seg_count: 0,
+            arc_start: 0,
+            arc_count: 0,
+            symmetric: false,
+            crunodes: 0,
+            cusps: 0,
+            has_features: false,
+            trivial: false,
+        }
+    }
+
+    #[test]
+    fn rows_of_both_mechanisms_round_trip() {
+        let ratio = GearRatio::new(-1, 2).unwrap();
+        let t = SearchTable {
+            rows: vec![
+                row(0, FourBar::new(2.5, 3.0, 3.5).unwrap().into()),
+                row(
+                    1,
+                    GearedFiveBar::new(3.0, 2.0, 4.0, 0.5, ratio, 270.0)
+                        .unwrap()
+                        .into(),
+                ),
+            ],
+            ..SearchTable::default()
+        };
+        let key = IndexKey { bytes: 1, hash: 2 };
+        assert_eq!(
+            SearchTable::from_cache_bytes(&t.to_cache_bytes(key), key).unwrap(),
+            t
+        );
+    }
+
+    #[test]
+    fn gear_cells_are_checked() {
+        let g =
+            GearedFiveBar::new(3.0, 2.0, 4.0, 0.5, GearRatio::integer(2).unwrap(), 90.0).unwrap();
+        let (link, gear) = linkage_cells(&Linkage::GearedFiveBar(g));
+        assert_eq!(linkage_of_cells(link, &gear), Some(g.into()));
+        // A ratio not in lowest terms, a zero denominator, a NaN phase: refused.
+        for (at, bytes) in [
+            (16, 4i32.to_le_bytes().to_vec()),
+            (20, 0i32.to_le_bytes().to_vec()),
+            (8, f64::NAN.to_le_bytes().to_vec()),
+        ] {
+            let mut bad = gear;
+            bad[at..at + bytes.len()].copy_from_slice(&bytes);
+            if at == 16 {
+                bad[20..24].copy_from_slice(&2i32.to_le_bytes());
+            }
+            assert_eq!(linkage_of_cells(link, &bad), None, "{at}");
+        }
+        // A four-bar with a non-positive length: refused.
+        assert_eq!(linkage_of_cells([2.0, 0.0, 3.0], &[0; 24]), None);
     }
 }
