@@ -4,7 +4,8 @@ use super::UsageError;
 use anyhow::Result;
 use coupler_atlas::{
     ArcRow, Circuit, CouplerPoint, CrankTable, DashPattern, FeatureTolerances, FourBar,
-    LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments,
+    LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments, transmission_margin,
+    window_transmission,
 };
 use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
@@ -32,6 +33,11 @@ pub struct Args {
     /// Transmission angle within [DEG, 180 − DEG] over the whole revolution (0 ≤ DEG ≤ 90).
     #[arg(long, value_name = "DEG", value_parser = parse_min_transmission)]
     min_transmission: Option<f64>,
+    /// The matching straight segments and arcs keep the transmission angle within
+    /// [DEG, 180 − DEG] over their own window (0 ≤ DEG ≤ 90); alone, asks for such a
+    /// segment or arc.
+    #[arg(long, value_name = "DEG", value_parser = parse_min_transmission)]
+    window_transmission: Option<f64>,
     /// Barker class, e.g. GCRR.
     #[arg(long)]
     class: Option<String>,
@@ -57,7 +63,8 @@ pub struct Args {
     /// Straight segments with velocity variation ε_V at most PCT %; implies a segment.
     #[arg(long, value_name = "PCT", value_parser = parse_nonnegative)]
     max_ev: Option<f64>,
-    /// Order: id, straight, straightness, arc, deviation, transmission, turn, radius, velocity.
+    /// Order: id, straight, straightness, arc, deviation, transmission (whole turn),
+    /// window-transmission (over a matching feature's window), turn, radius, velocity.
     #[arg(long, default_value = "id")]
     sort: SortKey,
     /// At most N hits (0: all).
@@ -182,6 +189,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         double_dwell: args.double_dwell,
         radius_tol_pct: args.radius_tol,
         min_transmission_deg: args.min_transmission,
+        min_window_transmission_deg: args.window_transmission,
         class,
         linkage: args.linkage.as_deref().map(parse_linkage).transpose()?,
         circuit: args
@@ -270,6 +278,8 @@ struct FeatureCells {
     radius: Option<f64>,
     turn_deg: Option<f64>,
     velocity_variation_pct: Option<f64>,
+    /// Transmission `[min, max]` over its window, degrees (NaN: unknown).
+    transmission_deg: [f64; 2],
 }
 
 fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
@@ -287,6 +297,7 @@ fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
                 radius: None,
                 turn_deg: None,
                 velocity_variation_pct: Some(s.velocity_variation_pct),
+                transmission_deg: s.transmission_deg,
             }
         })
         .collect();
@@ -300,6 +311,7 @@ fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
             radius: Some(a.radius),
             turn_deg: Some(a.turn_deg),
             velocity_variation_pct: None,
+            transmission_deg: a.transmission_deg,
         }
     }));
     out
@@ -326,11 +338,13 @@ fn page_spot(table: &SearchTable, r: &coupler_atlas::CurveRow) -> Option<(String
 }
 
 /// Fixed columns, ≤ 120 characters: one line per matching feature (the curve's columns on
-/// its first), page number and the centre of the curve's box on it in pixels.
+/// its first), page number and the centre of the curve's box on it in pixels. `μ±` is
+/// the whole turn's transmission margin `min(μmin, 180 − μmax)` (the largest DEG that
+/// `--min-transmission` accepts), `μwin` the same over the feature's window.
 fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
     writeln!(
         w,
-        "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} spot px",
+        "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>6} {:>6} {:>6} {:>7} {:>4} {:>5} {:>5} {:>4} spot px",
         "id",
         "A",
         "B",
@@ -338,7 +352,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
         "u",
         "v",
         "circ",
-        "μmin",
+        "μ±",
         "feat",
         "start",
         "span",
@@ -346,6 +360,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
         "R",
         "turn",
         "εV%",
+        "μwin",
         "page",
     )?;
     let opt = |x: Option<f64>, p: usize| x.map_or(String::from("-"), |x| format!("{x:.p$}"));
@@ -370,13 +385,13 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
             r.point[0],
             r.point[1],
             circ,
-            r.transmission_deg[0]
+            transmission_margin(r.transmission_deg)
         );
         if cells.is_empty() {
             writeln!(
                 w,
-                "{head}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {page:>5} {spot}",
-                "-", "-", "-", "-", "-", "-", "-"
+                "{head}  {:<6} {:>6} {:>6} {:>6} {:>7} {:>4} {:>5} {:>5} {page:>4} {spot}",
+                "-", "-", "-", "-", "-", "-", "-", "-"
             )?;
         }
         for (n, c) in cells.iter().enumerate() {
@@ -385,9 +400,10 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
             } else {
                 " ".repeat(head.chars().count())
             };
+            let margin = transmission_margin(c.transmission_deg);
             writeln!(
                 w,
-                "{lead}  {:<6} {:>7.1} {:>6.1} {:>6.3} {:>7} {:>5} {:>6}  {page:>5} {spot}",
+                "{lead}  {:<6} {:>6.1} {:>6.1} {:>6.3} {:>7} {:>4} {:>5} {:>5} {page:>4} {spot}",
                 c.name,
                 c.start_deg,
                 c.span_deg,
@@ -395,6 +411,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
                 opt(c.radius, 3),
                 opt(c.turn_deg, 0),
                 opt(c.velocity_variation_pct, 1),
+                opt(margin.is_finite().then_some(margin), 1),
             )?;
         }
     }
@@ -406,7 +423,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
 fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
     writeln!(
         w,
-        "id,coupler,rocker,ground,u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,page,page_x_px,page_y_px"
+        "id,coupler,rocker,ground,u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,window_transmission_min_deg,window_transmission_max_deg,page,page_x_px,page_y_px"
     )?;
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
     for h in hits {
@@ -438,19 +455,22 @@ fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()
         };
         let cells = feature_cells(table, h);
         if cells.is_empty() {
-            writeln!(w, "{head},,,,,,,,{page}")?;
+            writeln!(w, "{head},,,,,,,,,,{page}")?;
         }
         for c in &cells {
+            let [lo, hi] = c.transmission_deg.map(|x| x.is_finite().then_some(x));
             writeln!(
                 w,
-                "{head},{},{},{},{},{},{},{},{page}",
+                "{head},{},{},{},{},{},{},{},{},{},{page}",
                 c.name,
                 c.start_deg,
                 c.span_deg,
                 c.error_pct,
                 opt(c.radius),
                 opt(c.turn_deg),
-                opt(c.velocity_variation_pct)
+                opt(c.velocity_variation_pct),
+                opt(lo),
+                opt(hi)
             )?;
         }
     }
@@ -587,6 +607,9 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
         let curve = l
             .pose_table(r.circuit, &crank)
             .trace(CouplerPoint::new(r.point[0], r.point[1]));
+        let window = |start: f64, span: f64| {
+            window_transmission(&l, r.circuit, start, span, t.step_deg).unwrap_or([f64::NAN; 2])
+        };
         let segments = if redo.0 {
             straight_segments(&curve, t, &dash)
                 .iter()
@@ -597,6 +620,7 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
                     velocity_variation_pct: s.velocity_variation_pct,
                     length: s.length,
                     direction_deg: s.direction_deg,
+                    transmission_deg: window(s.start_deg, s.span_deg),
                 })
                 .collect()
         } else {
@@ -613,6 +637,7 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
                     center: a.center,
                     concave: a.concave,
                     turn_deg: a.turn_deg,
+                    transmission_deg: window(a.start_deg, a.span_deg),
                 })
                 .collect()
         } else {

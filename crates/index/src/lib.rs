@@ -23,5 +23,5 @@ pub use schema::{
 };
 pub use search::{
     ArcRow, CurveRow, DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchError, SearchTable, SegmentRow,
-    SortKey, SpanFilter,
+    SortKey, SpanFilter, transmission_margin,
 };
