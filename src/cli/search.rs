@@ -112,24 +112,60 @@ fn parse_min_transmission(s: &str) -> Result<f64, String> {
 }
 
 /// The search table of `index` (from its cache when it matches): a usage error when the
-/// index cannot be read or is not an index.
+/// index cannot be read or is not an index (a page set is refused here: `dwell` needs an
+/// index).
 pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
-    let index = resolve_index(index)?;
-    let (table, source) =
-        coupler_atlas::load_table(&index, use_cache).map_err(|e| UsageError(e.to_string()))?;
+    let index = match resolve(index)? {
+        Searched::Index(p) => p,
+        Searched::PageSet(p) => {
+            return Err(UsageError(format!(
+                "{}: a page set's measures (curves.json) have no feature windows; give an atlas's index.json (or its folder)",
+                p.display()
+            ))
+            .into());
+        }
+    };
+    let (table, source) = coupler_atlas::load_table(&index, use_cache).map_err(|e| {
+        let mut m = e.to_string().trim_end().to_string();
+        if m.contains("not a coupler-atlas index") {
+            // Name the file to search where there is one beside it.
+            let hint = ["index.json", "curves.json"]
+                .iter()
+                .map(|n| index.with_file_name(n))
+                .find(|p| p.is_file() && *p != index);
+            m += &match hint {
+                Some(p) => format!(" (search {} or its folder)", p.display()),
+                None => " (search reads an atlas's index.json, a page set's curves.json, or the folder holding either)".into(),
+            };
+        }
+        UsageError(m)
+    })?;
     Ok((table, source.name()))
 }
 
-/// An atlas folder stands for its `index.json`; the other JSON files of an atlas are
-/// refused with a hint naming the index (they would read as an empty index).
-fn resolve_index(path: &Path) -> Result<PathBuf, UsageError> {
+/// What `search` reads: an atlas's index, or a page set's `curves.json`.
+enum Searched {
+    Index(PathBuf),
+    PageSet(PathBuf),
+}
+
+/// A page set's `curves.json` is read whole: at most this many bytes (a page set is a
+/// list of named curves, kilobytes each).
+const MAX_PAGE_SET_BYTES: u64 = 64 << 20;
+
+/// An atlas folder stands for its `index.json` (or, for a page set's folder, its
+/// `curves.json`); a page set's `curves.json` is searched as such; the atlas's other JSON
+/// files are refused with a hint naming the index (they would read as an empty index).
+fn resolve(path: &Path) -> Result<Searched, UsageError> {
     if path.is_dir() {
-        let index = path.join("index.json");
+        let (index, curves) = (path.join("index.json"), path.join("curves.json"));
         return if index.is_file() {
-            Ok(index)
+            Ok(Searched::Index(index))
+        } else if curves.is_file() {
+            Ok(Searched::PageSet(curves))
         } else {
             Err(UsageError(format!(
-                "{}: an atlas folder holds index.json, and this one has none (was it generated with `generate`?)",
+                "{}: an atlas folder holds index.json (a page set's folder, curves.json), and this one has neither (was it generated with `generate`?)",
                 path.display()
             )))
         };
@@ -140,14 +176,47 @@ fn resolve_index(path: &Path) -> Result<PathBuf, UsageError> {
         "manifest.json" => Err(UsageError(format!(
             "{}: this is the atlas's manifest (file list and checksums), not its index: search {} (or the folder)",
             path.display(),
-            sibling.display()
+            if sibling.is_file() || !path.with_file_name("curves.json").is_file() {
+                sibling.display().to_string()
+            } else {
+                path.with_file_name("curves.json").display().to_string()
+            }
         ))),
-        "curves.json" => Err(UsageError(format!(
-            "{}: this is a page set's measures (curves.json), which search does not read; search an atlas's index.json (or its folder)",
-            path.display()
-        ))),
-        _ => Ok(path.to_path_buf()),
+        "curves.json" => Ok(Searched::PageSet(path.to_path_buf())),
+        _ => {
+            // A page set's measures under another name are still a page set.
+            use std::io::Read;
+            let mut head = String::new();
+            if let Ok(f) = std::fs::File::open(path) {
+                let _ = f.take(4096).read_to_string(&mut head);
+            }
+            if coupler_atlas::is_page_set(&head) {
+                Ok(Searched::PageSet(path.to_path_buf()))
+            } else {
+                Ok(Searched::Index(path.to_path_buf()))
+            }
+        }
     }
+}
+
+/// The search table of a page set's `curves.json`, its straight runs re-measured at the
+/// query's `--straight` tolerance when it is not one of the three the file holds.
+fn load_page_set(path: &Path, q: &Query) -> Result<SearchTable> {
+    let size = std::fs::metadata(path)
+        .map_err(|e| UsageError(format!("{}: {e}", path.display())))?
+        .len();
+    if size > MAX_PAGE_SET_BYTES {
+        return Err(UsageError(format!(
+            "{}: {size} bytes is more than a page set's curves.json holds (at most {MAX_PAGE_SET_BYTES})",
+            path.display()
+        ))
+        .into());
+    }
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
+    let tol = q.straight.map(|f| f.max_error_pct).filter(|t| t.is_finite());
+    SearchTable::from_page_set(&text, tol)
+        .map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
 }
 
 /// A feature as JSON with `"index"`: its 1-based position in the curve's list (what
@@ -207,9 +276,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
         limit: args.limit,
     };
     let t0 = Instant::now();
-    let (table, source) = load(&args.index, !args.no_cache)?;
+    let searched = resolve(&args.index)?;
+    let (table, source, extracted) = match &searched {
+        Searched::Index(index) => {
+            let (table, source) = load(index, !args.no_cache)?;
+            (table, source, extraction_tolerances(index))
+        }
+        Searched::PageSet(curves) => {
+            if query.arc.is_some() || query.double_dwell {
+                eprintln!(
+                    "note: a page set's curves are measured by their straight runs only: --arc and --double-dwell match none"
+                );
+            }
+            (load_page_set(curves, &query)?, "curves.json", None)
+        }
+    };
     let t1 = Instant::now();
-    let extracted = extraction_tolerances(&resolve_index(&args.index)?);
     let curves = table.rows.len();
     let tight = extracted.and_then(|t| tighter(&query, &t));
     let refined;
@@ -377,7 +459,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
             "crsd"
         };
         let head = format!(
-            "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5.1}",
+            "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}",
             r.id,
             r.linkage[0],
             r.linkage[1],
@@ -385,7 +467,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
             r.point[0],
             r.point[1],
             circ,
-            transmission_margin(r.transmission_deg)
+            dash_if_nan(transmission_margin(r.transmission_deg))
         );
         if cells.is_empty() {
             writeln!(
@@ -410,12 +492,22 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
                 c.error_pct,
                 opt(c.radius, 3),
                 opt(c.turn_deg, 0),
-                opt(c.velocity_variation_pct, 1),
-                opt(margin.is_finite().then_some(margin), 1),
+                opt(c.velocity_variation_pct.filter(|x| !x.is_nan()), 1),
+                dash_if_nan(margin),
             )?;
         }
     }
     Ok(())
+}
+
+/// `x` to one decimal, or `-` when unknown (NaN: a page set's curves have no
+/// transmission range).
+fn dash_if_nan(x: f64) -> String {
+    if x.is_nan() {
+        "-".into()
+    } else {
+        format!("{x:.1}")
+    }
 }
 
 /// One line per matching feature (a curve without one: a line with empty feature

@@ -8,6 +8,7 @@
 mod cache;
 mod columns;
 mod lines;
+mod page_set;
 mod schema;
 mod search;
 
@@ -16,6 +17,7 @@ pub use cache::{
     cache_path, load_table, read_container, write_container,
 };
 pub use columns::TABLE_VERSION;
+pub use page_set::{PAGE_SET_KIND, is_page_set};
 pub use lines::{MAX_INDEX_LINE, read_line_bounded};
 pub use schema::{
     Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
