@@ -214,7 +214,10 @@ fn load_page_set(path: &Path, q: &Query) -> Result<SearchTable> {
     }
     let text = std::fs::read_to_string(path)
         .map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
-    let tol = q.straight.map(|f| f.max_error_pct).filter(|t| t.is_finite());
+    let tol = q
+        .straight
+        .map(|f| f.max_error_pct)
+        .filter(|t| t.is_finite());
     SearchTable::from_page_set(&text, tol)
         .map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
 }

@@ -17,8 +17,8 @@ pub use cache::{
     cache_path, load_table, read_container, write_container,
 };
 pub use columns::TABLE_VERSION;
-pub use page_set::{PAGE_SET_KIND, is_page_set};
 pub use lines::{MAX_INDEX_LINE, read_line_bounded};
+pub use page_set::{PAGE_SET_KIND, is_page_set};
 pub use schema::{
     Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
     write_curve_line, write_index, write_index_footer, write_index_header,

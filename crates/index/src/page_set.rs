@@ -30,7 +30,10 @@ impl SearchTable {
     /// re-measured). Rows carry no arcs and no transmission range (NaN: a
     /// `--min-transmission` filter matches none); `circuit` is the traced circuit (open for
     /// `"full"`, which traces both).
-    pub fn from_page_set(text: &str, straight_pct: Option<f64>) -> Result<SearchTable, SearchError> {
+    pub fn from_page_set(
+        text: &str,
+        straight_pct: Option<f64>,
+    ) -> Result<SearchTable, SearchError> {
         let header = |m: &str| SearchError::Header(format!("curves.json: {m}"));
         let v: Value = serde_json::from_str(text).map_err(|e| header(&e.to_string()))?;
         if v["kind"] != PAGE_SET_KIND || v["schema_version"] != 1 {
@@ -39,9 +42,7 @@ impl SearchTable {
         let step = v["sampling"]["crank_step_deg"]
             .as_f64()
             .ok_or_else(|| header("no sampling.crank_step_deg"))?;
-        let curves = v["curves"]
-            .as_array()
-            .ok_or_else(|| header("no curves"))?;
+        let curves = v["curves"].as_array().ok_or_else(|| header("no curves"))?;
         let extra = straight_pct
             .map(|p| p / 100.0)
             .filter(|t| t.is_finite() && !STRAIGHTNESS_TOLERANCES.contains(t));
