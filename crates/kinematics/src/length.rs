@@ -26,10 +26,10 @@ use crate::pose::CrankAngle;
 /// bounds the 15-point rule's error from above: with a wide margin on a smooth piece
 /// (where the true error is many orders smaller), by a small factor on a piece holding a
 /// kink (a cusp), which is where the remaining error is.
-pub const ARC_LENGTH_TOL: f64 = 1e-11;
+pub const ARC_LENGTH_TOL: f64 = 1e-10;
 
 /// Panels per 360° of input, each integrated by the 15-point rule before any refinement.
-pub const ARC_LENGTH_PANELS_PER_TURN: usize = 24;
+pub const ARC_LENGTH_PANELS_PER_TURN: usize = 36;
 
 /// Bisections of one panel at most (a piece of 15° / 2^40 ≈ 1.4e-11°): beyond it a
 /// piece is accepted as it is (never reached on atlas curves; a guard for degenerate
