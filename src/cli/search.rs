@@ -165,7 +165,7 @@ fn resolve(path: &Path) -> Result<Searched, UsageError> {
             Ok(Searched::PageSet(curves))
         } else {
             Err(UsageError(format!(
-                "{}: an atlas folder holds index.json (a page set's folder, curves.json), and this one has neither (was it generated with `generate`?)",
+                "{}: an atlas folder holds index.json, and this one has none (nor a page set's curves.json: was it generated with `generate`?)",
                 path.display()
             )))
         };
