@@ -148,6 +148,12 @@ fn queries() -> Vec<Query> {
             limit: 3,
             ..Query::default()
         },
+        Query {
+            min_window_transmission_deg: Some(40.0),
+            sort: SortKey::WindowTransmission,
+            limit: 4,
+            ..Query::default()
+        },
     ]
 }
 

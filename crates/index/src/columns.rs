@@ -11,8 +11,9 @@ use coupler_features::Side;
 use coupler_kinematics::{Circuit, FourBar, GearRatio, GearedFiveBar, Linkage, LinkageClass};
 
 /// Version of the column set (the cache's table version): 2 added arcs' turn and the
-/// rows' `trivial` flag; 3 the rows' `row.gear` (a geared five-bar's L5, φ and λ).
-pub const TABLE_VERSION: u32 = 3;
+/// rows' `trivial` flag; 3 the rows' `row.gear` (a geared five-bar's L5, φ and λ); 4 the
+/// transmission over each segment's and arc's window (`seg.tr`, `arc.tr`; NaN where unknown).
+pub const TABLE_VERSION: u32 = 4;
 
 /// A row's linkage as the columns `row.link` (three lengths: a four-bar's A, B, C, a
 /// geared five-bar's L1, L3, L4) and `row.gear` (a geared five-bar's L5 and φ as `f64`,
@@ -132,7 +133,9 @@ impl SearchTable {
             ]);
         }
         let mut seg = Vec::with_capacity(48 * self.segments.len());
+        let mut seg_tr = Vec::with_capacity(16 * self.segments.len());
         for s in &self.segments {
+            f64s(&mut seg_tr, &s.transmission_deg);
             f64s(
                 &mut seg,
                 &[
@@ -147,7 +150,9 @@ impl SearchTable {
         }
         let mut arc = Vec::with_capacity(56 * self.arcs.len());
         let mut side = Vec::with_capacity(self.arcs.len());
+        let mut arc_tr = Vec::with_capacity(16 * self.arcs.len());
         for a in &self.arcs {
+            f64s(&mut arc_tr, &a.transmission_deg);
             f64s(
                 &mut arc,
                 &[
@@ -185,6 +190,8 @@ impl SearchTable {
             col("seg", 48, seg),
             col("arc", 56, arc),
             col("arc.side", 1, side),
+            col("seg.tr", 16, seg_tr),
+            col("arc.tr", 16, arc_tr),
             col("page.off", 8, off),
             col("page.txt", 1, text),
         ]
@@ -252,6 +259,12 @@ impl SearchTable {
         if side.count != arc.count {
             return Err(bad("column arc.side length"));
         }
+        let (seg_tr, arc_tr) = (find("seg.tr", 16)?, find("arc.tr", 16)?);
+        if seg_tr.count != seg.count || arc_tr.count != arc.count {
+            return Err(bad("column seg.tr or arc.tr length"));
+        }
+        // A window's transmission is NaN where the index did not say (never ±∞).
+        let known = |xs: &[f64]| xs.iter().all(|x| !x.is_infinite());
         let (off, text) = (find("page.off", 8)?, find("page.txt", 1)?);
         if off.count == 0 {
             return Err(bad("column page.off"));
@@ -337,7 +350,8 @@ impl SearchTable {
         t.segments.reserve_exact(nsegs as usize);
         for i in 0..nsegs as usize {
             let v = f64_row::<6>(&seg, i);
-            if !finite(&v) {
+            let tr = f64_row::<2>(&seg_tr, i);
+            if !finite(&v) || !known(&tr) {
                 return Err(bad("a segment value is not finite"));
             }
             t.segments.push(SegmentRow {
@@ -347,13 +361,15 @@ impl SearchTable {
                 velocity_variation_pct: v[3],
                 length: v[4],
                 direction_deg: v[5],
+                transmission_deg: tr,
             });
         }
         t.arcs.reserve_exact(narcs as usize);
         for i in 0..narcs as usize {
             let v = f64_row::<7>(&arc, i);
+            let tr = f64_row::<2>(&arc_tr, i);
             let s = side.data[i];
-            if !finite(&v) || s > 1 {
+            if !finite(&v) || !known(&tr) || s > 1 {
                 return Err(bad("an arc value is not valid"));
             }
             t.arcs.push(ArcRow {
@@ -364,6 +380,7 @@ impl SearchTable {
                 center: [v[4], v[5]],
                 concave: if s == 1 { Side::Right } else { Side::Left },
                 turn_deg: v[6],
+                transmission_deg: tr,
             });
         }
         Ok(t)

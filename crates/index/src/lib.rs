@@ -8,6 +8,7 @@
 mod cache;
 mod columns;
 mod lines;
+mod page_set;
 mod schema;
 mod search;
 
@@ -17,11 +18,12 @@ pub use cache::{
 };
 pub use columns::TABLE_VERSION;
 pub use lines::{MAX_INDEX_LINE, read_line_bounded};
+pub use page_set::{PAGE_SET_KIND, is_page_set};
 pub use schema::{
     Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
     write_curve_line, write_index, write_index_footer, write_index_header,
 };
 pub use search::{
     ArcRow, CurveRow, DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchError, SearchTable, SegmentRow,
-    SortKey, SpanFilter,
+    SortKey, SpanFilter, transmission_margin,
 };
