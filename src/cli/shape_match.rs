@@ -129,13 +129,15 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
         .files
         .iter()
         .find(|f| f.name == SHAPES_FILE)
-        .ok_or_else(|| {
-            UsageError(format!(
-                "the atlas in {} has no shape codes ({SHAPES_FILE} is not in its manifest: it was made by an older version); run `coupler-atlas generate` again for it",
-                dir.display()
-            ))
-        })?;
+        .ok_or_else(|| UsageError(no_sidecar(dir)))?;
     let path = dir.join(SHAPES_FILE);
+    if !path.is_file() {
+        return Err(UsageError(format!(
+            "{} is missing: the atlas's manifest lists it, so the file was removed after the atlas was written; run `coupler-atlas generate` again for the atlas (with the spec it was made from) to write it",
+            path.display()
+        ))
+        .into());
+    }
     if !entry.verify(dir) {
         return Err(UsageError(format!(
             "{} does not match the manifest (size or hash differs): the atlas was changed after it was written; run `coupler-atlas generate` again for it",
@@ -145,6 +147,36 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
     }
     let bytes = std::fs::read(&path).map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
     decode_sidecar(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
+}
+
+/// Why an atlas whose manifest lists no shape sidecar cannot be searched, and what to do,
+/// from the head of its index (which records the spec): a geared five-bar atlas has no
+/// shape codes by design; a four-bar atlas lacks them when it was written before shape
+/// search existed.
+fn no_sidecar(dir: &Path) -> String {
+    let mut head = String::new();
+    if let Ok(f) = std::fs::File::open(dir.join("index.json")) {
+        let _ = std::io::Read::read_to_string(&mut std::io::Read::take(f, 4096), &mut head);
+    }
+    let name = head
+        .split_once("\"spec\":{\"name\":\"")
+        .and_then(|(_, r)| r.split_once('"'))
+        .map(|(n, _)| n.to_string());
+    if head.contains("\"mechanism\":\"geared-fivebar\"") {
+        return format!(
+            "the atlas in {} is of geared five-bars, which have no shape codes ({SHAPES_FILE}): shape search covers four-bar atlases only; search a four-bar atlas (e.g. the default, `coupler-atlas generate`)",
+            dir.display()
+        );
+    }
+    let spec = match name {
+        Some(n) => format!("the spec of atlas `{n}`"),
+        None => "the spec it was made from".into(),
+    };
+    format!(
+        "the atlas in {} has no shape codes: its manifest lists no {SHAPES_FILE}, which `match` searches (a version of coupler-atlas without shape search wrote it); write it again with `coupler-atlas generate SPEC --out {}` ({spec}), which adds {SHAPES_FILE}",
+        dir.display(),
+        dir.display()
+    )
 }
 
 /// The coarse stage on the pool's threads: open targets scanned in parts cut at linkage
@@ -248,7 +280,9 @@ fn g(x: f64) -> String {
 
 /// Five significant digits; scientific below 1e-3 (for the picture's heading).
 fn short(x: f64) -> String {
-    if x != 0.0 && x.abs() < 1e-3 {
+    if x == 0.0 || !x.is_finite() {
+        format!("{x}")
+    } else if x.abs() < 1e-3 {
         format!("{x:.2e}")
     } else {
         let digits = (4 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;
