@@ -289,7 +289,10 @@ fn open_diagnosis() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(60);
     let wide = MatchOptions {
-        open_candidates: 100_000,
+        open_candidates: std::env::var("WIDE")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(MatchOptions::DEFAULT.open_candidates),
         ..MatchOptions::DEFAULT
     };
     let rows: Vec<String> = retrieval_cases(&curves, false, 77, count)
@@ -320,7 +323,7 @@ fn open_diagnosis() {
             )
         })
         .collect();
-    for r in rows {
+    for r in rows.iter().filter(|r| r.contains("found false")) {
         println!("{r}");
     }
 }

@@ -38,7 +38,7 @@ const TIMED_QUERY_POINTS: usize = 32;
 /// Re-estimations of the crank angles (untimed).
 const REESTIMATIONS: usize = 5;
 /// Projection steps of stage 1b (untimed), on every curve.
-const PROJECTIONS: usize = 6;
+const PROJECTIONS: usize = 10;
 
 /// One linkage on one circuit at 1° crank steps: crank pin and coupler direction.
 struct Table {
@@ -181,7 +181,7 @@ impl Window {
 /// the best goes on): under the even-crank layout the source's own window often scores
 /// worse than some other window of the same curve, and only the projection tells them
 /// apart.
-const WINDOWS: usize = 4;
+const WINDOWS: usize = 6;
 
 /// Keeps `list` (best first) the `WINDOWS` best pairwise distinct windows offered.
 #[inline]
