@@ -129,7 +129,16 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
         .files
         .iter()
         .find(|f| f.name == SHAPES_FILE)
-        .ok_or_else(|| UsageError(no_sidecar(dir)))?;
+        .ok_or_else(|| match atlas_mechanism(dir).as_deref() {
+            // Shape codes, fits and --refine are a four-bar's (A, B, C): a geared
+            // five-bar atlas is written without them.
+            Some(m) if m != "four-bar" => UsageError(format!(
+                "the atlas in {} is a {m} atlas: match compares four-bar coupler curves only (its shape codes, fits and --refine are over a four-bar's A, B, C), so this atlas has no shape codes; search it by features with `coupler-atlas search {}`",
+                dir.display(),
+                dir.display()
+            )),
+            _ => UsageError(no_sidecar(dir)),
+        })?;
     let path = dir.join(SHAPES_FILE);
     if !path.is_file() {
         return Err(UsageError(format!(
@@ -150,9 +159,8 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
 }
 
 /// Why an atlas whose manifest lists no shape sidecar cannot be searched, and what to do,
-/// from the head of its index (which records the spec): a geared five-bar atlas has no
-/// shape codes by design; a four-bar atlas lacks them when it was written before shape
-/// search existed.
+/// for a four-bar atlas (which lacks them when it was written before shape search
+/// existed), naming its spec from the head of its index.
 fn no_sidecar(dir: &Path) -> String {
     let mut head = String::new();
     if let Ok(f) = std::fs::File::open(dir.join("index.json")) {
@@ -162,12 +170,6 @@ fn no_sidecar(dir: &Path) -> String {
         .split_once("\"spec\":{\"name\":\"")
         .and_then(|(_, r)| r.split_once('"'))
         .map(|(n, _)| n.to_string());
-    if head.contains("\"mechanism\":\"geared-fivebar\"") {
-        return format!(
-            "the atlas in {} is of geared five-bars, which have no shape codes ({SHAPES_FILE}): shape search covers four-bar atlases only; search a four-bar atlas (e.g. the default, `coupler-atlas generate`)",
-            dir.display()
-        );
-    }
     let spec = match name {
         Some(n) => format!("the spec of atlas `{n}`"),
         None => "the spec it was made from".into(),
@@ -176,6 +178,27 @@ fn no_sidecar(dir: &Path) -> String {
         "the atlas in {} has no shape codes: its manifest lists no {SHAPES_FILE}, which `match` searches (a version of coupler-atlas without shape search wrote it); write it again with `coupler-atlas generate SPEC --out {}` ({spec}), which adds {SHAPES_FILE}",
         dir.display(),
         dir.display()
+    )
+}
+
+/// The mechanism of the atlas in `dir` as its index header names it
+/// (`spec.linkages.mechanism`; a four-bar atlas's header may not name it), or `None` if
+/// the header cannot be read.
+fn atlas_mechanism(dir: &Path) -> Option<String> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(dir.join("index.json")).ok()?;
+    let mut lines = std::io::BufReader::new(file).lines();
+    lines.next()?.ok()?;
+    let spec = lines.next()?.ok()?;
+    let spec = spec.trim_end().strip_suffix(',').unwrap_or(spec.trim_end());
+    let v: serde_json::Value = serde_json::from_str(&format!("{{{spec}}}")).ok()?;
+    let linkages = v.get("spec")?.get("linkages")?;
+    Some(
+        linkages
+            .get("mechanism")
+            .and_then(|m| m.as_str())
+            .unwrap_or("four-bar")
+            .to_string(),
     )
 }
 
