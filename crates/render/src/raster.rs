@@ -1,7 +1,7 @@
 //! Raster backend: anti-aliased ink coverage with tiny-skia, grayscale PNG output.
 
 use super::{Canvas, anchored_x};
-use crate::dirty::{BAND, Dirty};
+use crate::dirty::Dirty;
 use ab_glyph::{Font, FontRef, Glyph, point};
 use coupler_layout::{self as font, Anchor, Ink, OutlineCmd, PT_PER_INCH, PagePoint};
 use std::io::Write;
@@ -128,9 +128,8 @@ impl RasterPage {
         self.flush_gray();
         let stride = self.mask.width() as usize;
         let data = self.mask.data_mut();
-        for (j, x0, x1) in self.dirty.rows() {
-            data[j * stride + x0..j * stride + x1].fill(0);
-        }
+        self.dirty
+            .for_each_span(|j, x0, x1| data[j * stride + x0..j * stride + x1].fill(0));
         self.dirty.reset();
         self.ink = Ink::Black;
     }
@@ -153,7 +152,7 @@ impl RasterPage {
         let ink = Ink::Gray(layer.level);
         let src = layer.mask.data_mut();
         let dst = self.mask.data_mut();
-        for (j, x0, x1) in layer.dirty.rows() {
+        layer.dirty.for_each_span(|j, x0, x1| {
             let row = j * stride;
             let (d_row, s_row) = (&mut dst[row + x0..row + x1], &mut src[row + x0..row + x1]);
             // Most of the layer is empty: skip it eight bytes at a time.
@@ -168,7 +167,7 @@ impl RasterPage {
                     }
                 }
             }
-        }
+        });
         self.dirty.include(&layer.dirty);
         layer.dirty.reset();
     }
@@ -410,9 +409,8 @@ fn write_png_fast(
         row[1..].fill(0);
     }
     for j in 1..h {
-        let bits = dirty.band_bits(j / BAND) | dirty.band_bits((j - 1) / BAND);
         let (above, this) = (&ink[(j - 1) * w..j * w], &ink[j * w..(j + 1) * w]);
-        for (x0, x1) in dirty.spans(bits) {
+        for (x0, x1) in dirty.row_pair_spans(j) {
             for ((o, a), b) in row[1 + x0..1 + x1]
                 .iter_mut()
                 .zip(&above[x0..x1])
@@ -422,7 +420,7 @@ fn write_png_fast(
             }
         }
         z.write_data(&row)?;
-        for (x0, x1) in dirty.spans(bits) {
+        for (x0, x1) in dirty.row_pair_spans(j) {
             row[1 + x0..1 + x1].fill(0);
         }
     }
@@ -655,5 +653,121 @@ impl Canvas for RasterPage {
                 }
             });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::draw;
+    use coupler_layout::{DisplayList, Primitive};
+
+    /// A page with every kind of primitive in black, grays and paper.
+    fn sample() -> DisplayList {
+        let mut dl = DisplayList::new(300.0, 200.0);
+        let wave: Vec<PagePoint> = (0..200)
+            .map(|i| {
+                [
+                    10.0 + i as f64 * 1.4,
+                    100.0 + 60.0 * (i as f64 * 0.07).sin(),
+                ]
+            })
+            .collect();
+        dl.items.push(Primitive::Ink(Ink::Gray(150)));
+        dl.items.push(Primitive::Polylines {
+            lines: wave.chunks(7).map(<[PagePoint]>::to_vec).collect(),
+            width: 1.25,
+        });
+        dl.items.push(Primitive::Ink(Ink::Black));
+        dl.items.push(Primitive::Polyline {
+            points: vec![[5.0, 5.0], [295.0, 195.0]],
+            width: 0.75,
+        });
+        dl.items.push(Primitive::Rect {
+            rect: [20.0, 20.0, 280.0, 180.0],
+            width: 0.6,
+        });
+        dl.items.push(Primitive::Ink(Ink::Gray(80)));
+        dl.items.push(Primitive::Circle {
+            center: [150.0, 100.0],
+            radius: 40.0,
+            width: Some(0.4),
+        });
+        dl.items.push(Primitive::Polygon {
+            points: vec![[200.0, 40.0], [230.0, 45.0], [210.0, 70.0]],
+        });
+        dl.items.push(Primitive::Ink(Ink::Black));
+        dl.items.push(Primitive::Text {
+            pos: [120.0, 105.0],
+            size: 9.0,
+            anchor: coupler_layout::Anchor::Start,
+            text: "(1.875, −1.25)".into(),
+            halo: 1.6,
+        });
+        // Alone in the bottom margin: marked by nothing else.
+        dl.items.push(Primitive::Text {
+            pos: [25.0, 195.0],
+            size: 7.0,
+            anchor: coupler_layout::Anchor::Start,
+            text: "A 120°".into(),
+            halo: 0.0,
+        });
+        dl.items.push(Primitive::Ink(Ink::Gray(150)));
+        dl.items.push(Primitive::Polygon {
+            points: vec![[250.0, 185.0], [270.0, 186.0], [262.0, 198.0]],
+        });
+        dl
+    }
+
+    fn decode(bytes: &[u8]) -> Vec<u8> {
+        let mut r = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .unwrap();
+        let mut buf = vec![0; r.output_buffer_size().unwrap()];
+        let info = r.next_frame(&mut buf).unwrap();
+        buf.truncate(info.buffer_size());
+        buf
+    }
+
+    #[test]
+    fn only_drawn_blocks_are_encoded_and_cleared_and_nothing_is_lost() {
+        let dl = sample();
+        for dpi in [72.0, 150.0, 300.0] {
+            let k = dpi / 72.0;
+            let (w, h) = ((300.0 * k) as u32, (200.0 * k) as u32);
+            let mut page = RasterPage::new(w, h, dpi).unwrap();
+            for round in 0..2 {
+                draw(&dl, &mut page);
+                let gray = page.to_gray();
+                // The block-skipping encoder, the whole-buffer encoder and the best one
+                // all give the drawn pixels.
+                let mut fast = Vec::new();
+                page.finish_png(&mut fast).unwrap();
+                assert_eq!(decode(&fast), gray, "dpi {dpi} round {round}");
+                let mut full = Vec::new();
+                encode_png(&gray, w, h, dpi, false, &mut full).unwrap();
+                assert_eq!(decode(&full), gray);
+                let mut best = Vec::new();
+                page.finish_png_with(PngCompression::Best, &mut best)
+                    .unwrap();
+                assert_eq!(decode(&best), gray);
+                assert!(best.len() < fast.len(), "{} {}", best.len(), fast.len());
+                // Clearing only the drawn blocks leaves no ink anywhere.
+                page.clear();
+                assert!(page.ink().iter().all(|&x| x == 0), "dpi {dpi}");
+            }
+            // The same page drawn on a fresh buffer is the same.
+            let mut fresh = RasterPage::new(w, h, dpi).unwrap();
+            draw(&dl, &mut fresh);
+            draw(&dl, &mut page);
+            assert_eq!(fresh.ink(), page.ink());
+        }
+    }
+
+    #[test]
+    fn png_compression_parses() {
+        assert_eq!("Best".parse(), Ok(PngCompression::Best));
+        assert_eq!("fast".parse(), Ok(PngCompression::Fast));
+        assert!("max".parse::<PngCompression>().is_err());
     }
 }
