@@ -364,17 +364,38 @@ pub fn encode_png(
     ink: bool,
     out: impl Write,
 ) -> Result<(), png::EncodingError> {
-    let mut all = Dirty::new(width as usize, height as usize);
-    all.mark_all();
-    if ink {
-        write_png_fast(data, width, height, dpi, &all, out)?;
-    } else {
-        // Gray in: the same encoder on the ink it shows.
-        let mut v = data.to_vec();
-        invert(&mut v);
-        write_png_fast(&v, width, height, dpi, &all, out)?;
+    encode_png_with(data, width, height, dpi, ink, PngCompression::Fast, out)
+}
+
+/// [`encode_png`] with a choice of compression.
+pub fn encode_png_with(
+    data: &[u8],
+    width: u32,
+    height: u32,
+    dpi: f64,
+    ink: bool,
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<(), png::EncodingError> {
+    let mut v = data.to_vec();
+    match compression {
+        PngCompression::Fast => {
+            let mut all = Dirty::new(width as usize, height as usize);
+            all.mark_all();
+            if !ink {
+                // Gray in: the same encoder on the ink it shows.
+                invert(&mut v);
+            }
+            write_png_fast(&v, width, height, dpi, &all, out)?;
+            Ok(())
+        }
+        PngCompression::Best => {
+            if ink {
+                invert(&mut v);
+            }
+            encode_png_best(&v, width, height, dpi, out)
+        }
     }
-    Ok(())
 }
 
 /// Pixels per metre for a resolution in dots per inch.
