@@ -280,6 +280,63 @@ fn a_second_run_into_a_busy_folder_refuses_naming_the_first() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// The output folder removed while a run writes it (an `rm -rf` of the wrong folder): the
+/// run stops at its next chunk with an error naming the folder (no panic, no folder made
+/// again, no computing on with every write failing), and the same command then starts
+/// afresh instead of taking what is left for the user's files.
+#[test]
+fn a_folder_removed_mid_run_stops_the_run_and_the_rerun_starts_afresh() {
+    let spec = root().join("tests/fixtures/kill.toml");
+    let out = tmp("removed");
+    let child = start_kill_atlas(&out);
+    // A file the run creates at that moment can make one pass fail (not empty).
+    let start = Instant::now();
+    while out.exists() {
+        let _ = std::fs::remove_dir_all(&out);
+        assert!(start.elapsed() < Duration::from_secs(10), "cannot remove");
+    }
+    let o = wait_at_most(child, Duration::from_secs(60));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains(&format!(
+            "{} was removed while this run was writing it",
+            out.display()
+        )),
+        "{e}"
+    );
+    assert!(!out.exists(), "the run made the removed folder again");
+    // Only the last shard, to stay short: the folder is new again, nothing is refused.
+    assert_ok(&generate(&spec, &out, &["--no-pages", "--shard", "63/63"]));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Start-up removes the temporaries of runs that are no longer running and leaves those of
+/// a live process (here the test itself) alone; a file that only looks like one is not
+/// touched either.
+#[test]
+fn start_up_removes_only_dead_runs_temporaries() {
+    let dir = tmp("stale");
+    assert_ok(&generate(&ok_spec(), &dir, &["--no-pages"]));
+    let dead = [
+        dir.join(".index.json.tmp-999999999-deadbeef"),
+        dir.join(".coupler-atlas/chunks/.000000.jsonl.tmp-999999998-cafe"),
+    ];
+    let live = dir.join(format!(".index.json.tmp-{}-feed", std::process::id()));
+    let lookalike = dir.join("notes.tmp-999999999-x");
+    for f in dead.iter().chain([&live, &lookalike]) {
+        std::fs::write(f, b"partial").unwrap();
+    }
+    std::fs::remove_file(dir.join("manifest.json")).unwrap();
+    assert_ok(&generate(&ok_spec(), &dir, &["--no-pages", "--force"]));
+    for f in &dead {
+        assert!(!f.exists(), "{} (of a dead run) was left", f.display());
+    }
+    assert_eq!(std::fs::read(&live).unwrap(), b"partial");
+    assert_eq!(std::fs::read(&lookalike).unwrap(), b"partial");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Waits for `child` at most `limit`; kills it and fails if it is still running.
 fn wait_at_most(mut child: std::process::Child, limit: Duration) -> Output {
     let start = Instant::now();
@@ -360,6 +417,74 @@ fn huge_specs_are_planned_at_once() {
         assert!(!out.exists(), "a refused plan wrote into its folder");
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// More curves than an index can number exactly (2^53) is refused even with `--yes`,
+/// before anything is written; `--dry-run` says so.
+#[test]
+fn more_curves_than_ids_can_number_are_refused_even_with_yes() {
+    let dir = tmp("2pow53");
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("huge.toml");
+    std::fs::write(
+        &spec,
+        "[atlas]\nname = \"huge\"\n\n[linkages]\n\
+         coupler = { start = 1.0, end = 100000.0, step = 1.0 }\n\
+         rocker = { start = 1.0, end = 100000.0, step = 1.0 }\n\
+         ground = { start = 1.0, end = 100000.0, step = 1.0 }\n\n[points]\n\
+         u = { start = 0.0, end = 1.0, step = 0.1, relative = true }\n\
+         v = { start = 0.0, end = 1.0, step = 0.1, relative = true }\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = generate(&spec, &out, &["--dry-run", "--no-pages"]);
+    assert_ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("refused:      60498185024199879 curves is more than the 9007199254740992"),
+        "{text}"
+    );
+    let o = generate(&spec, &out, &["--no-pages", "--yes"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("an index can number exactly"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists(), "a refused plan wrote into its folder");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The limits on page files (20,000) and on the estimated disk (20 GB) need `--yes` as the
+/// curve limit does: `dense.toml` with pages (186,108 page files, about 76 GB) is over
+/// both and refused without it; index only it is under all three.
+#[test]
+fn page_and_disk_limits_need_yes() {
+    let dense = root().join("atlas-spec/dense.toml");
+    let out = tmp("dense-limits");
+    let o = generate(&dense, &out, &["--dry-run"]);
+    assert_ok(&o);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("over limit:   186108 page files, more than 20000")
+            && text.contains("GB on disk, more than 20.0 GB: needs --yes"),
+        "{text}"
+    );
+    let o = generate(&dense, &out, &["--dry-run", "--no-pages"]);
+    assert_ok(&o);
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("over limit"));
+    let child = bin()
+        .arg("generate")
+        .arg(&dense)
+        .arg("--out")
+        .arg(&out)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let o = wait_at_most(child, Duration::from_secs(20));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--yes"), "{}", stderr(&o));
+    assert!(!out.exists(), "a refused plan wrote into its folder");
 }
 
 /// `--force` adds an atlas beside the user's files but never overwrites one that is
@@ -528,26 +653,52 @@ fn a_complete_atlas_verifies_without_writing() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// SIGTERM (what `kill`, a batch system or a container stop sends) stops like Ctrl-C:
-/// the work in progress finishes, the run says how to resume, exit code 130.
+/// SIGTERM (what `kill`, a batch system or a container stop sends) and SIGHUP (the
+/// terminal closed) stop like Ctrl-C: the work in progress finishes, the run says how to
+/// resume, exit code 130.
 #[test]
-fn sigterm_stops_cleanly_like_sigint() {
-    let out = tmp("sigterm");
-    let child = start_kill_atlas(&out);
-    let status = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let o = child.wait_with_output().unwrap();
-    assert_eq!(o.status.code(), Some(130), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("run the same command again to resume"),
-        "{}",
-        stderr(&o)
-    );
-    assert!(!out.join("index.json").exists());
-    let _ = std::fs::remove_dir_all(&out);
+fn sigterm_and_sighup_stop_cleanly_like_sigint() {
+    for signal in ["TERM", "HUP"] {
+        let out = tmp(&format!("sig{signal}"));
+        let child = start_kill_atlas(&out);
+        let status = Command::new("kill")
+            .args([format!("-{signal}"), child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(o.status.code(), Some(130), "{signal}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("run the same command again to resume"),
+            "{signal}: {}",
+            stderr(&o)
+        );
+        assert!(!out.join("index.json").exists());
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}
+
+/// A folder holding another atlas (another name) is refused, naming both atlases, and
+/// nothing in it changes.
+#[test]
+fn another_atlas_in_the_folder_is_refused() {
+    let dir = tmp("other-atlas");
+    assert_ok(&generate(&ok_spec(), &dir, &["--no-pages"]));
+    let before = stamps(&dir);
+    let index = std::fs::read(dir.join("index.json")).unwrap();
+    let quick = root().join("atlas-spec/quick.toml");
+    for extra in [&["--no-pages"][..], &["--no-pages", "--force"][..]] {
+        let o = generate(&quick, &dir, extra);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        let e = stderr(&o);
+        assert!(
+            e.contains("holds the atlas `bad`") && e.contains("`quick`"),
+            "{e}"
+        );
+    }
+    assert_eq!(std::fs::read(dir.join("index.json")).unwrap(), index);
+    assert_eq!(stamps(&dir), before);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `merge` takes the spec and page settings from the shards (no `--spec`: not the

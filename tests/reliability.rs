@@ -239,3 +239,71 @@ fn foreign_folders_are_refused_unless_forced_and_nothing_of_theirs_is_deleted() 
     assert!(generate(&spec, &dir, &["--no-pages"]).status.success());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A `merge` stopped mid-way, by SIGKILL (nothing can clean up then) or by SIGINT, is
+/// finished by the same command: the folder is then exactly one run's output, with no
+/// temporary file left (the file sets are compared). After SIGINT the merge says so and
+/// leaves no temporary file even before the rerun. `many-chunks.toml` has 63 cheap
+/// chunks, so the merge is stopped with most of its records still to copy.
+#[test]
+fn a_merge_stopped_mid_way_finishes_on_rerun() {
+    let spec = root().join("tests/fixtures/many-chunks.toml");
+    let base = tmp("merge-stop");
+    let single = base.join("single");
+    assert!(generate(&spec, &single, &["--no-pages"]).status.success());
+    let shards: Vec<PathBuf> = (1..=2)
+        .map(|k| {
+            let dir = base.join(format!("s{k}"));
+            let o = generate(&spec, &dir, &["--no-pages", "--shard", &format!("{k}/2")]);
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            dir
+        })
+        .collect();
+    let merge = |out: &Path| {
+        let mut c = bin();
+        c.arg("merge").arg("--out").arg(out).args(&shards);
+        c
+    };
+    for signal in ["KILL", "INT"] {
+        let out = base.join(signal);
+        let child = merge(&out)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let start = Instant::now();
+        while chunk_count(&out) < 1 {
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "merge made no progress"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let status = Command::new("kill")
+            .args([format!("-{signal}"), child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let o = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !out.join("index.json").exists() && chunk_count(&out) < 63,
+            "{signal}: the merge finished before it was stopped: the test proved nothing"
+        );
+        if signal == "INT" {
+            assert_eq!(o.status.code(), Some(130), "{stderr}");
+            assert!(stderr.contains("no temporary file is left"), "{stderr}");
+            let temporaries: Vec<String> = tree(&out)
+                .into_keys()
+                .filter(|k| k.contains(".tmp-"))
+                .collect();
+            assert!(temporaries.is_empty(), "left behind: {temporaries:?}");
+        } else {
+            assert_eq!(o.status.code(), None, "{stderr}");
+        }
+        let o = merge(&out).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_same_tree(&out, &single);
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}

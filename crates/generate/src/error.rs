@@ -44,6 +44,13 @@ pub enum GenerateError {
         /// The output folder.
         dir: PathBuf,
     },
+    /// The output folder (or its `.coupler-atlas/` record) was removed while the run was
+    /// writing it.
+    #[error("{} was removed while this run was writing it (its `.coupler-atlas/chunks/` is gone), so the run stopped: nothing more is written there. Run the same command again to start afresh; if some of the atlas's files are still there, they can no longer be told from the user's: remove the folder first", dir.display())]
+    FolderRemoved {
+        /// The output folder.
+        dir: PathBuf,
+    },
     /// Shard folders that do not make one atlas.
     #[error("cannot merge: {0}")]
     Merge(String),

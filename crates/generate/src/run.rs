@@ -112,6 +112,28 @@ pub fn run_key(job: &Job, renderer: &dyn Renderer) -> String {
     format!("{:032x}", xxhash_rust::xxh3::xxh3_128(text.as_bytes()))
 }
 
+/// Whether the folder a run is writing is still there (its `.coupler-atlas/chunks/`, which
+/// [`prepare`] made): one `stat`, checked before each chunk so that a run whose folder was
+/// removed stops at once instead of computing on with every write failing.
+fn still_there(out: &Path) -> Result<(), GenerateError> {
+    match std::fs::symlink_metadata(out.join(STATE_DIR).join("chunks")) {
+        Ok(m) if m.is_dir() => Ok(()),
+        _ => Err(GenerateError::FolderRemoved {
+            dir: out.to_path_buf(),
+        }),
+    }
+}
+
+/// `e`, or [`GenerateError::FolderRemoved`] if it came from the folder being removed.
+fn or_removed(out: &Path, e: GenerateError) -> GenerateError {
+    match e {
+        GenerateError::Io { .. } | GenerateError::PagesFailed { .. } => {
+            still_there(out).err().unwrap_or(e)
+        }
+        e => e,
+    }
+}
+
 fn chunk_path(dir: &Path, chunk: u64) -> PathBuf {
     dir.join(STATE_DIR)
         .join("chunks")
@@ -205,39 +227,57 @@ fn read_chunk(
     Ok(header)
 }
 
-/// Writes chunk record `chunk` of `curves` (and the files its pages are in).
-fn write_chunk(
-    dir: &Path,
+/// A computed chunk, ready to be recorded: its curve lines (each ending in a newline, in
+/// id order), how many, the first id, and the files its pages are in.
+struct ChunkLines {
     chunk: u64,
-    key: &str,
-    curves: &[&IndexCurve],
+    lines: String,
+    curves: u64,
+    first_id: u64,
     files: Vec<FileEntry>,
-) -> Result<(), GenerateError> {
+}
+
+/// The index lines of `curves`, each ending in a newline (formatted by the worker that
+/// computed them, so that the run's serial part stays small).
+fn format_lines(curves: &[IndexCurve]) -> std::io::Result<String> {
     let mut lines = String::new();
     for c in curves {
-        let line = curve_line(c).map_err(io_err(&chunk_path(dir, chunk)))?;
-        lines.push_str(&line);
+        lines.push_str(&curve_line(c)?);
         lines.push('\n');
     }
+    Ok(lines)
+}
+
+/// Writes the record of a computed chunk (durably: after the files it lists are made
+/// durable).
+fn write_chunk(dir: &Path, key: &str, c: ChunkLines) -> Result<(), GenerateError> {
+    sync_files(dir, c.files.iter().map(|f| f.name.as_str()))?;
     let header = ChunkHeader {
         format: CHUNK_FORMAT,
         run_key: key.to_string(),
-        chunk,
-        curves: curves.len() as u64,
-        first_id: curves.first().map(|c| c.id).unwrap_or(0),
-        lines_bytes: lines.len() as u64,
-        lines_xxh3: format!("{:032x}", xxhash_rust::xxh3::xxh3_128(lines.as_bytes())),
-        files,
+        chunk: c.chunk,
+        curves: c.curves,
+        first_id: c.first_id,
+        lines_bytes: c.lines.len() as u64,
+        lines_xxh3: format!("{:032x}", xxhash_rust::xxh3::xxh3_128(c.lines.as_bytes())),
+        files: c.files,
     };
-    write_atomically(&chunk_path(dir, chunk), |w| {
+    write_atomically(&chunk_path(dir, c.chunk), |w| {
         serde_json::to_writer(&mut *w, &header)?;
         w.write_all(b"\n")?;
-        w.write_all(lines.as_bytes())
+        w.write_all(c.lines.as_bytes())
     })
 }
 
-/// A group's index records, the files it wrote, and the pages that failed.
-type GroupOutput = (Vec<IndexCurve>, Vec<FileEntry>, Vec<PageFailure>);
+/// A group's index lines (see [`format_lines`]), their count and first id, the files it
+/// wrote, and the pages that failed.
+struct GroupOutput {
+    lines: String,
+    curves: u64,
+    first_id: Option<u64>,
+    files: Vec<FileEntry>,
+    failed: Vec<PageFailure>,
+}
 
 /// Writes what a renderer made: the names recorded in the ledger first (durably), then
 /// each file atomically; a page that failed, or a file that could not be written,
@@ -439,89 +479,136 @@ pub fn run(
             source: std::io::Error::other(e),
         })?;
     let mine = (0..total).filter(|&c| job.shard.owns(c as usize)).count();
-    let (mut computed, mut reused) = (0, 0);
-    let mut failed: Vec<PageFailure> = Vec::new();
-    // The files of every chunk found complete (for the manifest), in chunk order.
-    let mut chunk_files: Vec<Option<Vec<FileEntry>>> = Vec::new();
-    let mut units = job.units();
-    for c in 0..total {
-        let chunk: Vec<Group> = units.by_ref().take(CHUNK_GROUPS).collect();
-        if !job.shard.owns(c as usize) {
-            if whole {
-                chunk_files.push(None);
-            }
-            continue;
-        }
-        let done = reused + computed;
-        if interrupt.load(Ordering::Relaxed) {
-            return Err(GenerateError::Interrupted {
-                done,
-                total: mine,
-                dir: job.out.clone(),
-            });
-        }
-        if let Ok(header) = read_chunk(&job.out, c, &key, true, None) {
-            progress(header.curves);
-            reused += 1;
-            if whole {
-                chunk_files.push(Some(header.files));
-            }
-            continue;
-        }
-        // The names this chunk will write, recorded (durably) before any is written.
-        let known: Option<Vec<String>> = chunk
-            .iter()
-            .map(|g| renderer.group_files(job, g))
-            .collect::<Option<Vec<Vec<String>>>>()
-            .map(|v| v.concat());
-        if let Some(names) = &known {
-            prep.ledger.add(names.iter().map(String::as_str))?;
-        }
-        let results: Result<Vec<GroupOutput>, GenerateError> = pool.install(|| {
-            chunk
-                .par_iter()
-                .map(|g| {
-                    if interrupt.load(Ordering::Relaxed) {
-                        return Err(GenerateError::Interrupted {
-                            done,
-                            total: mine,
-                            dir: job.out.clone(),
-                        });
-                    }
-                    let features = job
-                        .spec
-                        .features
-                        .enabled
-                        .then_some(&job.spec.features.tolerances);
-                    let mut curves = compute_group(&table, g, features, &dash)?;
-                    let rendered = renderer.render_group(job, g, &mut curves);
-                    let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
-                    progress(curves.len() as u64);
-                    Ok((curves, files, failed))
-                })
-                .collect()
+    let features = job
+        .spec
+        .features
+        .enabled
+        .then_some(&job.spec.features.tolerances);
+    // The chunks are computed in order, each by all workers; a computed chunk's record is
+    // written (its pages made durable, the record written and made durable) on a thread
+    // of its own while the next chunk is computed. At most one chunk waits for it.
+    let (computed, reused, failed, chunk_files) = std::thread::scope(|scope| {
+        let (records, pending) = std::sync::mpsc::sync_channel::<ChunkLines>(1);
+        let (out, record_key) = (&job.out, key.as_str());
+        let writer = scope.spawn(move || {
+            pending
+                .into_iter()
+                .try_for_each(|lines| write_chunk(out, record_key, lines))
         });
-        let results = results?;
-        let chunk_failed: Vec<PageFailure> =
-            results.iter().flat_map(|r| r.2.iter().cloned()).collect();
-        if !chunk_failed.is_empty() {
-            // Not recorded as complete: the same command redoes this chunk.
-            failed.extend(chunk_failed);
-            if whole {
-                chunk_files.push(None);
+        let mut computed = 0;
+        let mut reused = 0;
+        let mut failed: Vec<PageFailure> = Vec::new();
+        // The files of every chunk found complete (for the manifest), in chunk order.
+        let mut chunk_files: Vec<Option<Vec<FileEntry>>> = Vec::new();
+        let mut units = job.units();
+        let mut compute = || -> Result<(), GenerateError> {
+            for c in 0..total {
+                let chunk: Vec<Group> = units.by_ref().take(CHUNK_GROUPS).collect();
+                if !job.shard.owns(c as usize) {
+                    if whole {
+                        chunk_files.push(None);
+                    }
+                    continue;
+                }
+                let done = reused + computed;
+                if interrupt.load(Ordering::Relaxed) {
+                    return Err(GenerateError::Interrupted {
+                        done,
+                        total: mine,
+                        dir: job.out.clone(),
+                    });
+                }
+                still_there(&job.out)?;
+                if let Ok(header) = read_chunk(&job.out, c, &key, true, None) {
+                    progress(header.curves);
+                    reused += 1;
+                    if whole {
+                        chunk_files.push(Some(header.files));
+                    }
+                    continue;
+                }
+                // The names this chunk will write, recorded (durably) before any is written.
+                let known: Option<Vec<String>> = chunk
+                    .iter()
+                    .map(|g| renderer.group_files(job, g))
+                    .collect::<Option<Vec<Vec<String>>>>()
+                    .map(|v| v.concat());
+                if let Some(names) = &known {
+                    prep.ledger.add(names.iter().map(String::as_str))?;
+                }
+                let results: Vec<GroupOutput> = pool.install(|| {
+                    chunk
+                        .par_iter()
+                        .map(|g| {
+                            if interrupt.load(Ordering::Relaxed) {
+                                return Err(GenerateError::Interrupted {
+                                    done,
+                                    total: mine,
+                                    dir: job.out.clone(),
+                                });
+                            }
+                            let mut curves = compute_group(&table, g, features, &dash)?;
+                            let rendered = renderer.render_group(job, g, &mut curves);
+                            let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
+                            let lines =
+                                format_lines(&curves).map_err(io_err(&chunk_path(&job.out, c)))?;
+                            progress(curves.len() as u64);
+                            Ok(GroupOutput {
+                                lines,
+                                curves: curves.len() as u64,
+                                first_id: curves.first().map(|c| c.id),
+                                files,
+                                failed,
+                            })
+                        })
+                        .collect::<Result<_, _>>()
+                })?;
+                let chunk_failed: Vec<PageFailure> = results
+                    .iter()
+                    .flat_map(|r| r.failed.iter().cloned())
+                    .collect();
+                if !chunk_failed.is_empty() {
+                    // Not recorded as complete: the same command redoes this chunk.
+                    failed.extend(chunk_failed);
+                    if whole {
+                        chunk_files.push(None);
+                    }
+                    continue;
+                }
+                let mut lines = String::with_capacity(results.iter().map(|r| r.lines.len()).sum());
+                for r in &results {
+                    lines.push_str(&r.lines);
+                }
+                let record = ChunkLines {
+                    chunk: c,
+                    lines,
+                    curves: results.iter().map(|r| r.curves).sum(),
+                    first_id: results.iter().find_map(|r| r.first_id).unwrap_or(0),
+                    files: results.into_iter().flat_map(|r| r.files).collect(),
+                };
+                if whole {
+                    chunk_files.push(Some(record.files.clone()));
+                }
+                if records.send(record).is_err() {
+                    // The writer stopped on an error: it is reported below.
+                    break;
+                }
+                computed += 1;
             }
-            continue;
+            Ok(())
+        };
+        let result = compute();
+        drop(records);
+        let written = writer
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        match (result, written) {
+            (_, Err(e)) => Err(or_removed(&job.out, e)),
+            (r, Ok(())) => r.map(|()| (computed, reused, failed, chunk_files)),
         }
-        let curves: Vec<&IndexCurve> = results.iter().flat_map(|r| &r.0).collect();
-        let files: Vec<FileEntry> = results.iter().flat_map(|r| r.1.iter().cloned()).collect();
-        // The pages are durable before the record that claims them.
-        pool.install(|| sync_files(&job.out, files.iter().map(|f| f.name.as_str())))?;
-        write_chunk(&job.out, c, &key, &curves, files.clone())?;
-        if whole {
-            chunk_files.push(Some(files));
-        }
-        computed += 1;
-    }
+    })?;
+    still_there(&job.out)?;
+    let mut failed = failed;
     if !failed.is_empty() {
         if whole {
             // The atlas-level pages (contents) do not depend on the failed ones.
@@ -781,6 +868,10 @@ pub fn merge(
             chunk_files.push(None);
             continue;
         };
+        if interrupt.load(Ordering::Relaxed) {
+            return Err(stopped());
+        }
+        still_there(&job.out)?;
         let header = read_chunk(src, c, &key, false, None).map_err(|p| {
             GenerateError::Merge(format!(
                 "chunk {c} changed in {} while merging ({p})",
