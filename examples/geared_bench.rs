@@ -7,11 +7,13 @@
 //! five-bar so that both see the same load; each figure is the median over the rounds of
 //! the thread's CPU time (wall time beside it). The five-bar's gear table (θ5 and the
 //! half-angles, which depend only on the gears and the step) is shared by every linkage
-//! with those gears, like the four-bar's crank table, and is timed separately.
+//! with those gears, like the four-bar's crank table, and is timed separately: `generate`
+//! shares it through `AngleTables` (timed so, lookup included), against the per-linkage
+//! `Mechanism::pose_table` that forms the gear angles for each linkage.
 
 use coupler_atlas::{
-    Circuit, CouplerPoint, CrankTable, Curve, FourBar, GearRatio, GearTable, GearedFiveBar,
-    Mechanism, PoseTable,
+    AngleTables, Circuit, CouplerPoint, CrankTable, Curve, FourBar, GearRatio, GearTable,
+    GearedFiveBar, Linkage, Mechanism, PoseTable,
 };
 use std::hint::black_box;
 use std::time::Instant;
@@ -89,8 +91,9 @@ fn main() {
     let mut four_cpu = Vec::new();
     let mut four_wall = Vec::new();
     let mut five = vec![(Vec::new(), Vec::new()); cases.len()];
-    // The pipeline's path (`generate`, pages): `Mechanism::pose_table` on a crank table
-    // over the period, the gear angles formed per linkage rather than shared.
+    // Per linkage: `Mechanism::pose_table` on a crank table over the period, the gear
+    // angles formed for each linkage rather than shared (what `generate` ran before it
+    // shared them through `AngleTables`).
     let mut generic = vec![(Vec::new(), Vec::new()); cases.len()];
     let crank_tables: Vec<CrankTable> = cases
         .iter()
@@ -100,6 +103,8 @@ fn main() {
         .iter()
         .map(|(_, g)| GearTable::for_linkage(g, 0.5).unwrap())
         .collect();
+    // The pipeline's path (`generate`, pages): the run's shared tables.
+    let shared = AngleTables::new(0.5).unwrap();
     for _ in 0..rounds {
         let (c, w) = round(four_samples, || {
             let poses = PoseTable::new(black_box(&four), Circuit::Open, &crank);
@@ -113,8 +118,9 @@ fn main() {
         for (i, (_, g)) in cases.iter().enumerate() {
             let points = grid(g.l3);
             let samples = points.len() * tables[i].len();
+            let linkage = Linkage::from(*g);
             let (c, w) = round(samples, || {
-                let poses = black_box(g).gear_pose_table(Circuit::Open, &tables[i]);
+                let poses = shared.pose_table(black_box(&linkage), Circuit::Open);
                 for p in &points {
                     poses.trace_into(*p, &mut buf);
                     black_box(&buf);
@@ -145,13 +151,13 @@ fn main() {
     for (i, (name, _)) in cases.iter().enumerate() {
         let c = median(five[i].0.clone());
         println!(
-            "| geared five-bar L1=3 L3=L4=3 L5=1, {name} | {c:.2} | {:.2} | {:.2} |",
+            "| geared five-bar L1=3 L3=L4=3 L5=1, {name}, shared gear table (`AngleTables`, as `generate` runs it) | {c:.2} | {:.2} | {:.2} |",
             median(five[i].1.clone()),
             c / f
         );
         let c = median(generic[i].0.clone());
         println!(
-            "| … the same through `Mechanism::pose_table` (as `generate` runs it) | {c:.2} | {:.2} | {:.2} |",
+            "| … the same through `Mechanism::pose_table` (gear angles per linkage) | {c:.2} | {:.2} | {:.2} |",
             median(generic[i].1.clone()),
             c / f
         );

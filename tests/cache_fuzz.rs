@@ -269,7 +269,12 @@ fn same_size_same_time_other_index_is_not_answered_from_the_cache() {
     let (after, source) = load_table(&idx, true).unwrap();
     assert_eq!(source.name(), "index", "answered from the old cache");
     assert_ne!(after, before);
-    assert!(after.rows.iter().any(|r| r.linkage[2] == 3.5));
+    assert!(
+        after
+            .rows
+            .iter()
+            .any(|r| r.linkage.four_bar().is_some_and(|l| l.ground == 3.5))
+    );
 }
 
 /// `search` and `dwell --index` over a cache whose header fields (counts, lengths,

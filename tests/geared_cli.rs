@@ -317,7 +317,86 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
     assert_eq!(found["total"], 16);
     let hits = found["hits"].as_array().unwrap();
     assert_eq!(hits.len(), 16);
-    assert!(hits[0]["linkage"].is_null());
+    // Each hit carries its linkage's six dimensions, as the index records them.
+    for h in hits {
+        let c = curves.iter().find(|c| c["id"] == h["id"]).unwrap();
+        assert_eq!(h["linkage"], c["linkage"], "curve {}", h["id"]);
+    }
+    // --linkage L1,L3,L4,L5,RATIO,PHASE finds that linkage's curves (and only them);
+    // the CSV and the table print the dimensions.
+    let out = run(&[
+        "search",
+        dirs[0].to_str().unwrap(),
+        "--linkage",
+        "3,3,3,1,-1/2,90",
+        "--format",
+        "csv",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert!(
+        lines[0].starts_with("id,l1,l3,l4,l5,ratio,phase,u,v,"),
+        "{}",
+        lines[0]
+    );
+    assert_eq!(lines.len(), 3, "{csv}");
+    for l in &lines[1..] {
+        assert!(l.contains(",3,3,3,1,-1/2,90,"), "{l}");
+    }
+    let out = run(&["search", dirs[0].to_str().unwrap(), "--limit", "0"]);
+    let table = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        table.contains("# L1 3  L3 3  L4 3  L5 1  λ -1/2  φ 90°  (class I)"),
+        "{table}"
+    );
+    assert!(table.lines().all(|l| l.chars().count() <= 120), "{table}");
+    // A four-bar's A,B,C matches no geared row.
+    let out = run(&[
+        "search",
+        dirs[0].to_str().unwrap(),
+        "--linkage",
+        "3,3,3",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(json(&out)["total"], 0);
+    // match compares four-bar curves only: it says so (exit 2), not "made by an older
+    // version".
+    let target = dirs[0].join("target.csv");
+    std::fs::write(&target, "0,0\n1,0\n1,1\n0,1\n0.2,0.5\n").unwrap();
+    let out = run(&[
+        "match",
+        target.to_str().unwrap(),
+        "--atlas",
+        dirs[0].to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("is a geared-fivebar atlas: match compares four-bar coupler curves only"),
+        "{err}"
+    );
+    // dwell designs four-bar dwell linkages: a five-bar curve is refused, naming it.
+    let out = run(&[
+        "dwell",
+        "--index",
+        dirs[0].to_str().unwrap(),
+        "--curve",
+        "0",
+        "--arc",
+        "1",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("curve 0 is of a geared five-bar (L1=3 L3=3 L4=3 L5=1 ratio=-1 phase=0): dwell designs four-bar dwell linkages only"),
+        "{err}"
+    );
     for dir in &dirs {
         let _ = std::fs::remove_dir_all(dir);
     }
@@ -412,4 +491,147 @@ fn straight_line_page_set_measures_its_line_at_rounding_level() {
         assert!(s["straightness_pct"].as_f64().unwrap() < 1e-12, "{s}");
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A query tighter than the index's extraction tolerance re-measures the candidate
+/// curves of a geared five-bar atlas through the mechanism (over its period: λ = −1/2
+/// turns the input twice), and the answer equals that of the atlas generated at the
+/// tighter tolerance: `geared-quick.toml` at the default 0.5 % against a copy at 0.2 %.
+#[test]
+fn geared_tighter_tolerance_equals_regenerating() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("geared-refine-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let quick = std::fs::read_to_string(root.join("atlas-spec/geared-quick.toml")).unwrap();
+    let tight = dir.join("tight.toml");
+    std::fs::write(
+        &tight,
+        format!("{quick}\n[features]\nstraight_pct = 0.2\narc_pct = 0.2\n"),
+    )
+    .unwrap();
+    let generate = |spec: &std::path::Path, out: &str| {
+        let out = dir.join(out);
+        let st = run(&[
+            "generate",
+            spec.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--no-pages",
+            "-q",
+        ]);
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        out
+    };
+    let loose = generate(&root.join("atlas-spec/geared-quick.toml"), "loose");
+    let tight = generate(&tight, "tight");
+    let search = |atlas: &std::path::Path, q: &[&str]| -> (serde_json::Value, String) {
+        let mut args = vec!["search", atlas.to_str().unwrap()];
+        args.extend_from_slice(q);
+        args.extend_from_slice(&["--format", "json", "--limit", "0", "--include-trivial"]);
+        let out = run(&args);
+        (
+            json(&out),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let mut found = 0;
+    let mut half_turns = 0;
+    for q in [
+        &["--straight", "30:0.2"][..],
+        &["--arc", "40:0.2", "--sort", "arc"],
+        &["--arc", "30:0.1", "--sort", "deviation"],
+        &["--straight", "30:0.15", "--arc", "30:0.2"],
+    ] {
+        let (a, note) = search(&loose, q);
+        let (b, _) = search(&tight, q);
+        assert!(note.contains("refined"), "{q:?}: {note}");
+        assert_eq!(a, b, "{q:?}");
+        found += a["total"].as_u64().unwrap();
+        // Features past the first turn of a λ = −1/2 curve are found.
+        for h in a["hits"].as_array().unwrap() {
+            for f in h["pseudo_arcs"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .chain(h["straight_segments"].as_array().unwrap())
+            {
+                half_turns += (f["start_deg"].as_f64().unwrap() >= 360.0) as usize;
+            }
+        }
+    }
+    assert!(found > 0, "the queries must find something");
+    assert!(half_turns > 0, "a feature in the second input turn");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `curve --window` on a geared five-bar: the library's window measures through the
+/// mechanism, to the bit (JSON), anywhere in the period (a λ = −1/2 window in the second
+/// input turn differs from the same angles a turn earlier); the exact straight line's
+/// window is straight at rounding level; a window that meets a dead input is refused.
+#[test]
+fn window_measures_are_the_librarys_for_the_geared_five_bar() {
+    use coupler_atlas::{CrankWindow, LineDirection, WindowMeasures};
+    let g = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), 30.0).unwrap();
+    let p = CouplerPoint::new(1.0, 1.0);
+    let measured = |window: &str, line: &str| {
+        let out = geared(
+            ["3", "3", "3", "1"],
+            "-1/2",
+            "30",
+            &["--point", "1,1", "--window", window, "--window-line", line],
+        );
+        json(&out)["window"].clone()
+    };
+    let library = |a: f64, b: f64, line: LineDirection| {
+        let w = CrankWindow::new(a, b, 1.0).unwrap();
+        let m = WindowMeasures::measure(&g, Circuit::Open, p, &w, line).unwrap();
+        serde_json::to_value(&m).unwrap()
+    };
+    let second = measured("500:600", "fitted");
+    assert_eq!(second, library(500.0, 600.0, LineDirection::Fitted));
+    assert_ne!(second, library(140.0, 240.0, LineDirection::Fitted));
+    assert_eq!(
+        measured("10:60", "ground"),
+        library(10.0, 60.0, LineDirection::Given(0.0))
+    );
+    // The straight line: the joint (L3, 0) of λ = −1, φ = 180°.
+    let out = geared(
+        ["3", "3", "3", "1"],
+        "-1",
+        "180",
+        &["--point", "3,0", "--window", "20:80", "--format", "table"],
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let line = text.lines().find(|l| l.starts_with("# window ")).unwrap();
+    let eps: f64 = line
+        .split("ε_S ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(eps < 1e-12, "{line}");
+    // A rocking input (the dyad cannot close everywhere) is refused by the window.
+    let out = geared(
+        ["2", "1", "1", "1.5"],
+        "2",
+        "0",
+        &["--point", "1,1", "--window", "0:359"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("does not assemble at θ ="),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }

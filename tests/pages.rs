@@ -8,7 +8,7 @@ use coupler_atlas::layout::{
     ClassicPage, LinkagePage, compute_classic, compute_page, layout_page, rect_distance,
 };
 use coupler_atlas::spec::{DEFAULT_SPEC_TEXT, Spec};
-use coupler_atlas::{ClassicCurve, CrankAngle, CrankTable, CurveList, Mechanism};
+use coupler_atlas::{AngleTables, ClassicCurve, CrankAngle, CurveList, Mechanism};
 use rayon::prelude::*;
 use std::path::PathBuf;
 use std::process::Command;
@@ -45,7 +45,7 @@ fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
     let opts = PageOptions::from_spec(&spec).unwrap();
     let setup = &opts.setup;
     let job = Job::new(spec.clone(), "default", "unused", 2);
-    let table = CrankTable::new(spec.sampling.crank_step_deg).unwrap();
+    let table = AngleTables::new(spec.sampling.crank_step_deg).unwrap();
     let dash = spec.sampling.dash_pattern();
     let row_len = spec.points.u.len() as usize;
     let groups: Vec<_> = job.groups().collect();

@@ -1,7 +1,7 @@
 //! `search`: every result satisfies its filters according to the index itself, no curve
 //! that satisfies them is missed, and the Hoeken linkage is found by `--straight`.
 
-use coupler_atlas::{Circuit, Class, IndexCurve, LinkageClass};
+use coupler_atlas::{Circuit, Class, FourBar, IndexCurve, LinkageClass};
 use coupler_atlas::{Query, SearchTable, SortKey, SpanFilter};
 use proptest::prelude::*;
 use std::path::PathBuf;
@@ -108,9 +108,10 @@ fn satisfies(c: &IndexCurve, q: &Query) -> bool {
     ok &= q.symmetric <= f.symmetry.is_some();
     if let Some(l) = q.linkage {
         let c = c.linkage.four_bar().expect("a four-bar atlas");
-        ok &= (c.coupler - l[0]).abs() <= 1e-9
-            && (c.rocker - l[1]).abs() <= 1e-9
-            && (c.ground - l[2]).abs() <= 1e-9;
+        let l = l.four_bar().expect("a four-bar query");
+        ok &= (c.coupler - l.coupler).abs() <= 1e-9
+            && (c.rocker - l.rocker).abs() <= 1e-9
+            && (c.ground - l.ground).abs() <= 1e-9;
     }
     ok
 }
@@ -141,8 +142,8 @@ fn query() -> impl Strategy<Value = Query> {
         any::<bool>(),
         prop_oneof![
             Just(None),
-            Just(Some([2.5, 2.5, 2.0])),
-            Just(Some([3.0, 2.5, 3.0]))
+            Just(Some(FourBar::new(2.5, 2.5, 2.0).unwrap().into())),
+            Just(Some(FourBar::new(3.0, 2.5, 3.0).unwrap().into()))
         ],
         prop_oneof![Just(None), Just(Some(Class::Gcrr))],
         (

@@ -146,8 +146,12 @@ fn plan(args: &Args) -> Result<Plan> {
             .iter()
             .find(|r| r.id == id)
             .ok_or_else(|| UsageError(format!("no curve {id} in {}", index.display())))?;
-        let l = FourBar::new(row.linkage[0], row.linkage[1], row.linkage[2])
-            .map_err(|e| UsageError(e.to_string()))?;
+        let l = *row.linkage.four_bar().ok_or_else(|| {
+            UsageError(format!(
+                "curve {id} is of a geared five-bar ({}): dwell designs four-bar dwell linkages only",
+                row.linkage
+            ))
+        })?;
         let p = CouplerPoint::new(row.point[0], row.point[1]);
         let pick = |what: &str,
                     ks: &[usize],

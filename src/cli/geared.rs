@@ -1,17 +1,15 @@
 //! `coupler-atlas curve --mechanism geared-fivebar --l1 L1 --l3 L3 --l4 L4 --l5 L5
 //! --ratio P[/Q] [--phase DEG] --point U,V [--circuit] [--step] [--trace] [--format]`:
 //! the coupler curve of a geared five-bar (docs/geared-fivebar.md), sampled over the
-//! mechanism's period, with the same JSON contract as a four-bar's curve.
+//! mechanism's period, written by the four-bar's writer (`curve.rs`, [`CurveOutput`]).
 
+use super::curve::{CurveOutput, Sample, finite};
 use super::{UsageError, parse_length, parse_number};
 use anyhow::Result;
 use coupler_atlas::{
     Circuit, CouplerPoint, CrankTable, CurveFlags, FlagTolerances, GearRatio, GearedFiveBar,
-    Mechanism, Rotatability,
+    Mechanism, Rotatability, WindowMeasures,
 };
-use serde::Serialize;
-use std::io::Write;
-use std::process::ExitCode;
 
 /// The flags naming a geared five-bar (Norton's numbering; the input crank L2 = 1).
 #[derive(clap::Args, Debug)]
@@ -77,23 +75,6 @@ impl GearedArgs {
     }
 }
 
-/// One sample of the geared `curve` JSON: the four-bar's fields, and the second crank's
-/// angle θ5 = λ·θ2 + φ (reduced to [0, 360)).
-#[derive(Serialize)]
-struct Sample {
-    theta_deg: f64,
-    theta5_deg: f64,
-    x: Option<f64>,
-    y: Option<f64>,
-    vx: Option<f64>,
-    vy: Option<f64>,
-    transmission_deg: Option<f64>,
-}
-
-fn finite(x: f64) -> Option<f64> {
-    x.is_finite().then_some(x)
-}
-
 /// The `"linkage"` object and the mechanism's identity, as the JSON starts:
 /// `{"mechanism":"geared-fivebar","linkage":{…}`.
 pub fn json_head(linkage: &GearedFiveBar) -> Result<String> {
@@ -111,15 +92,16 @@ fn rotatability_name(r: Rotatability) -> &'static str {
     }
 }
 
-/// Samples one circuit over the period every `step` degrees of input and writes it in
-/// `format`.
-pub fn run(
+/// One circuit sampled over the period every `step` degrees of input, as `curve`
+/// writes it ([`CurveOutput`]): the four-bar's fields, and the second crank's angle
+/// θ5 = λ·θ2 + φ (reduced to [0, 360)).
+pub fn output(
     linkage: &GearedFiveBar,
     circuit: Circuit,
     p: CouplerPoint,
     step: f64,
-    format: &str,
-) -> Result<ExitCode> {
+    window: Option<WindowMeasures>,
+) -> Result<CurveOutput<'static>> {
     let period = Mechanism::period_deg(linkage);
     let table = CrankTable::over(step, period).ok_or_else(|| {
         UsageError(format!(
@@ -132,7 +114,7 @@ pub fn run(
         .angles()
         .iter()
         .map(|angle| {
-            let theta5_deg = linkage.angle_at(angle.degrees).second.degrees;
+            let theta5_deg = Some(linkage.angle_at(angle.degrees).second.degrees);
             match linkage.pose_at_angle(circuit, angle) {
                 Some(pose) => {
                     let m = pose.point(p);
@@ -161,75 +143,19 @@ pub fn run(
         })
         .collect();
     let class = linkage.ting_class();
-    let stdout = std::io::stdout();
-    let mut w = std::io::BufWriter::new(stdout.lock());
-    match format {
-        "json" => {
-            write!(w, "{},\"point\":", json_head(linkage)?)?;
-            serde_json::to_writer(&mut w, &p)?;
-            write!(
-                w,
-                ",\"circuit\":\"{}\",\"class\":\"{}\",\"period_deg\":{},\"rotatability\":\"{}\",\"samples\":[",
-                circuit.name(),
-                class.code(),
-                serde_json::to_string(&period)?,
-                rotatability_name(linkage.rotatability(coupler_atlas::MARGIN_TOL))
-            )?;
-            for (i, s) in samples.iter().enumerate() {
-                w.write_all(if i == 0 { b"\n" } else { b",\n" })?;
-                serde_json::to_writer(&mut w, s)?;
-            }
-            write!(w, "\n],\"flags\":")?;
-            serde_json::to_writer(&mut w, &flags.flags)?;
-            writeln!(w, ",\"error_bound\":{:e}}}", flags.error_bound)?;
-        }
-        "csv" => {
-            writeln!(w, "theta_deg,theta5_deg,x,y,vx,vy,transmission_deg")?;
-            let f = |x: Option<f64>| x.map(|x| x.to_string()).unwrap_or_default();
-            for s in &samples {
-                writeln!(
-                    w,
-                    "{},{},{},{},{},{},{}",
-                    s.theta_deg,
-                    s.theta5_deg,
-                    f(s.x),
-                    f(s.y),
-                    f(s.vx),
-                    f(s.vy),
-                    f(s.transmission_deg)
-                )?;
-            }
-        }
-        _ => {
-            writeln!(
-                w,
-                "# geared five-bar {linkage} ({class}, period {period}°) circuit {circuit} point ({}, {})",
-                p.u, p.v
-            )?;
-            writeln!(
-                w,
-                "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>9}",
-                "theta°", "theta5°", "x", "y", "vx", "vy", "mu°"
-            )?;
-            let f = |x: Option<f64>, prec: usize| {
-                x.map(|x| format!("{x:.prec$}"))
-                    .unwrap_or_else(|| "-".into())
-            };
-            for s in &samples {
-                writeln!(
-                    w,
-                    "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>9}",
-                    s.theta_deg,
-                    f(Some(s.theta5_deg), 4),
-                    f(s.x, 6),
-                    f(s.y, 6),
-                    f(s.vx, 6),
-                    f(s.vy, 6),
-                    f(s.transmission_deg, 2)
-                )?;
-            }
-        }
-    }
-    w.flush()?;
-    Ok(ExitCode::SUCCESS)
+    Ok(CurveOutput {
+        head: json_head(linkage)?,
+        extra: format!(
+            ",\"period_deg\":{},\"rotatability\":\"{}\"",
+            serde_json::to_string(&period)?,
+            rotatability_name(linkage.rotatability(coupler_atlas::MARGIN_TOL))
+        ),
+        title: format!("geared five-bar {linkage} ({class}, period {period}°)"),
+        class: class.code(),
+        circuit,
+        point: p,
+        samples,
+        flags,
+        window,
+    })
 }

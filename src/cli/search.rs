@@ -3,8 +3,8 @@
 use super::UsageError;
 use anyhow::Result;
 use coupler_atlas::{
-    ArcRow, Circuit, CouplerPoint, CrankTable, DashPattern, FeatureTolerances, FourBar,
-    LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments,
+    ArcRow, Circuit, CouplerPoint, CrankTable, DashPattern, FeatureTolerances, FourBar, GearRatio,
+    GearedFiveBar, Linkage, LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments,
 };
 use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
@@ -35,8 +35,13 @@ pub struct Args {
     /// Barker class, e.g. GCRR.
     #[arg(long)]
     class: Option<String>,
-    /// The linkage A,B,C (coupler, rocker, ground).
-    #[arg(long, value_name = "A,B,C")]
+    /// The linkage: a four-bar's A,B,C (coupler, rocker, ground), or a geared five-bar's
+    /// L1,L3,L4,L5,RATIO,PHASE (RATIO as p or p/q, PHASE in degrees).
+    #[arg(
+        long,
+        value_name = "A,B,C|L1,L3,L4,L5,RATIO,PHASE",
+        allow_hyphen_values = true
+    )]
     linkage: Option<String>,
     /// Circuit: open or crossed.
     #[arg(long, value_parser = ["open", "crossed"])]
@@ -156,13 +161,78 @@ fn numbered<T: serde::Serialize>(x: &T, index: usize) -> serde_json::Value {
     v
 }
 
-fn parse_linkage(s: &str) -> Result<[f64; 3], UsageError> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| super::parse_length(x.trim()))
-        .collect::<Result<_, _>>()
-        .map_err(|e| UsageError(format!("--linkage: {e}")))?;
-    <[f64; 3]>::try_from(v).map_err(|_| UsageError(format!("--linkage expects A,B,C, got `{s}`")))
+/// `A,B,C` (a four-bar) or `L1,L3,L4,L5,RATIO,PHASE` (a geared five-bar).
+fn parse_linkage(s: &str) -> Result<Linkage, UsageError> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let lengths = |xs: &[&str]| -> Result<Vec<f64>, UsageError> {
+        xs.iter()
+            .map(|x| super::parse_length(x))
+            .collect::<Result<_, _>>()
+            .map_err(|e| UsageError(format!("--linkage: {e}")))
+    };
+    match parts.as_slice() {
+        [_, _, _] => {
+            let l = lengths(&parts)?;
+            FourBar::new(l[0], l[1], l[2])
+                .map(Linkage::FourBar)
+                .map_err(|e| UsageError(format!("--linkage: {e}")))
+        }
+        [_, _, _, _, ratio, phase] => {
+            let l = lengths(&parts[..4])?;
+            let ratio: GearRatio = ratio
+                .parse()
+                .map_err(|e| UsageError(format!("--linkage: {e}")))?;
+            let phase = super::parse_number(phase)
+                .map_err(|e| UsageError(format!("--linkage: phase: {e}")))?;
+            GearedFiveBar::new(l[0], l[1], l[2], l[3], ratio, phase)
+                .map(Linkage::GearedFiveBar)
+                .map_err(|e| UsageError(format!("--linkage: {e}")))
+        }
+        _ => Err(UsageError(format!(
+            "--linkage expects A,B,C (a four-bar) or L1,L3,L4,L5,RATIO,PHASE (a geared five-bar), got `{s}`"
+        ))),
+    }
+}
+
+/// How the linkage is printed in the table and CSV: a four-bar's three lengths, or a
+/// geared five-bar's six dimensions (an atlas holds one mechanism: the table's first
+/// row decides).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum LinkageColumns {
+    FourBar,
+    Geared,
+}
+
+impl LinkageColumns {
+    fn of(table: &SearchTable) -> LinkageColumns {
+        match table.rows.first().map(|r| &r.linkage) {
+            Some(Linkage::GearedFiveBar(_)) => LinkageColumns::Geared,
+            _ => LinkageColumns::FourBar,
+        }
+    }
+
+    /// The CSV header's linkage columns.
+    fn csv_header(self) -> &'static str {
+        match self {
+            LinkageColumns::FourBar => "coupler,rocker,ground",
+            LinkageColumns::Geared => "l1,l3,l4,l5,ratio,phase",
+        }
+    }
+
+    /// A row's linkage cells for the CSV (empty cells for a linkage of the other kind).
+    fn csv_cells(self, l: &Linkage) -> String {
+        match (self, l) {
+            (LinkageColumns::FourBar, Linkage::FourBar(l)) => {
+                format!("{},{},{}", l.coupler, l.rocker, l.ground)
+            }
+            (LinkageColumns::Geared, Linkage::GearedFiveBar(g)) => format!(
+                "{},{},{},{},{},{}",
+                g.l1, g.l3, g.l4, g.l5, g.ratio, g.phase
+            ),
+            (LinkageColumns::FourBar, _) => ",,".into(),
+            (LinkageColumns::Geared, _) => ",,,,,".into(),
+        }
+    }
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
@@ -207,7 +277,8 @@ pub fn run(args: Args) -> Result<ExitCode> {
     let refined;
     let table = match tight {
         Some(t) => {
-            let (r, n) = refine(&table, &query, &t)?;
+            let dash = extraction_dash(&resolve_index(&args.index)?);
+            let (r, n) = refine(&table, &query, &t, &dash)?;
             eprintln!(
                 "refined: the query is tighter than the index's extraction tolerance (straight {} %, arc {} %), so its {n} candidate curve(s) were re-measured at straight {} %, arc {} % in {:.3} s",
                 extracted.map_or(f64::NAN, |e| e.straight_pct),
@@ -326,15 +397,20 @@ fn page_spot(table: &SearchTable, r: &coupler_atlas::CurveRow) -> Option<(String
 }
 
 /// Fixed columns, ≤ 120 characters: one line per matching feature (the curve's columns on
-/// its first), page number and the centre of the curve's box on it in pixels.
+/// its first), page number and the centre of the curve's box on it in pixels. A
+/// four-bar's A, B, C are columns; a geared five-bar's six dimensions would not fit, so
+/// its rows are grouped under a `# L1 … L3 … λ … φ …` line wherever the linkage changes.
 fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
+    let columns = LinkageColumns::of(table);
+    let abc = |[a, b, c]: [&str; 3]| match columns {
+        LinkageColumns::FourBar => format!(" {a:>5} {b:>5} {c:>5}"),
+        LinkageColumns::Geared => String::new(),
+    };
     writeln!(
         w,
-        "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} spot px",
+        "{:>7}{} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} spot px",
         "id",
-        "A",
-        "B",
-        "C",
+        abc(["A", "B", "C"]),
         "u",
         "v",
         "circ",
@@ -349,8 +425,26 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
         "page",
     )?;
     let opt = |x: Option<f64>, p: usize| x.map_or(String::from("-"), |x| format!("{x:.p$}"));
+    let mut last: Option<Linkage> = None;
     for h in hits {
         let r = &table.rows[h.row];
+        if columns == LinkageColumns::Geared && last != Some(r.linkage) {
+            match &r.linkage {
+                Linkage::GearedFiveBar(g) => writeln!(
+                    w,
+                    "# L1 {}  L3 {}  L4 {}  L5 {}  λ {}  φ {}°  (class {})",
+                    g.l1,
+                    g.l3,
+                    g.l4,
+                    g.l5,
+                    g.ratio,
+                    g.phase,
+                    r.class.code()
+                )?,
+                l => writeln!(w, "# {l}")?,
+            }
+            last = Some(r.linkage);
+        }
         let cells = feature_cells(table, h);
         let (page, spot) = match page_spot(table, r) {
             Some((p, c)) => (p, format!("{:.0},{:.0}", c[0], c[1])),
@@ -361,12 +455,16 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
         } else {
             "crsd"
         };
+        let lengths = match (columns, &r.linkage) {
+            (LinkageColumns::FourBar, Linkage::FourBar(l)) => {
+                [l.coupler, l.rocker, l.ground].map(|x| x.to_string())
+            }
+            _ => ["-", "-", "-"].map(String::from),
+        };
         let head = format!(
-            "{:>7} {:>5} {:>5} {:>5} {:>6} {:>6} {:>4} {:>5.1}",
+            "{:>7}{} {:>6} {:>6} {:>4} {:>5.1}",
             r.id,
-            r.linkage[0],
-            r.linkage[1],
-            r.linkage[2],
+            abc([&lengths[0], &lengths[1], &lengths[2]]),
             r.point[0],
             r.point[1],
             circ,
@@ -404,19 +502,19 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
 /// One line per matching feature (a curve without one: a line with empty feature
 /// columns); RFC 4180 (no field needs quoting but the page file, which is quoted).
 fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
+    let columns = LinkageColumns::of(table);
     writeln!(
         w,
-        "id,coupler,rocker,ground,u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,page,page_x_px,page_y_px"
+        "id,{},u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,page,page_x_px,page_y_px",
+        columns.csv_header()
     )?;
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
     for h in hits {
         let r = &table.rows[h.row];
         let head = format!(
-            "{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{}",
             r.id,
-            r.linkage[0],
-            r.linkage[1],
-            r.linkage[2],
+            columns.csv_cells(&r.linkage),
             r.point[0],
             r.point[1],
             r.circuit.name(),
@@ -475,9 +573,9 @@ fn write_json(
         let r = &table.rows[h.row];
         let mut o = serde_json::json!({
             "id": r.id,
-            // A geared five-bar's row has no (A, B, C): its linkage is in index.json under
-            // the same id.
-            "linkage": if r.linkage[0].is_nan() { serde_json::Value::Null } else { serde_json::json!({"coupler": r.linkage[0], "rocker": r.linkage[1], "ground": r.linkage[2]}) },
+            // As in index.json: a four-bar's {coupler, rocker, ground}, a geared
+            // five-bar's {l1, l3, l4, l5, ratio, phase}.
+            "linkage": r.linkage,
             "point": {"u": r.point[0], "v": r.point[1]},
             "circuit": r.circuit,
             "class": r.class,
@@ -496,9 +594,9 @@ fn write_json(
     Ok(())
 }
 
-/// The feature tolerances the index was extracted with (its header's `spec.features`),
-/// or `None` if the header does not say (features off, or not readable).
-fn extraction_tolerances(index: &Path) -> Option<FeatureTolerances> {
+/// The index header's `spec.features` (how its features were extracted), or `None` if
+/// the header does not say (features off, or not readable).
+fn extraction_settings(index: &Path) -> Option<serde_json::Value> {
     use std::io::BufRead;
     let file = std::fs::File::open(index).ok()?;
     let mut lines = std::io::BufReader::new(file).lines();
@@ -510,6 +608,23 @@ fn extraction_tolerances(index: &Path) -> Option<FeatureTolerances> {
     if f.get("enabled").and_then(|e| e.as_bool()) == Some(false) {
         return None;
     }
+    Some(f.clone())
+}
+
+/// The dash pattern the index's features were counted in (`spec.features.dash_deg`, the
+/// pages' pattern), the default where the header does not say.
+fn extraction_dash(index: &Path) -> DashPattern {
+    let step = extraction_settings(index).and_then(|f| f.get("dash_deg")?.as_f64());
+    DashPattern {
+        step_deg: step.unwrap_or(DashPattern::default().step_deg),
+        ..DashPattern::default()
+    }
+}
+
+/// The feature tolerances the index was extracted with (its header's `spec.features`),
+/// or `None` if the header does not say (features off, or not readable).
+fn extraction_tolerances(index: &Path) -> Option<FeatureTolerances> {
+    let f = extraction_settings(index)?;
     let num = |k: &str| f.get(k).and_then(|x| x.as_f64());
     Some(FeatureTolerances {
         step_deg: num("step_deg")?,
@@ -554,7 +669,12 @@ fn tighter(q: &Query, e: &FeatureTolerances) -> Option<FeatureTolerances> {
 /// candidates are re-measured at the tighter tolerances (the same extraction `generate`
 /// runs, so the answer equals that of an atlas generated at them) into a table of their
 /// own, which the query then runs on. Returns that table and the number of candidates.
-fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(SearchTable, usize)> {
+fn refine(
+    table: &SearchTable,
+    q: &Query,
+    t: &FeatureTolerances,
+    dash: &DashPattern,
+) -> Result<(SearchTable, usize)> {
     let relax = |f: Option<SpanFilter>| {
         f.map(|f| SpanFilter {
             max_error_pct: f64::INFINITY,
@@ -574,21 +694,27 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
         ..q.clone()
     };
     let rows: Vec<usize> = table.search(&candidates).iter().map(|h| h.row).collect();
-    let dash = DashPattern::default();
-    let crank = CrankTable::new(t.step_deg)
-        .ok_or_else(|| anyhow::anyhow!("the index's feature step {} is not valid", t.step_deg))?;
     let redo = remeasured(t, q);
     // Only what the query tightens is re-measured; the rest is the index's own (the same
-    // extraction at the same tolerance).
+    // extraction at the same tolerance). The curve is sampled as `generate` samples it
+    // for features: over the mechanism's period (a geared five-bar of gear ratio p/q
+    // turns its input q times) at the index's feature step.
     let measure = |i: usize| -> Result<(Vec<SegmentRow>, Vec<ArcRow>)> {
         let r = &table.rows[i];
-        let l = FourBar::new(r.linkage[0], r.linkage[1], r.linkage[2])
-            .map_err(|e| anyhow::anyhow!("curve {}: {e}", r.id))?;
-        let curve = l
+        let crank = CrankTable::over(t.step_deg, r.linkage.period_deg()).ok_or_else(|| {
+            anyhow::anyhow!(
+                "curve {}: the index's feature step {} is not valid over the period {}°",
+                r.id,
+                t.step_deg,
+                r.linkage.period_deg()
+            )
+        })?;
+        let curve = r
+            .linkage
             .pose_table(r.circuit, &crank)
             .trace(CouplerPoint::new(r.point[0], r.point[1]));
         let segments = if redo.0 {
-            straight_segments(&curve, t, &dash)
+            straight_segments(&curve, t, dash)
                 .iter()
                 .map(|s| SegmentRow {
                     start_deg: s.start_deg,
@@ -603,7 +729,7 @@ fn refine(table: &SearchTable, q: &Query, t: &FeatureTolerances) -> Result<(Sear
             table.segments_of(r).to_vec()
         };
         let arcs = if redo.1 {
-            pseudo_arcs(&curve, t, &dash)
+            pseudo_arcs(&curve, t, dash)
                 .iter()
                 .map(|a| ArcRow {
                     start_deg: a.start_deg,

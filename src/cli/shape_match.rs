@@ -129,11 +129,18 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
         .files
         .iter()
         .find(|f| f.name == SHAPES_FILE)
-        .ok_or_else(|| {
-            UsageError(format!(
+        .ok_or_else(|| match atlas_mechanism(dir).as_deref() {
+            // Shape codes, fits and --refine are a four-bar's (A, B, C): a geared
+            // five-bar atlas is written without them.
+            Some(m) if m != "four-bar" => UsageError(format!(
+                "the atlas in {} is a {m} atlas: match compares four-bar coupler curves only (its shape codes, fits and --refine are over a four-bar's A, B, C), so this atlas has no shape codes; search it by features with `coupler-atlas search {}`",
+                dir.display(),
+                dir.display()
+            )),
+            _ => UsageError(format!(
                 "the atlas in {} has no shape codes ({SHAPES_FILE} is not in its manifest: it was made by an older version); run `coupler-atlas generate` again for it",
                 dir.display()
-            ))
+            )),
         })?;
     let path = dir.join(SHAPES_FILE);
     if !entry.verify(dir) {
@@ -145,6 +152,27 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
     }
     let bytes = std::fs::read(&path).map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
     decode_sidecar(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
+}
+
+/// The mechanism of the atlas in `dir` as its index header names it
+/// (`spec.linkages.mechanism`; a four-bar atlas's header may not name it), or `None` if
+/// the header cannot be read.
+fn atlas_mechanism(dir: &Path) -> Option<String> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(dir.join("index.json")).ok()?;
+    let mut lines = std::io::BufReader::new(file).lines();
+    lines.next()?.ok()?;
+    let spec = lines.next()?.ok()?;
+    let spec = spec.trim_end().strip_suffix(',').unwrap_or(spec.trim_end());
+    let v: serde_json::Value = serde_json::from_str(&format!("{{{spec}}}")).ok()?;
+    let linkages = v.get("spec")?.get("linkages")?;
+    Some(
+        linkages
+            .get("mechanism")
+            .and_then(|m| m.as_str())
+            .unwrap_or("four-bar")
+            .to_string(),
+    )
 }
 
 /// The coarse stage on the pool's threads: open targets scanned in parts cut at linkage

@@ -6,7 +6,7 @@ use crate::GenerateError;
 use coupler_features::{FeatureExtractor, FeatureTolerances, FlagTolerances, curve_flags};
 use coupler_index::{IndexCurve, IndexSummary};
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankTable, CurveSummary, DashPattern, Linkage, Mechanism,
+    AngleTables, Circuit, CouplerPoint, CurveSummary, DashPattern, Linkage, Mechanism,
 };
 use coupler_specs::Spec;
 use std::path::PathBuf;
@@ -312,25 +312,18 @@ impl Job {
 
 /// Computes the index records of one group (pure: no I/O), with each curve's features
 /// when `features` is given, their dashes counted in `dash` (the pages' pattern).
+/// `tables` (one per run, shared by its threads) holds the input angles: a mechanism
+/// whose period is longer than a turn (a geared five-bar of gear ratio p/q) is sampled
+/// over its whole period at the same step.
 pub fn compute_group(
-    table: &CrankTable,
+    tables: &AngleTables,
     group: &Group,
     features: Option<&FeatureTolerances>,
     dash: &DashPattern,
 ) -> Result<Vec<IndexCurve>, GenerateError> {
     let mut extractor =
         features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t, dash));
-    // A mechanism whose period is longer than a turn (a geared five-bar of gear ratio
-    // p/q) is sampled over its whole period at the same step.
-    let own_table;
-    let table = if group.linkage.period_deg() == 360.0 {
-        table
-    } else {
-        own_table = CrankTable::over(table.step(), group.linkage.period_deg())
-            .ok_or(GenerateError::BadStep(table.step()))?;
-        &own_table
-    };
-    let poses = group.linkage.pose_table(group.circuit, table);
+    let poses = tables.pose_table(&group.linkage, group.circuit);
     if !poses.all_valid() {
         return Err(GenerateError::NotAssembled {
             linkage: group.linkage,
@@ -350,7 +343,7 @@ pub fn compute_group(
     for (k, &point) in group.points.iter().enumerate() {
         poses.trace_into(point, &mut curve);
         let summary =
-            CurveSummary::of(&curve, table.step()).ok_or(GenerateError::NotAssembled {
+            CurveSummary::of(&curve, tables.step()).ok_or(GenerateError::NotAssembled {
                 linkage: group.linkage,
                 circuit: group.circuit,
             })?;
@@ -397,7 +390,7 @@ mod tests {
 
     #[test]
     fn group_measures_are_finite_and_plausible() {
-        let table = CrankTable::new(1.0).unwrap();
+        let table = AngleTables::new(1.0).unwrap();
         let l = coupler_kinematics::FourBar::new(3.0, 3.0, 3.0)
             .unwrap()
             .into();

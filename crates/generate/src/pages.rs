@@ -8,7 +8,7 @@
 use crate::{Artifact, Group, Job, PageFailure, Rendered, Renderer, compute_group};
 use coupler_features::CurveFeatures;
 use coupler_index::{IndexCurve, PageRef};
-use coupler_kinematics::{Circuit, CouplerPoint, CrankTable, Linkage};
+use coupler_kinematics::{AngleTables, Circuit, CouplerPoint, Linkage};
 use coupler_layout::{
     ContentsEntry, CurvePlacement, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page,
     layout_contents, layout_page,
@@ -459,7 +459,7 @@ impl PageRenderer {
         let page_count = job.pages();
         // A paged atlas is bounded (docs/scale.md), so its groups fit in memory.
         let groups: Vec<Group> = job.groups().collect();
-        let table = CrankTable::new(job.spec.sampling.crank_step_deg)
+        let table = AngleTables::new(job.spec.sampling.crank_step_deg)
             .ok_or_else(|| PageError::Curves("bad crank step".into()))?;
         let features = job
             .spec

@@ -24,7 +24,7 @@ use coupler_index::{
     IndexCurve, IndexSummary, MAX_INDEX_LINE, curve_line, read_line_bounded, write_curve_line,
     write_index_footer, write_index_header,
 };
-use coupler_kinematics::CrankTable;
+use coupler_kinematics::AngleTables;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::io::{BufReader, Write as _};
@@ -438,7 +438,7 @@ pub fn run(
     if let Some(r) = plan.refused.first() {
         return Err(GenerateError::Plan(r.clone()));
     }
-    let table = CrankTable::new(job.spec.sampling.crank_step_deg)
+    let table = AngleTables::new(job.spec.sampling.crank_step_deg)
         .ok_or(GenerateError::BadStep(job.spec.sampling.crank_step_deg))?;
     let key = run_key(job, renderer);
     let id = identity(job, renderer, &key);

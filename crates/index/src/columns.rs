@@ -8,11 +8,48 @@ use crate::cache::{Column, IndexKey, Section, write_container};
 use crate::search::{ArcRow, CurveRow, SearchTable, SegmentRow};
 use crate::{CacheError, read_container};
 use coupler_features::Side;
-use coupler_kinematics::{Circuit, LinkageClass};
+use coupler_kinematics::{Circuit, FourBar, GearRatio, GearedFiveBar, Linkage, LinkageClass};
 
 /// Version of the column set (the cache's table version): 2 added arcs' turn and the
-/// rows' `trivial` flag.
-pub const TABLE_VERSION: u32 = 2;
+/// rows' `trivial` flag; 3 the rows' `row.gear` (a geared five-bar's L5, φ and λ).
+pub const TABLE_VERSION: u32 = 3;
+
+/// A row's linkage as the columns `row.link` (three lengths: a four-bar's A, B, C, a
+/// geared five-bar's L1, L3, L4) and `row.gear` (a geared five-bar's L5 and φ as `f64`,
+/// λ = p/q as `i32` p and q; all zero for a four-bar).
+fn linkage_cells(l: &Linkage) -> ([f64; 3], [u8; 24]) {
+    let mut gear = [0u8; 24];
+    match l {
+        Linkage::FourBar(l) => ([l.coupler, l.rocker, l.ground], gear),
+        Linkage::GearedFiveBar(g) => {
+            gear[0..8].copy_from_slice(&g.l5.to_le_bytes());
+            gear[8..16].copy_from_slice(&g.phase.to_le_bytes());
+            // Terms are at most MAX_GEAR_TERM (1000) in lowest terms: they fit an i32.
+            gear[16..20].copy_from_slice(&(g.ratio.num() as i32).to_le_bytes());
+            gear[20..24].copy_from_slice(&(g.ratio.den() as i32).to_le_bytes());
+            ([g.l1, g.l3, g.l4], gear)
+        }
+    }
+}
+
+/// The linkage of [`linkage_cells`]' columns, or `None` unless they hold a valid one
+/// (a valid ratio in lowest terms, positive finite lengths, a finite phase).
+fn linkage_of_cells(link: [f64; 3], gear: &[u8]) -> Option<Linkage> {
+    let f = |a: usize| f64::from_le_bytes(gear[a..a + 8].try_into().unwrap_or([0; 8]));
+    let i = |a: usize| i32::from_le_bytes(gear[a..a + 4].try_into().unwrap_or([0; 4]));
+    let [a, b, c] = link;
+    if gear.iter().all(|&x| x == 0) {
+        return FourBar::new(a, b, c).ok().map(Linkage::FourBar);
+    }
+    let (num, den) = (i64::from(i(16)), i64::from(i(20)));
+    let ratio = GearRatio::new(num, den).ok()?;
+    if (ratio.num(), ratio.den()) != (num, den) {
+        return None;
+    }
+    GearedFiveBar::new(a, b, c, f(0), ratio, f(8))
+        .ok()
+        .map(Linkage::GearedFiveBar)
+}
 
 fn f64s(out: &mut Vec<u8>, xs: &[f64]) {
     for x in xs {
@@ -56,6 +93,7 @@ impl SearchTable {
     fn columns(&self) -> Vec<Column> {
         let n = self.rows.len();
         let mut id = Vec::with_capacity(8 * n);
+        let mut gear = Vec::with_capacity(24 * n);
         let (mut link, mut point, mut trans, mut pbox) = (
             Vec::with_capacity(24 * n),
             Vec::with_capacity(16 * n),
@@ -71,7 +109,9 @@ impl SearchTable {
         );
         for r in &self.rows {
             id.extend_from_slice(&r.id.to_le_bytes());
-            f64s(&mut link, &r.linkage);
+            let (lengths, gears) = linkage_cells(&r.linkage);
+            f64s(&mut link, &lengths);
+            gear.extend_from_slice(&gears);
             f64s(&mut point, &r.point);
             f64s(&mut trans, &r.transmission_deg);
             f64s(&mut pbox, &r.page_bbox);
@@ -133,6 +173,7 @@ impl SearchTable {
         vec![
             col("row.id", 8, id),
             col("row.link", 24, link),
+            col("row.gear", 24, gear),
             col("row.pt", 16, point),
             col("row.tr", 16, trans),
             col("row.pbox", 32, pbox),
@@ -193,6 +234,7 @@ impl SearchTable {
                 .then_some(s)
                 .ok_or_else(|| bad(format!("column {tag} length")))
         };
+        let gear = rows_of("row.gear", 24)?;
         let (link, point, trans, pbox) = (
             rows_of("row.link", 24)?,
             rows_of("row.pt", 16)?,
@@ -249,6 +291,8 @@ impl SearchTable {
             if !(finite(&l) && finite(&p) && finite(&tr) && finite(&pb)) {
                 return Err(bad("a value is not finite"));
             }
+            let linkage = linkage_of_cells(l, &gear.data[i * 24..i * 24 + 24])
+                .ok_or_else(|| bad(format!("row {i}: not a valid linkage")))?;
             let [pg] = u32_row::<1>(&page, i);
             let [seg_start, seg_count] = u32_row::<2>(&segs, i);
             let [arc_start, arc_count] = u32_row::<2>(&arcs, i);
@@ -266,7 +310,7 @@ impl SearchTable {
             }
             t.rows.push(CurveRow {
                 id: rid,
-                linkage: l,
+                linkage,
                 point: p,
                 transmission_deg: tr,
                 page_bbox: pb,
@@ -323,5 +367,78 @@ impl SearchTable {
             });
         }
         Ok(t)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::IndexKey;
+
+    fn row(id: u64, linkage: Linkage) -> CurveRow {
+        CurveRow {
+            id,
+            linkage,
+            point: [0.5, -0.25],
+            circuit: Circuit::Open,
+            class: LinkageClass::ALL[14],
+            transmission_deg: [40.0, 120.0],
+            page: u32::MAX,
+            page_bbox: [0.0; 4],
+            seg_start: 0,
+            seg_count: 0,
+            arc_start: 0,
+            arc_count: 0,
+            symmetric: false,
+            crunodes: 0,
+            cusps: 0,
+            has_features: false,
+            trivial: false,
+        }
+    }
+
+    #[test]
+    fn rows_of_both_mechanisms_round_trip() {
+        let ratio = GearRatio::new(-1, 2).unwrap();
+        let t = SearchTable {
+            rows: vec![
+                row(0, FourBar::new(2.5, 3.0, 3.5).unwrap().into()),
+                row(
+                    1,
+                    GearedFiveBar::new(3.0, 2.0, 4.0, 0.5, ratio, 270.0)
+                        .unwrap()
+                        .into(),
+                ),
+            ],
+            ..SearchTable::default()
+        };
+        let key = IndexKey { bytes: 1, hash: 2 };
+        assert_eq!(
+            SearchTable::from_cache_bytes(&t.to_cache_bytes(key), key).unwrap(),
+            t
+        );
+    }
+
+    #[test]
+    fn gear_cells_are_checked() {
+        let g =
+            GearedFiveBar::new(3.0, 2.0, 4.0, 0.5, GearRatio::integer(2).unwrap(), 90.0).unwrap();
+        let (link, gear) = linkage_cells(&Linkage::GearedFiveBar(g));
+        assert_eq!(linkage_of_cells(link, &gear), Some(g.into()));
+        // A ratio not in lowest terms, a zero denominator, a NaN phase: refused.
+        for (at, bytes) in [
+            (16, 4i32.to_le_bytes().to_vec()),
+            (20, 0i32.to_le_bytes().to_vec()),
+            (8, f64::NAN.to_le_bytes().to_vec()),
+        ] {
+            let mut bad = gear;
+            bad[at..at + bytes.len()].copy_from_slice(&bytes);
+            if at == 16 {
+                bad[20..24].copy_from_slice(&2i32.to_le_bytes());
+            }
+            assert_eq!(linkage_of_cells(link, &bad), None, "{at}");
+        }
+        // A four-bar with a non-positive length: refused.
+        assert_eq!(linkage_of_cells([2.0, 0.0, 3.0], &[0; 24]), None);
     }
 }

@@ -54,8 +54,8 @@ pub struct ArcRow {
 pub struct CurveRow {
     /// Curve id.
     pub id: u64,
-    /// Coupler, rocker, ground.
-    pub linkage: [f64; 3],
+    /// The linkage: a four-bar's (A, B, C), a geared five-bar's (L1, L3, L4, L5, λ, φ).
+    pub linkage: Linkage,
     /// Coupler point (u, v).
     pub point: [f64; 2],
     /// Circuit.
@@ -145,13 +145,7 @@ impl SearchTable {
         let f = c.features.as_ref().unwrap_or(&empty);
         let row = CurveRow {
             id: c.id,
-            linkage: match c.linkage {
-                Linkage::FourBar(l) => [l.coupler, l.rocker, l.ground],
-                // The search rows hold a four-bar's (A, B, C); a geared five-bar has no
-                // such triple, so `--linkage A,B,C` never matches it (NaN ≠ anything).
-                // Searching five-bar atlases by their lengths is not done yet.
-                Linkage::GearedFiveBar(_) => [f64::NAN; 3],
-            },
+            linkage: c.linkage,
             point: [c.point.u, c.point.v],
             circuit: c.circuit,
             class: c.class,
@@ -456,8 +450,9 @@ pub struct Query {
     pub min_transmission_deg: Option<f64>,
     /// Class (Barker's for a four-bar).
     pub class: Option<LinkageClass>,
-    /// Linkage (coupler, rocker, ground), matched to 1e-9.
-    pub linkage: Option<[f64; 3]>,
+    /// The linkage: lengths (and a geared five-bar's phase) matched to 1e-9, its gear
+    /// ratio exactly; a four-bar never matches a geared five-bar.
+    pub linkage: Option<Linkage>,
     /// Circuit.
     pub circuit: Option<Circuit>,
     /// Symmetric curves only.
@@ -478,6 +473,26 @@ pub struct Query {
 
 /// Default relative radius tolerance of a double dwell's two arcs, percent.
 pub const DEFAULT_RADIUS_TOL_PCT: f64 = 2.0;
+
+/// Whether two linkages are the same mechanism with lengths (and phase) within 1e-9
+/// and the same gear ratio.
+fn same_linkage(a: &Linkage, b: &Linkage) -> bool {
+    let near = |x: &[f64], y: &[f64]| x.iter().zip(y).all(|(p, q)| (p - q).abs() <= 1e-9);
+    match (a, b) {
+        (Linkage::FourBar(a), Linkage::FourBar(b)) => near(
+            &[a.coupler, a.rocker, a.ground],
+            &[b.coupler, b.rocker, b.ground],
+        ),
+        (Linkage::GearedFiveBar(a), Linkage::GearedFiveBar(b)) => {
+            a.ratio == b.ratio
+                && near(
+                    &[a.l1, a.l3, a.l4, a.l5, a.phase],
+                    &[b.l1, b.l3, b.l4, b.l5, b.phase],
+                )
+        }
+        _ => false,
+    }
+}
 
 /// A search result: the row and the features that matched.
 #[derive(Clone, Debug, PartialEq)]
@@ -502,9 +517,8 @@ impl Query {
                 return None;
             }
         }
-        if let Some(l) = self.linkage {
-            // A geared five-bar's row holds NaN here: it never matches a four-bar's A, B, C.
-            if (0..3).any(|k| r.linkage[k].is_nan() || (r.linkage[k] - l[k]).abs() > 1e-9) {
+        if let Some(l) = &self.linkage {
+            if !same_linkage(&r.linkage, l) {
                 return None;
             }
         }

@@ -23,6 +23,7 @@ mod geared;
 mod linkage;
 mod mechanism;
 mod pose;
+mod tables;
 mod trace;
 
 pub use cognates::{Cognate, CognateError, cognates};
@@ -46,6 +47,7 @@ pub use geared::{
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use mechanism::{Linkage, LinkageClass, Mechanism, SymmetryAxis, SymmetryReason};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};
+pub use tables::{AngleTables, MAX_SHARED_TABLES};
 pub use trace::{
     Branch, FullCurve, InputRange, Toggle, ToggleKind, TraceSample, circle_intersections,
     input_range, trace_full,

@@ -8,6 +8,7 @@ use crate::ranges::DecimalRange;
 use coupler_kinematics::{GearRatio, GearedFiveBar, Linkage, MARGIN_TOL, Rotatability};
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::sync::{Arc, OnceLock};
 
 /// The linkage ranges of a geared five-bar atlas.
 #[derive(Clone, Debug, PartialEq)]
@@ -24,6 +25,34 @@ pub struct GearedRanges {
     pub ratios: Vec<GearRatio>,
     /// Phases φ in degrees (θ5 = λ·θ2 + φ).
     pub phases: DecimalRange,
+    /// The enumeration, made on first use (deciding rotatability samples each
+    /// combination's period) and shared by clones.
+    pub(crate) enumerated: Enumerated,
+}
+
+/// A geared grid's enumeration ([`GearedRanges::enumeration`]), made once: the count,
+/// the skipped classes and the job's linkages all read it. A cache, not part of the
+/// value: every two compare equal.
+#[derive(Clone, Default)]
+pub(crate) struct Enumerated(Arc<OnceLock<GearedEnumeration>>);
+
+/// The fully turning linkages in atlas order, and the others counted by class.
+pub type GearedEnumeration = (Vec<Linkage>, BTreeMap<String, u64>);
+
+impl PartialEq for Enumerated {
+    fn eq(&self, _: &Enumerated) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for Enumerated {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.get().is_some() {
+            "enumerated"
+        } else {
+            "not enumerated yet"
+        })
+    }
 }
 
 /// As the index echoes it: `{"mechanism": "geared-fivebar", "l1": {…}, …}`.
@@ -56,8 +85,14 @@ impl GearedRanges {
     /// Every combination in atlas order (λ outermost in the spec's order, then φ, L1,
     /// L3, L4, L5 ascending) whose input turns fully and clears every toggle
     /// ([`GearedFiveBar::rotatability`] is `Full`); the others counted by Ting class and
-    /// what the input does (`"II rocks"`, `"III touches a toggle"`).
-    pub fn enumerate(&self) -> (Vec<Linkage>, BTreeMap<String, u64>) {
+    /// what the input does (`"II rocks"`, `"III touches a toggle"`). Made on first use,
+    /// then shared (by clones of the ranges too).
+    pub fn enumeration(&self) -> &GearedEnumeration {
+        self.enumerated.0.get_or_init(|| self.enumerate())
+    }
+
+    /// [`GearedRanges::enumeration`], made afresh.
+    fn enumerate(&self) -> GearedEnumeration {
         let mut linkages = Vec::new();
         let mut skipped: BTreeMap<String, u64> = BTreeMap::new();
         let f =
@@ -90,5 +125,30 @@ impl GearedRanges {
             }
         }
         (linkages, skipped)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::Spec;
+
+    /// The count, the skipped classes and the linkages read one enumeration, shared by
+    /// clones of the spec (a job holds a clone), and equal to a fresh one.
+    #[test]
+    fn a_geared_grid_is_enumerated_once() {
+        let text = include_str!("../../../atlas-spec/geared-quick.toml");
+        let spec = Spec::parse(text, "geared-quick").unwrap();
+        let g = spec.geared.as_ref().unwrap();
+        assert_eq!(format!("{:?}", g.enumerated), "not enumerated yet");
+        let copy = spec.clone();
+        assert_eq!(spec.count_linkages(), 8);
+        let shared = copy.geared.as_ref().unwrap();
+        assert_eq!(format!("{:?}", shared.enumerated), "enumerated");
+        assert!(std::ptr::eq(g.enumeration(), shared.enumeration()));
+        assert_eq!(*g.enumeration(), g.enumerate());
+        assert_eq!(copy.skipped(), g.enumerate().1);
+        assert_eq!(copy.atlas_linkages().collect::<Vec<_>>(), g.enumerate().0);
+        // A cache, not part of the value.
+        assert_eq!(Spec::parse(text, "geared-quick").unwrap(), spec);
     }
 }

@@ -733,6 +733,7 @@ impl Ctx<'_> {
                 l5,
                 ratios,
                 phases,
+                enumerated: Default::default(),
             }),
             circuits,
             points: PointGrid {
@@ -1001,7 +1002,7 @@ impl Spec {
     /// ([`Spec::crank_rockers`]) and counts them arithmetically ([`Spec::count_linkages`]).
     pub fn enumerate(&self) -> Enumeration {
         if let Some(g) = &self.geared {
-            let (linkages, skipped) = g.enumerate();
+            let (linkages, skipped) = g.enumeration().clone();
             return Enumeration { linkages, skipped };
         }
         Enumeration {
@@ -1020,7 +1021,7 @@ impl Spec {
     /// grid (a geared grid is small: it is enumerated at once).
     pub fn atlas_linkages(&self) -> AtlasLinkages {
         match &self.geared {
-            Some(g) => AtlasLinkages::Listed(g.enumerate().0.into_iter()),
+            Some(g) => AtlasLinkages::Listed(g.enumeration().0.clone().into_iter()),
             None => AtlasLinkages::CrankRockers(Box::new(self.crank_rockers())),
         }
     }
@@ -1030,7 +1031,7 @@ impl Spec {
     /// turning five-bars.
     pub fn count_linkages(&self) -> u64 {
         match &self.geared {
-            Some(g) => g.enumerate().0.len() as u64,
+            Some(g) => g.enumeration().0.len() as u64,
             None => count::count_crank_rockers(&self.linkages),
         }
     }
@@ -1041,7 +1042,7 @@ impl Spec {
     /// does not turn fully.
     pub fn skipped(&self) -> BTreeMap<String, u64> {
         if let Some(g) = &self.geared {
-            return g.enumerate().1;
+            return g.enumeration().1.clone();
         }
         count::count_by_class(&self.linkages)
             .into_iter()
