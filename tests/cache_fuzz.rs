@@ -158,6 +158,12 @@ fn queries() -> Vec<Query> {
             include_trivial: true,
             ..Query::default()
         },
+        Query {
+            min_window_transmission_deg: Some(40.0),
+            sort: SortKey::WindowTransmission,
+            limit: 4,
+            ..Query::default()
+        },
     ]
 }
 
@@ -370,16 +376,16 @@ fn reseal_columns(b: &mut [u8]) {
         return;
     }
     let groups = u32::from_le_bytes(b[t + 24..t + 28].try_into().unwrap()) as usize;
-    if groups * (48 + 14 * 24) + 48 != dir_len {
+    if groups * (48 + 16 * 24) + 48 != dir_len {
         return;
     }
     let mut entries: Vec<usize> = Vec::new();
     for g in 0..groups {
-        for c in 0..14 {
-            entries.push(dir_at + g * (48 + 14 * 24) + 48 + c * 24);
+        for c in 0..16 {
+            entries.push(dir_at + g * (48 + 16 * 24) + 48 + c * 24);
         }
     }
-    let pages = dir_at + groups * (48 + 14 * 24);
+    let pages = dir_at + groups * (48 + 16 * 24);
     entries.extend([pages, pages + 24]);
     for e in entries {
         if e + 24 > t {

@@ -124,6 +124,8 @@ fn classics_pages_and_measures() {
     assert_eq!(listed.len(), list.curves.len() + 1);
     assert!(listed.contains(&"curves.json") && listed.contains(&"pages/classics-0003.png"));
 
+    search_page_set(&out, &list);
+
     let again = tmp("set-j1");
     let o = generate(&again, &["--jobs", "1"]);
     assert!(o.status.success());
@@ -134,6 +136,61 @@ fn classics_pages_and_measures() {
     );
     let _ = std::fs::remove_dir_all(&out);
     let _ = std::fs::remove_dir_all(&again);
+}
+
+/// `search` reads the page set (its folder or its `curves.json`): a curve matches
+/// `--straight SPAN:TOL` when its longest straight run within TOL spans SPAN, at the three
+/// stored tolerances and at any other (re-measured); the manifest is refused with a hint
+/// naming `curves.json`.
+fn search_page_set(out: &Path, list: &CurveList) {
+    let search = |target: &Path, filter: &str| -> serde_json::Value {
+        let o = run(&[
+            "search",
+            target.to_str().unwrap(),
+            "--straight",
+            filter,
+            "--limit",
+            "0",
+            "--format",
+            "json",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let step = list.sampling.crank_step_deg;
+    let measured: Vec<ClassicCurve> = list
+        .curves
+        .iter()
+        .map(|c| ClassicCurve::compute(c, step))
+        .collect();
+    for (span, tol) in [(200.0, 1.0), (100.0, 0.1), (150.0, 0.5), (60.0, 0.02)] {
+        let filter = format!("{span}:{tol}");
+        for target in [out.to_path_buf(), out.join("curves.json")] {
+            let v = search(&target, &filter);
+            let ids: Vec<u64> = v["hits"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|h| h["id"].as_u64().unwrap())
+                .collect();
+            let want: Vec<u64> = (0..measured.len() as u64)
+                .filter(|&k| {
+                    measured[k as usize]
+                        .straight_at(tol / 100.0)
+                        .is_some_and(|r| r.input_span_deg >= span)
+                })
+                .collect();
+            assert_eq!(ids, want, "--straight {filter} on {}", target.display());
+            assert_eq!(v["total"].as_u64(), Some(want.len() as u64));
+        }
+    }
+    // Hoeken (id 0) at 1 %: its longest run, found by the exact search.
+    let v = search(out, "200:1");
+    assert_eq!(v["hits"][0]["id"], 0);
+    let o = run(&["search", out.join("manifest.json").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("curves.json"), "{err}");
 }
 
 /// `--shard` does not apply to a page set: refused, nothing written; `--dry-run` lists

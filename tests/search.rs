@@ -69,15 +69,25 @@ fn atlas() -> &'static (PathBuf, Vec<IndexCurve>, SearchTable) {
 /// Does curve `c` satisfy `q`, reading the index record directly?
 fn satisfies(c: &IndexCurve, q: &Query) -> bool {
     let f = c.features.as_ref().unwrap();
+    // The window's transmission, as the index writes it: [min, max] within [m, 180 − m].
+    let window_ok = |tr: Option<[f64; 2]>| {
+        q.min_window_transmission_deg.is_none_or(|m| {
+            let [lo, hi] = tr.expect("the index has each window's transmission");
+            lo >= m && hi <= 180.0 - m
+        })
+    };
     let seg_ok = |s: &coupler_atlas::StraightSegment| {
-        q.straight
-            .is_none_or(|p| s.span_deg >= p.min_span_deg && s.straightness_pct <= p.max_error_pct)
+        window_ok(s.transmission_deg)
+            && q.straight.is_none_or(|p| {
+                s.span_deg >= p.min_span_deg && s.straightness_pct <= p.max_error_pct
+            })
             && q.max_velocity_variation_pct
                 .is_none_or(|m| s.velocity_variation_pct <= m)
     };
     let arc_ok = |a: &coupler_atlas::PseudoArc| {
-        q.arc
-            .is_none_or(|p| a.span_deg >= p.min_span_deg && a.deviation_pct <= p.max_error_pct)
+        window_ok(a.transmission_deg)
+            && q.arc
+                .is_none_or(|p| a.span_deg >= p.min_span_deg && a.deviation_pct <= p.max_error_pct)
             && q.radius
                 .is_none_or(|[lo, hi]| lo <= a.radius && a.radius <= hi)
             && q.min_turn_deg.is_none_or(|m| a.turn_deg >= m)
@@ -89,6 +99,10 @@ fn satisfies(c: &IndexCurve, q: &Query) -> bool {
     let want_arc = q.arc.is_some() || q.radius.is_some() || q.min_turn_deg.is_some();
     ok &= !want_straight || !segs.is_empty();
     ok &= !want_arc || !arcs.is_empty();
+    // Alone, the window's transmission asks for a segment or an arc passing it.
+    if q.min_window_transmission_deg.is_some() && !(want_straight || want_arc || q.double_dwell) {
+        ok &= !segs.is_empty() || !arcs.is_empty();
+    }
     // The index's own flag: curves of a pin are left out unless asked for.
     ok &= q.include_trivial || f.trivial.is_none();
     if q.double_dwell {
@@ -154,6 +168,7 @@ fn query() -> impl Strategy<Value = Query> {
             ],
             prop_oneof![Just(None), (0.0..60.0f64).prop_map(Some)],
             prop_oneof![Just(None), (0.0..20.0f64).prop_map(Some)],
+            prop_oneof![Just(None), (0.0..70.0f64).prop_map(Some)],
         ),
     )
         .prop_map(
@@ -166,13 +181,14 @@ fn query() -> impl Strategy<Value = Query> {
                 symmetric,
                 linkage,
                 class,
-                (include_trivial, radius, min_turn_deg, max_ev),
+                (include_trivial, radius, min_turn_deg, max_ev, window_mt),
             )| Query {
                 straight,
                 arc,
                 double_dwell,
                 radius_tol_pct: 2.0,
                 min_transmission_deg: mt,
+                min_window_transmission_deg: window_mt,
                 class: class.map(LinkageClass::from),
                 linkage,
                 circuit,

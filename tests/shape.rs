@@ -3,112 +3,25 @@
 //! refinement off the atlas grid, and the classic straight-line curves as targets.
 
 use coupler_atlas::generate::Job;
+use coupler_atlas::generate::atlas_curves;
+use coupler_atlas::shape::C64;
+use coupler_atlas::shape::cases::{SplitMix64 as Rng, found, make_target, retrieval_cases};
 use coupler_atlas::shape::{
     AtlasCurve, CouplerCurve, FitOptions, Match, MatchOptions, ShapeCode, Target, Timing,
     find_matches, fit_curve, refine,
 };
-use coupler_atlas::shape::{C64, cis, diameter};
 use coupler_atlas::{Circuit, CouplerPoint, FourBar, Spec};
 use rayon::prelude::*;
 
-/// The default atlas (7,000 curves) with its shape codes.
+/// The default atlas with its shape codes.
 fn default_atlas() -> (Vec<AtlasCurve>, Vec<ShapeCode>) {
     let job = Job::new(Spec::default_atlas(), "test", "/nonexistent", 1);
-    let mut curves = Vec::new();
-    for g in job.groups() {
-        for (k, &p) in g.points.iter().enumerate() {
-            curves.push(AtlasCurve {
-                id: g.first_id + k as u64,
-                curve: CouplerCurve {
-                    linkage: *g.linkage.four_bar().expect("a four-bar atlas"),
-                    circuit: g.circuit,
-                    point: p,
-                },
-            });
-        }
-    }
+    let curves = atlas_curves(&job).expect("a four-bar atlas");
     let codes = curves
         .par_iter()
         .map(|c| ShapeCode::of_curve(&c.curve).expect("atlas curves have codes"))
         .collect();
     (curves, codes)
-}
-
-/// SplitMix64, for seeded, platform-independent cases.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.uniform()
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * libm::log(u1)).sqrt() * libm::cos(std::f64::consts::TAU * u2)
-    }
-}
-
-/// A target made from curve `c`: `n` points at crank angles from `start` over `span`
-/// (a full turn when closed), evenly or at random, moved by a random similarity
-/// (reflected when `mirrored`), with isotropic Gaussian noise of RMS displacement
-/// `noise` × the target's size (its diameter).
-#[allow(clippy::too_many_arguments)]
-fn make_target(
-    rng: &mut Rng,
-    c: &CouplerCurve,
-    closed: bool,
-    start: f64,
-    span: f64,
-    n: usize,
-    mirrored: bool,
-    noise: f64,
-) -> Target {
-    let even = rng.uniform() < 0.5;
-    let mut angles: Vec<f64> = (0..n)
-        .map(|j| {
-            if closed {
-                start + 360.0 * j as f64 / n as f64
-            } else if even || j == 0 || j == n - 1 {
-                start + span * j as f64 / (n - 1) as f64
-            } else {
-                start + span * rng.uniform()
-            }
-        })
-        .collect();
-    angles.sort_by(f64::total_cmp);
-    let a = cis(rng.range(0.0, std::f64::consts::TAU)) * 10f64.powf(rng.range(-1.0, 2.0));
-    let b = C64::new(rng.range(-100.0, 100.0), rng.range(-100.0, 100.0));
-    let mut w: Vec<C64> = angles
-        .iter()
-        .map(|&t| {
-            let m = c.at(t).expect("atlas curves assemble").m;
-            a * if mirrored { m.conj() } else { m } + b
-        })
-        .collect();
-    let size = diameter(&w);
-    for p in &mut w {
-        *p += C64::new(rng.normal(), rng.normal()) * (noise * size / std::f64::consts::SQRT_2);
-    }
-    let pts = w.iter().map(|z| [z.re, z.im]).collect();
-    Target::new(pts, closed, Timing::Untimed).expect("a valid target")
-}
-
-/// Success as the issue defines it: the source in the top 5, or a match at least as
-/// close as the source's own exact fit.
-fn found(matches: &[Match], source: u64, source_rms: f64) -> bool {
-    matches
-        .iter()
-        .any(|m| m.id == source || m.fit.rms <= source_rms)
 }
 
 /// Closed targets from atlas curves under random similarity transforms (half reflected),
@@ -117,25 +30,9 @@ fn found(matches: &[Match], source: u64, source_rms: f64) -> bool {
 #[test]
 fn closed_targets_find_their_source() {
     let (curves, codes) = default_atlas();
-    let mut rng = Rng(2024);
-    let cases: Vec<(usize, Target)> = (0..200)
-        .map(|_| {
-            let src = (rng.next() % curves.len() as u64) as usize;
-            let start = rng.range(0.0, 360.0);
-            let n = 30 + (rng.next() % 120) as usize;
-            let mirrored = rng.uniform() < 0.5;
-            let t = make_target(
-                &mut rng,
-                &curves[src].curve,
-                true,
-                start,
-                360.0,
-                n,
-                mirrored,
-                0.01,
-            );
-            (src, t)
-        })
+    let cases: Vec<(usize, Target)> = retrieval_cases(&curves, true, 2024, 200)
+        .into_iter()
+        .map(|c| (c.source, c.target))
         .collect();
     let options = MatchOptions {
         candidates: 32,
@@ -246,7 +143,7 @@ fn placement_reproduces_the_target() {
     };
     for mirrored in [false, true] {
         let mut rng = Rng(5);
-        let t = make_target(&mut rng, &c, false, 40.0, 200.0, 50, mirrored, 0.0);
+        let t = make_target(&mut rng, &c, false, 40.0, 200.0, 50, mirrored, 0.0).unwrap();
         let fit = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
         assert_eq!(fit.mirrored, mirrored);
         let p = coupler_atlas::shape::Placement::of(&c, &fit);
@@ -337,33 +234,6 @@ fn classics_find_their_families() {
     }
 }
 
-/// The cases of the open retrieval tests: a window of 90°–270° of crank of a random
-/// atlas curve, 20–100 points (evenly or at random crank angles), random similarity
-/// (half reflected), 1 % noise.
-fn open_cases(curves: &[AtlasCurve], seed: u64, count: usize) -> Vec<(usize, Target, Vec<f64>)> {
-    let mut rng = Rng(seed);
-    (0..count)
-        .map(|_| {
-            let src = (rng.next() % curves.len() as u64) as usize;
-            let start = rng.range(0.0, 360.0);
-            let span = rng.range(90.0, 270.0);
-            let n = 20 + (rng.next() % 81) as usize;
-            let mirrored = rng.uniform() < 0.5;
-            let t = make_target(
-                &mut rng,
-                &curves[src].curve,
-                false,
-                start,
-                span,
-                n,
-                mirrored,
-                0.01,
-            );
-            (src, t, vec![start, span])
-        })
-        .collect()
-}
-
 /// Open targets (windows of 90°–270° of crank) from atlas curves under random similarity
 /// transforms (half reflected), random start points and 1 % noise: the source (or a
 /// curve at least as close) is in the top 5 in at least 95 % of 200 seeded cases.
@@ -377,11 +247,14 @@ fn open_targets_find_their_source() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(200);
-    let cases = open_cases(&curves, 77, count);
+    let cases: Vec<(usize, Target)> = retrieval_cases(&curves, false, 77, count)
+        .into_iter()
+        .map(|c| (c.source, c.target))
+        .collect();
     let t0 = std::time::Instant::now();
     let results: Vec<(bool, f64, f64)> = cases
         .par_iter()
-        .map(|(src, t, _)| {
+        .map(|(src, t)| {
             let m = find_matches(t, &curves, &codes, &MatchOptions::DEFAULT).unwrap();
             let own = fit_curve(t, &curves[*src].curve, &FitOptions::DEFAULT).unwrap();
             (
@@ -402,4 +275,55 @@ fn open_targets_find_their_source() {
         t0.elapsed().as_secs_f64()
     );
     assert!(hits >= 190, "{hits}/200 found");
+}
+
+/// Where the open pipeline loses the source (a measurement; ignored):
+/// `OPEN_CASES=60 cargo test --release --test shape open_diagnosis -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn open_diagnosis() {
+    use coupler_atlas::shape::{coarse_candidates, rank_candidates};
+    let (curves, _) = default_atlas();
+    let count: usize = std::env::var("OPEN_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(60);
+    let wide = MatchOptions {
+        open_candidates: std::env::var("WIDE")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(MatchOptions::DEFAULT.open_candidates),
+        ..MatchOptions::DEFAULT
+    };
+    let rows: Vec<String> = retrieval_cases(&curves, false, 77, count)
+        .par_iter()
+        .map(|c| {
+            let t = &c.target;
+            let src = curves[c.source].id;
+            let own = fit_curve(t, &curves[c.source].curve, &FitOptions::DEFAULT).unwrap();
+            let cands = coarse_candidates(t, &curves, &[], &wide).unwrap();
+            let pos = cands.iter().position(|x| x.curve.id == src);
+            let from_start = pos.map(|i| {
+                let one = vec![cands[i].clone()];
+                rank_candidates(t, one, &MatchOptions::DEFAULT)
+                    .first()
+                    .map_or(f64::NAN, |m| m.rms_pct)
+            });
+            // The first candidate (coarse order) whose quick fit is at least as close.
+            let m = find_matches(t, &curves, &[], &MatchOptions::DEFAULT).unwrap();
+            format!(
+                "span {:5.1} n {:3}: own {:.3}% | source coarse rank {:?}, its fit from the scan {:?}% | found {} best {:.3}%",
+                c.span,
+                t.len(),
+                100.0 * own.rms / t.size(),
+                pos,
+                from_start,
+                found(&m, src, own.rms),
+                m[0].rms_pct
+            )
+        })
+        .collect();
+    for r in rows.iter().filter(|r| r.contains("found false")) {
+        println!("{r}");
+    }
 }

@@ -5,6 +5,7 @@ use anyhow::Result;
 use coupler_atlas::{
     ArcRow, Circuit, CouplerPoint, CrankTable, DashPattern, FeatureTolerances, FourBar, GearRatio,
     GearedFiveBar, Linkage, LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments,
+    transmission_margin, window_transmission,
 };
 use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
@@ -32,6 +33,11 @@ pub struct Args {
     /// Transmission angle within [DEG, 180 − DEG] over the whole revolution (0 ≤ DEG ≤ 90).
     #[arg(long, value_name = "DEG", value_parser = parse_min_transmission)]
     min_transmission: Option<f64>,
+    /// The matching straight segments and arcs keep the transmission angle within
+    /// [DEG, 180 − DEG] over their own window (0 ≤ DEG ≤ 90); alone, asks for such a
+    /// segment or arc.
+    #[arg(long, value_name = "DEG", value_parser = parse_min_transmission)]
+    window_transmission: Option<f64>,
     /// Barker class, e.g. GCRR.
     #[arg(long)]
     class: Option<String>,
@@ -62,7 +68,8 @@ pub struct Args {
     /// Straight segments with velocity variation ε_V at most PCT %; implies a segment.
     #[arg(long, value_name = "PCT", value_parser = parse_nonnegative)]
     max_ev: Option<f64>,
-    /// Order: id, straight, straightness, arc, deviation, transmission, turn, radius, velocity.
+    /// Order: id, straight, straightness, arc, deviation, transmission (whole turn),
+    /// window-transmission (over a matching feature's window), turn, radius, velocity.
     #[arg(long, default_value = "id")]
     sort: SortKey,
     /// At most N hits (0: all).
@@ -110,10 +117,39 @@ fn parse_min_transmission(s: &str) -> Result<f64, String> {
 }
 
 /// `index` opened for searching (its columns mapped, or its cache, or the index parsed:
-/// `coupler_atlas::load`): a usage error when the index cannot be read or is not an index.
+/// `coupler_atlas::load`): a usage error when the index cannot be read or is not an index
+/// (a page set is refused here: `dwell` needs an index).
 pub(super) fn load(index: &Path, use_cache: bool) -> Result<coupler_atlas::Loaded> {
-    let index = resolve_index(index)?;
-    coupler_atlas::load(&index, use_cache).map_err(|e| UsageError(e.to_string()).into())
+    let index = match resolve(index)? {
+        Searched::Index(p) => p,
+        Searched::PageSet(p) => {
+            return Err(UsageError(format!(
+                "{}: a page set's measures (curves.json) have no feature windows; give an atlas's index.json (or its folder)",
+                p.display()
+            ))
+            .into());
+        }
+    };
+    open(&index, use_cache)
+}
+
+/// The index at `index` opened for searching (see [`load`]).
+fn open(index: &Path, use_cache: bool) -> Result<coupler_atlas::Loaded> {
+    coupler_atlas::load(index, use_cache).map_err(|e| {
+        let mut m = e.to_string().trim_end().to_string();
+        if m.contains("not a coupler-atlas index") {
+            // Name the file to search where there is one beside it.
+            let hint = ["index.json", "curves.json"]
+                .iter()
+                .map(|n| index.with_file_name(n))
+                .find(|p| p.is_file() && *p != index);
+            m += &match hint {
+                Some(p) => format!(" (search {} or its folder)", p.display()),
+                None => " (search reads an atlas's index.json, a page set's curves.json, or the folder holding either)".into(),
+            };
+        }
+        UsageError(m).into()
+    })
 }
 
 /// The curve `id` of `index` as a table of one row (empty if the index has no such
@@ -136,16 +172,29 @@ fn note_columns(loaded: &coupler_atlas::Loaded) {
     }
 }
 
-/// An atlas folder stands for its `index.json`; the other JSON files of an atlas are
-/// refused with a hint naming the index (they would read as an empty index).
-fn resolve_index(path: &Path) -> Result<PathBuf, UsageError> {
+/// What `search` reads: an atlas's index, or a page set's `curves.json`.
+enum Searched {
+    Index(PathBuf),
+    PageSet(PathBuf),
+}
+
+/// A page set's `curves.json` is read whole: at most this many bytes (a page set is a
+/// list of named curves, kilobytes each).
+const MAX_PAGE_SET_BYTES: u64 = 64 << 20;
+
+/// An atlas folder stands for its `index.json` (or, for a page set's folder, its
+/// `curves.json`); a page set's `curves.json` is searched as such; the atlas's other JSON
+/// files are refused with a hint naming the index (they would read as an empty index).
+fn resolve(path: &Path) -> Result<Searched, UsageError> {
     if path.is_dir() {
-        let index = path.join("index.json");
+        let (index, curves) = (path.join("index.json"), path.join("curves.json"));
         return if index.is_file() {
-            Ok(index)
+            Ok(Searched::Index(index))
+        } else if curves.is_file() {
+            Ok(Searched::PageSet(curves))
         } else {
             Err(UsageError(format!(
-                "{}: an atlas folder holds index.json, and this one has none (was it generated with `generate`?)",
+                "{}: an atlas folder holds index.json, and this one has none (nor a page set's curves.json: was it generated with `generate`?)",
                 path.display()
             )))
         };
@@ -156,14 +205,50 @@ fn resolve_index(path: &Path) -> Result<PathBuf, UsageError> {
         "manifest.json" => Err(UsageError(format!(
             "{}: this is the atlas's manifest (file list and checksums), not its index: search {} (or the folder)",
             path.display(),
-            sibling.display()
+            if sibling.is_file() || !path.with_file_name("curves.json").is_file() {
+                sibling.display().to_string()
+            } else {
+                path.with_file_name("curves.json").display().to_string()
+            }
         ))),
-        "curves.json" => Err(UsageError(format!(
-            "{}: this is a page set's measures (curves.json), which search does not read; search an atlas's index.json (or its folder)",
-            path.display()
-        ))),
-        _ => Ok(path.to_path_buf()),
+        "curves.json" => Ok(Searched::PageSet(path.to_path_buf())),
+        _ => {
+            // A page set's measures under another name are still a page set.
+            use std::io::Read;
+            let mut head = String::new();
+            if let Ok(f) = std::fs::File::open(path) {
+                let _ = f.take(4096).read_to_string(&mut head);
+            }
+            if coupler_atlas::is_page_set(&head) {
+                Ok(Searched::PageSet(path.to_path_buf()))
+            } else {
+                Ok(Searched::Index(path.to_path_buf()))
+            }
+        }
     }
+}
+
+/// The search table of a page set's `curves.json`, its straight runs re-measured at the
+/// query's `--straight` tolerance when it is not one of the three the file holds.
+fn load_page_set(path: &Path, q: &Query) -> Result<SearchTable> {
+    let size = std::fs::metadata(path)
+        .map_err(|e| UsageError(format!("{}: {e}", path.display())))?
+        .len();
+    if size > MAX_PAGE_SET_BYTES {
+        return Err(UsageError(format!(
+            "{}: {size} bytes is more than a page set's curves.json holds (at most {MAX_PAGE_SET_BYTES})",
+            path.display()
+        ))
+        .into());
+    }
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
+    let tol = q
+        .straight
+        .map(|f| f.max_error_pct)
+        .filter(|t| t.is_finite());
+    SearchTable::from_page_set(&text, tol)
+        .map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
 }
 
 /// A feature as JSON with `"index"`: its 1-based position in the curve's list (what
@@ -270,6 +355,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         double_dwell: args.double_dwell,
         radius_tol_pct: args.radius_tol,
         min_transmission_deg: args.min_transmission,
+        min_window_transmission_deg: args.window_transmission,
         class,
         linkage: args.linkage.as_deref().map(parse_linkage).transpose()?,
         circuit: args
@@ -287,9 +373,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
         limit: args.limit,
     };
     let t0 = Instant::now();
-    let mut loaded = load(&args.index, !args.no_cache)?;
+    let searched = resolve(&args.index)?;
+    let (mut loaded, extracted) = match &searched {
+        Searched::Index(index) => (open(index, !args.no_cache)?, extraction_tolerances(index)),
+        Searched::PageSet(curves) => {
+            if query.arc.is_some() || query.double_dwell {
+                eprintln!(
+                    "note: a page set's curves are measured by their straight runs only: --arc and --double-dwell match none"
+                );
+            }
+            (
+                coupler_atlas::Loaded::from_table(load_page_set(curves, &query)?),
+                None,
+            )
+        }
+    };
     let t1 = Instant::now();
-    let extracted = extraction_tolerances(&resolve_index(&args.index)?);
     let curves = loaded.curves();
     let tight = extracted.and_then(|t| tighter(&query, &t));
     // Only the curves the query can show are read out of the index's columns (or
@@ -302,11 +401,18 @@ pub fn run(args: Args) -> Result<ExitCode> {
         &tight.map_or(query.clone(), |_| candidates(&query)),
     )?;
     note_columns(&loaded);
-    let source = loaded.source().name();
+    let source = match searched {
+        Searched::Index(_) => loaded.source().name(),
+        Searched::PageSet(_) => "curves.json",
+    };
     let refined;
     let table = match tight {
         Some(t) => {
-            let dash = extraction_dash(&resolve_index(&args.index)?);
+            // Only an index has extraction tolerances, so only an index is refined.
+            let dash = match &searched {
+                Searched::Index(index) => extraction_dash(index),
+                Searched::PageSet(_) => DashPattern::default(),
+            };
             let (r, n) = refine(&selected, &query, &t, &dash)?;
             eprintln!(
                 "refined: the query is tighter than the index's extraction tolerance (straight {} %, arc {} %), so its {n} candidate curve(s) were re-measured at straight {} %, arc {} % in {:.3} s",
@@ -374,6 +480,8 @@ struct FeatureCells {
     radius: Option<f64>,
     turn_deg: Option<f64>,
     velocity_variation_pct: Option<f64>,
+    /// Transmission `[min, max]` over its window, degrees (NaN: unknown).
+    transmission_deg: [f64; 2],
 }
 
 fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
@@ -391,6 +499,7 @@ fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
                 radius: None,
                 turn_deg: None,
                 velocity_variation_pct: Some(s.velocity_variation_pct),
+                transmission_deg: s.transmission_deg,
             }
         })
         .collect();
@@ -404,6 +513,7 @@ fn feature_cells(table: &SearchTable, h: &Hit) -> Vec<FeatureCells> {
             radius: Some(a.radius),
             turn_deg: Some(a.turn_deg),
             velocity_variation_pct: None,
+            transmission_deg: a.transmission_deg,
         }
     }));
     out
@@ -433,6 +543,8 @@ fn page_spot(table: &SearchTable, r: &coupler_atlas::CurveRow) -> Option<(String
 /// its first), page number and the centre of the curve's box on it in pixels. A
 /// four-bar's A, B, C are columns; a geared five-bar's six dimensions would not fit, so
 /// its rows are grouped under a `# L1 … L3 … λ … φ …` line wherever the linkage changes.
+/// `μ±` is the whole turn's transmission margin `min(μmin, 180 − μmax)` (the largest DEG
+/// that `--min-transmission` accepts), `μwin` the same over the feature's window.
 fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
     let columns = LinkageColumns::of(table);
     let abc = |[a, b, c]: [&str; 3]| match columns {
@@ -441,13 +553,13 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
     };
     writeln!(
         w,
-        "{:>7}{} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {:>5} spot px",
+        "{:>7}{} {:>6} {:>6} {:>4} {:>5}  {:<6} {:>6} {:>6} {:>6} {:>7} {:>4} {:>5} {:>5} {:>4} spot px",
         "id",
         abc(["A", "B", "C"]),
         "u",
         "v",
         "circ",
-        "μmin",
+        "μ±",
         "feat",
         "start",
         "span",
@@ -455,6 +567,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
         "R",
         "turn",
         "εV%",
+        "μwin",
         "page",
     )?;
     let opt = |x: Option<f64>, p: usize| x.map_or(String::from("-"), |x| format!("{x:.p$}"));
@@ -495,19 +608,19 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
             _ => ["-", "-", "-"].map(String::from),
         };
         let head = format!(
-            "{:>7}{} {:>6} {:>6} {:>4} {:>5.1}",
+            "{:>7}{} {:>6} {:>6} {:>4} {:>5}",
             r.id,
             abc([&lengths[0], &lengths[1], &lengths[2]]),
             r.point[0],
             r.point[1],
             circ,
-            r.transmission_deg[0]
+            dash_if_nan(transmission_margin(r.transmission_deg))
         );
         if cells.is_empty() {
             writeln!(
                 w,
-                "{head}  {:<6} {:>7} {:>6} {:>6} {:>7} {:>5} {:>6}  {page:>5} {spot}",
-                "-", "-", "-", "-", "-", "-", "-"
+                "{head}  {:<6} {:>6} {:>6} {:>6} {:>7} {:>4} {:>5} {:>5} {page:>4} {spot}",
+                "-", "-", "-", "-", "-", "-", "-", "-"
             )?;
         }
         for (n, c) in cells.iter().enumerate() {
@@ -516,20 +629,32 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
             } else {
                 " ".repeat(head.chars().count())
             };
+            let margin = transmission_margin(c.transmission_deg);
             writeln!(
                 w,
-                "{lead}  {:<6} {:>7.1} {:>6.1} {:>6.3} {:>7} {:>5} {:>6}  {page:>5} {spot}",
+                "{lead}  {:<6} {:>6.1} {:>6.1} {:>6.3} {:>7} {:>4} {:>5} {:>5} {page:>4} {spot}",
                 c.name,
                 c.start_deg,
                 c.span_deg,
                 c.error_pct,
                 opt(c.radius, 3),
                 opt(c.turn_deg, 0),
-                opt(c.velocity_variation_pct, 1),
+                opt(c.velocity_variation_pct.filter(|x| !x.is_nan()), 1),
+                dash_if_nan(margin),
             )?;
         }
     }
     Ok(())
+}
+
+/// `x` to one decimal, or `-` when unknown (NaN: a page set's curves have no
+/// transmission range).
+fn dash_if_nan(x: f64) -> String {
+    if x.is_nan() {
+        "-".into()
+    } else {
+        format!("{x:.1}")
+    }
 }
 
 /// One line per matching feature (a curve without one: a line with empty feature
@@ -538,7 +663,7 @@ fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()
     let columns = LinkageColumns::of(table);
     writeln!(
         w,
-        "id,{},u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,page,page_x_px,page_y_px",
+        "id,{},u,v,circuit,class,transmission_min_deg,transmission_max_deg,feature,start_deg,span_deg,error_pct,radius,turn_deg,velocity_variation_pct,window_transmission_min_deg,window_transmission_max_deg,page,page_x_px,page_y_px",
         columns.csv_header()
     )?;
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| x.to_string());
@@ -569,19 +694,22 @@ fn write_csv(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()
         };
         let cells = feature_cells(table, h);
         if cells.is_empty() {
-            writeln!(w, "{head},,,,,,,,{page}")?;
+            writeln!(w, "{head},,,,,,,,,,{page}")?;
         }
         for c in &cells {
+            let [lo, hi] = c.transmission_deg.map(|x| x.is_finite().then_some(x));
             writeln!(
                 w,
-                "{head},{},{},{},{},{},{},{},{page}",
+                "{head},{},{},{},{},{},{},{},{},{},{page}",
                 c.name,
                 c.start_deg,
                 c.span_deg,
                 c.error_pct,
                 opt(c.radius),
                 opt(c.turn_deg),
-                opt(c.velocity_variation_pct)
+                opt(c.velocity_variation_pct),
+                opt(lo),
+                opt(hi)
             )?;
         }
     }
@@ -750,6 +878,10 @@ fn refine(
             .linkage
             .pose_table(r.circuit, &crank)
             .trace(CouplerPoint::new(r.point[0], r.point[1]));
+        let window = |start: f64, span: f64| {
+            window_transmission(&r.linkage, r.circuit, start, span, t.step_deg)
+                .unwrap_or([f64::NAN; 2])
+        };
         let segments = if redo.0 {
             straight_segments(&curve, t, dash)
                 .iter()
@@ -760,6 +892,7 @@ fn refine(
                     velocity_variation_pct: s.velocity_variation_pct,
                     length: s.length,
                     direction_deg: s.direction_deg,
+                    transmission_deg: window(s.start_deg, s.span_deg),
                 })
                 .collect()
         } else {
@@ -776,6 +909,7 @@ fn refine(
                     center: a.center,
                     concave: a.concave,
                     turn_deg: a.turn_deg,
+                    transmission_deg: window(a.start_deg, a.span_deg),
                 })
                 .collect()
         } else {

@@ -137,12 +137,16 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
                 dir.display(),
                 dir.display()
             )),
-            _ => UsageError(format!(
-                "the atlas in {} has no shape codes ({SHAPES_FILE} is not in its manifest: it was made by an older version); run `coupler-atlas generate` again for it",
-                dir.display()
-            )),
+            _ => UsageError(no_sidecar(dir)),
         })?;
     let path = dir.join(SHAPES_FILE);
+    if !path.is_file() {
+        return Err(UsageError(format!(
+            "{} is missing: the atlas's manifest lists it, so the file was removed after the atlas was written; run `coupler-atlas generate` again for the atlas (with the spec it was made from) to write it",
+            path.display()
+        ))
+        .into());
+    }
     if !entry.verify(dir) {
         return Err(UsageError(format!(
             "{} does not match the manifest (size or hash differs): the atlas was changed after it was written; run `coupler-atlas generate` again for it",
@@ -152,6 +156,29 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
     }
     let bytes = std::fs::read(&path).map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
     decode_sidecar(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
+}
+
+/// Why an atlas whose manifest lists no shape sidecar cannot be searched, and what to do,
+/// for a four-bar atlas (which lacks them when it was written before shape search
+/// existed), naming its spec from the head of its index.
+fn no_sidecar(dir: &Path) -> String {
+    let mut head = String::new();
+    if let Ok(f) = std::fs::File::open(dir.join("index.json")) {
+        let _ = std::io::Read::read_to_string(&mut std::io::Read::take(f, 4096), &mut head);
+    }
+    let name = head
+        .split_once("\"spec\":{\"name\":\"")
+        .and_then(|(_, r)| r.split_once('"'))
+        .map(|(n, _)| n.to_string());
+    let spec = match name {
+        Some(n) => format!("the spec of atlas `{n}`"),
+        None => "the spec it was made from".into(),
+    };
+    format!(
+        "the atlas in {} has no shape codes: its manifest lists no {SHAPES_FILE}, which `match` searches (a version of coupler-atlas without shape search wrote it); write it again with `coupler-atlas generate SPEC --out {}` ({spec}), which adds {SHAPES_FILE}",
+        dir.display(),
+        dir.display()
+    )
 }
 
 /// The mechanism of the atlas in `dir` as its index header names it
@@ -276,7 +303,9 @@ fn g(x: f64) -> String {
 
 /// Five significant digits; scientific below 1e-3 (for the picture's heading).
 fn short(x: f64) -> String {
-    if x != 0.0 && x.abs() < 1e-3 {
+    if x == 0.0 || !x.is_finite() {
+        format!("{x}")
+    } else if x.abs() < 1e-3 {
         format!("{x:.2e}")
     } else {
         let digits = (4 - x.abs().log10().floor() as i32).clamp(0, 12) as usize;

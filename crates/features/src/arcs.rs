@@ -287,6 +287,8 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
                 turn_deg: turned.to_degrees(),
                 // (M − c) × V > 0: counter-clockwise about c, so c is on the left.
                 concave: if sign > 0.0 { Side::Left } else { Side::Right },
+                // Filled by the extractor, which knows the mechanism.
+                transmission_deg: None,
             })
         })
         .collect()

@@ -94,47 +94,55 @@ impl ClassicCurve {
                 .filter(|b| b.samples.first().is_some_and(|s| s.circuit == circ))
                 .collect(),
         };
-        let straight = STRAIGHTNESS_TOLERANCES
-            .iter()
-            .map(|&t| {
-                let mut best: Option<StraightMeasure> = None;
-                for (bi, b) in branches.iter().enumerate() {
-                    let pts = b.points();
-                    let input: Vec<f64> = b.samples.iter().map(|s| s.degrees).collect();
-                    let Some(run) = longest_straight_run(&pts, &input, t) else {
-                        continue;
-                    };
-                    let seg = &b.samples[run.start..run.start + run.len];
-                    let span: f64 = seg
-                        .windows(2)
-                        .map(|w| (w[1].degrees - w[0].degrees).abs())
-                        .sum();
-                    let better = best.is_none_or(|m| {
-                        span > m.input_span_deg
-                            || (span == m.input_span_deg && run.straightness < m.straightness)
-                    });
-                    if better {
-                        let (first, last) = (seg[0], seg[seg.len() - 1]);
-                        best = Some(StraightMeasure {
-                            tolerance: t,
-                            branch: bi,
-                            samples: [run.start, run.len],
-                            input_deg: [first.degrees, last.degrees],
-                            input_span_deg: span,
-                            extent: run.extent,
-                            straightness: run.straightness,
-                            ends: [[first.point.x, first.point.y], [last.point.x, last.point.y]],
-                        });
-                    }
-                }
-                best
-            })
-            .collect();
-        ClassicCurve {
+        let mut curve = ClassicCurve {
             range: full.range,
             branches,
-            straight,
+            straight: Vec::new(),
+        };
+        curve.straight = STRAIGHTNESS_TOLERANCES
+            .iter()
+            .map(|&t| curve.straight_at(t))
+            .collect();
+        curve
+    }
+
+    /// The longest straight run at ε_S ≤ `tolerance` (a fraction), over every run of
+    /// every branch, as [`ClassicCurve::compute`] measures it at its three tolerances
+    /// (`search` on a page set asks for others). `None` where no run of three samples
+    /// qualifies.
+    pub fn straight_at(&self, tolerance: f64) -> Option<StraightMeasure> {
+        let t = tolerance;
+        let mut best: Option<StraightMeasure> = None;
+        for (bi, b) in self.branches.iter().enumerate() {
+            let pts = b.points();
+            let input: Vec<f64> = b.samples.iter().map(|s| s.degrees).collect();
+            let Some(run) = longest_straight_run(&pts, &input, t) else {
+                continue;
+            };
+            let seg = &b.samples[run.start..run.start + run.len];
+            let span: f64 = seg
+                .windows(2)
+                .map(|w| (w[1].degrees - w[0].degrees).abs())
+                .sum();
+            let better = best.is_none_or(|m| {
+                span > m.input_span_deg
+                    || (span == m.input_span_deg && run.straightness < m.straightness)
+            });
+            if better {
+                let (first, last) = (seg[0], seg[seg.len() - 1]);
+                best = Some(StraightMeasure {
+                    tolerance: t,
+                    branch: bi,
+                    samples: [run.start, run.len],
+                    input_deg: [first.degrees, last.degrees],
+                    input_span_deg: span,
+                    extent: run.extent,
+                    straightness: run.straightness,
+                    ends: [[first.point.x, first.point.y], [last.point.x, last.point.y]],
+                });
+            }
         }
+        best
     }
 
     /// The input's range in words: "full turn", or the rocking intervals in degrees.

@@ -25,6 +25,7 @@ mod maximal;
 mod run;
 mod straight;
 mod symmetry;
+mod transmission;
 mod window;
 
 pub use arcs::pseudo_arcs;
@@ -35,6 +36,7 @@ pub use flags::{CurveFlag, CurveFlags, FlagTolerances, curve_flags};
 pub use run::{StraightRun, longest_straight_run, straightness_fitted};
 pub use straight::straight_segments;
 pub use symmetry::symmetry;
+pub use transmission::window_transmission;
 pub use window::{
     CrankWindow, DEFAULT_WINDOW_STEP_DEG, LineDirection, LineMeasures, WindowError, WindowMeasures,
     WindowSamples, arc_deviation_pct,
@@ -143,6 +145,10 @@ pub struct StraightSegment {
     pub direction_deg: f64,
     /// Positions at its first and last crank angle.
     pub endpoints: [[f64; 2]; 2],
+    /// `[min, max]` of the transmission angle over its window, degrees
+    /// ([`window_transmission`]); absent in indexes written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transmission_deg: Option<[f64; 2]>,
 }
 
 /// Which side of the direction of travel the arc's centre lies on.
@@ -175,6 +181,10 @@ pub struct PseudoArc {
     pub turn_deg: f64,
     /// The concave side (where the centre is), relative to the direction of travel.
     pub concave: Side,
+    /// `[min, max]` of the transmission angle over its window, degrees
+    /// ([`window_transmission`]); absent in indexes written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transmission_deg: Option<[f64; 2]>,
 }
 
 /// A crunode: the curve crosses itself.
@@ -309,9 +319,18 @@ impl<M: Mechanism> FeatureExtractor<M> {
         self.poses.trace_into(point, &mut self.curve);
         let (l, c, t, curve) = (&self.linkage, self.circuit, &self.tolerances, &self.curve);
         let cogs = l.cognates(c, point);
+        let window = |start: f64, span: f64| window_transmission(l, c, start, span, t.step_deg);
+        let mut segments = straight_segments(curve, t, &self.dash);
+        for s in &mut segments {
+            s.transmission_deg = window(s.start_deg, s.span_deg);
+        }
+        let mut arcs = pseudo_arcs(curve, t, &self.dash);
+        for a in &mut arcs {
+            a.transmission_deg = window(a.start_deg, a.span_deg);
+        }
         CurveFeatures {
-            straight_segments: straight_segments(curve, t, &self.dash),
-            pseudo_arcs: pseudo_arcs(curve, t, &self.dash),
+            straight_segments: segments,
+            pseudo_arcs: arcs,
             double_points: DoublePoints {
                 crunodes: crunodes(l, c, point, curve, t),
                 cusps: cusps(l, c, point, curve, t),

@@ -358,6 +358,8 @@ pub fn straight_segments(
                 velocity_variation_pct: l.vx_range / l.mean_vx * 100.0,
                 direction_deg: crate::angle_deg(l.d),
                 endpoints: [[c.x[a], c.y[a]], [c.x[b], c.y[b]]],
+                // Filled by the extractor, which knows the mechanism.
+                transmission_deg: None,
             };
             [
                 seg.length,

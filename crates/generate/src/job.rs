@@ -6,7 +6,7 @@ use crate::GenerateError;
 use coupler_features::{FeatureExtractor, FeatureTolerances, FlagTolerances, curve_flags};
 use coupler_index::{IndexCurve, IndexSummary};
 use coupler_kinematics::{
-    AngleTables, Circuit, CouplerPoint, CurveSummary, DashPattern, Linkage, Mechanism,
+    AngleTables, ArcLength, Circuit, CouplerPoint, CurveSummary, DashPattern, Linkage, Mechanism,
 };
 use coupler_specs::Spec;
 use std::path::PathBuf;
@@ -337,16 +337,19 @@ pub fn compute_group(
     })?;
     let transmission_deg = [tmin.to_degrees(), tmax.to_degrees()];
     let class = group.linkage.class();
+    let not_assembled = || GenerateError::NotAssembled {
+        linkage: group.linkage,
+        circuit: group.circuit,
+    };
+    // Lengths exact to 1e-11 relative (adaptive quadrature of the speed; the samples'
+    // trapezoid sum is off by up to 1e-5 on curves with cusps).
+    let mut arc = ArcLength::new(&group.linkage, group.circuit).ok_or_else(not_assembled)?;
     let flag_tol = FlagTolerances::DEFAULT;
     let mut curve = Default::default();
     let mut out = Vec::with_capacity(group.points.len());
     for (k, &point) in group.points.iter().enumerate() {
         poses.trace_into(point, &mut curve);
-        let summary =
-            CurveSummary::of(&curve, tables.step()).ok_or(GenerateError::NotAssembled {
-                linkage: group.linkage,
-                circuit: group.circuit,
-            })?;
+        let summary = CurveSummary::of(&curve).ok_or_else(not_assembled)?;
         out.push(IndexCurve {
             id: group.first_id + k as u64,
             linkage: group.linkage,
@@ -356,7 +359,7 @@ pub fn compute_group(
             bbox: summary.bbox,
             transmission_deg,
             speed: summary.speed,
-            length: summary.length,
+            length: arc.length(point).ok_or_else(not_assembled)?,
             flags: curve_flags(&group.linkage, point, [tmin, tmax], &flag_tol),
             page: None,
             features: extractor.as_mut().map(|x| x.extract(point)),

@@ -45,4 +45,5 @@ pub use pages::{
 };
 pub use plan::{DiskEstimate, Limits, MAX_CURVES, Plan, human_bytes};
 pub use run::{CHUNK_FORMAT, CHUNK_GROUPS, RunReport, merge, run, run_key};
+pub use shapes::atlas_curves;
 pub use state::{Identity, PageFlags, read_identity};

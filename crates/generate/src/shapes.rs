@@ -4,25 +4,35 @@
 
 use crate::files::{FileEntry, write_atomically};
 use crate::{GenerateError, Job};
-use coupler_shape::{CouplerCurve, SHAPES_FILE, ShapeCode, encode_sidecar};
+use coupler_shape::{AtlasCurve, CouplerCurve, SHAPES_FILE, ShapeCode, encode_sidecar};
 use rayon::prelude::*;
 use std::io::Write as _;
+
+/// Every curve of `job`'s atlas in id order, as shape search sees it (`None` for an
+/// atlas of mechanisms other than four-bars, which has no shape codes).
+pub fn atlas_curves(job: &Job) -> Option<Vec<AtlasCurve>> {
+    let mut curves = Vec::new();
+    for g in job.groups() {
+        let linkage = g.linkage.four_bar()?;
+        curves.extend(g.points.iter().enumerate().map(|(k, &point)| AtlasCurve {
+            id: g.first_id + k as u64,
+            curve: CouplerCurve {
+                linkage: *linkage,
+                circuit: g.circuit,
+                point,
+            },
+        }));
+    }
+    Some(curves)
+}
 
 /// Computes the codes of every curve of `job` on `job.jobs` threads and writes the
 /// sidecar into `job.out`; `None` (nothing written) for an atlas of mechanisms other than
 /// four-bars.
 pub(crate) fn write_shapes(job: &Job) -> Result<Option<FileEntry>, GenerateError> {
-    let mut curves: Vec<CouplerCurve> = Vec::new();
-    for g in job.groups() {
-        let Some(linkage) = g.linkage.four_bar() else {
-            return Ok(None);
-        };
-        curves.extend(g.points.iter().map(|&point| CouplerCurve {
-            linkage: *linkage,
-            circuit: g.circuit,
-            point,
-        }));
-    }
+    let Some(curves) = atlas_curves(job) else {
+        return Ok(None);
+    };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(job.jobs)
         .build()
@@ -33,7 +43,7 @@ pub(crate) fn write_shapes(job: &Job) -> Result<Option<FileEntry>, GenerateError
     let coded: Vec<(CouplerCurve, Option<ShapeCode>)> = pool.install(|| {
         curves
             .par_iter()
-            .map(|c| (*c, ShapeCode::of_curve(c)))
+            .map(|c| (c.curve, ShapeCode::of_curve(&c.curve)))
             .collect()
     });
     let bytes = encode_sidecar(&coded);

@@ -6,7 +6,7 @@
 //! ## File format (version 1, little-endian)
 //!
 //! The rows are cut into **groups** of [`GROUP_ROWS`] curves; each group holds its rows'
-//! 14 columns (the search cache's, [`crate::TABLE_VERSION`]) and those rows' straight
+//! 16 columns (the search cache's, [`crate::TABLE_VERSION`]) and those rows' straight
 //! segments and arcs, each column in its own **chunk** starting on a 64-byte boundary,
 //! padded with zeros. Every chunk has its own XXH3-64 in the directory, so a search
 //! checks exactly the chunks it reads, once each, and a writer holds one group at a time.
@@ -18,7 +18,7 @@
 //! | 20–23 | table version |
 //! | 24–63 | 0 |
 //! | 64… | the groups' chunks, then the page names' two chunks (offsets: `u64` × (pages + 1); text) |
-//! | directory | per group 48 bytes (rows `u32`, 0 `u32`, first row, first segment, segments, first arc, arcs: `u64` each) and 14 × 24 bytes (chunk offset, length, XXH3-64: `u64` each); then the page chunks' 2 × 24 bytes |
+//! | directory | per group 48 bytes (rows `u32`, 0 `u32`, first row, first segment, segments, first arc, arcs: `u64` each) and 16 × 24 bytes (chunk offset, length, XXH3-64: `u64` each); then the page chunks' 2 × 24 bytes |
 //! | last 128 | trailer: magic `CPLATLAS-COLEND\n`; format, table version, groups, columns (`u32` each); rows, segments, arcs, pages, directory offset, directory length, directory XXH3-64, index length (`u64` each); the index's XXH3-128; group rows (`u64`); XXH3-64 of the trailer's first 120 bytes |
 //!
 //! ## What is checked, and when
@@ -67,7 +67,7 @@ const CHUNK_ENTRY: usize = 24;
 /// One encoding for both the columns file and the search cache (`columns.rs`): a new
 /// field is a new column here, in [`push_row`] and [`row_at`] (and a new
 /// [`crate::TABLE_VERSION`]); both files then carry it.
-pub(crate) const COLS: [(&str, usize); 14] = [
+pub(crate) const COLS: [(&str, usize); 16] = [
     ("row.id", 8),
     ("row.link", 24),
     ("row.pt", 16),
@@ -82,6 +82,8 @@ pub(crate) const COLS: [(&str, usize); 14] = [
     ("arc", 56),
     ("arc.side", 1),
     ("row.gear", 24),
+    ("seg.tr", 16),
+    ("arc.tr", 16),
 ];
 pub(crate) const NCOLS: usize = COLS.len();
 pub(crate) const SEG: usize = 10;
@@ -89,6 +91,10 @@ pub(crate) const ARC: usize = 11;
 pub(crate) const SIDE: usize = 12;
 /// A geared five-bar's L5, φ and λ (zero for a four-bar): see [`linkage_cells`].
 pub(crate) const GEAR: usize = 13;
+/// The transmission angle range over each segment's window (NaN where unknown).
+pub(crate) const SEG_TR: usize = 14;
+/// The transmission angle range over each arc's window (NaN where unknown).
+pub(crate) const ARC_TR: usize = 15;
 const GROUP_ENTRY: usize = GROUP_HEAD + NCOLS * CHUNK_ENTRY;
 
 /// The columns file of `index`: `index.columns` for `…/index.json`, else `INDEX.columns`.
@@ -210,10 +216,10 @@ pub(crate) fn push_row(cols: &mut [Vec<u8>], r: &CurveRow) {
     ]);
 }
 
-/// Appends one segment to its column.
-pub(crate) fn push_segment(col: &mut Vec<u8>, s: &SegmentRow) {
+/// Appends one segment to its columns (`seg`, `seg.tr`).
+pub(crate) fn push_segment(cols: &mut [Vec<u8>], s: &SegmentRow) {
     f64s(
-        col,
+        &mut cols[SEG],
         &[
             s.start_deg,
             s.span_deg,
@@ -223,12 +229,13 @@ pub(crate) fn push_segment(col: &mut Vec<u8>, s: &SegmentRow) {
             s.direction_deg,
         ],
     );
+    f64s(&mut cols[SEG_TR], &s.transmission_deg);
 }
 
-/// Appends one arc to its two columns (values, side).
-pub(crate) fn push_arc(col: &mut Vec<u8>, side: &mut Vec<u8>, a: &ArcRow) {
+/// Appends one arc to its columns (`arc`, `arc.side`, `arc.tr`).
+pub(crate) fn push_arc(cols: &mut [Vec<u8>], a: &ArcRow) {
     f64s(
-        col,
+        &mut cols[ARC],
         &[
             a.start_deg,
             a.span_deg,
@@ -239,7 +246,8 @@ pub(crate) fn push_arc(col: &mut Vec<u8>, side: &mut Vec<u8>, a: &ArcRow) {
             a.turn_deg,
         ],
     );
-    side.push((a.concave == Side::Right) as u8);
+    cols[SIDE].push((a.concave == Side::Right) as u8);
+    f64s(&mut cols[ARC_TR], &a.transmission_deg);
 }
 
 /// Row `i` of the row columns, checked: flags and class valid, a valid linkage (see
@@ -338,9 +346,17 @@ pub(crate) fn row_at(
     })
 }
 
-/// Segment `k` of a segment column (NaN throughout outside it: it then passes no filter).
-pub(crate) fn segment_at(col: &[u8], k: usize) -> SegmentRow {
-    let v = |j: usize| f64_at(col, (k * 6 + j) * 8);
+/// The byte offset of `f64` number `j` of element `k` of `n` numbers each (saturating:
+/// a position past any column reads NaN).
+fn at(k: usize, n: usize, j: usize) -> usize {
+    k.saturating_mul(n).saturating_add(j).saturating_mul(8)
+}
+
+/// Segment `k` of the segment columns (NaN throughout outside them: it then passes no
+/// filter).
+pub(crate) fn segment_at(cols: &[&[u8]], k: usize) -> SegmentRow {
+    let v = |j: usize| f64_at(cols[SEG], at(k, 6, j));
+    let tr = |j: usize| f64_at(cols[SEG_TR], at(k, 2, j));
     SegmentRow {
         start_deg: v(0),
         span_deg: v(1),
@@ -348,24 +364,27 @@ pub(crate) fn segment_at(col: &[u8], k: usize) -> SegmentRow {
         velocity_variation_pct: v(3),
         length: v(4),
         direction_deg: v(5),
+        transmission_deg: [tr(0), tr(1)],
     }
 }
 
 /// Arc `k` of the arc columns (NaN throughout outside them).
-pub(crate) fn arc_at(col: &[u8], side: &[u8], k: usize) -> ArcRow {
-    let v = |j: usize| f64_at(col, (k * 7 + j) * 8);
+pub(crate) fn arc_at(cols: &[&[u8]], k: usize) -> ArcRow {
+    let v = |j: usize| f64_at(cols[ARC], at(k, 7, j));
+    let tr = |j: usize| f64_at(cols[ARC_TR], at(k, 2, j));
     ArcRow {
         start_deg: v(0),
         span_deg: v(1),
         radius: v(2),
         deviation_pct: v(3),
         center: [v(4), v(5)],
-        concave: if side.get(k) == Some(&1) {
+        concave: if cols[SIDE].get(k) == Some(&1) {
             Side::Right
         } else {
             Side::Left
         },
         turn_deg: v(6),
+        transmission_deg: [tr(0), tr(1)],
     }
 }
 
@@ -444,14 +463,10 @@ impl<W: Write> ColumnsWriter<W> {
         }
         push_row(&mut self.bufs, &row);
         for s in &segments {
-            push_segment(&mut self.bufs[SEG], s);
+            push_segment(&mut self.bufs, s);
         }
-        let (arc, side) = {
-            let (a, b) = self.bufs.split_at_mut(SIDE);
-            (&mut a[ARC], &mut b[0])
-        };
         for a in &arcs {
-            push_arc(arc, side, a);
+            push_arc(&mut self.bufs, a);
         }
         self.rows += 1;
         self.segs += segments.len() as u64;
@@ -654,14 +669,10 @@ impl View<'_> {
 
 impl Features for View<'_> {
     fn segment(&self, k: usize) -> SegmentRow {
-        segment_at(
-            self.cols[SEG],
-            k.wrapping_sub(self.group.segs.start as usize),
-        )
+        segment_at(&self.cols, k.wrapping_sub(self.group.segs.start as usize))
     }
     fn arc(&self, k: usize) -> ArcRow {
-        let k = k.wrapping_sub(self.group.arcs.start as usize);
-        arc_at(self.cols[ARC], self.cols[SIDE], k)
+        arc_at(&self.cols, k.wrapping_sub(self.group.arcs.start as usize))
     }
 }
 
@@ -782,8 +793,8 @@ impl ColumnTable {
             }; NCOLS];
             for (c, (_, element)) in COLS.iter().enumerate() {
                 let count = match c {
-                    SEG => gsegs,
-                    ARC | SIDE => garcs,
+                    SEG | SEG_TR => gsegs,
+                    ARC | SIDE | ARC_TR => garcs,
                     _ => n,
                 };
                 let e = &g[GROUP_HEAD + c * CHUNK_ENTRY..GROUP_HEAD + (c + 1) * CHUNK_ENTRY];
@@ -896,10 +907,10 @@ impl ColumnTable {
             need.push(3);
         }
         if want_straight {
-            need.push(SEG);
+            need.extend([SEG, SEG_TR]);
         }
         if want_arc {
-            need.extend([ARC, SIDE]);
+            need.extend([ARC, SIDE, ARC_TR]);
         }
         let per_group: Vec<(Vec<Keyed>, usize)> = (0..self.groups.len())
             .into_par_iter()

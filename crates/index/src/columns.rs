@@ -5,15 +5,17 @@
 
 use crate::cache::{Column, IndexKey, Section, write_container};
 use crate::colfile::{
-    ARC, COLS, NCOLS, SEG, SIDE, arc_at, push_arc, push_row, push_segment, row_at, segment_at,
+    ARC, ARC_TR, COLS, NCOLS, SEG, SEG_TR, SIDE, arc_at, push_arc, push_row, push_segment, row_at,
+    segment_at,
 };
 use crate::search::SearchTable;
 use crate::{CacheError, read_container};
 
 /// Version of the column set (the cache's and the columns file's table version): 2
 /// added arcs' turn and the rows' `trivial` flag; 3 the rows' `row.gear` (a geared
-/// five-bar's L5, φ and λ).
-pub const TABLE_VERSION: u32 = 3;
+/// five-bar's L5, φ and λ); 4 the transmission over each segment's and arc's window
+/// (`seg.tr`, `arc.tr`; NaN where unknown).
+pub const TABLE_VERSION: u32 = 4;
 
 fn bad(m: impl Into<String>) -> CacheError {
     CacheError(m.into())
@@ -27,8 +29,8 @@ impl SearchTable {
             .enumerate()
             .map(|(c, (_, element))| {
                 let n = match c {
-                    SEG => self.segments.len(),
-                    ARC | SIDE => self.arcs.len(),
+                    SEG | SEG_TR => self.segments.len(),
+                    ARC | SIDE | ARC_TR => self.arcs.len(),
                     _ => self.rows.len(),
                 };
                 Vec::with_capacity(element * n)
@@ -38,11 +40,10 @@ impl SearchTable {
             push_row(&mut cols, r);
         }
         for s in &self.segments {
-            push_segment(&mut cols[SEG], s);
+            push_segment(&mut cols, s);
         }
-        let (arc, side) = cols.split_at_mut(SIDE);
         for a in &self.arcs {
-            push_arc(&mut arc[ARC], &mut side[0], a);
+            push_arc(&mut cols, a);
         }
         let mut off = Vec::with_capacity(8 * (self.pages.len() + 1));
         let mut text = Vec::new();
@@ -113,15 +114,20 @@ impl SearchTable {
         let mut cols: Vec<Section<'_>> = Vec::with_capacity(NCOLS);
         for (c, (tag, element)) in COLS.iter().enumerate() {
             let s = find(tag, *element as u32)?;
-            let rows = !matches!(c, SEG | ARC | SIDE);
+            let rows = !matches!(c, SEG | ARC | SIDE | SEG_TR | ARC_TR);
             if rows && s.count as usize != n {
                 return Err(bad(format!("column {tag} length")));
             }
             cols.push(s);
         }
-        if cols[SIDE].count != cols[ARC].count {
-            return Err(bad("column arc.side length"));
+        if cols[SIDE].count != cols[ARC].count
+            || cols[ARC_TR].count != cols[ARC].count
+            || cols[SEG_TR].count != cols[SEG].count
+        {
+            return Err(bad("column arc.side, arc.tr or seg.tr length"));
         }
+        // A window's transmission is NaN where the index did not say (never ±∞).
+        let known = |xs: &[f64]| xs.iter().all(|x| !x.is_infinite());
         let (off, text) = (find("page.off", 8)?, find("page.txt", 1)?);
         if off.count == 0 {
             return Err(bad("column page.off"));
@@ -157,7 +163,7 @@ impl SearchTable {
         }
         t.segments.reserve_exact(nsegs as usize);
         for k in 0..nsegs as usize {
-            let s = segment_at(data[SEG], k);
+            let s = segment_at(&data, k);
             let v = [
                 s.start_deg,
                 s.span_deg,
@@ -166,14 +172,14 @@ impl SearchTable {
                 s.length,
                 s.direction_deg,
             ];
-            if !finite(&v) {
+            if !finite(&v) || !known(&s.transmission_deg) {
                 return Err(bad("a segment value is not finite"));
             }
             t.segments.push(s);
         }
         t.arcs.reserve_exact(narcs as usize);
         for k in 0..narcs as usize {
-            let a = arc_at(data[ARC], data[SIDE], k);
+            let a = arc_at(&data, k);
             let v = [
                 a.start_deg,
                 a.span_deg,
@@ -183,7 +189,7 @@ impl SearchTable {
                 a.center[1],
                 a.turn_deg,
             ];
-            if !finite(&v) || data[SIDE][k] > 1 {
+            if !finite(&v) || !known(&a.transmission_deg) || data[SIDE][k] > 1 {
                 return Err(bad("an arc value is not valid"));
             }
             t.arcs.push(a);

@@ -11,6 +11,7 @@ mod colfile;
 mod columns;
 mod lines;
 mod load;
+mod page_set;
 mod schema;
 mod search;
 mod stamp;
@@ -26,12 +27,13 @@ pub use colfile::{
 pub use columns::TABLE_VERSION;
 pub use lines::{MAX_INDEX_LINE, read_line_bounded};
 pub use load::{Loaded, load};
+pub use page_set::{PAGE_SET_KIND, is_page_set};
 pub use schema::{
     Index, IndexCurve, IndexError, IndexSummary, PageRef, SCHEMA_VERSION, curve_line,
     write_curve_line, write_index, write_index_footer, write_index_header,
 };
 pub use search::{
     ArcRow, CurveRow, DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchError, SearchTable, SegmentRow,
-    SortKey, SpanFilter,
+    SortKey, SpanFilter, transmission_margin,
 };
 pub use stamp::{SETTLED, stamp_path};

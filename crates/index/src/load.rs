@@ -62,6 +62,19 @@ pub fn load(index: &Path, use_cache: bool) -> Result<Loaded, LoadError> {
 }
 
 impl Loaded {
+    /// A table already in memory (a page set's, or one built by the caller) as a
+    /// [`Loaded`] that answers from it.
+    pub fn from_table(table: SearchTable) -> Loaded {
+        Loaded {
+            source: Source::Table(table),
+            from: TableSource::Index,
+            note: None,
+            index: PathBuf::new(),
+            use_cache: false,
+            key: None,
+        }
+    }
+
     /// Loads from the cache or the index (the columns not being usable).
     fn rebuild(&mut self) -> Result<(), LoadError> {
         let (t, from) = load_table_keyed(&self.index, self.use_cache, self.key)?;

@@ -12,7 +12,7 @@
 //! own numbers do.
 
 use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
-use coupler_features::{CurveFeatures, Side, Trivial};
+use coupler_features::{CurveFeatures, Side, Trivial, window_transmission};
 use coupler_kinematics::{Circuit, Linkage, LinkageClass, Mechanism};
 use serde::Serialize;
 
@@ -31,6 +31,8 @@ pub struct SegmentRow {
     pub length: f64,
     /// Direction of travel, degrees.
     pub direction_deg: f64,
+    /// Transmission angle `[min, max]` over its window, degrees (NaN: unknown).
+    pub transmission_deg: [f64; 2],
 }
 
 /// One pseudo-arc, as searched.
@@ -50,6 +52,15 @@ pub struct ArcRow {
     pub concave: Side,
     /// Turn about the centre, degrees.
     pub turn_deg: f64,
+    /// Transmission angle `[min, max]` over its window, degrees (NaN: unknown).
+    pub transmission_deg: [f64; 2],
+}
+
+/// How far a transmission range `[min, max]` (degrees) stays from 0° and 180°:
+/// `min(min, 180 − max)`, the largest `DEG` for which it lies within `[DEG, 180 − DEG]`
+/// (NaN when unknown).
+pub fn transmission_margin(range: [f64; 2]) -> f64 {
+    range[0].min(180.0 - range[1])
 }
 
 /// One curve, as searched.
@@ -136,6 +147,14 @@ pub(crate) fn decompose(c: &IndexCurve) -> (CurveRow, Vec<SegmentRow>, Vec<ArcRo
         trivial: None,
     };
     let f = c.features.as_ref().unwrap_or(&empty);
+    // Indexes written before features carried their window's transmission: computed
+    // here (once: the cache and the columns keep it), at the default feature step (exact
+    // for a four-bar at any step).
+    let window = |given: Option<[f64; 2]>, start: f64, span: f64| {
+        given
+            .or_else(|| window_transmission(&c.linkage, c.circuit, start, span, 5.0))
+            .unwrap_or([f64::NAN; 2])
+    };
     let row = CurveRow {
         id: c.id,
         linkage: c.linkage,
@@ -165,6 +184,7 @@ pub(crate) fn decompose(c: &IndexCurve) -> (CurveRow, Vec<SegmentRow>, Vec<ArcRo
             velocity_variation_pct: s.velocity_variation_pct,
             length: s.length,
             direction_deg: s.direction_deg,
+            transmission_deg: window(s.transmission_deg, s.start_deg, s.span_deg),
         })
         .collect();
     let arcs = f
@@ -178,6 +198,7 @@ pub(crate) fn decompose(c: &IndexCurve) -> (CurveRow, Vec<SegmentRow>, Vec<ArcRo
             center: a.center,
             concave: a.concave,
             turn_deg: a.turn_deg,
+            transmission_deg: window(a.transmission_deg, a.start_deg, a.span_deg),
         })
         .collect();
     (row, segments, arcs)
@@ -395,8 +416,11 @@ pub enum SortKey {
     Arc,
     /// Smallest matching arc deviation first.
     Deviation,
-    /// Largest minimum transmission angle first.
+    /// Transmission angle farthest from 0° and 180° over the whole turn first (largest
+    /// [`transmission_margin`]).
     Transmission,
+    /// Transmission angle farthest from 0° and 180° over a matching feature's window first.
+    WindowTransmission,
     /// Largest matching arc turn first.
     Turn,
     /// Smallest matching arc radius first.
@@ -415,12 +439,13 @@ impl std::str::FromStr for SortKey {
             "arc" => SortKey::Arc,
             "deviation" => SortKey::Deviation,
             "transmission" => SortKey::Transmission,
+            "window-transmission" => SortKey::WindowTransmission,
             "turn" => SortKey::Turn,
             "radius" => SortKey::Radius,
             "velocity" => SortKey::Velocity,
             _ => {
                 return Err(format!(
-                    "unknown sort key `{s}` (expected id, straight, straightness, arc, deviation, transmission, turn, radius, velocity)"
+                    "unknown sort key `{s}` (expected id, straight, straightness, arc, deviation, transmission, window-transmission, turn, radius, velocity)"
                 ));
             }
         })
@@ -476,6 +501,9 @@ pub struct Query {
     pub radius_tol_pct: f64,
     /// Transmission angle within [DEG, 180 − DEG] over the whole revolution.
     pub min_transmission_deg: Option<f64>,
+    /// Matching segments and arcs have their transmission angle within [DEG, 180 − DEG]
+    /// over their own window; alone, asks for such a segment or arc.
+    pub min_window_transmission_deg: Option<f64>,
     /// Class (Barker's for a four-bar).
     pub class: Option<LinkageClass>,
     /// The linkage: lengths (and a geared five-bar's phase) matched to 1e-9, its gear
@@ -538,9 +566,11 @@ impl Query {
     pub(crate) fn wants(&self) -> (bool, bool) {
         let want_straight = self.straight.is_some() || self.max_velocity_variation_pct.is_some();
         let want_arc = self.arc.is_some() || self.radius.is_some() || self.min_turn_deg.is_some();
+        // The window's transmission reads both (alone it asks for a segment or an arc).
+        let window = self.min_window_transmission_deg.is_some();
         (
-            want_straight || self.double_dwell,
-            want_arc || self.double_dwell,
+            want_straight || self.double_dwell || window,
+            want_arc || self.double_dwell || window,
         )
     }
 
@@ -567,7 +597,17 @@ impl Query {
             SortKey::Straightness => {
                 min(&mut h.straight.iter().map(|&k| t.segment(k).straightness_pct))
             }
-            SortKey::Transmission => -r.transmission_deg[0],
+            SortKey::Transmission => -transmission_margin(r.transmission_deg),
+            SortKey::WindowTransmission => -h
+                .straight
+                .iter()
+                .map(|&k| transmission_margin(t.segment(k).transmission_deg))
+                .chain(
+                    h.arcs
+                        .iter()
+                        .map(|&k| transmission_margin(t.arc(k).transmission_deg)),
+                )
+                .fold(f64::NEG_INFINITY, f64::max),
             SortKey::Turn => -max(&mut h.arcs.iter().map(|&k| t.arc(k).turn_deg)),
             SortKey::Radius => min(&mut h.arcs.iter().map(|&k| t.arc(k).radius)),
             SortKey::Velocity => min(&mut h
@@ -609,7 +649,10 @@ impl Query {
         // Arc and segment measures filter the arcs or segments; given alone, they ask for one.
         let want_straight = self.straight.is_some() || self.max_velocity_variation_pct.is_some();
         let want_arc = self.arc.is_some() || self.radius.is_some() || self.min_turn_deg.is_some();
-        let wants_features = want_straight || want_arc || self.double_dwell;
+        // The window's transmission alone asks for a segment or an arc.
+        let want_any = self.min_window_transmission_deg.is_some()
+            && !(want_straight || want_arc || self.double_dwell);
+        let wants_features = want_straight || want_arc || self.double_dwell || want_any;
         if wants_features && !r.has_features {
             return None;
         }
@@ -617,11 +660,17 @@ impl Query {
             Some(f) => span >= f.min_span_deg && err <= f.max_error_pct,
             None => true,
         };
-        let straight: Vec<usize> = if want_straight || self.double_dwell {
+        // NaN (unknown) never passes.
+        let window_ok = |tr: [f64; 2]| {
+            self.min_window_transmission_deg
+                .is_none_or(|m| transmission_margin(tr) >= m)
+        };
+        let straight: Vec<usize> = if want_straight || self.double_dwell || want_any {
             (r.seg_start as usize..(r.seg_start + r.seg_count) as usize)
                 .filter(|&k| {
                     let s = t.segment(k);
                     pass(&self.straight, s.span_deg, s.straightness_pct)
+                        && window_ok(s.transmission_deg)
                         && self
                             .max_velocity_variation_pct
                             .is_none_or(|m| s.velocity_variation_pct <= m)
@@ -630,11 +679,12 @@ impl Query {
         } else {
             Vec::new()
         };
-        let arcs: Vec<usize> = if want_arc || self.double_dwell {
+        let arcs: Vec<usize> = if want_arc || self.double_dwell || want_any {
             (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
                 .filter(|&k| {
                     let a = t.arc(k);
                     pass(&self.arc, a.span_deg, a.deviation_pct)
+                        && window_ok(a.transmission_deg)
                         && self
                             .radius
                             .is_none_or(|[lo, hi]| lo <= a.radius && a.radius <= hi)
@@ -648,6 +698,9 @@ impl Query {
             return None;
         }
         if want_arc && arcs.is_empty() {
+            return None;
+        }
+        if want_any && straight.is_empty() && arcs.is_empty() {
             return None;
         }
         if self.double_dwell {

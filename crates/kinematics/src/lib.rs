@@ -20,6 +20,7 @@ mod dd;
 mod exact;
 mod frame;
 mod geared;
+mod length;
 mod linkage;
 mod mechanism;
 mod pose;
@@ -44,6 +45,7 @@ pub use geared::{
     GearedError, GearedFiveBar, GearedGaps, GearedPose, MARGIN_STEP_DEG, MARGIN_TOL, MAX_GEAR_TERM,
     Rotatability, TRANSMISSION_STEP_DEG, TingClass, geared_equivalent,
 };
+pub use length::{ARC_LENGTH_PANELS_PER_TURN, ARC_LENGTH_TOL, ArcLength};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
 pub use mechanism::{Linkage, LinkageClass, Mechanism, SymmetryAxis, SymmetryReason};
 pub use pose::{CrankAngle, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area, sincos_deg};

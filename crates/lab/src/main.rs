@@ -66,6 +66,16 @@ enum Which {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Cost of the index's exact arc length per curve (adaptive Gauss–Kronrod) against the
+    /// trapezoid sum on the samples it replaced, over every curve of an atlas spec.
+    Arclength {
+        /// The atlas spec.
+        #[arg(long, default_value = "atlas-spec/hrones-nelson.toml")]
+        spec: PathBuf,
+        /// Repetitions of each timing (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        reps: usize,
+    },
 }
 
 fn main() -> ExitCode {
@@ -75,6 +85,7 @@ fn main() -> ExitCode {
         Which::Stability { out } => stability(out.as_deref()),
         Which::Adaptive { out, reps } => adaptive(out.as_deref(), reps.max(1)),
         Which::Classics { spec, out } => classics(&spec, out.as_deref()),
+        Which::Arclength { spec, reps } => arclength(&spec, reps.max(1)),
     };
     match result {
         Ok(code) => code,
@@ -994,5 +1005,67 @@ pub fn adaptive(out: Option<&Path>, reps: usize) -> Result<ExitCode> {
         std::fs::write(out.join("adaptive.md"), &md)?;
         eprintln!("wrote {}", out.join("adaptive.md").display());
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `arclength`: per curve, the exact length's cost (the shared node poses, per group,
+/// included) against the trapezoid sum on the samples, medians of `reps` passes over the
+/// whole atlas on one thread; and how many curves needed refining.
+fn arclength(spec: &Path, reps: usize) -> Result<ExitCode> {
+    use coupler_kinematics::{ArcLength, CrankTable, Mechanism};
+    let text = std::fs::read_to_string(spec).with_context(|| format!("{}", spec.display()))?;
+    let name = spec.file_stem().and_then(|s| s.to_str()).unwrap_or("spec");
+    let s = coupler_specs::Spec::parse(&text, name).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let table = CrankTable::new(s.sampling.crank_step_deg).context("sampling step")?;
+    let job = coupler_generate::Job::new(s, name, "unused", 1);
+    let groups: Vec<_> = job.groups().collect();
+    let curves: usize = groups.iter().map(|g| g.points.len()).sum();
+    let (mut exact_t, mut trap_t) = (Vec::new(), Vec::new());
+    let (mut refined, mut poses, mut worst) = (0usize, 0usize, 0f64);
+    for rep in 0..reps {
+        let t0 = Instant::now();
+        let mut sums = Vec::with_capacity(curves);
+        for g in &groups {
+            let mut arc = ArcLength::new(&g.linkage, g.circuit).context("assembles")?;
+            for &p in &g.points {
+                sums.push(black_box(arc.length(p).context("length")?));
+                if rep == 0 && arc.refined_poses() > 0 {
+                    refined += 1;
+                    poses += arc.refined_poses();
+                }
+            }
+        }
+        exact_t.push(t0.elapsed().as_secs_f64());
+        let t1 = Instant::now();
+        let mut k = 0;
+        for g in &groups {
+            let t = g.linkage.pose_table(g.circuit, &table);
+            let mut c = Default::default();
+            for &p in &g.points {
+                t.trace_into(p, &mut c);
+                let c: &coupler_kinematics::Curve = &c;
+                let l = (0..c.len()).map(|i| c.vx[i].hypot(c.vy[i])).sum::<f64>()
+                    * table.step().to_radians();
+                if rep == 0 {
+                    worst = worst.max(((black_box(l) - sums[k]) / sums[k]).abs());
+                }
+                k += 1;
+            }
+        }
+        trap_t.push(t1.elapsed().as_secs_f64());
+    }
+    let us = |v: &Vec<f64>| median(v.clone()) * 1e6 / curves as f64;
+    println!("machine: {}", machine());
+    println!(
+        "{curves} curves of {}: exact length {:.2} µs per curve, trapezoid on the {}° samples {:.2} µs per curve (medians of {reps}, one thread)",
+        spec.display(),
+        us(&exact_t),
+        table.step(),
+        us(&trap_t)
+    );
+    println!(
+        "{refined} curves refined ({poses} extra poses, {:.0} per refined curve); largest trapezoid error against the exact length {worst:.2e} relative",
+        poses as f64 / refined.max(1) as f64
+    );
     Ok(ExitCode::SUCCESS)
 }

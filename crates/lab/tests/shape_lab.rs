@@ -4,7 +4,9 @@
 
 use coupler_generate::Job;
 use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, CrankTable, FourBar, Pose, PoseTable};
-use coupler_shape::{C64, cis, diameter, resample};
+// The cases' generator is shared with `tests/shape.rs` (`coupler_shape::cases`).
+use coupler_shape::cases::{SplitMix64 as Rng, crank_angles, place_points};
+use coupler_shape::{C64, cis, resample};
 use coupler_specs::Spec;
 
 fn abs(z: C64) -> f64 {
@@ -29,45 +31,21 @@ struct AtlasCurve {
 
 fn atlas(spec: &Spec) -> Vec<AtlasCurve> {
     let job = Job::new(spec.clone(), "lab", "/nonexistent", 1);
-    let mut out = Vec::new();
-    for g in job.groups() {
-        for &p in &g.points {
-            out.push(AtlasCurve {
-                linkage: *g.linkage.four_bar().expect("a four-bar atlas"),
-                circuit: g.circuit,
-                point: p,
-            });
-        }
-    }
-    out
+    coupler_generate::atlas_curves(&job)
+        .expect("a four-bar atlas")
+        .into_iter()
+        .map(|c| AtlasCurve {
+            linkage: c.curve.linkage,
+            circuit: c.curve.circuit,
+            point: c.curve.point,
+        })
+        .collect()
 }
 
 fn trace(c: &AtlasCurve, table: &CrankTable) -> Vec<C64> {
     let poses = PoseTable::new(&c.linkage, c.circuit, table);
     let t = poses.trace(c.point);
     (0..t.len()).map(|k| C64::new(t.x[k], t.y[k])).collect()
-}
-
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E3779B97F4A7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58476D1CE4E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D049BB133111EB);
-        z ^ (z >> 31)
-    }
-    fn uniform(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.uniform()
-    }
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * libm::log(u1)).sqrt() * libm::cos(std::f64::consts::TAU * u2)
-    }
 }
 
 struct Case {
@@ -80,7 +58,7 @@ struct Case {
 }
 
 fn make_case(rng: &mut Rng, curves: &[AtlasCurve], closed: bool, noise: f64) -> Case {
-    let source = (rng.next() % curves.len() as u64) as usize;
+    let source = (rng.next_u64() % curves.len() as u64) as usize;
     let c = curves[source];
     let start = rng.range(0.0, 360.0);
     let span = if closed {
@@ -88,24 +66,8 @@ fn make_case(rng: &mut Rng, curves: &[AtlasCurve], closed: bool, noise: f64) -> 
     } else {
         rng.range(90.0, 270.0)
     };
-    let n = 30 + (rng.next() % 120) as usize;
-    let uniform = rng.uniform() < 0.5;
-    let mut angles: Vec<f64> = (0..n)
-        .map(|j| {
-            if closed {
-                start + 360.0 * j as f64 / n as f64
-            } else if uniform {
-                start + span * j as f64 / (n - 1) as f64
-            } else if j == 0 {
-                start
-            } else if j == n - 1 {
-                start + span
-            } else {
-                start + span * rng.uniform()
-            }
-        })
-        .collect();
-    angles.sort_by(f64::total_cmp);
+    let n = 30 + (rng.next_u64() % 120) as usize;
+    let angles = crank_angles(rng, closed, start, span, n);
     let pts: Vec<C64> = angles
         .iter()
         .map(|&d| {
@@ -115,16 +77,7 @@ fn make_case(rng: &mut Rng, curves: &[AtlasCurve], closed: bool, noise: f64) -> 
         })
         .collect();
     let mirrored = rng.uniform() < 0.5;
-    let a = cis(rng.range(0.0, std::f64::consts::TAU)) * 10f64.powf(rng.range(-1.0, 2.0));
-    let b = C64::new(rng.range(-100.0, 100.0), rng.range(-100.0, 100.0));
-    let mut w: Vec<C64> = pts
-        .iter()
-        .map(|&z| a * if mirrored { z.conj() } else { z } + b)
-        .collect();
-    let size = diameter(&w);
-    for p in &mut w {
-        *p += C64::new(rng.normal(), rng.normal()) * (noise * size / std::f64::consts::SQRT_2);
-    }
+    let w = place_points(rng, &pts, mirrored, noise);
     Case {
         source,
         points: w,

@@ -943,6 +943,27 @@ mod tests {
     }
 
     #[test]
+    fn the_header_gives_the_transmission_angle_once() {
+        use coupler_kinematics::{GearRatio, GearedFiveBar};
+        let count = |s: &str| s.matches('μ').count();
+        let (_, sub) = header_lines(&page());
+        assert_eq!(count(&sub), 1, "{sub}");
+        let geared = LinkagePage {
+            linkage: GearedFiveBar::new(2.3, 2.9, 3.4, 1.7, GearRatio::new(-1, 2).unwrap(), 30.0)
+                .unwrap(),
+            circuit: Circuit::Open,
+            points: vec![CouplerPoint::new(1.0, 0.5)],
+            grid: vec![CouplerPoint::new(1.0, 0.5)],
+            page_number: 1,
+            page_count: 1,
+            features: Vec::new(),
+        };
+        let (_, sub) = header_lines(&geared);
+        assert_eq!(count(&sub), 1, "{sub}");
+        assert!(sub.contains("Ting"), "{sub}");
+    }
+
+    #[test]
     fn everything_inside_the_frame_and_labels_disjoint() {
         let setup = PageSetup::default();
         let pg = page();

@@ -13,6 +13,7 @@
 //!   the page looks the same without the font installed).
 
 mod diff;
+mod dirty;
 mod pdf;
 mod raster;
 mod svg;
@@ -22,7 +23,7 @@ pub use diff::{
     DiffError, ImageDiff, MAX_DIFF_PIXELS, MAX_DIFF_WIDTH, diff_files, diff_images, read_image,
 };
 pub use pdf::{Bookmark, PageLabelRange, PdfError, PdfPage, PdfPageContent, write_pdf};
-pub use raster::{RasterPage, encode_png};
+pub use raster::{PngCompression, RasterPage, encode_png, encode_png_with};
 pub use svg::SvgPage;
 
 use coupler_layout::{Anchor, DisplayList, Ink, PagePoint, Primitive};

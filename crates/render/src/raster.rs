@@ -1,6 +1,7 @@
 //! Raster backend: anti-aliased ink coverage with tiny-skia, grayscale PNG output.
 
 use super::{Canvas, anchored_x};
+use crate::dirty::Dirty;
 use ab_glyph::{Font, FontRef, Glyph, point};
 use coupler_layout::{self as font, Anchor, Ink, OutlineCmd, PT_PER_INCH, PagePoint};
 use std::io::Write;
@@ -21,14 +22,74 @@ pub struct RasterPage {
     /// read: grays overprint black in any order, so black can be drawn meanwhile. Made
     /// on the first gray.
     gray: Option<GrayLayer>,
+    /// Where the page may hold ink: clearing and encoding visit only these blocks.
+    dirty: Dirty,
+    /// Scratch: the pieces (segments `a`, `b` with the reach `r` of the stroke around
+    /// them, pixels) of the path being filled; empty: its bounds.
+    pieces: Vec<Piece>,
 }
 
-/// A coverage layer for one gray level, with the pixel box drawn into since the last
-/// flush.
+/// A segment of a stroke and the stroke's half width, in pixels.
+#[derive(Clone, Copy, Debug)]
+struct Piece {
+    a: [f32; 2],
+    b: [f32; 2],
+    r: f32,
+}
+
+impl Dirty {
+    /// Marks a filled path: its pieces, or its bounds when there are none.
+    fn mark_path(&mut self, path: &tiny_skia::Path, pieces: &[Piece]) {
+        if pieces.is_empty() {
+            let b = path.bounds();
+            self.mark([b.left(), b.top(), b.right(), b.bottom()]);
+        }
+        for p in pieces {
+            self.mark_segment(p.a, p.b, p.r);
+        }
+    }
+}
+
+/// A coverage layer for one gray level, with the blocks drawn into since the last flush.
 struct GrayLayer {
     mask: Mask,
     level: u8,
-    dirty: Option<[usize; 4]>,
+    dirty: Dirty,
+}
+
+/// How hard to compress PNG pages.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PngCompression {
+    /// fdeflate's PNG-tuned fast mode with the Up filter (the default: pages are
+    /// written as fast as they are drawn).
+    #[default]
+    Fast,
+    /// zlib's best level with adaptive filtering: smaller files for archiving, at
+    /// several times the encoding time. Same pixels.
+    Best,
+}
+
+impl std::str::FromStr for PngCompression {
+    type Err = String;
+    fn from_str(s: &str) -> Result<PngCompression, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "fast" => Ok(PngCompression::Fast),
+            "best" => Ok(PngCompression::Best),
+            _ => Err(format!(
+                "unknown PNG compression {s:?} (expected fast or best)"
+            )),
+        }
+    }
+}
+
+impl PngCompression {
+    /// `"fast"` or `"best"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PngCompression::Fast => "fast",
+            PngCompression::Best => "best",
+        }
+    }
 }
 
 impl RasterPage {
@@ -41,6 +102,8 @@ impl RasterPage {
             font: font::embedded_font(),
             ink: Ink::Black,
             gray: None,
+            dirty: Dirty::new(width_px as usize, height_px as usize),
+            pieces: Vec::new(),
         })
     }
 
@@ -59,10 +122,15 @@ impl RasterPage {
         self.dpi
     }
 
-    /// Erases all ink (and sets the ink back to black).
+    /// Erases all ink (and sets the ink back to black). Only the blocks that were drawn
+    /// into are visited.
     pub fn clear(&mut self) {
         self.flush_gray();
-        self.mask.data_mut().fill(0);
+        let stride = self.mask.width() as usize;
+        let data = self.mask.data_mut();
+        self.dirty
+            .for_each_span(|j, x0, x1| data[j * stride + x0..j * stride + x1].fill(0));
+        self.dirty.reset();
         self.ink = Ink::Black;
     }
 
@@ -72,19 +140,19 @@ impl RasterPage {
         self.mask.data()
     }
 
-    /// Composites the gray layer into the page and clears it.
+    /// Composites the gray layer into the page and clears it (only its drawn blocks).
     fn flush_gray(&mut self) {
         let Some(layer) = self.gray.as_mut() else {
             return;
         };
-        let Some([x0, y0, x1, y1]) = layer.dirty.take() else {
+        if !layer.dirty.any() {
             return;
-        };
+        }
         let stride = self.mask.width() as usize;
         let ink = Ink::Gray(layer.level);
         let src = layer.mask.data_mut();
         let dst = self.mask.data_mut();
-        for j in y0..y1 {
+        layer.dirty.for_each_span(|j, x0, x1| {
             let row = j * stride;
             let (d_row, s_row) = (&mut dst[row + x0..row + x1], &mut src[row + x0..row + x1]);
             // Most of the layer is empty: skip it eight bytes at a time.
@@ -99,18 +167,38 @@ impl RasterPage {
                     }
                 }
             }
-        }
+        });
+        self.dirty.include(&layer.dirty);
+        layer.dirty.reset();
     }
 
-    /// Writes the page as an 8-bit grayscale PNG (paper white, ink black). The buffer is
-    /// turned into gray levels in place on the way (one pass, no copy), which finishes the
-    /// page: call [`RasterPage::clear`] before drawing the next one.
+    /// Writes the page as an 8-bit grayscale PNG (paper white, ink black), fast
+    /// compression. The page is left as drawn.
     pub fn finish_png(&mut self, out: impl Write) -> Result<(), png::EncodingError> {
+        self.finish_png_with(PngCompression::Fast, out)
+    }
+
+    /// Writes the page as an 8-bit grayscale PNG with the given compression. The fast
+    /// encoder inverts ink to gray inside its Up filter and visits only the drawn blocks
+    /// (elsewhere both rows are paper and the filtered bytes are 0).
+    pub fn finish_png_with(
+        &mut self,
+        compression: PngCompression,
+        out: impl Write,
+    ) -> Result<(), png::EncodingError> {
         self.flush_gray();
         let (w, h, dpi) = (self.width(), self.height(), self.dpi);
-        let data = self.mask.data_mut();
-        invert(data);
-        encode_png(data, w, h, dpi, false, out)
+        match compression {
+            PngCompression::Fast => {
+                write_png_fast(self.mask.data(), w, h, dpi, &self.dirty, out)?;
+                Ok(())
+            }
+            PngCompression::Best => {
+                let mut gray = self.mask.data().to_vec();
+                invert(&mut gray);
+                encode_png_best(&gray, w, h, dpi, out)
+            }
+        }
     }
 
     /// The page as 8-bit gray levels (255 = paper), a new buffer.
@@ -150,6 +238,8 @@ impl RasterPage {
         let ink_of = self.ink;
         if ink_of == Ink::Paper {
             self.flush_gray();
+        } else {
+            self.dirty.mark_px(i0, j0, i1, j1);
         }
         let data = self.mask.data_mut();
         for j in j0..j1 {
@@ -167,12 +257,16 @@ impl RasterPage {
         }
     }
 
+    /// Fills `path` in the current ink. The pixels it may touch are marked from the
+    /// stroke pieces in `self.pieces`, or from its bounds when there are none.
     fn fill(&mut self, path: &tiny_skia::Path) {
         match self.ink {
             // All-black ink composites straight into the page's coverage.
-            Ink::Black => self
-                .mask
-                .fill_path(path, FillRule::Winding, true, Transform::identity()),
+            Ink::Black => {
+                self.mask
+                    .fill_path(path, FillRule::Winding, true, Transform::identity());
+                self.dirty.mark_path(path, &self.pieces);
+            }
             Ink::Gray(level) => {
                 if self.gray.as_ref().is_some_and(|g| g.level != level) {
                     self.flush_gray();
@@ -183,31 +277,14 @@ impl RasterPage {
                     None => self.gray.insert(GrayLayer {
                         mask: Mask::new(w, h).expect("same size as the page"),
                         level,
-                        dirty: None,
+                        dirty: Dirty::new(w as usize, h as usize),
                     }),
                 };
                 layer.level = level;
                 layer
                     .mask
                     .fill_path(path, FillRule::Winding, true, Transform::identity());
-                let b = path.bounds();
-                let clampx = |v: f32| (v.max(0.0) as usize).min(w as usize);
-                let clampy = |v: f32| (v.max(0.0) as usize).min(h as usize);
-                let r = [
-                    clampx(b.left().floor() - 1.0),
-                    clampy(b.top().floor() - 1.0),
-                    clampx(b.right().ceil() + 1.0),
-                    clampy(b.bottom().ceil() + 1.0),
-                ];
-                layer.dirty = Some(match layer.dirty {
-                    None => r,
-                    Some(d) => [
-                        d[0].min(r[0]),
-                        d[1].min(r[1]),
-                        d[2].max(r[2]),
-                        d[3].max(r[3]),
-                    ],
-                });
+                layer.dirty.mark_path(path, &self.pieces);
             }
             Ink::Paper => {
                 self.flush_gray();
@@ -239,6 +316,10 @@ impl RasterPage {
         );
         let stride = self.width() as usize;
         let sw = (x1 - x0) as usize;
+        if ink != Ink::Paper {
+            self.dirty
+                .mark_px(x0 as usize, y0 as usize, x1 as usize, y1 as usize);
+        }
         let data = self.mask.data_mut();
         for (j, row) in scratch.data().chunks(sw).enumerate() {
             let start = (y0 as usize + j) * stride + x0 as usize;
@@ -273,8 +354,8 @@ fn invert(data: &mut [u8]) {
 }
 
 /// Encodes 8-bit gray (or ink, inverted on the way out when `ink` is true) as a PNG with
-/// the resolution in a `pHYs` chunk (pixels per metre). Fast deflate and adaptive
-/// filtering: deterministic bytes for a given `png` crate version.
+/// the resolution in a `pHYs` chunk (pixels per metre). Fast deflate and the Up filter:
+/// deterministic bytes for a given `fdeflate` version.
 pub fn encode_png(
     data: &[u8],
     width: u32,
@@ -283,53 +364,175 @@ pub fn encode_png(
     ink: bool,
     out: impl Write,
 ) -> Result<(), png::EncodingError> {
+    encode_png_with(data, width, height, dpi, ink, PngCompression::Fast, out)
+}
+
+/// [`encode_png`] with a choice of compression.
+pub fn encode_png_with(
+    data: &[u8],
+    width: u32,
+    height: u32,
+    dpi: f64,
+    ink: bool,
+    compression: PngCompression,
+    out: impl Write,
+) -> Result<(), png::EncodingError> {
+    let mut v = data.to_vec();
+    match compression {
+        PngCompression::Fast => {
+            let mut all = Dirty::new(width as usize, height as usize);
+            all.mark_all();
+            if !ink {
+                // Gray in: the same encoder on the ink it shows.
+                invert(&mut v);
+            }
+            write_png_fast(&v, width, height, dpi, &all, out)?;
+            Ok(())
+        }
+        PngCompression::Best => {
+            if ink {
+                invert(&mut v);
+            }
+            encode_png_best(&v, width, height, dpi, out)
+        }
+    }
+}
+
+/// Pixels per metre for a resolution in dots per inch.
+fn ppm(dpi: f64) -> u32 {
+    (dpi / 0.0254).round() as u32
+}
+
+/// PNG of ink coverage `ink` (0 = paper), written as gray (255 = paper) with the Up
+/// filter and fdeflate's PNG-tuned fast mode, the inversion folded into the filter:
+/// filtered = gray(row) − gray(row above) = ink(row above) − ink(row). Outside the blocks
+/// `dirty` marks (in this row or the one above) both rows are paper and the filtered bytes
+/// are 0, so only marked spans are computed; deflate sees runs of zeros there.
+fn write_png_fast(
+    ink: &[u8],
+    width: u32,
+    height: u32,
+    dpi: f64,
+    dirty: &Dirty,
+    mut out: impl Write,
+) -> std::io::Result<()> {
+    let (w, h) = (width as usize, height as usize);
+    assert_eq!(ink.len(), w * h, "buffer size");
+    let mut z = fdeflate::Compressor::new(Vec::with_capacity(1 << 19))?;
+    let mut row = vec![0u8; w + 1];
+    row[0] = 2; // Up
+    if h > 0 {
+        // The first row: the row above is 0 (PNG), so filtered = gray.
+        for (o, i) in row[1..].iter_mut().zip(&ink[..w]) {
+            *o = !*i;
+        }
+        z.write_data(&row)?;
+        row[1..].fill(0);
+    }
+    for j in 1..h {
+        let (above, this) = (&ink[(j - 1) * w..j * w], &ink[j * w..(j + 1) * w]);
+        for (x0, x1) in dirty.row_pair_spans(j) {
+            for ((o, a), b) in row[1 + x0..1 + x1]
+                .iter_mut()
+                .zip(&above[x0..x1])
+                .zip(&this[x0..x1])
+            {
+                *o = a.wrapping_sub(*b);
+            }
+        }
+        z.write_data(&row)?;
+        for (x0, x1) in dirty.row_pair_spans(j) {
+            row[1 + x0..1 + x1].fill(0);
+        }
+    }
+    let idat = z.finish()?;
+    out.write_all(&[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a])?;
+    let mut ihdr = Vec::with_capacity(13);
+    ihdr.extend_from_slice(&width.to_be_bytes());
+    ihdr.extend_from_slice(&height.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]); // 8-bit grayscale, deflate, no interlace
+    write_chunk(&mut out, b"IHDR", &ihdr)?;
+    let mut phys = Vec::with_capacity(9);
+    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
+    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
+    phys.push(1); // metre
+    write_chunk(&mut out, b"pHYs", &phys)?;
+    write_chunk(&mut out, b"IDAT", &idat)?;
+    write_chunk(&mut out, b"IEND", &[])
+}
+
+/// One PNG chunk: length, type, data, CRC-32 of type and data.
+fn write_chunk(out: &mut impl Write, kind: &[u8; 4], data: &[u8]) -> std::io::Result<()> {
+    let len = u32::try_from(data.len()).map_err(std::io::Error::other)?;
+    out.write_all(&len.to_be_bytes())?;
+    out.write_all(kind)?;
+    out.write_all(data)?;
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(kind);
+    crc.update(data);
+    out.write_all(&crc.finalize().to_be_bytes())
+}
+
+/// 8-bit gray as a PNG at the `png` crate's highest compression with adaptive filtering
+/// (`--png-compression best`).
+fn encode_png_best(
+    gray: &[u8],
+    width: u32,
+    height: u32,
+    dpi: f64,
+    out: impl Write,
+) -> Result<(), png::EncodingError> {
     let mut enc = png::Encoder::new(out, width, height);
     enc.set_color(png::ColorType::Grayscale);
     enc.set_depth(png::BitDepth::Eight);
-    // fdeflate's PNG-tuned fast mode; the Up filter (instead of trying all five filters
-    // per row) costs a fraction of the time on line art for a few % of size.
-    enc.set_compression(png::Compression::Fast);
-    enc.set_filter(png::Filter::Up);
-    let ppm = (dpi / 0.0254).round() as u32;
+    enc.set_compression(png::Compression::High);
+    enc.set_filter(png::Filter::Adaptive);
     enc.set_pixel_dims(Some(png::PixelDimensions {
-        xppu: ppm,
-        yppu: ppm,
+        xppu: ppm(dpi),
+        yppu: ppm(dpi),
         unit: png::Unit::Meter,
     }));
     let mut w = enc.write_header()?;
-    if ink {
-        let mut sw = w.stream_writer()?;
-        let mut row = vec![0u8; width as usize];
-        for chunk in data.chunks(width as usize) {
-            for (o, i) in row.iter_mut().zip(chunk) {
-                *o = 255 - *i;
-            }
-            sw.write_all(&row)?;
-        }
-        sw.finish()?;
-    } else {
-        w.write_image_data(data)?;
-        w.finish()?;
-    }
-    Ok(())
+    w.write_image_data(gray)?;
+    w.finish()
 }
 
 impl RasterPage {
     /// Strokes polylines as one path (round caps and joins; a single point is a dot).
     fn stroke_paths<'a>(&mut self, lines: impl Iterator<Item = &'a [PagePoint]>, width: f64) {
         let mut pb = PathBuilder::new();
+        // Round caps and joins reach half the width beyond the vertices.
+        let r = (0.5 * width * self.px_per_pt) as f32;
+        let mut pieces = std::mem::take(&mut self.pieces);
+        pieces.clear();
         for points in lines.filter(|l| !l.is_empty()) {
             let (x, y) = self.px(points[0]);
             pb.move_to(x, y);
             if points.len() == 1 {
                 pb.line_to(x, y);
+                pieces.push(Piece {
+                    a: [x, y],
+                    b: [x, y],
+                    r,
+                });
             }
+            let mut last = [x, y];
             for p in &points[1..] {
                 let (x, y) = self.px(*p);
                 pb.line_to(x, y);
+                pieces.push(Piece {
+                    a: last,
+                    b: [x, y],
+                    r,
+                });
+                last = [x, y];
             }
         }
-        let Some(path) = pb.finish() else { return };
+        self.pieces = pieces;
+        let Some(path) = pb.finish() else {
+            self.pieces.clear();
+            return;
+        };
         let stroke = Stroke {
             width: (width * self.px_per_pt) as f32,
             line_cap: LineCap::Round,
@@ -339,6 +542,7 @@ impl RasterPage {
         if let Some(outline) = path.stroke(&stroke, 1.0) {
             self.fill(&outline);
         }
+        self.pieces.clear();
     }
 }
 
@@ -451,6 +655,9 @@ impl Canvas for RasterPage {
             };
             let b = outlined.px_bounds();
             let (bx, by) = (b.min.x as i64, b.min.y as i64);
+            if ink != Ink::Paper {
+                self.dirty.mark([b.min.x, b.min.y, b.max.x, b.max.y]);
+            }
             let data = self.mask.data_mut();
             outlined.draw(|gx, gy, c| {
                 let (x, y) = (bx + i64::from(gx), by + i64::from(gy));
@@ -467,5 +674,121 @@ impl Canvas for RasterPage {
                 }
             });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::draw;
+    use coupler_layout::{DisplayList, Primitive};
+
+    /// A page with every kind of primitive in black, grays and paper.
+    fn sample() -> DisplayList {
+        let mut dl = DisplayList::new(300.0, 200.0);
+        let wave: Vec<PagePoint> = (0..200)
+            .map(|i| {
+                [
+                    10.0 + i as f64 * 1.4,
+                    100.0 + 60.0 * (i as f64 * 0.07).sin(),
+                ]
+            })
+            .collect();
+        dl.items.push(Primitive::Ink(Ink::Gray(150)));
+        dl.items.push(Primitive::Polylines {
+            lines: wave.chunks(7).map(<[PagePoint]>::to_vec).collect(),
+            width: 1.25,
+        });
+        dl.items.push(Primitive::Ink(Ink::Black));
+        dl.items.push(Primitive::Polyline {
+            points: vec![[5.0, 5.0], [295.0, 195.0]],
+            width: 0.75,
+        });
+        dl.items.push(Primitive::Rect {
+            rect: [20.0, 20.0, 280.0, 180.0],
+            width: 0.6,
+        });
+        dl.items.push(Primitive::Ink(Ink::Gray(80)));
+        dl.items.push(Primitive::Circle {
+            center: [150.0, 100.0],
+            radius: 40.0,
+            width: Some(0.4),
+        });
+        dl.items.push(Primitive::Polygon {
+            points: vec![[200.0, 40.0], [230.0, 45.0], [210.0, 70.0]],
+        });
+        dl.items.push(Primitive::Ink(Ink::Black));
+        dl.items.push(Primitive::Text {
+            pos: [120.0, 105.0],
+            size: 9.0,
+            anchor: coupler_layout::Anchor::Start,
+            text: "(1.875, −1.25)".into(),
+            halo: 1.6,
+        });
+        // Alone in the bottom margin: marked by nothing else.
+        dl.items.push(Primitive::Text {
+            pos: [25.0, 195.0],
+            size: 7.0,
+            anchor: coupler_layout::Anchor::Start,
+            text: "A 120°".into(),
+            halo: 0.0,
+        });
+        dl.items.push(Primitive::Ink(Ink::Gray(150)));
+        dl.items.push(Primitive::Polygon {
+            points: vec![[250.0, 185.0], [270.0, 186.0], [262.0, 198.0]],
+        });
+        dl
+    }
+
+    fn decode(bytes: &[u8]) -> Vec<u8> {
+        let mut r = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .unwrap();
+        let mut buf = vec![0; r.output_buffer_size().unwrap()];
+        let info = r.next_frame(&mut buf).unwrap();
+        buf.truncate(info.buffer_size());
+        buf
+    }
+
+    #[test]
+    fn only_drawn_blocks_are_encoded_and_cleared_and_nothing_is_lost() {
+        let dl = sample();
+        for dpi in [72.0, 150.0, 300.0] {
+            let k = dpi / 72.0;
+            let (w, h) = ((300.0 * k) as u32, (200.0 * k) as u32);
+            let mut page = RasterPage::new(w, h, dpi).unwrap();
+            for round in 0..2 {
+                draw(&dl, &mut page);
+                let gray = page.to_gray();
+                // The block-skipping encoder, the whole-buffer encoder and the best one
+                // all give the drawn pixels.
+                let mut fast = Vec::new();
+                page.finish_png(&mut fast).unwrap();
+                assert_eq!(decode(&fast), gray, "dpi {dpi} round {round}");
+                let mut full = Vec::new();
+                encode_png(&gray, w, h, dpi, false, &mut full).unwrap();
+                assert_eq!(decode(&full), gray);
+                let mut best = Vec::new();
+                page.finish_png_with(PngCompression::Best, &mut best)
+                    .unwrap();
+                assert_eq!(decode(&best), gray);
+                assert!(best.len() < fast.len(), "{} {}", best.len(), fast.len());
+                // Clearing only the drawn blocks leaves no ink anywhere.
+                page.clear();
+                assert!(page.ink().iter().all(|&x| x == 0), "dpi {dpi}");
+            }
+            // The same page drawn on a fresh buffer is the same.
+            let mut fresh = RasterPage::new(w, h, dpi).unwrap();
+            draw(&dl, &mut fresh);
+            draw(&dl, &mut page);
+            assert_eq!(fresh.ink(), page.ink());
+        }
+    }
+
+    #[test]
+    fn png_compression_parses() {
+        assert_eq!("Best".parse(), Ok(PngCompression::Best));
+        assert_eq!("fast".parse(), Ok(PngCompression::Fast));
+        assert!("max".parse::<PngCompression>().is_err());
     }
 }

@@ -12,6 +12,7 @@
 //! - [`refine`]: Levenberg–Marquardt over the linkage's dimensions, the coupler point, the
 //!   transform and the crank angles, off the atlas grid.
 
+pub mod cases;
 mod code;
 mod fit;
 mod geom;

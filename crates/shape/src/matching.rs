@@ -158,6 +158,9 @@ pub fn coarse_candidates(
 const RANK_POINTS: usize = 40;
 /// Iterations of each ranking fit.
 const RANK_ITERATIONS: usize = 30;
+/// An open target's candidates (best by coarse distance) that also get the exact fit's
+/// own robust start.
+const ROBUST_OPEN: usize = 16;
 
 /// Ranked matches of `target` among `curves` (with their shape codes, in the same order;
 /// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
@@ -252,6 +255,20 @@ pub fn rank_candidates(
     // target's points, open ones from their start on every point (the starts are per
     // point); the best few get the full fit.
     let thin = target.thinned(RANK_POINTS);
+    // An open target's best few candidates by coarse distance also get the exact fit's own
+    // robust start (its window scan of the traced curve): the scan's start can sit in the
+    // basin of a neighbouring window.
+    let robust: Vec<Option<CurveFit>> = candidates
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            if i >= ROBUST_OPEN || c.start.is_none() {
+                return None;
+            }
+            let traced = Traced::new(&c.curve.curve, fit_options.trace_samples)?;
+            fit_with(target, &c.curve.curve, &traced, &fit_options)
+        })
+        .collect();
     let mut quick: Vec<(f64, usize)> = candidates
         .iter()
         .enumerate()
@@ -262,8 +279,14 @@ pub fn rank_candidates(
                     let traced = Traced::new(&c.curve.curve, fit_options.trace_samples)?;
                     fit_with(&thin, &c.curve.curve, &traced, &quick_options)
                 }
-            }?;
-            Some((f.rms, i))
+            };
+            let rms = match (f, &robust[i]) {
+                (Some(f), Some(r)) => f.rms.min(r.rms),
+                (Some(f), None) => f.rms,
+                (None, Some(r)) => r.rms,
+                (None, None) => return None,
+            };
+            Some((rms, i))
         })
         .collect();
     quick.sort_by(|a, b| {
@@ -280,12 +303,23 @@ pub fn rank_candidates(
             let curve = &c.curve.curve;
             let fit = match &c.start {
                 Some(s) => {
-                    let untimed = fit_untimed(&p, curve, s, &fit_options)?;
-                    if target.timing().is_timed() {
-                        let traced = Traced::new(curve, fit_options.trace_samples)?;
-                        fit_timed(target, curve, &traced, Some(&untimed), &fit_options)?
-                    } else {
-                        untimed
+                    let from_scan = fit_untimed(&p, curve, s, &fit_options).and_then(|untimed| {
+                        if target.timing().is_timed() {
+                            let traced = Traced::new(curve, fit_options.trace_samples)?;
+                            fit_timed(target, curve, &traced, Some(&untimed), &fit_options)
+                        } else {
+                            Some(untimed)
+                        }
+                    });
+                    match (from_scan, robust[i].clone()) {
+                        (Some(a), Some(b)) => {
+                            if b.rms < a.rms {
+                                b
+                            } else {
+                                a
+                            }
+                        }
+                        (a, b) => a.or(b)?,
                     }
                 }
                 None => {

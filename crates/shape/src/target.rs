@@ -29,12 +29,20 @@ impl Timing {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum TargetError {
     /// Too few points to define a shape.
-    #[error("a target needs at least {min} points, got {found}")]
+    #[error(
+        "{} target needs at least {min} points, got {found}{}",
+        if *closed { "a closed" } else { "an open" },
+        if *dropped_repeat { " (its last point repeats the first, so it is not counted)" } else { "" }
+    )]
     TooFewPoints {
         /// The minimum for this kind of target.
         min: usize,
-        /// Points given.
+        /// Points given (after dropping a closed target's repeated first point).
         found: usize,
+        /// Whether the target is closed.
+        closed: bool,
+        /// Whether a closing repeat of the first point was dropped.
+        dropped_repeat: bool,
     },
     /// A coordinate or angle is NaN or infinite.
     #[error("point {index}: {field} is not a finite number")]
@@ -45,8 +53,21 @@ pub enum TargetError {
         field: &'static str,
     },
     /// Every point is the same (the target has no size).
-    #[error("all points coincide: the target has no size")]
-    NoSize,
+    #[error("all {points} points coincide: the target has no size, so no shape to match")]
+    NoSize {
+        /// Points given.
+        points: usize,
+    },
+    /// A closed target whose points all lie on one line: a loop with no width.
+    #[error(
+        "the closed target's points all lie on one line (they stray at most {width:e} from it, over a size of {size:e}): a loop must enclose some area; if the path is a straight run, match it as an open path (--open)"
+    )]
+    Flat {
+        /// The largest distance of a point from the points' line.
+        width: f64,
+        /// The target's size.
+        size: f64,
+    },
     /// Timing by angles with a count that differs from the points'.
     #[error("{angles} angles for {points} points")]
     AngleCount {
@@ -63,6 +84,23 @@ pub enum TargetError {
         /// What is wrong, naming the point.
         detail: String,
     },
+}
+
+/// The largest distance of a point of `z` from the line through their centroid along
+/// their principal axis (the least-squares line).
+fn line_width(z: &[C64]) -> f64 {
+    let n = z.len() as f64;
+    let m = z.iter().sum::<C64>() / n;
+    // Σ (z − m)² (complex square): its argument is twice the principal axis's angle.
+    let s: C64 = z.iter().map(|p| (p - m) * (p - m)).sum();
+    let axis = if s.norm() > 0.0 {
+        (s / s.norm()).sqrt()
+    } else {
+        C64::new(1.0, 0.0)
+    };
+    z.iter()
+        .map(|p| ((p - m) * axis.conj()).im.abs())
+        .fold(0.0, f64::max)
 }
 
 /// An ordered list of points in the user's units, open or closed, optionally timed.
@@ -124,7 +162,13 @@ impl Target {
                 });
             }
         }
-        if closed && points.len() > 1 && points.first() == points.last() {
+        if points.len() > 1 && points.iter().all(|p| *p == points[0]) {
+            return Err(TargetError::NoSize {
+                points: points.len(),
+            });
+        }
+        let dropped_repeat = closed && points.len() > 1 && points.first() == points.last();
+        if dropped_repeat {
             points.pop();
             if let Timing::Angles(a) = &mut timing {
                 a.pop();
@@ -139,6 +183,8 @@ impl Target {
             return Err(TargetError::TooFewPoints {
                 min,
                 found: points.len(),
+                closed,
+                dropped_repeat,
             });
         }
         if let Timing::Angles(a) = &timing {
@@ -147,7 +193,15 @@ impl Target {
         let z: Vec<C64> = points.iter().map(|p| C64::new(p[0], p[1])).collect();
         let size = diameter(&z);
         if !(size > 0.0 && size.is_finite()) {
-            return Err(TargetError::NoSize);
+            return Err(TargetError::NoSize {
+                points: points.len(),
+            });
+        }
+        if closed {
+            let width = line_width(&z);
+            if width <= 1e-9 * size {
+                return Err(TargetError::Flat { width, size });
+            }
         }
         Ok(Target {
             points,
@@ -249,8 +303,18 @@ mod tests {
         assert!(Target::new(sq.clone(), false, Timing::Untimed).is_ok());
         assert_eq!(
             Target::new(sq.clone(), true, Timing::Untimed),
-            Err(TargetError::TooFewPoints { min: 6, found: 4 })
+            Err(TargetError::TooFewPoints {
+                min: 6,
+                found: 4,
+                closed: true,
+                dropped_repeat: false
+            })
         );
+        // A closing repeat is dropped before counting, and the message says so.
+        let mut rep = sq.clone();
+        rep.push(sq[0]);
+        let e = Target::new(rep, true, Timing::Untimed).unwrap_err();
+        assert!(e.to_string().contains("repeats the first"), "{e}");
         let mut bad = sq.clone();
         bad[2][1] = f64::NAN;
         assert_eq!(
@@ -262,8 +326,18 @@ mod tests {
         );
         assert_eq!(
             Target::new(vec![[1.0, 1.0]; 5], false, Timing::Untimed),
-            Err(TargetError::NoSize)
+            Err(TargetError::NoSize { points: 5 })
         );
+        // Equal points are reported as such, not as too few once the repeat is dropped.
+        assert_eq!(
+            Target::new(vec![[1.0, 1.0]; 5], true, Timing::Untimed),
+            Err(TargetError::NoSize { points: 5 })
+        );
+        // Collinear: an open straight run is a target; a closed one has no width.
+        let line: Vec<[f64; 2]> = (0..8).map(|k| [0.1 * k as f64, 0.3 * k as f64]).collect();
+        assert!(Target::new(line.clone(), false, Timing::Untimed).is_ok());
+        let e = Target::new(line, true, Timing::Untimed).unwrap_err();
+        assert!(matches!(e, TargetError::Flat { .. }), "{e}");
         let t = Target::new(sq.clone(), false, Timing::Angles(vec![0.0, 10.0, 20.0])).unwrap_err();
         assert!(matches!(t, TargetError::AngleCount { .. }));
         let t = Target::new(

@@ -128,12 +128,10 @@ impl Mechanism for GearedFiveBar {
         } else {
             ""
         };
-        let mu = match Mechanism::transmission_range(self, Circuit::Open) {
-            Some([lo, hi]) => format!(", μ {:.0}°–{:.0}°", lo.to_degrees(), hi.to_degrees()),
-            None => String::new(),
-        };
+        // The transmission-angle range is not repeated here: pages and the contents
+        // print it in their own field (with the warning under 30°).
         format!(
-            "Ting {} ({what}{change}), λ = {}, φ = {}°{mu}",
+            "Ting {} ({what}{change}), λ = {}, φ = {}°",
             class.code(),
             self.ratio,
             self.phase
