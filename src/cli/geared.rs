@@ -3,7 +3,7 @@
 //! the coupler curve of a geared five-bar (docs/geared-fivebar.md), sampled over the
 //! mechanism's period, written by the four-bar's writer (`curve.rs`, [`CurveOutput`]).
 
-use super::curve::{CurveOutput, Sample, finite};
+use super::curve_output::{CurveOutput, Sample, finite};
 use super::{UsageError, parse_length, parse_number};
 use anyhow::Result;
 use coupler_atlas::{

@@ -15,6 +15,7 @@ mod bench;
 mod cognates;
 mod curve;
 mod curve_full;
+mod curve_output;
 mod diff;
 mod dwell;
 mod geared;

@@ -4,9 +4,11 @@
 
 use crate::files::{FileEntry, write_atomically};
 use crate::{GenerateError, Job};
-use coupler_shape::{AtlasCurve, CouplerCurve, SHAPES_FILE, ShapeCode, encode_sidecar};
+use coupler_shape::{
+    AtlasCurve, CouplerCurve, RECORD_BYTES, SHAPES_FILE, ShapeCode, encode_record, sidecar_header,
+};
 use rayon::prelude::*;
-use std::io::Write as _;
+use std::io::Write;
 
 /// Every curve of `job`'s atlas in id order, as shape search sees it (`None` for an
 /// atlas of mechanisms other than four-bars, which has no shape codes).
@@ -26,28 +28,107 @@ pub fn atlas_curves(job: &Job) -> Option<Vec<AtlasCurve>> {
     Some(curves)
 }
 
+/// Curves coded and written per batch: memory stays at a batch's curves and records
+/// (about 140 bytes each) whatever the atlas's size.
+const BATCH: usize = 16_384;
+
 /// Computes the codes of every curve of `job` on `job.jobs` threads and writes the
-/// sidecar into `job.out`; `None` (nothing written) for an atlas of mechanisms other than
-/// four-bars.
+/// sidecar into `job.out`, streaming the groups in batches of [`BATCH`] curves; `None`
+/// (nothing written) for an atlas of mechanisms other than four-bars.
 pub(crate) fn write_shapes(job: &Job) -> Result<Option<FileEntry>, GenerateError> {
-    let Some(curves) = atlas_curves(job) else {
+    write_shapes_in_batches(job, BATCH)
+}
+
+fn write_shapes_in_batches(
+    job: &Job,
+    batch_size: usize,
+) -> Result<Option<FileEntry>, GenerateError> {
+    let mut groups = job.groups().peekable();
+    if groups
+        .peek()
+        .is_some_and(|g| g.linkage.four_bar().is_none())
+    {
         return Ok(None);
+    }
+    let io = |e: std::io::Error| GenerateError::Io {
+        path: job.out.clone(),
+        source: e,
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(job.jobs)
         .build()
-        .map_err(|e| GenerateError::Io {
-            path: job.out.clone(),
-            source: std::io::Error::other(e),
-        })?;
-    let coded: Vec<(CouplerCurve, Option<ShapeCode>)> = pool.install(|| {
-        curves
-            .par_iter()
-            .map(|c| (c.curve, ShapeCode::of_curve(&c.curve)))
-            .collect()
-    });
-    let bytes = encode_sidecar(&coded);
+        .map_err(|e| io(std::io::Error::other(e)))?;
+    let total = job.curves();
     let path = job.out.join(SHAPES_FILE);
-    write_atomically(&path, |w| w.write_all(&bytes))?;
-    Ok(Some(FileEntry::of(SHAPES_FILE, &bytes)))
+    write_atomically(&path, |w| {
+        w.write_all(&sidecar_header(total))?;
+        let mut written = 0u64;
+        let mut batch: Vec<CouplerCurve> = Vec::with_capacity(batch_size);
+        let mut records = Vec::with_capacity(batch_size * RECORD_BYTES);
+        let mut flush = |batch: &mut Vec<CouplerCurve>, w: &mut dyn Write| {
+            let codes: Vec<Option<ShapeCode>> =
+                pool.install(|| batch.par_iter().map(ShapeCode::of_curve).collect());
+            records.clear();
+            for (c, code) in batch.iter().zip(&codes) {
+                encode_record(&mut records, c, code.as_ref());
+            }
+            written += batch.len() as u64;
+            batch.clear();
+            w.write_all(&records)
+        };
+        for g in groups {
+            let Some(linkage) = g.linkage.four_bar() else {
+                return Err(std::io::Error::other(
+                    "an atlas mixes four-bars with other mechanisms",
+                ));
+            };
+            for &point in &g.points {
+                batch.push(CouplerCurve {
+                    linkage: *linkage,
+                    circuit: g.circuit,
+                    point,
+                });
+                if batch.len() == batch_size {
+                    flush(&mut batch, w)?;
+                }
+            }
+        }
+        flush(&mut batch, w)?;
+        if written != total {
+            return Err(std::io::Error::other(format!(
+                "{written} curves coded for an atlas of {total}"
+            )));
+        }
+        Ok(())
+    })?;
+    FileEntry::of_file(&job.out, SHAPES_FILE)
+        .map(Some)
+        .map_err(io)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coupler_shape::encode_sidecar;
+    use coupler_specs::Spec;
+
+    /// Streamed in batches that split groups (5 curves, groups of 12), the sidecar is the
+    /// bytes of the whole atlas encoded at once, and its entry hashes those bytes.
+    #[test]
+    fn streamed_sidecar_equals_the_whole_encoding() {
+        let spec = Spec::parse(include_str!("../../../atlas-spec/quick.toml"), "quick").unwrap();
+        let dir = std::env::temp_dir().join(format!("coupler-atlas-shapes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let job = Job::new(spec, "quick", &dir, 2);
+        let entry = write_shapes_in_batches(&job, 5).unwrap().unwrap();
+        let written = std::fs::read(dir.join(SHAPES_FILE)).unwrap();
+        let whole: Vec<(CouplerCurve, Option<ShapeCode>)> = atlas_curves(&job)
+            .unwrap()
+            .iter()
+            .map(|c| (c.curve, ShapeCode::of_curve(&c.curve)))
+            .collect();
+        assert_eq!(written, encode_sidecar(&whole));
+        assert_eq!(entry, FileEntry::of(SHAPES_FILE, &written));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

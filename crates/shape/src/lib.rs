@@ -40,8 +40,8 @@ pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;
 pub use refine::{Refined, refine};
 pub use sidecar::{
-    RECORD_BYTES, SHAPES_FILE, SIDECAR_VERSION, ShapeAtlas, SidecarError, decode_sidecar,
-    encode_sidecar,
+    HEADER_BYTES, RECORD_BYTES, SHAPES_FILE, SIDECAR_VERSION, ShapeAtlas, SidecarError,
+    decode_sidecar, encode_record, encode_sidecar, sidecar_header,
 };
 pub use smooth::{default_terms, smooth_resample};
 pub use target::{Target, TargetError, Timing};

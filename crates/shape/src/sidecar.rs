@@ -32,7 +32,8 @@ pub const SIDECAR_VERSION: u32 = 1;
 /// Bytes of one curve's record.
 pub const RECORD_BYTES: usize = 5 * 8 + 2 + CODE_BYTES;
 const MAGIC: &[u8; 8] = b"CASHAPE\0";
-const HEADER_BYTES: usize = 32;
+/// Bytes of the header before the records.
+pub const HEADER_BYTES: usize = 32;
 
 /// Why sidecar bytes could not be read.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -63,33 +64,47 @@ pub enum SidecarError {
 /// The sidecar's bytes for `curves` (ids must be `0..n` in order) with their codes.
 pub fn encode_sidecar(curves: &[(CouplerCurve, Option<ShapeCode>)]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_BYTES + curves.len() * RECORD_BYTES);
-    out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&SIDECAR_VERSION.to_le_bytes());
-    out.extend_from_slice(&(HARMONICS as u32).to_le_bytes());
-    out.extend_from_slice(&(RECORD_BYTES as u32).to_le_bytes());
-    out.extend_from_slice(&0u32.to_le_bytes());
-    out.extend_from_slice(&(curves.len() as u64).to_le_bytes());
+    out.extend_from_slice(&sidecar_header(curves.len() as u64));
     for (c, code) in curves {
-        let l = &c.linkage;
-        for x in [l.coupler, l.rocker, l.ground, c.point.u, c.point.v] {
-            out.extend_from_slice(&x.to_le_bytes());
-        }
-        out.push(match c.circuit {
-            Circuit::Open => 0,
-            Circuit::Crossed => 1,
-        });
-        match code {
-            Some(code) => {
-                out.push(1);
-                out.extend_from_slice(&code.to_bytes());
-            }
-            None => {
-                out.push(0);
-                out.extend_from_slice(&[0u8; CODE_BYTES]);
-            }
-        }
+        encode_record(&mut out, c, code.as_ref());
     }
     out
+}
+
+/// The sidecar's header for `n` curves: with [`encode_record`] for each curve in id
+/// order after it, the bytes of [`encode_sidecar`], written without holding every curve
+/// (`generate` streams them).
+pub fn sidecar_header(n: u64) -> [u8; HEADER_BYTES] {
+    let mut out = [0u8; HEADER_BYTES];
+    out[..8].copy_from_slice(MAGIC);
+    out[8..12].copy_from_slice(&SIDECAR_VERSION.to_le_bytes());
+    out[12..16].copy_from_slice(&(HARMONICS as u32).to_le_bytes());
+    out[16..20].copy_from_slice(&(RECORD_BYTES as u32).to_le_bytes());
+    // 20..24 reserved (zero).
+    out[24..32].copy_from_slice(&n.to_le_bytes());
+    out
+}
+
+/// Appends one curve's record ([`RECORD_BYTES`] bytes) to `out`.
+pub fn encode_record(out: &mut Vec<u8>, c: &CouplerCurve, code: Option<&ShapeCode>) {
+    let l = &c.linkage;
+    for x in [l.coupler, l.rocker, l.ground, c.point.u, c.point.v] {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+    out.push(match c.circuit {
+        Circuit::Open => 0,
+        Circuit::Crossed => 1,
+    });
+    match code {
+        Some(code) => {
+            out.push(1);
+            out.extend_from_slice(&code.to_bytes());
+        }
+        None => {
+            out.push(0);
+            out.extend_from_slice(&[0u8; CODE_BYTES]);
+        }
+    }
 }
 
 /// Curves and codes read from a sidecar.
