@@ -1,11 +1,15 @@
-//! The search cache is never trusted: random damage (1–3 bytes changed, cut, grown),
-//! damage with the checksums recomputed (a crafted file), a cache of another index of the
-//! same size and time, and corrupted counts read by `search` and `dwell --index` — every
-//! case answers exactly as the index itself does (or rebuilds), and nothing panics or
-//! aborts. Time-boxed and seeded: `COUPLER_FUZZ_SECONDS` (default 3) and
+//! The search cache and the search columns (`index.columns`) are never trusted: random
+//! damage (1–3 bytes changed, cut, grown), damage with the checksums recomputed (a
+//! crafted file), a cache or columns of another index of the same size and time (also
+//! once the index's key is remembered in its stamp), and corrupted counts read by
+//! `search` and `dwell --index` — every case answers exactly as the index itself does
+//! (or rebuilds), and nothing panics or aborts. Time-boxed and seeded: `COUPLER_FUZZ_SECONDS` (default 3) and
 //! `COUPLER_FUZZ_SEED` (default fixed) change the budget and the seed.
 
-use coupler_atlas::{IndexKey, Query, SearchTable, SortKey, SpanFilter, cache_path, load_table};
+use coupler_atlas::{
+    ColumnTable, IndexKey, Query, SearchTable, SortKey, SpanFilter, cache_path, columns_path,
+    load_table, stamp_path,
+};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
@@ -146,6 +150,12 @@ fn queries() -> Vec<Query> {
             min_transmission_deg: Some(30.0),
             sort: SortKey::Transmission,
             limit: 3,
+            ..Query::default()
+        },
+        Query {
+            linkage: Some(coupler_atlas::FourBar::new(2.5, 2.5, 3.0).unwrap().into()),
+            circuit: Some(coupler_atlas::Circuit::Open),
+            include_trivial: true,
             ..Query::default()
         },
         Query {
@@ -351,4 +361,251 @@ fn corrupted_cache_counts_in_search_and_dwell() {
             assert_eq!(o.stdout, want.stdout, "field at {at}");
         }
     }
+}
+
+/// Recomputes a columns file's checksums (every chunk's, the directory's, the trailer's)
+/// after a change, as a crafted file would.
+fn reseal_columns(b: &mut [u8]) {
+    if b.len() < 192 {
+        return;
+    }
+    let t = b.len() - 128;
+    let u64_at = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+    let (dir_at, dir_len) = (u64_at(b, t + 64) as usize, u64_at(b, t + 72) as usize);
+    if dir_at.checked_add(dir_len) != Some(t) {
+        return;
+    }
+    let groups = u32::from_le_bytes(b[t + 24..t + 28].try_into().unwrap()) as usize;
+    if groups * (48 + 16 * 24) + 48 != dir_len {
+        return;
+    }
+    let mut entries: Vec<usize> = Vec::new();
+    for g in 0..groups {
+        for c in 0..16 {
+            entries.push(dir_at + g * (48 + 16 * 24) + 48 + c * 24);
+        }
+    }
+    let pages = dir_at + groups * (48 + 16 * 24);
+    entries.extend([pages, pages + 24]);
+    for e in entries {
+        if e + 24 > t {
+            return;
+        }
+        let (at, len) = (u64_at(b, e) as usize, u64_at(b, e + 8) as usize);
+        if at.checked_add(len).is_none_or(|end| end > b.len()) {
+            continue;
+        }
+        let h = xxhash_rust::xxh3::xxh3_64(&b[at..at + len]);
+        b[e + 16..e + 24].copy_from_slice(&h.to_le_bytes());
+    }
+    let d = xxhash_rust::xxh3::xxh3_64(&b[dir_at..t]);
+    b[t + 80..t + 88].copy_from_slice(&d.to_le_bytes());
+    let s = xxhash_rust::xxh3::xxh3_64(&b[t..t + 120]);
+    b[t + 120..t + 128].copy_from_slice(&s.to_le_bytes());
+}
+
+/// What the index itself answers to `q`, as the columns answer it (the selected curves
+/// as a table, and how many passed).
+fn truth_select(table: &SearchTable, q: &Query) -> (SearchTable, usize) {
+    let (hits, total) = table.search_counted(q);
+    let mut rows: Vec<usize> = hits.iter().map(|h| h.row).collect();
+    rows.sort_unstable();
+    (table.subset(&rows), total)
+}
+
+/// The columns `generate` wrote answer every query exactly as the index does.
+#[test]
+fn generated_columns_answer_as_the_index() {
+    let (index, text) = atlas();
+    let table = SearchTable::from_index_text(std::str::from_utf8(text).unwrap()).unwrap();
+    let cols = ColumnTable::open(&columns_path(index), key_of(text)).unwrap();
+    assert_eq!(cols.len(), table.rows.len());
+    for q in queries() {
+        let (sub, total) = cols.select(&q).unwrap();
+        assert_eq!(
+            (&sub, total),
+            (&truth_select(&table, &q).0, truth_select(&table, &q).1)
+        );
+        assert_eq!(
+            sub.search(&q)
+                .iter()
+                .map(|h| sub.rows[h.row].id)
+                .collect::<Vec<_>>(),
+            table
+                .search(&q)
+                .iter()
+                .map(|h| table.rows[h.row].id)
+                .collect::<Vec<_>>()
+        );
+    }
+    let last = table.rows.last().unwrap();
+    let one = cols.find(last.id).unwrap().unwrap();
+    assert_eq!(one, table.subset(&[table.rows.len() - 1]));
+    // Another index's key: refused.
+    assert!(ColumnTable::open(&columns_path(index), key_of(b"{}")).is_err());
+}
+
+/// Random damage to the columns: either refused (at opening or when the damaged chunk is
+/// read) or every answer equal to the index's.
+#[test]
+fn damaged_columns_are_refused_or_harmless() {
+    let (index, text) = atlas();
+    let table = SearchTable::from_index_text(std::str::from_utf8(text).unwrap()).unwrap();
+    let key = key_of(text);
+    let good = std::fs::read(columns_path(index)).unwrap();
+    let truth: Vec<_> = queries().iter().map(|q| truth_select(&table, q)).collect();
+    let mut rng = Rng::seeded();
+    let (start, budget) = (Instant::now(), budget());
+    let (mut tried, mut answered) = (0u64, 0u64);
+    while start.elapsed() < budget {
+        let mut b = good.clone();
+        damage(&mut rng, &mut b);
+        tried += 1;
+        let Ok(cols) = ColumnTable::from_vec(b, key) else {
+            continue;
+        };
+        for (q, want) in queries().iter().zip(&truth) {
+            if let Ok(got) = cols.select(q) {
+                answered += 1;
+                assert_eq!(&got, want, "iteration {tried}: damaged columns were served");
+            }
+        }
+    }
+    eprintln!("{tried} damaged columns files, {answered} answers (equal to the index's)");
+    assert!(tried > 100, "only {tried} iterations");
+}
+
+/// Damage with every checksum recomputed: never a panic or an abort.
+#[test]
+fn crafted_columns_never_panic() {
+    let (index, text) = atlas();
+    let key = key_of(text);
+    let good = std::fs::read(columns_path(index)).unwrap();
+    let mut rng = Rng::seeded();
+    let (start, budget) = (Instant::now(), budget());
+    let (mut tried, mut opened) = (0u64, 0u64);
+    let dir_at = {
+        let t = good.len() - 128;
+        u64::from_le_bytes(good[t + 64..t + 72].try_into().unwrap()) as usize
+    };
+    while start.elapsed() < budget {
+        let mut b = good.clone();
+        // Mostly the directory and trailer (counts, offsets, lengths), else anywhere.
+        for _ in 0..1 + rng.below(3) {
+            let at = if rng.below(2) == 0 {
+                dir_at + rng.below(b.len() - dir_at)
+            } else {
+                rng.below(b.len())
+            };
+            b[at] = match rng.below(4) {
+                0 => 0xff,
+                1 => 0,
+                _ => rng.next() as u8,
+            };
+        }
+        reseal_columns(&mut b);
+        tried += 1;
+        if let Ok(cols) = ColumnTable::from_vec(b, key) {
+            opened += 1;
+            for q in queries() {
+                let _ = cols.select(&q);
+            }
+            let _ = cols.find(7);
+        }
+    }
+    eprintln!("{tried} crafted columns files, {opened} opened and searched");
+    assert!(tried > 100, "only {tried} iterations");
+}
+
+/// Through the files: `search` and `dwell --index` beside damaged columns files, and
+/// beside the columns of the index before it was changed in place (same size and
+/// modification time, once with its key remembered in a stamp): each answers as the
+/// index itself does, and never panics.
+#[test]
+fn damaged_or_stale_columns_in_search_and_dwell() {
+    let (index, bytes) = atlas();
+    let dir = index.parent().unwrap().join("fuzz-columns");
+    std::fs::create_dir_all(&dir).unwrap();
+    let idx = dir.join("index.json");
+    std::fs::write(&idx, bytes).unwrap();
+    let good = std::fs::read(columns_path(index)).unwrap();
+    std::fs::write(columns_path(&idx), &good).unwrap();
+    let run = |args: &[&str]| Command::new(BIN).args(args).output().unwrap();
+    let search = |extra: &[&str]| {
+        let mut a = vec![
+            "search",
+            idx.to_str().unwrap(),
+            "--arc",
+            "20",
+            "--limit",
+            "0",
+        ];
+        a.extend(extra);
+        run(&a)
+    };
+    let truth = search(&["--no-cache"]);
+    assert!(truth.status.success());
+    let with_columns = search(&[]);
+    assert_eq!(with_columns.stdout, truth.stdout);
+    assert!(String::from_utf8_lossy(&with_columns.stderr).contains("(from columns)"));
+    let text = String::from_utf8_lossy(&truth.stdout).into_owned();
+    let curve = text
+        .lines()
+        .nth(1)
+        .and_then(|l| l.split_whitespace().next())
+        .unwrap()
+        .to_string();
+    let dwell = || {
+        run(&[
+            "dwell",
+            "--index",
+            idx.to_str().unwrap(),
+            "--curve",
+            &curve,
+            "--arc",
+            "1",
+            "--format",
+            "json",
+        ])
+    };
+    let dwell_truth = dwell();
+    assert!(dwell_truth.status.success());
+    let check = |what: &str| {
+        for (o, want) in [(search(&[]), &truth), (dwell(), &dwell_truth)] {
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(!err.contains("panicked"), "{what}: {err}");
+            assert_eq!(o.status.code(), want.status.code(), "{what}: {err}");
+            assert_eq!(o.stdout, want.stdout, "{what}: {err}");
+        }
+    };
+    let mut rng = Rng::seeded();
+    let start = Instant::now();
+    let mut tried = 0;
+    while start.elapsed() < budget() / 2 || tried < 10 {
+        let mut b = good.clone();
+        damage(&mut rng, &mut b);
+        std::fs::write(columns_path(&idx), &b).unwrap();
+        check(&format!("iteration {tried}"));
+        tried += 1;
+    }
+    // Stale: the index changed in place (same size, same modification time) after its
+    // key was remembered; the old columns must not answer for it.
+    std::fs::write(columns_path(&idx), &good).unwrap();
+    std::thread::sleep(coupler_atlas::SETTLED + Duration::from_millis(200));
+    assert!(String::from_utf8_lossy(&search(&[]).stderr).contains("(from columns)"));
+    assert!(stamp_path(&idx).is_file(), "a settled index is stamped");
+    let mtime = std::fs::metadata(&idx).unwrap().modified().unwrap();
+    let text = String::from_utf8(bytes.clone()).unwrap();
+    let swapped = text.replace("\"ground\":3.0}", "\"ground\":3.5}");
+    assert_ne!(swapped, text);
+    assert_eq!(swapped.len(), text.len());
+    std::fs::write(&idx, &swapped).unwrap();
+    let f = std::fs::File::options().write(true).open(&idx).unwrap();
+    f.set_modified(mtime).unwrap();
+    drop(f);
+    let fresh = search(&["--no-cache"]);
+    assert_ne!(fresh.stdout, truth.stdout);
+    let o = search(&[]);
+    assert_eq!(o.stdout, fresh.stdout, "answered from stale columns");
+    assert!(String::from_utf8_lossy(&o.stderr).contains("another index"));
 }

@@ -204,6 +204,8 @@ fn planted_symlinks_are_not_followed() {
     let victim = base.join("victim.txt");
     std::fs::write(&victim, b"the user's file").unwrap();
     std::os::unix::fs::symlink(&victim, atlas.join("index.json.search.tmp")).unwrap();
+    // Without its columns file (an atlas of an older version), search writes the cache.
+    std::fs::remove_file(atlas.join("index.columns")).unwrap();
     let o = bin()
         .arg("search")
         .arg(atlas.join("index.json"))

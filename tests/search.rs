@@ -264,13 +264,13 @@ fn hoeken_is_found_by_straight() {
     let seg = &h["straight_segments"][0];
     assert!(seg["span_deg"].as_f64().unwrap() >= 120.0);
     assert!(seg["straightness_pct"].as_f64().unwrap() <= 0.5);
-    // The table format runs too, and a second run reads the cache.
+    // The table format runs too, from the columns `generate` wrote beside the index.
     let out = bin()
         .args(["search", index.to_str().unwrap(), "--straight", "120:0.5"])
         .output()
         .unwrap();
     assert!(out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("from cache"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("from columns"));
 }
 
 /// `dwell --index --curve --arc K` designs from the indexed arc: its dwell is that arc's window.

@@ -140,7 +140,7 @@ fn plan(args: &Args) -> Result<Plan> {
         let id = args
             .curve
             .ok_or_else(|| UsageError("--index needs --curve ID".into()))?;
-        let (table, _) = super::search::load(index, true)?;
+        let table = super::search::load_curve(index, id)?;
         let row = table
             .rows
             .iter()

@@ -116,10 +116,10 @@ fn parse_min_transmission(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The search table of `index` (from its cache when it matches): a usage error when the
-/// index cannot be read or is not an index (a page set is refused here: `dwell` needs an
-/// index).
-pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'static str)> {
+/// `index` opened for searching (its columns mapped, or its cache, or the index parsed:
+/// `coupler_atlas::load`): a usage error when the index cannot be read or is not an index
+/// (a page set is refused here: `dwell` needs an index).
+pub(super) fn load(index: &Path, use_cache: bool) -> Result<coupler_atlas::Loaded> {
     let index = match resolve(index)? {
         Searched::Index(p) => p,
         Searched::PageSet(p) => {
@@ -130,7 +130,12 @@ pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'stat
             .into());
         }
     };
-    let (table, source) = coupler_atlas::load_table(&index, use_cache).map_err(|e| {
+    open(&index, use_cache)
+}
+
+/// The index at `index` opened for searching (see [`load`]).
+fn open(index: &Path, use_cache: bool) -> Result<coupler_atlas::Loaded> {
+    coupler_atlas::load(index, use_cache).map_err(|e| {
         let mut m = e.to_string().trim_end().to_string();
         if m.contains("not a coupler-atlas index") {
             // Name the file to search where there is one beside it.
@@ -143,9 +148,28 @@ pub(super) fn load(index: &Path, use_cache: bool) -> Result<(SearchTable, &'stat
                 None => " (search reads an atlas's index.json, a page set's curves.json, or the folder holding either)".into(),
             };
         }
-        UsageError(m)
-    })?;
-    Ok((table, source.name()))
+        UsageError(m).into()
+    })
+}
+
+/// The curve `id` of `index` as a table of one row (empty if the index has no such
+/// curve), read through the columns or the cache like a search.
+pub(super) fn load_curve(index: &Path, id: u64) -> Result<SearchTable> {
+    let mut loaded = load(index, true)?;
+    let table = loaded.find(id).map_err(|e| UsageError(e.to_string()))?;
+    note_columns(&loaded);
+    Ok(table)
+}
+
+/// Says on stderr why a columns file beside the index was not used (the answer then
+/// comes from the cache or the index).
+fn note_columns(loaded: &coupler_atlas::Loaded) {
+    if let Some(n) = loaded.note() {
+        eprintln!(
+            "note: {n}; answered from the {} instead",
+            loaded.source().name()
+        );
+    }
 }
 
 /// What `search` reads: an atlas's index, or a page set's `curves.json`.
@@ -350,23 +374,37 @@ pub fn run(args: Args) -> Result<ExitCode> {
     };
     let t0 = Instant::now();
     let searched = resolve(&args.index)?;
-    let (table, source, extracted) = match &searched {
-        Searched::Index(index) => {
-            let (table, source) = load(index, !args.no_cache)?;
-            (table, source, extraction_tolerances(index))
-        }
+    let (mut loaded, extracted) = match &searched {
+        Searched::Index(index) => (open(index, !args.no_cache)?, extraction_tolerances(index)),
         Searched::PageSet(curves) => {
             if query.arc.is_some() || query.double_dwell {
                 eprintln!(
                     "note: a page set's curves are measured by their straight runs only: --arc and --double-dwell match none"
                 );
             }
-            (load_page_set(curves, &query)?, "curves.json", None)
+            (
+                coupler_atlas::Loaded::from_table(load_page_set(curves, &query)?),
+                None,
+            )
         }
     };
     let t1 = Instant::now();
-    let curves = table.rows.len();
+    let curves = loaded.curves();
     let tight = extracted.and_then(|t| tighter(&query, &t));
+    // Only the curves the query can show are read out of the index's columns (or
+    // table): the query's best `--limit`, or every candidate of a refinement.
+    let select = |loaded: &mut coupler_atlas::Loaded, q: &Query| {
+        loaded.select(q).map_err(|e| UsageError(e.to_string()))
+    };
+    let (selected, mut total) = select(
+        &mut loaded,
+        &tight.map_or(query.clone(), |_| candidates(&query)),
+    )?;
+    note_columns(&loaded);
+    let source = match searched {
+        Searched::Index(_) => loaded.source().name(),
+        Searched::PageSet(_) => "curves.json",
+    };
     let refined;
     let table = match tight {
         Some(t) => {
@@ -375,7 +413,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                 Searched::Index(index) => extraction_dash(index),
                 Searched::PageSet(_) => DashPattern::default(),
             };
-            let (r, n) = refine(&table, &query, &t, &dash)?;
+            let (r, n) = refine(&selected, &query, &t, &dash)?;
             eprintln!(
                 "refined: the query is tighter than the index's extraction tolerance (straight {} %, arc {} %), so its {n} candidate curve(s) were re-measured at straight {} %, arc {} % in {:.3} s",
                 extracted.map_or(f64::NAN, |e| e.straight_pct),
@@ -387,7 +425,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             refined = r;
             &refined
         }
-        None => &table,
+        None => &selected,
     };
     if let Some(e) = extracted {
         for (flag, f, stored) in [
@@ -402,7 +440,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
             }
         }
     }
-    let (hits, total) = table.search_counted(&query);
+    let (hits, matched) = table.search_counted(&query);
+    if tight.is_some() {
+        // The re-measured candidates are all there: they count themselves.
+        total = matched;
+    }
     let t2 = Instant::now();
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
@@ -781,6 +823,28 @@ fn tighter(q: &Query, e: &FeatureTolerances) -> Option<FeatureTolerances> {
     })
 }
 
+/// The candidates of a refinement of `q`: every filter but the features' errors and
+/// measures (which change when re-measured), all of them, in id order.
+fn candidates(q: &Query) -> Query {
+    let relax = |f: Option<SpanFilter>| {
+        f.map(|f| SpanFilter {
+            max_error_pct: f64::INFINITY,
+            ..f
+        })
+    };
+    Query {
+        straight: relax(q.straight),
+        arc: relax(q.arc),
+        double_dwell: false,
+        radius: None,
+        min_turn_deg: None,
+        max_velocity_variation_pct: None,
+        sort: SortKey::Id,
+        limit: 0,
+        ..q.clone()
+    }
+}
+
 /// Exact answers below the extraction tolerance without regenerating. A window within a
 /// tighter tolerance is also within the extraction's, so (the listed windows being
 /// maximal, `docs/features.md`) it shares a step with a listed window at least as long:
@@ -794,25 +858,7 @@ fn refine(
     t: &FeatureTolerances,
     dash: &DashPattern,
 ) -> Result<(SearchTable, usize)> {
-    let relax = |f: Option<SpanFilter>| {
-        f.map(|f| SpanFilter {
-            max_error_pct: f64::INFINITY,
-            ..f
-        })
-    };
-    // Candidates: every filter but the features' errors and measures (which change).
-    let candidates = Query {
-        straight: relax(q.straight),
-        arc: relax(q.arc),
-        double_dwell: false,
-        radius: None,
-        min_turn_deg: None,
-        max_velocity_variation_pct: None,
-        sort: SortKey::Id,
-        limit: 0,
-        ..q.clone()
-    };
-    let rows: Vec<usize> = table.search(&candidates).iter().map(|h| h.row).collect();
+    let rows: Vec<usize> = table.search(&candidates(q)).iter().map(|h| h.row).collect();
     let redo = remeasured(t, q);
     // Only what the query tightens is re-measured; the rest is the index's own (the same
     // extraction at the same tolerance). The curve is sampled as `generate` samples it

@@ -15,6 +15,7 @@
 //! `c mod N = K − 1`; [`merge`] gathers shard folders and assembles exactly what one run
 //! writes.
 
+mod columns;
 mod curves;
 mod error;
 mod files;

@@ -65,7 +65,7 @@ pub struct RunReport {
 
 /// First line of a chunk record; its curve lines follow, one per line, as in the index.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-struct ChunkHeader {
+pub(crate) struct ChunkHeader {
     format: u32,
     run_key: String,
     chunk: u64,
@@ -78,7 +78,7 @@ struct ChunkHeader {
 
 /// Why a chunk record cannot be used.
 #[derive(Debug)]
-enum ChunkProblem {
+pub(crate) enum ChunkProblem {
     /// No record (or not readable).
     Missing,
     /// Of another run key, chunk number or format: another spec, settings or version.
@@ -149,7 +149,7 @@ type LineSink<'a> = &'a mut dyn FnMut(&str) -> std::io::Result<()>;
 /// hash; with `verify_files`, every file it lists present with its size and hash. Each
 /// curve line is passed to `sink` as it is read (an error there stops the read), so a
 /// caller that writes them must discard what it wrote unless this returns `Ok`.
-fn read_chunk(
+pub(crate) fn read_chunk(
     dir: &Path,
     chunk: u64,
     key: &str,
@@ -412,7 +412,7 @@ fn stem(job: &Job, renderer: &dyn Renderer) -> String {
         .unwrap_or_else(|| job.spec.name.clone())
 }
 
-const ROOT_FILES: [&str; 2] = ["manifest.json", "index.json"];
+const ROOT_FILES: [&str; 3] = ["manifest.json", "index.json", coupler_index::COLUMNS_FILE];
 
 /// Runs the job (its shard of it): computes the chunks not already complete, on
 /// `job.jobs` threads, writing pages as they finish; for a whole job (shard 1/1) then
@@ -697,7 +697,9 @@ fn assemble(
         }
         write_index_footer(&mut *w)
     })?;
-    files.push(FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?);
+    let index_entry = FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?;
+    files.push(crate::columns::write_columns(job, key, &index_entry)?);
+    files.push(index_entry);
     files.extend(crate::shapes::write_shapes(job)?);
     write_manifest(&job.out, key, files.clone())?;
     let mut keep: Vec<String> = files.into_iter().map(|f| f.name).collect();

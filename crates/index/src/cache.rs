@@ -45,6 +45,8 @@ pub enum TableSource {
     Cache,
     /// Parsed from the index itself.
     Index,
+    /// Mapped from the index's columns file (`index.columns`).
+    Columns,
 }
 
 impl TableSource {
@@ -53,6 +55,7 @@ impl TableSource {
         match self {
             TableSource::Cache => "cache",
             TableSource::Index => "index",
+            TableSource::Columns => "columns",
         }
     }
 }
@@ -317,7 +320,7 @@ pub fn cache_path(index: &Path) -> PathBuf {
 
 /// Opens `path` if it is a regular file (not a device, pipe or folder, whatever a link
 /// points at).
-fn open_file(path: &Path) -> std::io::Result<std::fs::File> {
+pub(crate) fn open_file(path: &Path) -> std::io::Result<std::fs::File> {
     let f = std::fs::File::open(path)?;
     if !f.metadata()?.is_file() {
         return Err(std::io::Error::other("not a regular file"));
@@ -339,18 +342,30 @@ fn read_cache(cache: &Path, key: IndexKey) -> Result<SearchTable, CacheError> {
     SearchTable::from_cache_bytes(&bytes, key)
 }
 
-/// Writes the cache beside the index: under a new temporary name created exclusively
-/// (unpredictable, so a planted file or link is never opened), then renamed into place.
-/// Best effort.
+/// Writes the cache beside the index (best effort).
 fn write_cache(cache: &Path, table: &SearchTable, key: IndexKey) {
+    write_beside(cache, |w| table.write_cache(w, key));
+}
+
+/// Writes `path` under a new temporary name beside it, created exclusively
+/// (unpredictable, so a planted file or link is never opened), then renamed into place.
+/// Best effort: on any error nothing is left behind.
+pub(crate) fn write_beside(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) {
     use std::hash::{BuildHasher, Hasher};
-    let name = cache
+    let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let mut h = std::collections::hash_map::RandomState::new().build_hasher();
-    h.write_u128(key.hash);
-    let tmp = cache.with_file_name(format!(
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos()),
+    );
+    let tmp = path.with_file_name(format!(
         ".{name}.tmp-{}-{:016x}",
         std::process::id(),
         h.finish()
@@ -363,9 +378,9 @@ fn write_cache(cache: &Path, table: &SearchTable, key: IndexKey) {
         return;
     };
     let mut w = std::io::BufWriter::new(file);
-    let ok = table.write_cache(&mut w, key).is_ok() && w.flush().is_ok();
+    let ok = write(&mut w).is_ok() && w.flush().is_ok();
     drop(w);
-    if !(ok && std::fs::rename(&tmp, cache).is_ok()) {
+    if !(ok && std::fs::rename(&tmp, path).is_ok()) {
         let _ = std::fs::remove_file(&tmp);
     }
 }
@@ -389,14 +404,33 @@ impl<R: Read> Read for Hashing<R> {
 /// Loads the search table of `index`: from its cache if the cache verifies for the
 /// index's current content, else by parsing the index (and writing the cache, best
 /// effort) when `use_cache`; without `use_cache` the cache is neither read nor written.
+/// The index's content key comes from its stamp when it has one (`crate::stamp`), so a
+/// cached load does not hash the index.
 pub fn load_table(index: &Path, use_cache: bool) -> Result<(SearchTable, TableSource), LoadError> {
+    load_table_keyed(index, use_cache, None)
+}
+
+/// [`load_table`], the index's content key already known (or not: `None`).
+pub(crate) fn load_table_keyed(
+    index: &Path,
+    use_cache: bool,
+    key: Option<IndexKey>,
+) -> Result<(SearchTable, TableSource), LoadError> {
     let read_err = |source| LoadError::Read {
         path: index.to_path_buf(),
         source,
     };
     let cache = cache_path(index);
     if use_cache {
-        let key = IndexKey::of_reader(open_file(index).map_err(read_err)?).map_err(read_err)?;
+        let key = match key {
+            Some(k) => k,
+            None => {
+                let file = open_file(index).map_err(read_err)?;
+                crate::stamp::index_key(&file, index, true)
+                    .map_err(read_err)?
+                    .0
+            }
+        };
         if let Ok(t) = read_cache(&cache, key) {
             return Ok((t, TableSource::Cache));
         }

@@ -1,12 +1,15 @@
 //! Searching an index by features: composable filters over a compact columnar table.
 //!
-//! The JSON index of a large atlas is big (≈1.5 KB per curve with features), and parsing
-//! it takes seconds per million curves. So `search` reads it once into a [`SearchTable`]
-//! (one fixed-size row per curve plus flat arrays of segments and arcs), saves that as a
-//! binary cache next to the index (`INDEX.search`, keyed by the index's length and
-//! content hash, checksummed: see `cache.rs`), and answers queries from the cache: a linear scan with cheap
-//! tests, milliseconds per million curves. The filtered quantities are kept as `f64`,
-//! so a result satisfies its filters exactly as the index's own numbers do.
+//! The JSON index of a large atlas is big (≈2 KB per curve with features), and parsing
+//! it takes seconds per million curves. So `generate` writes the same rows as columns
+//! beside the index (`index.columns`, `colfile.rs`), which `search` scans in place
+//! through a memory map ([`crate::ColumnTable`]); an index without them is read once
+//! into a [`SearchTable`] (one fixed-size row per curve plus flat arrays of segments and
+//! arcs), saved as a binary cache next to the index (`INDEX.search`, keyed by the index's
+//! length and content hash, checksummed: see `cache.rs`). Either way a query is a linear
+//! scan with cheap tests ([`Query`]'s `matches`, one code for both). The filtered
+//! quantities are kept as `f64`, so a result satisfies its filters exactly as the index's
+//! own numbers do.
 
 use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
 use coupler_features::{CurveFeatures, Side, Trivial, window_transmission};
@@ -132,10 +135,103 @@ pub enum SearchError {
     Cache,
 }
 
+/// A curve's row (its page, first segment and first arc left at 0 for the caller to
+/// set), segments and arcs.
+pub(crate) fn decompose(c: &IndexCurve) -> (CurveRow, Vec<SegmentRow>, Vec<ArcRow>) {
+    let empty = CurveFeatures {
+        straight_segments: Vec::new(),
+        pseudo_arcs: Vec::new(),
+        double_points: Default::default(),
+        symmetry: None,
+        cognates: Vec::new(),
+        trivial: None,
+    };
+    let f = c.features.as_ref().unwrap_or(&empty);
+    // Indexes written before features carried their window's transmission: computed
+    // here (once: the cache and the columns keep it), at the default feature step (exact
+    // for a four-bar at any step).
+    let window = |given: Option<[f64; 2]>, start: f64, span: f64| {
+        given
+            .or_else(|| window_transmission(&c.linkage, c.circuit, start, span, 5.0))
+            .unwrap_or([f64::NAN; 2])
+    };
+    let row = CurveRow {
+        id: c.id,
+        linkage: c.linkage,
+        point: [c.point.u, c.point.v],
+        circuit: c.circuit,
+        class: c.class,
+        transmission_deg: c.transmission_deg,
+        page: 0,
+        page_bbox: c.page.as_ref().map(|p| p.bbox_px).unwrap_or([0.0; 4]),
+        seg_start: 0,
+        seg_count: f.straight_segments.len() as u32,
+        arc_start: 0,
+        arc_count: f.pseudo_arcs.len() as u32,
+        symmetric: f.symmetry.is_some(),
+        crunodes: f.double_points.crunodes.len() as u32,
+        cusps: f.double_points.cusps.len() as u32,
+        has_features: c.features.is_some(),
+        trivial: Trivial::of(c.point, c.linkage.coupler_length()).is_some(),
+    };
+    let segments = f
+        .straight_segments
+        .iter()
+        .map(|s| SegmentRow {
+            start_deg: s.start_deg,
+            span_deg: s.span_deg,
+            straightness_pct: s.straightness_pct,
+            velocity_variation_pct: s.velocity_variation_pct,
+            length: s.length,
+            direction_deg: s.direction_deg,
+            transmission_deg: window(s.transmission_deg, s.start_deg, s.span_deg),
+        })
+        .collect();
+    let arcs = f
+        .pseudo_arcs
+        .iter()
+        .map(|a| ArcRow {
+            start_deg: a.start_deg,
+            span_deg: a.span_deg,
+            radius: a.radius,
+            deviation_pct: a.deviation_pct,
+            center: a.center,
+            concave: a.concave,
+            turn_deg: a.turn_deg,
+            transmission_deg: window(a.transmission_deg, a.start_deg, a.span_deg),
+        })
+        .collect();
+    (row, segments, arcs)
+}
+
+/// Where a query reads segments and arcs: a [`SearchTable`]'s arrays, or the chunks of
+/// a columns file (indices are the table's, global).
+pub(crate) trait Features {
+    /// Segment `k`.
+    fn segment(&self, k: usize) -> SegmentRow;
+    /// Arc `k`.
+    fn arc(&self, k: usize) -> ArcRow;
+}
+
+impl Features for SearchTable {
+    fn segment(&self, k: usize) -> SegmentRow {
+        self.segments[k]
+    }
+    fn arc(&self, k: usize) -> ArcRow {
+        self.arcs[k]
+    }
+}
+
+/// The order of hits: by sort key, then by id.
+pub(crate) fn order(a: &(f64, u64, Hit), b: &(f64, u64, Hit)) -> std::cmp::Ordering {
+    a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
+}
+
 impl SearchTable {
     /// Adds one curve.
     pub fn push(&mut self, c: &IndexCurve) {
-        let page = match &c.page {
+        let (mut row, segments, arcs) = decompose(c);
+        row.page = match &c.page {
             Some(PageRef { file, .. }) => match self.pages.iter().rposition(|p| p == file) {
                 Some(i) => i as u32,
                 None => {
@@ -145,63 +241,37 @@ impl SearchTable {
             },
             None => u32::MAX,
         };
-        let empty = CurveFeatures {
-            straight_segments: Vec::new(),
-            pseudo_arcs: Vec::new(),
-            double_points: Default::default(),
-            symmetry: None,
-            cognates: Vec::new(),
-            trivial: None,
-        };
-        let f = c.features.as_ref().unwrap_or(&empty);
-        // Indexes written before features carried their window's transmission: computed
-        // here (once: the cache keeps it), at the default feature step (exact for a
-        // four-bar at any step).
-        let window = |given: Option<[f64; 2]>, start: f64, span: f64| {
-            given
-                .or_else(|| window_transmission(&c.linkage, c.circuit, start, span, 5.0))
-                .unwrap_or([f64::NAN; 2])
-        };
-        let row = CurveRow {
-            id: c.id,
-            linkage: c.linkage,
-            point: [c.point.u, c.point.v],
-            circuit: c.circuit,
-            class: c.class,
-            transmission_deg: c.transmission_deg,
-            page,
-            page_bbox: c.page.as_ref().map(|p| p.bbox_px).unwrap_or([0.0; 4]),
-            seg_start: self.segments.len() as u32,
-            seg_count: f.straight_segments.len() as u32,
-            arc_start: self.arcs.len() as u32,
-            arc_count: f.pseudo_arcs.len() as u32,
-            symmetric: f.symmetry.is_some(),
-            crunodes: f.double_points.crunodes.len() as u32,
-            cusps: f.double_points.cusps.len() as u32,
-            has_features: c.features.is_some(),
-            trivial: Trivial::of(c.point, c.linkage.coupler_length()).is_some(),
-        };
-        self.segments
-            .extend(f.straight_segments.iter().map(|s| SegmentRow {
-                start_deg: s.start_deg,
-                span_deg: s.span_deg,
-                straightness_pct: s.straightness_pct,
-                velocity_variation_pct: s.velocity_variation_pct,
-                length: s.length,
-                direction_deg: s.direction_deg,
-                transmission_deg: window(s.transmission_deg, s.start_deg, s.span_deg),
-            }));
-        self.arcs.extend(f.pseudo_arcs.iter().map(|a| ArcRow {
-            start_deg: a.start_deg,
-            span_deg: a.span_deg,
-            radius: a.radius,
-            deviation_pct: a.deviation_pct,
-            center: a.center,
-            concave: a.concave,
-            turn_deg: a.turn_deg,
-            transmission_deg: window(a.transmission_deg, a.start_deg, a.span_deg),
-        }));
+        row.seg_start = self.segments.len() as u32;
+        row.arc_start = self.arcs.len() as u32;
+        self.segments.extend(segments);
+        self.arcs.extend(arcs);
         self.rows.push(row);
+    }
+
+    /// Rows `rows` of the table (in that order) as a table of their own, each with all
+    /// its segments and arcs and its page.
+    pub fn subset(&self, rows: &[usize]) -> SearchTable {
+        let mut out = SearchTable::default();
+        for &i in rows {
+            let mut r = self.rows[i];
+            let segments = self.segments_of(&r);
+            let arcs = self.arcs_of(&r);
+            r.seg_start = out.segments.len() as u32;
+            r.arc_start = out.arcs.len() as u32;
+            out.segments.extend_from_slice(segments);
+            out.arcs.extend_from_slice(arcs);
+            if let Some(p) = self.pages.get(r.page as usize) {
+                r.page = match out.pages.iter().rposition(|q| q == p) {
+                    Some(k) => k as u32,
+                    None => {
+                        out.pages.push(p.clone());
+                        (out.pages.len() - 1) as u32
+                    }
+                };
+            }
+            out.rows.push(r);
+        }
+        out
     }
 
     /// Reads the curves of an index written by [`crate::write_index`] (a header,
@@ -313,67 +383,15 @@ impl SearchTable {
 
     /// [`SearchTable::search`], with the number of curves that matched before the limit.
     pub fn search_counted(&self, q: &Query) -> (Vec<Hit>, usize) {
-        let key = |h: &Hit| -> f64 {
-            let r = &self.rows[h.row];
-            match q.sort {
-                SortKey::Id => r.id as f64,
-                SortKey::Straight => -h
-                    .straight
-                    .iter()
-                    .map(|&k| self.segments[k].span_deg)
-                    .fold(0.0, f64::max),
-                SortKey::Arc => -h
-                    .arcs
-                    .iter()
-                    .map(|&k| self.arcs[k].span_deg)
-                    .fold(0.0, f64::max),
-                SortKey::Deviation => h
-                    .arcs
-                    .iter()
-                    .map(|&k| self.arcs[k].deviation_pct)
-                    .fold(f64::INFINITY, f64::min),
-                SortKey::Straightness => h
-                    .straight
-                    .iter()
-                    .map(|&k| self.segments[k].straightness_pct)
-                    .fold(f64::INFINITY, f64::min),
-                SortKey::Transmission => -transmission_margin(r.transmission_deg),
-                SortKey::WindowTransmission => -h
-                    .straight
-                    .iter()
-                    .map(|&k| transmission_margin(self.segments[k].transmission_deg))
-                    .chain(
-                        h.arcs
-                            .iter()
-                            .map(|&k| transmission_margin(self.arcs[k].transmission_deg)),
-                    )
-                    .fold(f64::NEG_INFINITY, f64::max),
-                SortKey::Turn => -h
-                    .arcs
-                    .iter()
-                    .map(|&k| self.arcs[k].turn_deg)
-                    .fold(0.0, f64::max),
-                SortKey::Radius => h
-                    .arcs
-                    .iter()
-                    .map(|&k| self.arcs[k].radius)
-                    .fold(f64::INFINITY, f64::min),
-                SortKey::Velocity => h
-                    .straight
-                    .iter()
-                    .map(|&k| self.segments[k].velocity_variation_pct)
-                    .fold(f64::INFINITY, f64::min),
-            }
-        };
         let mut keyed: Vec<(f64, u64, Hit)> = self
             .rows
             .iter()
             .enumerate()
-            .filter_map(|(i, r)| q.matches(self, i, r))
-            .map(|h| (key(&h), self.rows[h.row].id, h))
+            .filter_map(|(i, r)| {
+                q.matches(self, i, r)
+                    .map(|h| (q.sort_key(self, r, &h), r.id, h))
+            })
             .collect();
-        let order =
-            |a: &(f64, u64, Hit), b: &(f64, u64, Hit)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
         let total = keyed.len();
         if q.limit > 0 && keyed.len() > q.limit {
             keyed.select_nth_unstable_by(q.limit - 1, order);
@@ -544,7 +562,64 @@ pub struct Hit {
 }
 
 impl Query {
-    fn matches(&self, t: &SearchTable, i: usize, r: &CurveRow) -> Option<Hit> {
+    /// Whether the query reads segments and arcs: (straight, arc).
+    pub(crate) fn wants(&self) -> (bool, bool) {
+        let want_straight = self.straight.is_some() || self.max_velocity_variation_pct.is_some();
+        let want_arc = self.arc.is_some() || self.radius.is_some() || self.min_turn_deg.is_some();
+        // The window's transmission reads both (alone it asks for a segment or an arc).
+        let window = self.min_window_transmission_deg.is_some();
+        (
+            want_straight || self.double_dwell || window,
+            want_arc || self.double_dwell || window,
+        )
+    }
+
+    /// Which row fields beyond the id, the segment and arc ranges and the flags (class,
+    /// circuit, symmetric, features, trivial) [`Query::matches`] and [`Query::sort_key`]
+    /// read: (linkage, transmission range). A search of the columns file reads only
+    /// those columns for every row, so a filter on another row field must be added here.
+    pub(crate) fn reads_row(&self) -> (bool, bool) {
+        (
+            self.linkage.is_some(),
+            self.min_transmission_deg.is_some() || self.sort == SortKey::Transmission,
+        )
+    }
+
+    /// The sort key of hit `h` of row `r` (smaller first).
+    pub(crate) fn sort_key(&self, t: &impl Features, r: &CurveRow, h: &Hit) -> f64 {
+        let min = |xs: &mut dyn Iterator<Item = f64>| xs.fold(f64::INFINITY, f64::min);
+        let max = |xs: &mut dyn Iterator<Item = f64>| xs.fold(0.0, f64::max);
+        match self.sort {
+            SortKey::Id => r.id as f64,
+            SortKey::Straight => -max(&mut h.straight.iter().map(|&k| t.segment(k).span_deg)),
+            SortKey::Arc => -max(&mut h.arcs.iter().map(|&k| t.arc(k).span_deg)),
+            SortKey::Deviation => min(&mut h.arcs.iter().map(|&k| t.arc(k).deviation_pct)),
+            SortKey::Straightness => {
+                min(&mut h.straight.iter().map(|&k| t.segment(k).straightness_pct))
+            }
+            SortKey::Transmission => -transmission_margin(r.transmission_deg),
+            SortKey::WindowTransmission => -h
+                .straight
+                .iter()
+                .map(|&k| transmission_margin(t.segment(k).transmission_deg))
+                .chain(
+                    h.arcs
+                        .iter()
+                        .map(|&k| transmission_margin(t.arc(k).transmission_deg)),
+                )
+                .fold(f64::NEG_INFINITY, f64::max),
+            SortKey::Turn => -max(&mut h.arcs.iter().map(|&k| t.arc(k).turn_deg)),
+            SortKey::Radius => min(&mut h.arcs.iter().map(|&k| t.arc(k).radius)),
+            SortKey::Velocity => min(&mut h
+                .straight
+                .iter()
+                .map(|&k| t.segment(k).velocity_variation_pct)),
+        }
+    }
+
+    /// Hit of row `r` (number `i`), if it passes. Row fields read here beyond those
+    /// [`Query::reads_row`] names must be added there.
+    pub(crate) fn matches(&self, t: &impl Features, i: usize, r: &CurveRow) -> Option<Hit> {
         if let Some(c) = self.class {
             if r.class != c {
                 return None;
@@ -593,7 +668,7 @@ impl Query {
         let straight: Vec<usize> = if want_straight || self.double_dwell || want_any {
             (r.seg_start as usize..(r.seg_start + r.seg_count) as usize)
                 .filter(|&k| {
-                    let s = &t.segments[k];
+                    let s = t.segment(k);
                     pass(&self.straight, s.span_deg, s.straightness_pct)
                         && window_ok(s.transmission_deg)
                         && self
@@ -607,7 +682,7 @@ impl Query {
         let arcs: Vec<usize> = if want_arc || self.double_dwell || want_any {
             (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
                 .filter(|&k| {
-                    let a = &t.arcs[k];
+                    let a = t.arc(k);
                     pass(&self.arc, a.span_deg, a.deviation_pct)
                         && window_ok(a.transmission_deg)
                         && self
@@ -632,7 +707,7 @@ impl Query {
             let two_lines = straight.len() >= 2;
             let pair = arcs.iter().enumerate().find_map(|(x, &p)| {
                 arcs[x + 1..].iter().find_map(|&q| {
-                    let (a, b) = (&t.arcs[p], &t.arcs[q]);
+                    let (a, b) = (t.arc(p), t.arc(q));
                     let equal = (a.radius - b.radius).abs()
                         <= self.radius_tol_pct / 100.0 * a.radius.max(b.radius);
                     (equal && a.concave == b.concave).then_some([p, q])
