@@ -532,6 +532,30 @@ fn force_never_overwrites_the_users_files() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The sidecars the atlas writes beside its index (`shapes.bin`, `index.columns`) are
+/// the user's when the atlas did not write them: `--force` refuses, each file intact.
+#[test]
+fn force_never_overwrites_the_users_sidecars() {
+    for name in ["shapes.bin", "index.columns"] {
+        let dir = tmp(&format!("force-{name}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join(name), "my file").unwrap();
+        let o = generate(&ok_spec(), &dir, &["--no-pages", "--force"]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("was not written by coupler-atlas"),
+            "{name}: {}",
+            stderr(&o)
+        );
+        assert_eq!(
+            std::fs::read_to_string(dir.join(name)).unwrap(),
+            "my file",
+            "{name}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
 /// Page files (relative names) below `dir/pages`.
 fn pages(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir.join("pages"))

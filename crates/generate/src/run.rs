@@ -412,7 +412,12 @@ fn stem(job: &Job, renderer: &dyn Renderer) -> String {
         .unwrap_or_else(|| job.spec.name.clone())
 }
 
-const ROOT_FILES: [&str; 3] = ["manifest.json", "index.json", coupler_index::COLUMNS_FILE];
+const ROOT_FILES: [&str; 4] = [
+    "manifest.json",
+    "index.json",
+    coupler_index::COLUMNS_FILE,
+    coupler_shape::SHAPES_FILE,
+];
 
 /// Runs the job (its shard of it): computes the chunks not already complete, on
 /// `job.jobs` threads, writing pages as they finish; for a whole job (shard 1/1) then
