@@ -4,7 +4,6 @@
 //! other files. `search` maps it instead of parsing the index.
 
 use crate::files::{FileEntry, write_atomically};
-use crate::run::read_chunk;
 use crate::{GenerateError, Job};
 use coupler_index::{COLUMNS_FILE, ColumnsWriter, IndexKey};
 use std::io::Write;
@@ -29,11 +28,13 @@ impl<W: Write> Write for Hashing<W> {
 }
 
 /// Writes `index.columns` into `job.out` for the index just written (`index`, its entry)
-/// from the chunk records of run `key`, and returns its entry.
+/// from the run's verified chunk records, and returns its entry. `read_chunk(c, sink)`
+/// passes chunk `c`'s curve lines to `sink` in order (the caller owns the record format),
+/// or says why it cannot.
 pub(crate) fn write_columns(
     job: &Job,
-    key: &str,
     index: &FileEntry,
+    read_chunk: impl Fn(u64, &mut dyn FnMut(&str) -> std::io::Result<()>) -> Result<(), String> + Sync,
 ) -> Result<FileEntry, GenerateError> {
     let path = job.out.join(COLUMNS_FILE);
     let io = |source| GenerateError::Io {
@@ -58,7 +59,7 @@ pub(crate) fn write_columns(
             })?;
             for c in 0..job.chunk_count() {
                 let mut sink = |line: &str| cols.push_line(line);
-                read_chunk(&job.out, c, key, false, Some(&mut sink)).map_err(|p| {
+                read_chunk(c, &mut sink).map_err(|p| {
                     std::io::Error::other(format!(
                         "chunk {c} changed while writing the search columns: {p}"
                     ))

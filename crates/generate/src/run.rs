@@ -703,7 +703,15 @@ fn assemble(
         write_index_footer(&mut *w)
     })?;
     let index_entry = FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?;
-    files.push(crate::columns::write_columns(job, key, &index_entry)?);
+    files.push(crate::columns::write_columns(
+        job,
+        &index_entry,
+        |c, sink| {
+            read_chunk(&job.out, c, key, false, Some(sink))
+                .map(|_| ())
+                .map_err(|p| p.to_string())
+        },
+    )?);
     files.push(index_entry);
     files.extend(crate::shapes::write_shapes(job)?);
     write_manifest(&job.out, key, files.clone())?;

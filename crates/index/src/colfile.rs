@@ -39,7 +39,7 @@
 //! (`SIGBUS`; see `coupler-mapped`) — the program itself only ever replaces the file by
 //! renaming a complete new one over it.
 
-use crate::cache::IndexKey;
+use crate::key::IndexKey;
 use crate::schema::IndexCurve;
 use crate::search::{ArcRow, CurveRow, Features, Hit, Query, SearchTable, SegmentRow, order};
 use coupler_features::Side;

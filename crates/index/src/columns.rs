@@ -3,11 +3,12 @@
 //! columns file (`colfile.rs`: one encoding for both). To add a field: add a column
 //! there, and bump [`TABLE_VERSION`]; an old cache is then rebuilt.
 
-use crate::cache::{Column, IndexKey, Section, write_container};
+use crate::cache::{Column, Section, write_container};
 use crate::colfile::{
     ARC, ARC_TR, COLS, NCOLS, SEG, SEG_TR, SIDE, arc_at, push_arc, push_row, push_segment, row_at,
     segment_at,
 };
+use crate::key::IndexKey;
 use crate::search::SearchTable;
 use crate::{CacheError, read_container};
 

@@ -9,6 +9,7 @@
 mod cache;
 mod colfile;
 mod columns;
+mod key;
 mod lines;
 mod load;
 mod page_set;
@@ -17,14 +18,15 @@ mod search;
 mod stamp;
 
 pub use cache::{
-    CACHE_FORMAT, CACHE_MAGIC, CacheError, Column, IndexKey, LoadError, Section, TableSource,
-    cache_path, load_table, read_container, write_container,
+    CACHE_FORMAT, CACHE_MAGIC, CacheError, Column, LoadError, Section, TableSource, cache_path,
+    load_table, read_container, write_container,
 };
 pub use colfile::{
     COLUMNS_FILE, COLUMNS_FORMAT, ColumnTable, ColumnsError, ColumnsWriter, GROUP_ROWS,
     columns_path,
 };
 pub use columns::TABLE_VERSION;
+pub use key::IndexKey;
 pub use lines::{MAX_INDEX_LINE, read_line_bounded};
 pub use load::{Loaded, load};
 pub use page_set::{PAGE_SET_KIND, is_page_set};

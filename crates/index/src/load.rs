@@ -2,8 +2,9 @@
 //! index's and intact, else its search cache, else the index itself (parsed, and the
 //! cache written). See [`load`].
 
-use crate::cache::{IndexKey, LoadError, TableSource, load_table_keyed, open_file};
+use crate::cache::{LoadError, TableSource, load_table_keyed, open_file};
 use crate::colfile::{ColumnTable, columns_path};
+use crate::key::IndexKey;
 use crate::{Query, SearchTable};
 use std::path::{Path, PathBuf};
 

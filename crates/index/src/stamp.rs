@@ -15,7 +15,7 @@
 //! columns). The stamp is checksummed (a damaged one is ignored and rewritten) and written
 //! under a new exclusive temporary name, then renamed, like the search cache.
 
-use crate::cache::IndexKey;
+use crate::key::IndexKey;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
@@ -102,7 +102,7 @@ fn read_stamp(path: &Path, id: Identity) -> Option<IndexKey> {
 
 /// Writes the stamp (best effort: a folder that cannot be written keeps none).
 fn write_stamp(path: &Path, id: Identity, key: IndexKey) {
-    crate::cache::write_beside(path, |w| w.write_all(&id.encode(key)));
+    crate::key::write_beside(path, |w| w.write_all(&id.encode(key)));
 }
 
 /// Whether the file was last modified and changed at least [`SETTLED`] ago.
