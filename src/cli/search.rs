@@ -885,15 +885,7 @@ fn refine(
         let segments = if redo.0 {
             straight_segments(&curve, t, dash)
                 .iter()
-                .map(|s| SegmentRow {
-                    start_deg: s.start_deg,
-                    span_deg: s.span_deg,
-                    straightness_pct: s.straightness_pct,
-                    velocity_variation_pct: s.velocity_variation_pct,
-                    length: s.length,
-                    direction_deg: s.direction_deg,
-                    transmission_deg: window(s.start_deg, s.span_deg),
-                })
+                .map(|s| SegmentRow::of(s, window(s.start_deg, s.span_deg)))
                 .collect()
         } else {
             table.segments_of(r).to_vec()
@@ -901,16 +893,7 @@ fn refine(
         let arcs = if redo.1 {
             pseudo_arcs(&curve, t, dash)
                 .iter()
-                .map(|a| ArcRow {
-                    start_deg: a.start_deg,
-                    span_deg: a.span_deg,
-                    radius: a.radius,
-                    deviation_pct: a.deviation_pct,
-                    center: a.center,
-                    concave: a.concave,
-                    turn_deg: a.turn_deg,
-                    transmission_deg: window(a.start_deg, a.span_deg),
-                })
+                .map(|a| ArcRow::of(a, window(a.start_deg, a.span_deg)))
                 .collect()
         } else {
             table.arcs_of(r).to_vec()

@@ -12,7 +12,9 @@
 //! own numbers do.
 
 use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
-use coupler_features::{CurveFeatures, Side, Trivial, window_transmission};
+use coupler_features::{
+    CurveFeatures, PseudoArc, Side, StraightSegment, Trivial, window_transmission,
+};
 use coupler_kinematics::{Circuit, Linkage, LinkageClass, Mechanism};
 use serde::Serialize;
 
@@ -54,6 +56,37 @@ pub struct ArcRow {
     pub turn_deg: f64,
     /// Transmission angle `[min, max]` over its window, degrees (NaN: unknown).
     pub transmission_deg: [f64; 2],
+}
+
+impl SegmentRow {
+    /// The row of an extracted segment, with the transmission over its window.
+    pub fn of(s: &StraightSegment, transmission_deg: [f64; 2]) -> SegmentRow {
+        SegmentRow {
+            start_deg: s.start_deg,
+            span_deg: s.span_deg,
+            straightness_pct: s.straightness_pct,
+            velocity_variation_pct: s.velocity_variation_pct,
+            length: s.length,
+            direction_deg: s.direction_deg,
+            transmission_deg,
+        }
+    }
+}
+
+impl ArcRow {
+    /// The row of an extracted pseudo-arc, with the transmission over its window.
+    pub fn of(a: &PseudoArc, transmission_deg: [f64; 2]) -> ArcRow {
+        ArcRow {
+            start_deg: a.start_deg,
+            span_deg: a.span_deg,
+            radius: a.radius,
+            deviation_pct: a.deviation_pct,
+            center: a.center,
+            concave: a.concave,
+            turn_deg: a.turn_deg,
+            transmission_deg,
+        }
+    }
 }
 
 /// How far a transmission range `[min, max]` (degrees) stays from 0° and 180°:
@@ -177,29 +210,12 @@ pub(crate) fn decompose(c: &IndexCurve) -> (CurveRow, Vec<SegmentRow>, Vec<ArcRo
     let segments = f
         .straight_segments
         .iter()
-        .map(|s| SegmentRow {
-            start_deg: s.start_deg,
-            span_deg: s.span_deg,
-            straightness_pct: s.straightness_pct,
-            velocity_variation_pct: s.velocity_variation_pct,
-            length: s.length,
-            direction_deg: s.direction_deg,
-            transmission_deg: window(s.transmission_deg, s.start_deg, s.span_deg),
-        })
+        .map(|s| SegmentRow::of(s, window(s.transmission_deg, s.start_deg, s.span_deg)))
         .collect();
     let arcs = f
         .pseudo_arcs
         .iter()
-        .map(|a| ArcRow {
-            start_deg: a.start_deg,
-            span_deg: a.span_deg,
-            radius: a.radius,
-            deviation_pct: a.deviation_pct,
-            center: a.center,
-            concave: a.concave,
-            turn_deg: a.turn_deg,
-            transmission_deg: window(a.transmission_deg, a.start_deg, a.span_deg),
-        })
+        .map(|a| ArcRow::of(a, window(a.transmission_deg, a.start_deg, a.span_deg)))
         .collect();
     (row, segments, arcs)
 }
