@@ -133,7 +133,7 @@ pub fn index_key(
     if let Some(key) = id.and_then(|id| read_stamp(&stamp, id)) {
         return Ok((key, true));
     }
-    let key = IndexKey::of_reader(file)?;
+    let key = IndexKey::of_file(file)?;
     if let Some(id) = id.filter(|_| remember) {
         // The file as it is now must be the one hashed (size and times unchanged), and
         // settled.
