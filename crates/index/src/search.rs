@@ -758,18 +758,19 @@ impl Query {
             return false;
         }
         // Each field is read only if a filter tests it (`reads_features`).
-        let pass = |f: &Option<SpanFilter>, span: &dyn Fn() -> f64, err: &dyn Fn() -> f64| {
+        fn pass(f: &Option<SpanFilter>, span: impl Fn() -> f64, err: impl Fn() -> f64) -> bool {
             f.is_none_or(|f| span() >= f.min_span_deg && err() <= f.max_error_pct)
-        };
+        }
         // NaN (unknown) never passes.
-        let window_ok = |tr: &dyn Fn() -> [f64; 2]| {
+        let window_ok = |tr: [f64; 2]| {
             self.min_window_transmission_deg
-                .is_none_or(|mw| transmission_margin(tr()) >= mw)
+                .is_none_or(|mw| transmission_margin(tr) >= mw)
         };
+        let window = self.min_window_transmission_deg.is_some();
         if want_straight || self.double_dwell || want_any {
             for k in r.seg_start as usize..(r.seg_start + r.seg_count) as usize {
-                if pass(&self.straight, &|| t.seg_span(k), &|| t.seg_straightness(k))
-                    && window_ok(&|| t.seg_transmission(k))
+                if pass(&self.straight, || t.seg_span(k), || t.seg_straightness(k))
+                    && (!window || window_ok(t.seg_transmission(k)))
                     && self
                         .max_velocity_variation_pct
                         .is_none_or(|mv| t.seg_velocity(k) <= mv)
@@ -780,8 +781,8 @@ impl Query {
         }
         if want_arc || self.double_dwell || want_any {
             for k in r.arc_start as usize..(r.arc_start + r.arc_count) as usize {
-                if pass(&self.arc, &|| t.arc_span(k), &|| t.arc_deviation(k))
-                    && window_ok(&|| t.arc_transmission(k))
+                if pass(&self.arc, || t.arc_span(k), || t.arc_deviation(k))
+                    && (!window || window_ok(t.arc_transmission(k)))
                     && self.radius.is_none_or(|[lo, hi]| {
                         let radius = t.arc_radius(k);
                         lo <= radius && radius <= hi
