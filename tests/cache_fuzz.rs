@@ -609,3 +609,40 @@ fn damaged_or_stale_columns_in_search_and_dwell() {
     assert_eq!(o.stdout, fresh.stdout, "answered from stale columns");
     assert!(String::from_utf8_lossy(&o.stderr).contains("another index"));
 }
+
+/// A file refused as not an index gets no stamp (nor anything else) beside it, even once
+/// it has settled; the same file's folder is left as it was. A real index, settled, is
+/// stamped (so the test cannot pass by never stamping).
+#[test]
+fn refused_file_is_not_stamped() {
+    let dir = std::env::temp_dir().join(format!("coupler-atlas-stamp-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let junk = dir.join("notes.json");
+    std::fs::write(&junk, "{\"not\": \"an index\"}\n").unwrap();
+    let good = dir.join("index.json");
+    std::fs::write(&good, &atlas().1).unwrap();
+    std::thread::sleep(coupler_atlas::SETTLED + Duration::from_millis(200));
+    let search = |idx: &Path| {
+        Command::new(BIN)
+            .args(["search", idx.to_str().unwrap(), "--straight", "30:0.01"])
+            .output()
+            .unwrap()
+    };
+    let o = search(&junk);
+    assert!(!o.status.success(), "a non-index was searched");
+    assert!(!stamp_path(&junk).exists(), "refused file was stamped");
+    let o = search(&good);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stamp_path(&good).is_file(), "a settled index is stamped");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert!(
+        names.iter().all(|n| !n.starts_with("notes.json.")),
+        "files written beside the refused file: {names:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
