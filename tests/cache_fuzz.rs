@@ -21,7 +21,10 @@ const BIN: &str = env!("CARGO_BIN_EXE_coupler-atlas");
 fn atlas() -> &'static (PathBuf, Vec<u8>) {
     static ATLAS: OnceLock<(PathBuf, Vec<u8>)> = OnceLock::new();
     ATLAS.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("coupler-fuzz-{}", std::process::id()));
+        // Shared by every test of this file and never removed (a static): kept in the
+        // build's own scratch folder rather than the system's temporary folder.
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("coupler-fuzz-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("atlas-spec/quick.toml");
         let o = Command::new(BIN)
