@@ -706,7 +706,10 @@ impl Query {
     /// [`Query::reads_row`] names must be added there.
     pub(crate) fn matches(&self, t: &impl Features, i: usize, r: &CurveRow) -> Option<Hit> {
         let mut m = Matched::default();
-        self.eval(t, r, &mut m).then(|| Hit {
+        if !self.eval(t, r, &mut m) {
+            return None;
+        }
+        Some(Hit {
             row: i,
             straight: m.straight,
             arcs: m.arcs,
