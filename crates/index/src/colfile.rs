@@ -6,7 +6,7 @@
 //! ## File format (version 1, little-endian)
 //!
 //! The rows are cut into **groups** of [`GROUP_ROWS`] curves; each group holds its rows'
-//! 16 columns (the search cache's, [`crate::TABLE_VERSION`]) and those rows' straight
+//! 26 columns (the search cache's, [`crate::TABLE_VERSION`]) and those rows' straight
 //! segments and arcs, each column in its own **chunk** starting on a 64-byte boundary,
 //! padded with zeros. Every chunk has its own XXH3-64 in the directory, so a search
 //! checks exactly the chunks it reads, once each, and a writer holds one group at a time.
@@ -18,7 +18,7 @@
 //! | 20–23 | table version |
 //! | 24–63 | 0 |
 //! | 64… | the groups' chunks, then the page names' two chunks (offsets: `u64` × (pages + 1); text) |
-//! | directory | per group 48 bytes (rows `u32`, 0 `u32`, first row, first segment, segments, first arc, arcs: `u64` each) and 16 × 24 bytes (chunk offset, length, XXH3-64: `u64` each); then the page chunks' 2 × 24 bytes |
+//! | directory | per group 48 bytes (rows `u32`, 0 `u32`, first row, first segment, segments, first arc, arcs: `u64` each) and 26 × 24 bytes (chunk offset, length, XXH3-64: `u64` each); then the page chunks' 2 × 24 bytes |
 //! | last 128 | trailer: magic `CPLATLAS-COLEND\n`; format, table version, groups, columns (`u32` each); rows, segments, arcs, pages, directory offset, directory length, directory XXH3-64, index length (`u64` each); the index's XXH3-128; group rows (`u64`); XXH3-64 of the trailer's first 120 bytes |
 //!
 //! ## What is checked, and when
@@ -41,7 +41,7 @@
 
 use crate::key::IndexKey;
 use crate::schema::IndexCurve;
-use crate::search::{ArcRow, CurveRow, Features, Hit, Query, SearchTable, SegmentRow, order};
+use crate::search::{ArcRow, CurveRow, Features, Matched, Query, SearchTable, SegmentRow, order};
 use coupler_features::Side;
 use coupler_kinematics::{Circuit, FourBar, GearRatio, GearedFiveBar, Linkage, LinkageClass};
 use std::io::Write;
@@ -63,11 +63,14 @@ const ALIGN: u64 = 64;
 const GROUP_HEAD: usize = 48;
 const CHUNK_ENTRY: usize = 24;
 
-/// The columns: (tag, bytes per element). Rows first, then segments, arcs, arcs' sides.
-/// One encoding for both the columns file and the search cache (`columns.rs`): a new
-/// field is a new column here, in [`push_row`] and [`row_at`] (and a new
-/// [`crate::TABLE_VERSION`]); both files then carry it.
-pub(crate) const COLS: [(&str, usize); 16] = [
+/// The columns: (tag, bytes per element). Rows first (0–10), then one column per field
+/// of the segments (11–17) and of the arcs (18–25), so that a query reads (and checks)
+/// only the fields it tests: an arc filter reads the arcs' spans and deviations, 16
+/// bytes an arc, not all 73. One encoding for both the columns file and the search
+/// cache (`columns.rs`): a new field is a new column here, in [`push_row`] and
+/// [`row_at`] (or [`push_segment`]/[`segment_at`], [`push_arc`]/[`arc_at`], and
+/// `Query::reads_features`), and a new [`crate::TABLE_VERSION`]; both files then carry it.
+pub(crate) const COLS: [(&str, usize); 26] = [
     ("row.id", 8),
     ("row.link", 24),
     ("row.pt", 16),
@@ -78,23 +81,65 @@ pub(crate) const COLS: [(&str, usize); 16] = [
     ("row.arcs", 8),
     ("row.dbl", 8),
     ("row.flag", 5),
-    ("seg", 48),
-    ("arc", 56),
-    ("arc.side", 1),
     ("row.gear", 24),
+    ("seg.st", 8),
+    ("seg.span", 8),
+    ("seg.es", 8),
+    ("seg.ev", 8),
+    ("seg.len", 8),
+    ("seg.dir", 8),
     ("seg.tr", 16),
+    ("arc.st", 8),
+    ("arc.span", 8),
+    ("arc.r", 8),
+    ("arc.dev", 8),
+    ("arc.ctr", 16),
+    ("arc.turn", 8),
+    ("arc.side", 1),
     ("arc.tr", 16),
 ];
 pub(crate) const NCOLS: usize = COLS.len();
-pub(crate) const SEG: usize = 10;
-pub(crate) const ARC: usize = 11;
-pub(crate) const SIDE: usize = 12;
 /// A geared five-bar's L5, φ and λ (zero for a four-bar): see [`linkage_cells`].
-pub(crate) const GEAR: usize = 13;
-/// The transmission angle range over each segment's window (NaN where unknown).
-pub(crate) const SEG_TR: usize = 14;
-/// The transmission angle range over each arc's window (NaN where unknown).
-pub(crate) const ARC_TR: usize = 15;
+pub(crate) const GEAR: usize = 10;
+/// The segments' columns: start, span, ε_S, ε_V, length, direction (`f64` each), and the
+/// transmission angle range over the segment's window (two `f64`, NaN where unknown).
+pub(crate) const SEG_START: usize = 11;
+pub(crate) const SEG_SPAN: usize = 12;
+pub(crate) const SEG_ES: usize = 13;
+pub(crate) const SEG_EV: usize = 14;
+pub(crate) const SEG_LEN: usize = 15;
+pub(crate) const SEG_DIR: usize = 16;
+pub(crate) const SEG_TR: usize = 17;
+/// The arcs' columns: start, span, radius, deviation (`f64` each), centre (two `f64`),
+/// turn (`f64`), concave side (a byte: 1 right), transmission range (two `f64`).
+pub(crate) const ARC_START: usize = 18;
+pub(crate) const ARC_SPAN: usize = 19;
+pub(crate) const ARC_R: usize = 20;
+pub(crate) const ARC_DEV: usize = 21;
+pub(crate) const ARC_CTR: usize = 22;
+pub(crate) const ARC_TURN: usize = 23;
+pub(crate) const SIDE: usize = 24;
+pub(crate) const ARC_TR: usize = 25;
+
+/// What a column's elements are: rows, segments or arcs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kind {
+    Row,
+    Seg,
+    Arc,
+}
+
+/// The kind of column `c`.
+pub(crate) fn kind(c: usize) -> Kind {
+    if c < SEG_START {
+        Kind::Row
+    } else if c < ARC_START {
+        Kind::Seg
+    } else {
+        Kind::Arc
+    }
+}
+
 const GROUP_ENTRY: usize = GROUP_HEAD + NCOLS * CHUNK_ENTRY;
 
 /// The columns file of `index`: `index.columns` for `…/index.json`, else `INDEX.columns`.
@@ -132,18 +177,21 @@ fn u32s(out: &mut Vec<u8>, xs: &[u32]) {
     }
 }
 
+#[inline]
 fn u32_at(b: &[u8], at: usize) -> u32 {
     b.get(at..at + 4)
         .and_then(|s| s.try_into().ok())
         .map_or(0, u32::from_le_bytes)
 }
 
+#[inline]
 fn u64_at(b: &[u8], at: usize) -> u64 {
     b.get(at..at + 8)
         .and_then(|s| s.try_into().ok())
         .map_or(0, u64::from_le_bytes)
 }
 
+#[inline]
 fn f64_at(b: &[u8], at: usize) -> f64 {
     b.get(at..at + 8)
         .and_then(|s| s.try_into().ok())
@@ -216,46 +264,44 @@ pub(crate) fn push_row(cols: &mut [Vec<u8>], r: &CurveRow) {
     ]);
 }
 
-/// Appends one segment to its columns (`seg`, `seg.tr`).
+/// Appends one segment to its columns.
 pub(crate) fn push_segment(cols: &mut [Vec<u8>], s: &SegmentRow) {
-    f64s(
-        &mut cols[SEG],
-        &[
-            s.start_deg,
-            s.span_deg,
-            s.straightness_pct,
-            s.velocity_variation_pct,
-            s.length,
-            s.direction_deg,
-        ],
-    );
+    f64s(&mut cols[SEG_START], &[s.start_deg]);
+    f64s(&mut cols[SEG_SPAN], &[s.span_deg]);
+    f64s(&mut cols[SEG_ES], &[s.straightness_pct]);
+    f64s(&mut cols[SEG_EV], &[s.velocity_variation_pct]);
+    f64s(&mut cols[SEG_LEN], &[s.length]);
+    f64s(&mut cols[SEG_DIR], &[s.direction_deg]);
     f64s(&mut cols[SEG_TR], &s.transmission_deg);
 }
 
-/// Appends one arc to its columns (`arc`, `arc.side`, `arc.tr`).
+/// Appends one arc to its columns.
 pub(crate) fn push_arc(cols: &mut [Vec<u8>], a: &ArcRow) {
-    f64s(
-        &mut cols[ARC],
-        &[
-            a.start_deg,
-            a.span_deg,
-            a.radius,
-            a.deviation_pct,
-            a.center[0],
-            a.center[1],
-            a.turn_deg,
-        ],
-    );
+    f64s(&mut cols[ARC_START], &[a.start_deg]);
+    f64s(&mut cols[ARC_SPAN], &[a.span_deg]);
+    f64s(&mut cols[ARC_R], &[a.radius]);
+    f64s(&mut cols[ARC_DEV], &[a.deviation_pct]);
+    f64s(&mut cols[ARC_CTR], &a.center);
+    f64s(&mut cols[ARC_TURN], &[a.turn_deg]);
     cols[SIDE].push((a.concave == Side::Right) as u8);
     f64s(&mut cols[ARC_TR], &a.transmission_deg);
 }
+
+/// The linkage of a row whose linkage columns a scan did not read (its query does not
+/// test it): never shown, the selected rows are read whole.
+const UNREAD_LINKAGE: Linkage = Linkage::FourBar(FourBar {
+    coupler: 1.0,
+    rocker: 1.0,
+    ground: 1.0,
+});
 
 /// Row `i` of the row columns, checked: flags and class valid, a valid linkage (see
 /// [`linkage_of_cells`]), values finite, its segments inside `segs` and arcs inside
 /// `arcs` (global ranges), its page below `pages` (or none).
 /// A column given as an empty slice was not read (a scan reads only what its query
-/// needs): its fields are left at zero (the page at none) and not checked; the id, the
-/// segment and arc ranges and the flags are always needed.
+/// needs): its fields are left at zero (the page at none, the linkage at
+/// [`UNREAD_LINKAGE`]) and not checked; the id, the segment and arc ranges and the flags
+/// are always needed.
 pub(crate) fn row_at(
     cols: &[&[u8]],
     i: usize,
@@ -264,21 +310,27 @@ pub(crate) fn row_at(
     pages: u64,
 ) -> Result<CurveRow, String> {
     let read = |c: usize| !cols[c].is_empty();
-    if !(read(0) && read(1) && read(6) && read(7) && read(9) && read(GEAR)) {
-        return Err("the row's id, linkage, ranges and flags were not read".into());
+    if !(read(0) && read(6) && read(7) && read(9)) || read(1) != read(GEAR) {
+        return Err("the row's id, ranges and flags (and its linkage whole) were not read".into());
     }
-    let f = |c: usize, k: usize| {
-        if read(c) {
-            f64_at(cols[c], (i * (COLS[c].1 / 8) + k) * 8)
-        } else {
+    #[inline(always)]
+    fn cell(cols: &[&[u8]], c: usize, i: usize, k: usize) -> f64 {
+        if cols[c].is_empty() {
             0.0
+        } else {
+            f64_at(cols[c], (i * (COLS[c].1 / 8) + k) * 8)
         }
+    }
+    let f = |c: usize, k: usize| cell(cols, c, i, k);
+    let linkage = if read(1) {
+        linkage_of_cells(
+            [f(1, 0), f(1, 1), f(1, 2)],
+            cols[GEAR].get(i * 24..i * 24 + 24).unwrap_or(&[]),
+        )
+        .ok_or_else(|| format!("row {i}: not a valid linkage"))?
+    } else {
+        UNREAD_LINKAGE
     };
-    let linkage = linkage_of_cells(
-        [f(1, 0), f(1, 1), f(1, 2)],
-        cols[GEAR].get(i * 24..i * 24 + 24).unwrap_or(&[]),
-    )
-    .ok_or_else(|| format!("row {i}: not a valid linkage"))?;
     let point = [f(2, 0), f(2, 1)];
     let transmission_deg = [f(3, 0), f(3, 1)];
     let page_bbox = [f(4, 0), f(4, 1), f(4, 2), f(4, 3)];
@@ -286,15 +338,17 @@ pub(crate) fn row_at(
     if !(finite(&point) && finite(&transmission_deg) && finite(&page_bbox)) {
         return Err(format!("row {i}: a value is not finite"));
     }
-    let u = |c: usize, k: usize| {
-        if read(c) {
+    #[inline(always)]
+    fn cell_u32(cols: &[&[u8]], c: usize, i: usize, k: usize) -> u32 {
+        if !cols[c].is_empty() {
             u32_at(cols[c], (i * (COLS[c].1 / 4) + k) * 4)
         } else if c == 5 {
             u32::MAX
         } else {
             0
         }
-    };
+    }
+    let u = |c: usize, k: usize| cell_u32(cols, c, i, k);
     let (page, seg_start, seg_count, arc_start, arc_count, crunodes, cusps) = (
         u(5, 0),
         u(6, 0),
@@ -352,39 +406,39 @@ fn at(k: usize, n: usize, j: usize) -> usize {
     k.saturating_mul(n).saturating_add(j).saturating_mul(8)
 }
 
-/// Segment `k` of the segment columns (NaN throughout outside them: it then passes no
-/// filter).
+/// Segment `k` of the segment columns (NaN outside them, and in every field whose
+/// column was not read, given as an empty slice: it then passes no filter).
 pub(crate) fn segment_at(cols: &[&[u8]], k: usize) -> SegmentRow {
-    let v = |j: usize| f64_at(cols[SEG], at(k, 6, j));
+    let v = |c: usize| f64_at(cols[c], at(k, 1, 0));
     let tr = |j: usize| f64_at(cols[SEG_TR], at(k, 2, j));
     SegmentRow {
-        start_deg: v(0),
-        span_deg: v(1),
-        straightness_pct: v(2),
-        velocity_variation_pct: v(3),
-        length: v(4),
-        direction_deg: v(5),
+        start_deg: v(SEG_START),
+        span_deg: v(SEG_SPAN),
+        straightness_pct: v(SEG_ES),
+        velocity_variation_pct: v(SEG_EV),
+        length: v(SEG_LEN),
+        direction_deg: v(SEG_DIR),
         transmission_deg: [tr(0), tr(1)],
     }
 }
 
-/// Arc `k` of the arc columns (NaN throughout outside them).
+/// Arc `k` of the arc columns (NaN outside them and where not read; the side left).
 pub(crate) fn arc_at(cols: &[&[u8]], k: usize) -> ArcRow {
-    let v = |j: usize| f64_at(cols[ARC], at(k, 7, j));
-    let tr = |j: usize| f64_at(cols[ARC_TR], at(k, 2, j));
+    let v = |c: usize| f64_at(cols[c], at(k, 1, 0));
+    let two = |c: usize, j: usize| f64_at(cols[c], at(k, 2, j));
     ArcRow {
-        start_deg: v(0),
-        span_deg: v(1),
-        radius: v(2),
-        deviation_pct: v(3),
-        center: [v(4), v(5)],
+        start_deg: v(ARC_START),
+        span_deg: v(ARC_SPAN),
+        radius: v(ARC_R),
+        deviation_pct: v(ARC_DEV),
+        center: [two(ARC_CTR, 0), two(ARC_CTR, 1)],
         concave: if cols[SIDE].get(k) == Some(&1) {
             Side::Right
         } else {
             Side::Left
         },
-        turn_deg: v(6),
-        transmission_deg: [tr(0), tr(1)],
+        turn_deg: v(ARC_TURN),
+        transmission_deg: [two(ARC_TR, 0), two(ARC_TR, 1)],
     }
 }
 
@@ -676,6 +730,157 @@ impl Features for View<'_> {
     }
 }
 
+/// A group as a scan reads it: its [`View`], with the segment and arc fields the query
+/// reads decoded to `f64` once (a filter then reads an array, not bytes).
+struct Scan<'a> {
+    view: View<'a>,
+    /// Per column: its values, for the decoded segment and arc columns (else empty).
+    vals: Vec<Vec<f64>>,
+}
+
+impl<'a> Scan<'a> {
+    fn new(view: View<'a>) -> Scan<'a> {
+        let vals = (0..NCOLS)
+            .map(|c| {
+                if kind(c) == Kind::Row || c == SIDE {
+                    Vec::new()
+                } else {
+                    view.cols[c]
+                        .chunks_exact(8)
+                        .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
+                        .collect()
+                }
+            })
+            .collect();
+        Scan { view, vals }
+    }
+
+    /// Segment `k` (global) in the group.
+    #[inline]
+    fn seg(&self, k: usize) -> usize {
+        k.wrapping_sub(self.view.group.segs.start as usize)
+    }
+
+    /// Arc `k` (global) in the group.
+    #[inline]
+    fn arc_ix(&self, k: usize) -> usize {
+        k.wrapping_sub(self.view.group.arcs.start as usize)
+    }
+
+    /// Value `j` of `width` of element `k` of column `c` (NaN where not read or outside).
+    #[inline]
+    fn val(&self, c: usize, k: usize, width: usize, j: usize) -> f64 {
+        k.checked_mul(width)
+            .and_then(|x| self.vals[c].get(x + j))
+            .copied()
+            .unwrap_or(f64::NAN)
+    }
+}
+
+impl Features for Scan<'_> {
+    fn segment(&self, k: usize) -> SegmentRow {
+        let k = self.seg(k);
+        let v = |c: usize| self.val(c, k, 1, 0);
+        SegmentRow {
+            start_deg: v(SEG_START),
+            span_deg: v(SEG_SPAN),
+            straightness_pct: v(SEG_ES),
+            velocity_variation_pct: v(SEG_EV),
+            length: v(SEG_LEN),
+            direction_deg: v(SEG_DIR),
+            transmission_deg: [self.val(SEG_TR, k, 2, 0), self.val(SEG_TR, k, 2, 1)],
+        }
+    }
+    fn arc(&self, k: usize) -> ArcRow {
+        let k = self.arc_ix(k);
+        let v = |c: usize| self.val(c, k, 1, 0);
+        ArcRow {
+            start_deg: v(ARC_START),
+            span_deg: v(ARC_SPAN),
+            radius: v(ARC_R),
+            deviation_pct: v(ARC_DEV),
+            center: [self.val(ARC_CTR, k, 2, 0), self.val(ARC_CTR, k, 2, 1)],
+            concave: if self.view.cols[SIDE].get(k) == Some(&1) {
+                Side::Right
+            } else {
+                Side::Left
+            },
+            turn_deg: v(ARC_TURN),
+            transmission_deg: [self.val(ARC_TR, k, 2, 0), self.val(ARC_TR, k, 2, 1)],
+        }
+    }
+    fn seg_span(&self, k: usize) -> f64 {
+        self.val(SEG_SPAN, self.seg(k), 1, 0)
+    }
+    fn seg_straightness(&self, k: usize) -> f64 {
+        self.val(SEG_ES, self.seg(k), 1, 0)
+    }
+    fn seg_velocity(&self, k: usize) -> f64 {
+        self.val(SEG_EV, self.seg(k), 1, 0)
+    }
+    fn seg_transmission(&self, k: usize) -> [f64; 2] {
+        let k = self.seg(k);
+        [self.val(SEG_TR, k, 2, 0), self.val(SEG_TR, k, 2, 1)]
+    }
+    fn arc_span(&self, k: usize) -> f64 {
+        self.val(ARC_SPAN, self.arc_ix(k), 1, 0)
+    }
+    fn arc_deviation(&self, k: usize) -> f64 {
+        self.val(ARC_DEV, self.arc_ix(k), 1, 0)
+    }
+    fn arc_radius(&self, k: usize) -> f64 {
+        self.val(ARC_R, self.arc_ix(k), 1, 0)
+    }
+    fn arc_turn(&self, k: usize) -> f64 {
+        self.val(ARC_TURN, self.arc_ix(k), 1, 0)
+    }
+    fn arc_concave(&self, k: usize) -> Side {
+        if self.view.cols[SIDE].get(self.arc_ix(k)) == Some(&1) {
+            Side::Right
+        } else {
+            Side::Left
+        }
+    }
+    fn arc_transmission(&self, k: usize) -> [f64; 2] {
+        let k = self.arc_ix(k);
+        [self.val(ARC_TR, k, 2, 0), self.val(ARC_TR, k, 2, 1)]
+    }
+}
+
+/// The columns a scan for `q` reads for every row: the id, the segment and arc ranges
+/// and the flags always; the linkage and the transmission range if the query tests or
+/// sorts on them (`Query::reads_row`); and of the segments and arcs only the fields it
+/// tests or sorts on (`Query::reads_features`). The other fields are read for the
+/// selected rows only.
+fn columns_read(q: &Query) -> Vec<usize> {
+    let mut need: Vec<usize> = vec![0, 6, 7, 9];
+    let (linkage, transmission) = q.reads_row();
+    if linkage {
+        need.extend([1, GEAR]);
+    }
+    if transmission {
+        need.push(3);
+    }
+    let f = q.reads_features();
+    for (read, c) in [
+        (f.seg_span, SEG_SPAN),
+        (f.seg_straightness, SEG_ES),
+        (f.seg_velocity, SEG_EV),
+        (f.seg_transmission, SEG_TR),
+        (f.arc_span, ARC_SPAN),
+        (f.arc_deviation, ARC_DEV),
+        (f.arc_radius, ARC_R),
+        (f.arc_turn, ARC_TURN),
+        (f.arc_side, SIDE),
+        (f.arc_transmission, ARC_TR),
+    ] {
+        if read {
+            need.push(c);
+        }
+    }
+    need
+}
+
 impl ColumnTable {
     /// Opens the columns file at `path` (mapped) for the index of key `index`.
     pub fn open(path: &Path, index: IndexKey) -> Result<ColumnTable, ColumnsError> {
@@ -792,10 +997,10 @@ impl ColumnTable {
                 hash: 0,
             }; NCOLS];
             for (c, (_, element)) in COLS.iter().enumerate() {
-                let count = match c {
-                    SEG | SEG_TR => gsegs,
-                    ARC | SIDE | ARC_TR => garcs,
-                    _ => n,
+                let count = match kind(c) {
+                    Kind::Seg => gsegs,
+                    Kind::Arc => garcs,
+                    Kind::Row => n,
                 };
                 let e = &g[GROUP_HEAD + c * CHUNK_ENTRY..GROUP_HEAD + (c + 1) * CHUNK_ENTRY];
                 chunks[c] = chunk(e, *element as u64, count)?;
@@ -896,31 +1101,18 @@ impl ColumnTable {
     /// many curves passed. `q` run on that table gives the same hits as on the whole index.
     pub fn select(&self, q: &Query) -> Result<(SearchTable, usize), ColumnsError> {
         use rayon::prelude::*;
-        let (want_straight, want_arc) = q.wants();
-        // The row columns the query reads: id, ranges and flags always; the linkage and
-        // the transmission range only if it filters or sorts on them (the others are
-        // read for the selected rows only).
-        // (A row's linkage is decoded whole, so its two columns are always read.)
-        let mut need: Vec<usize> = vec![0, 1, GEAR, 6, 7, 9];
-        let (_, transmission) = q.reads_row();
-        if transmission {
-            need.push(3);
-        }
-        if want_straight {
-            need.extend([SEG, SEG_TR]);
-        }
-        if want_arc {
-            need.extend([ARC, SIDE, ARC_TR]);
-        }
+        let need = columns_read(q);
         let per_group: Vec<(Vec<Keyed>, usize)> = (0..self.groups.len())
             .into_par_iter()
             .map(|g| {
-                let v = self.view(g, &need)?;
+                let v = Scan::new(self.view(g, &need)?);
                 let mut best = Best::new(q.limit);
-                for i in 0..v.group.rows {
-                    let r = v.row(i)?;
-                    if let Some(h) = q.matches(&v, v.group.first_row + i, &r) {
-                        best.push((q.sort_key(&v, &r, &h), r.id, h));
+                let mut m = Matched::default();
+                for i in 0..v.view.group.rows {
+                    let r = v.view.row(i)?;
+                    if q.eval(&v, &r, &mut m) {
+                        let key = q.sort_key_of(&v, &r, &m.straight, &m.arcs);
+                        best.push((key, r.id, v.view.group.first_row + i));
                     }
                 }
                 Ok(best.finish())
@@ -933,7 +1125,7 @@ impl ColumnTable {
                 best.push(h);
             }
         }
-        let mut rows: Vec<usize> = best.finish().0.into_iter().map(|(_, _, h)| h.row).collect();
+        let mut rows: Vec<usize> = best.finish().0.into_iter().map(|(_, _, row)| row).collect();
         rows.sort_unstable();
         Ok((self.subset(&rows)?, total))
     }
@@ -992,8 +1184,8 @@ impl ColumnTable {
     }
 }
 
-/// A hit with its sort key and curve id.
-type Keyed = (f64, u64, Hit);
+/// A hit's sort key, curve id and row (global).
+type Keyed = (f64, u64, usize);
 
 /// The best `limit` hits seen (all of them for 0) and how many were seen: kept by
 /// selecting the best half whenever twice the limit has gathered.

@@ -5,8 +5,7 @@
 
 use crate::cache::{Column, Section, write_container};
 use crate::colfile::{
-    ARC, ARC_TR, COLS, NCOLS, SEG, SEG_TR, SIDE, arc_at, push_arc, push_row, push_segment, row_at,
-    segment_at,
+    COLS, Kind, NCOLS, SIDE, arc_at, kind, push_arc, push_row, push_segment, row_at, segment_at,
 };
 use crate::key::IndexKey;
 use crate::search::SearchTable;
@@ -15,8 +14,9 @@ use crate::{CacheError, read_container};
 /// Version of the column set (the cache's and the columns file's table version): 2
 /// added arcs' turn and the rows' `trivial` flag; 3 the rows' `row.gear` (a geared
 /// five-bar's L5, φ and λ); 4 the transmission over each segment's and arc's window
-/// (`seg.tr`, `arc.tr`; NaN where unknown).
-pub const TABLE_VERSION: u32 = 4;
+/// (`seg.tr`, `arc.tr`; NaN where unknown); 5 one column per field of the segments and
+/// arcs (a query reads only the fields it tests).
+pub const TABLE_VERSION: u32 = 5;
 
 fn bad(m: impl Into<String>) -> CacheError {
     CacheError(m.into())
@@ -29,10 +29,10 @@ impl SearchTable {
             .iter()
             .enumerate()
             .map(|(c, (_, element))| {
-                let n = match c {
-                    SEG | SEG_TR => self.segments.len(),
-                    ARC | SIDE | ARC_TR => self.arcs.len(),
-                    _ => self.rows.len(),
+                let n = match kind(c) {
+                    Kind::Seg => self.segments.len(),
+                    Kind::Arc => self.arcs.len(),
+                    Kind::Row => self.rows.len(),
                 };
                 Vec::with_capacity(element * n)
             })
@@ -115,17 +115,25 @@ impl SearchTable {
         let mut cols: Vec<Section<'_>> = Vec::with_capacity(NCOLS);
         for (c, (tag, element)) in COLS.iter().enumerate() {
             let s = find(tag, *element as u32)?;
-            let rows = !matches!(c, SEG | ARC | SIDE | SEG_TR | ARC_TR);
-            if rows && s.count as usize != n {
+            if kind(c) == Kind::Row && s.count as usize != n {
                 return Err(bad(format!("column {tag} length")));
             }
             cols.push(s);
         }
-        if cols[SIDE].count != cols[ARC].count
-            || cols[ARC_TR].count != cols[ARC].count
-            || cols[SEG_TR].count != cols[SEG].count
-        {
-            return Err(bad("column arc.side, arc.tr or seg.tr length"));
+        // Every segment column holds as many segments as the first, every arc column as
+        // many arcs.
+        let first = |k: Kind| {
+            (0..NCOLS)
+                .find(|&c| kind(c) == k)
+                .map_or(0, |c| cols[c].count)
+        };
+        let (nsegs, narcs) = (first(Kind::Seg), first(Kind::Arc));
+        if (0..NCOLS).any(|c| match kind(c) {
+            Kind::Seg => cols[c].count != nsegs,
+            Kind::Arc => cols[c].count != narcs,
+            Kind::Row => false,
+        }) {
+            return Err(bad("a segment or arc column's length"));
         }
         // A window's transmission is NaN where the index did not say (never ±∞).
         let known = |xs: &[f64]| xs.iter().all(|x| !x.is_infinite());
@@ -155,7 +163,6 @@ impl SearchTable {
         if last != text.count {
             return Err(bad("page text length"));
         }
-        let (nsegs, narcs) = (cols[SEG].count, cols[ARC].count);
         let data: Vec<&[u8]> = cols.iter().map(|s| s.data).collect();
         t.rows.reserve_exact(n);
         for i in 0..n {

@@ -227,6 +227,48 @@ pub(crate) trait Features {
     fn segment(&self, k: usize) -> SegmentRow;
     /// Arc `k`.
     fn arc(&self, k: usize) -> ArcRow;
+    // One field of a segment or an arc: what a query reads (a scan of the columns then
+    // reads one value, not the whole feature).
+    /// Span of segment `k`.
+    fn seg_span(&self, k: usize) -> f64 {
+        self.segment(k).span_deg
+    }
+    /// ε_S of segment `k`.
+    fn seg_straightness(&self, k: usize) -> f64 {
+        self.segment(k).straightness_pct
+    }
+    /// ε_V of segment `k`.
+    fn seg_velocity(&self, k: usize) -> f64 {
+        self.segment(k).velocity_variation_pct
+    }
+    /// Transmission range over segment `k`'s window.
+    fn seg_transmission(&self, k: usize) -> [f64; 2] {
+        self.segment(k).transmission_deg
+    }
+    /// Span of arc `k`.
+    fn arc_span(&self, k: usize) -> f64 {
+        self.arc(k).span_deg
+    }
+    /// Deviation of arc `k`.
+    fn arc_deviation(&self, k: usize) -> f64 {
+        self.arc(k).deviation_pct
+    }
+    /// Radius of arc `k`.
+    fn arc_radius(&self, k: usize) -> f64 {
+        self.arc(k).radius
+    }
+    /// Turn of arc `k`.
+    fn arc_turn(&self, k: usize) -> f64 {
+        self.arc(k).turn_deg
+    }
+    /// Concave side of arc `k`.
+    fn arc_concave(&self, k: usize) -> Side {
+        self.arc(k).concave
+    }
+    /// Transmission range over arc `k`'s window.
+    fn arc_transmission(&self, k: usize) -> [f64; 2] {
+        self.arc(k).transmission_deg
+    }
 }
 
 impl Features for SearchTable {
@@ -239,7 +281,7 @@ impl Features for SearchTable {
 }
 
 /// The order of hits: by sort key, then by id.
-pub(crate) fn order(a: &(f64, u64, Hit), b: &(f64, u64, Hit)) -> std::cmp::Ordering {
+pub(crate) fn order<T>(a: &(f64, u64, T), b: &(f64, u64, T)) -> std::cmp::Ordering {
     a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))
 }
 
@@ -601,66 +643,112 @@ impl Query {
         )
     }
 
+    /// Which fields of the segments and arcs [`Query::eval`] and [`Query::sort_key_of`]
+    /// read. A search of the columns file reads only those columns, so a test or sort on
+    /// another feature field must be added here.
+    pub(crate) fn reads_features(&self) -> FeatureReads {
+        let (straight, arc) = self.wants();
+        let window = self.min_window_transmission_deg.is_some();
+        let sort = |k: SortKey| self.sort == k;
+        FeatureReads {
+            seg_span: straight && (self.straight.is_some() || sort(SortKey::Straight)),
+            seg_straightness: straight && (self.straight.is_some() || sort(SortKey::Straightness)),
+            seg_velocity: straight
+                && (self.max_velocity_variation_pct.is_some() || sort(SortKey::Velocity)),
+            seg_transmission: straight && (window || sort(SortKey::WindowTransmission)),
+            arc_span: arc && (self.arc.is_some() || sort(SortKey::Arc)),
+            arc_deviation: arc && (self.arc.is_some() || sort(SortKey::Deviation)),
+            arc_radius: arc
+                && (self.radius.is_some() || self.double_dwell || sort(SortKey::Radius)),
+            arc_turn: arc && (self.min_turn_deg.is_some() || sort(SortKey::Turn)),
+            arc_side: arc && self.double_dwell,
+            arc_transmission: arc && (window || sort(SortKey::WindowTransmission)),
+        }
+    }
+
     /// The sort key of hit `h` of row `r` (smaller first).
     pub(crate) fn sort_key(&self, t: &impl Features, r: &CurveRow, h: &Hit) -> f64 {
+        self.sort_key_of(t, r, &h.straight, &h.arcs)
+    }
+
+    /// The sort key of row `r` whose matching segments and arcs are `straight` and `arcs`.
+    pub(crate) fn sort_key_of(
+        &self,
+        t: &impl Features,
+        r: &CurveRow,
+        straight: &[usize],
+        arcs: &[usize],
+    ) -> f64 {
         let min = |xs: &mut dyn Iterator<Item = f64>| xs.fold(f64::INFINITY, f64::min);
         let max = |xs: &mut dyn Iterator<Item = f64>| xs.fold(0.0, f64::max);
         match self.sort {
             SortKey::Id => r.id as f64,
-            SortKey::Straight => -max(&mut h.straight.iter().map(|&k| t.segment(k).span_deg)),
-            SortKey::Arc => -max(&mut h.arcs.iter().map(|&k| t.arc(k).span_deg)),
-            SortKey::Deviation => min(&mut h.arcs.iter().map(|&k| t.arc(k).deviation_pct)),
-            SortKey::Straightness => {
-                min(&mut h.straight.iter().map(|&k| t.segment(k).straightness_pct))
-            }
+            SortKey::Straight => -max(&mut straight.iter().map(|&k| t.seg_span(k))),
+            SortKey::Arc => -max(&mut arcs.iter().map(|&k| t.arc_span(k))),
+            SortKey::Deviation => min(&mut arcs.iter().map(|&k| t.arc_deviation(k))),
+            SortKey::Straightness => min(&mut straight.iter().map(|&k| t.seg_straightness(k))),
             SortKey::Transmission => -transmission_margin(r.transmission_deg),
-            SortKey::WindowTransmission => -h
-                .straight
+            SortKey::WindowTransmission => -straight
                 .iter()
-                .map(|&k| transmission_margin(t.segment(k).transmission_deg))
+                .map(|&k| transmission_margin(t.seg_transmission(k)))
                 .chain(
-                    h.arcs
-                        .iter()
-                        .map(|&k| transmission_margin(t.arc(k).transmission_deg)),
+                    arcs.iter()
+                        .map(|&k| transmission_margin(t.arc_transmission(k))),
                 )
                 .fold(f64::NEG_INFINITY, f64::max),
-            SortKey::Turn => -max(&mut h.arcs.iter().map(|&k| t.arc(k).turn_deg)),
-            SortKey::Radius => min(&mut h.arcs.iter().map(|&k| t.arc(k).radius)),
-            SortKey::Velocity => min(&mut h
-                .straight
-                .iter()
-                .map(|&k| t.segment(k).velocity_variation_pct)),
+            SortKey::Turn => -max(&mut arcs.iter().map(|&k| t.arc_turn(k))),
+            SortKey::Radius => min(&mut arcs.iter().map(|&k| t.arc_radius(k))),
+            SortKey::Velocity => min(&mut straight.iter().map(|&k| t.seg_velocity(k))),
         }
     }
 
     /// Hit of row `r` (number `i`), if it passes. Row fields read here beyond those
     /// [`Query::reads_row`] names must be added there.
     pub(crate) fn matches(&self, t: &impl Features, i: usize, r: &CurveRow) -> Option<Hit> {
+        let mut m = Matched::default();
+        if !self.eval(t, r, &mut m) {
+            return None;
+        }
+        Some(Hit {
+            row: i,
+            straight: m.straight,
+            arcs: m.arcs,
+        })
+    }
+
+    /// Whether row `r` passes, its matching segments and arcs (as [`Hit`] gives them)
+    /// left in `m` (whose lists are reused from row to row: a scan allocates nothing per
+    /// row). The one test behind [`Query::matches`] and the columns' scan. Row fields
+    /// read here beyond those [`Query::reads_row`] names, and feature fields beyond those
+    /// [`Query::reads_features`] names, must be added there.
+    pub(crate) fn eval(&self, t: &impl Features, r: &CurveRow, m: &mut Matched) -> bool {
+        m.straight.clear();
+        m.arcs.clear();
         if let Some(c) = self.class {
             if r.class != c {
-                return None;
+                return false;
             }
         }
         if let Some(c) = self.circuit {
             if r.circuit != c {
-                return None;
+                return false;
             }
         }
         if let Some(l) = &self.linkage {
             if !same_linkage(&r.linkage, l) {
-                return None;
+                return false;
             }
         }
-        if let Some(m) = self.min_transmission_deg {
-            if r.transmission_deg[0] < m || r.transmission_deg[1] > 180.0 - m {
-                return None;
+        if let Some(mt) = self.min_transmission_deg {
+            if r.transmission_deg[0] < mt || r.transmission_deg[1] > 180.0 - mt {
+                return false;
             }
         }
         if self.symmetric && !r.symmetric {
-            return None;
+            return false;
         }
         if r.trivial && !self.include_trivial {
-            return None;
+            return false;
         }
         // Arc and segment measures filter the arcs or segments; given alone, they ask for one.
         let want_straight = self.straight.is_some() || self.max_velocity_variation_pct.is_some();
@@ -670,93 +758,99 @@ impl Query {
             && !(want_straight || want_arc || self.double_dwell);
         let wants_features = want_straight || want_arc || self.double_dwell || want_any;
         if wants_features && !r.has_features {
-            return None;
+            return false;
         }
-        let pass = |f: &Option<SpanFilter>, span: f64, err: f64| match f {
-            Some(f) => span >= f.min_span_deg && err <= f.max_error_pct,
-            None => true,
-        };
+        // Each field is read only if a filter tests it (`reads_features`).
+        fn pass(f: &Option<SpanFilter>, span: impl Fn() -> f64, err: impl Fn() -> f64) -> bool {
+            f.is_none_or(|f| span() >= f.min_span_deg && err() <= f.max_error_pct)
+        }
         // NaN (unknown) never passes.
         let window_ok = |tr: [f64; 2]| {
             self.min_window_transmission_deg
-                .is_none_or(|m| transmission_margin(tr) >= m)
+                .is_none_or(|mw| transmission_margin(tr) >= mw)
         };
-        let straight: Vec<usize> = if want_straight || self.double_dwell || want_any {
-            (r.seg_start as usize..(r.seg_start + r.seg_count) as usize)
-                .filter(|&k| {
-                    let s = t.segment(k);
-                    pass(&self.straight, s.span_deg, s.straightness_pct)
-                        && window_ok(s.transmission_deg)
-                        && self
-                            .max_velocity_variation_pct
-                            .is_none_or(|m| s.velocity_variation_pct <= m)
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let arcs: Vec<usize> = if want_arc || self.double_dwell || want_any {
-            (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
-                .filter(|&k| {
-                    let a = t.arc(k);
-                    pass(&self.arc, a.span_deg, a.deviation_pct)
-                        && window_ok(a.transmission_deg)
-                        && self
-                            .radius
-                            .is_none_or(|[lo, hi]| lo <= a.radius && a.radius <= hi)
-                        && self.min_turn_deg.is_none_or(|m| a.turn_deg >= m)
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
-        if want_straight && straight.is_empty() {
-            return None;
+        let window = self.min_window_transmission_deg.is_some();
+        if want_straight || self.double_dwell || want_any {
+            for k in r.seg_start as usize..(r.seg_start + r.seg_count) as usize {
+                if pass(&self.straight, || t.seg_span(k), || t.seg_straightness(k))
+                    && (!window || window_ok(t.seg_transmission(k)))
+                    && self
+                        .max_velocity_variation_pct
+                        .is_none_or(|mv| t.seg_velocity(k) <= mv)
+                {
+                    m.straight.push(k);
+                }
+            }
         }
-        if want_arc && arcs.is_empty() {
-            return None;
+        if want_arc || self.double_dwell || want_any {
+            for k in r.arc_start as usize..(r.arc_start + r.arc_count) as usize {
+                if pass(&self.arc, || t.arc_span(k), || t.arc_deviation(k))
+                    && (!window || window_ok(t.arc_transmission(k)))
+                    && self.radius.is_none_or(|[lo, hi]| {
+                        let radius = t.arc_radius(k);
+                        lo <= radius && radius <= hi
+                    })
+                    && self.min_turn_deg.is_none_or(|mt| t.arc_turn(k) >= mt)
+                {
+                    m.arcs.push(k);
+                }
+            }
         }
-        if want_any && straight.is_empty() && arcs.is_empty() {
-            return None;
+        if want_straight && m.straight.is_empty() {
+            return false;
+        }
+        if want_arc && m.arcs.is_empty() {
+            return false;
+        }
+        if want_any && m.straight.is_empty() && m.arcs.is_empty() {
+            return false;
         }
         if self.double_dwell {
-            let two_lines = straight.len() >= 2;
+            let two_lines = m.straight.len() >= 2;
+            let arcs = &m.arcs;
             let pair = arcs.iter().enumerate().find_map(|(x, &p)| {
                 arcs[x + 1..].iter().find_map(|&q| {
-                    let (a, b) = (t.arc(p), t.arc(q));
-                    let equal = (a.radius - b.radius).abs()
-                        <= self.radius_tol_pct / 100.0 * a.radius.max(b.radius);
-                    (equal && a.concave == b.concave).then_some([p, q])
+                    let (a, b) = (t.arc_radius(p), t.arc_radius(q));
+                    let equal = (a - b).abs() <= self.radius_tol_pct / 100.0 * a.max(b);
+                    (equal && t.arc_concave(p) == t.arc_concave(q)).then_some([p, q])
                 })
             });
             match (two_lines, pair) {
-                (true, _) => {
-                    // Show the arcs that passed --arc if it was given, else the equal pair.
-                    let arcs = if want_arc {
-                        arcs
-                    } else {
-                        pair.map(|p| p.to_vec()).unwrap_or_default()
-                    };
-                    return Some(Hit {
-                        row: i,
-                        straight,
-                        arcs,
-                    });
+                // Show the arcs that passed --arc if it was given, else the equal pair.
+                (true, _) if want_arc => {}
+                (true, pair) | (false, pair @ Some(_)) => {
+                    m.arcs.clear();
+                    m.arcs.extend(pair.into_iter().flatten());
                 }
-                (false, Some(p)) => {
-                    return Some(Hit {
-                        row: i,
-                        straight,
-                        arcs: p.to_vec(),
-                    });
-                }
-                (false, None) => return None,
+                (false, None) => return false,
             }
         }
-        Some(Hit {
-            row: i,
-            straight,
-            arcs,
-        })
+        true
     }
+}
+
+/// Which fields of the segments and arcs a query reads ([`Query::reads_features`]);
+/// none unless the query reads segments (or arcs) at all ([`Query::wants`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct FeatureReads {
+    pub seg_span: bool,
+    pub seg_straightness: bool,
+    pub seg_velocity: bool,
+    pub seg_transmission: bool,
+    pub arc_span: bool,
+    pub arc_deviation: bool,
+    pub arc_radius: bool,
+    pub arc_turn: bool,
+    pub arc_side: bool,
+    pub arc_transmission: bool,
+}
+
+/// The matching segments and arcs of a row ([`Query::eval`]), as indices into the
+/// table's (or the columns') segments and arcs.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Matched {
+    /// Matching straight segments.
+    pub straight: Vec<usize>,
+    /// Matching arcs.
+    pub arcs: Vec<usize>,
 }

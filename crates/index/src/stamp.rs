@@ -153,6 +153,6 @@ pub fn index_key(
     if let Some(key) = id.and_then(|id| read_stamp(&stamp, id)) {
         return Ok((key, None));
     }
-    let key = IndexKey::of_reader(file)?;
+    let key = IndexKey::of_file(file)?;
     Ok((key, id.map(|id| PendingStamp { stamp, id, key })))
 }
