@@ -14,8 +14,8 @@ use coupler_layout::{
     layout_contents, layout_page,
 };
 use coupler_render::{
-    Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, RasterPage, SvgPage, draw,
-    write_pdf,
+    Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, PngCompression, RasterPage,
+    SvgPage, draw, write_pdf,
 };
 use coupler_specs::{PageSettings, Sampling, Spec};
 use rayon::prelude::*;
@@ -33,6 +33,8 @@ pub struct PageOptions {
     /// File name stem (the spec's name): pages are `STEM-0001.png`, contents
     /// `STEM-0000-contents-001.png` (so that they come first in file order).
     pub stem: String,
+    /// How hard PNG pages are compressed (same pixels either way).
+    pub png_compression: PngCompression,
 }
 
 impl PageOptions {
@@ -67,6 +69,7 @@ impl PageOptions {
             setup,
             formats: vec![PageFormat::Png],
             stem: name.to_string(),
+            png_compression: PngCompression::Fast,
         })
     }
 
@@ -219,7 +222,7 @@ fn emit(
                 draw(display, &mut buf);
                 t = PageTimings::add(&timings.draw, t);
                 let mut bytes = Vec::with_capacity(1 << 19);
-                let r = buf.finish_png(&mut bytes);
+                let r = buf.finish_png_with(opts.png_compression, &mut bytes);
                 pool.give(buf);
                 r.map_err(PageError::Png)?;
                 t = PageTimings::add(&timings.encode, t);
@@ -677,8 +680,14 @@ impl Renderer for PageRenderer {
 
     fn settings(&self) -> String {
         let s = &self.opts.setup;
+        // The default compression adds nothing, so that runs made before the choice
+        // existed keep their key.
+        let png = match self.opts.png_compression {
+            PngCompression::Fast => String::new(),
+            c => format!(" png {}", c.name()),
+        };
         format!(
-            "pages {} formats {:?} {} dpi {} margin {} pt dash {}°×{} tolerance {} px curves/page {} stem {}",
+            "pages {} formats {:?} {} dpi {} margin {} pt dash {}°×{} tolerance {} px curves/page {} stem {}{png}",
             env!("CARGO_PKG_VERSION"),
             self.opts.formats,
             s.dpi,
