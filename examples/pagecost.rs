@@ -6,9 +6,11 @@
 //! and prints the median per-page time of each phase and primitive kind. A digest of all
 //! PNG bytes shows whether a change kept the pages byte-identical; with OUT, the pages are
 //! also written there (`page-NNNN.png`) for `cmp`.
-use coupler_atlas::generate::{Job, PageJob, PageOptions, PageTimings, compute_group, median};
+use coupler_atlas::generate::{
+    Job, PageJob, PageOptions, PageTimings, compute_group, median, thread_cpu_seconds,
+};
 use coupler_atlas::layout::{Anchor, DisplayList, Ink, PagePoint};
-use coupler_atlas::render::{Canvas, RasterPage, draw};
+use coupler_atlas::render::{Canvas, PngCompression, RasterPage, draw};
 use coupler_atlas::{AngleTables, Spec};
 use std::time::Instant;
 
@@ -124,6 +126,7 @@ fn main() {
     let mut buf = RasterPage::new(w, h, opts.setup.dpi).expect("page");
     let mut runs: Vec<[f64; KINDS.len()]> = Vec::new();
     let mut totals = Vec::new();
+    let mut cpu = Vec::new();
     let mut digest = 0xcbf2_9ce4_8422_2325u64;
     let mut bytes_total = 0usize;
     if let Some(o) = &out {
@@ -132,6 +135,7 @@ fn main() {
     for rep in 0..reps {
         let mut ns = [0.0; KINDS.len()];
         let t0 = Instant::now();
+        let c0 = thread_cpu_seconds().unwrap_or(0.0);
         for (number, display) in &pages {
             let t = Instant::now();
             buf.clear();
@@ -145,8 +149,7 @@ fn main() {
                 *a += b;
             }
             let t = Instant::now();
-            let mut bytes = Vec::with_capacity(1 << 19);
-            buf.finish_png(&mut bytes).expect("encodes");
+            let bytes = buf.take_png(PngCompression::Fast).expect("encodes");
             ns[8] += t.elapsed().as_nanos() as f64;
             if rep == 0 {
                 bytes_total += bytes.len();
@@ -160,6 +163,7 @@ fn main() {
             }
         }
         totals.push(t0.elapsed().as_secs_f64() * 1e3 / n);
+        cpu.push((thread_cpu_seconds().unwrap_or(0.0) - c0) * 1e3 / n);
         runs.push(ns);
     }
     if let Ok(k) = std::env::var("PAGE_ITEMS") {
@@ -196,8 +200,9 @@ fn main() {
         bytes_total as f64 / n / 1e3
     );
     println!(
-        "per page (median of {reps}): {:.2} ms in all",
-        median(totals.clone())
+        "per page (median of {reps}): {:.2} ms wall, {:.2} ms CPU; by kind (wall):",
+        median(totals.clone()),
+        median(cpu.clone())
     );
     for (k, name) in KINDS.iter().enumerate() {
         let v: Vec<f64> = runs.iter().map(|r| r[k] * 1e-6 / n).collect();

@@ -221,10 +221,10 @@ fn emit(
                 let mut buf = pool.take(w, h, opts.setup.dpi)?;
                 draw(display, &mut buf);
                 t = PageTimings::add(&timings.draw, t);
-                let mut bytes = Vec::with_capacity(1 << 19);
-                let r = buf.finish_png_with(opts.png_compression, &mut bytes);
+                // Encoded, and the buffer cleared on the way, for the next page.
+                let r = buf.take_png(opts.png_compression);
                 pool.give(buf);
-                r.map_err(PageError::Png)?;
+                let bytes = r.map_err(PageError::Png)?;
                 t = PageTimings::add(&timings.encode, t);
                 out.push((format, bytes));
             }
