@@ -3,8 +3,8 @@
 use super::{Canvas, anchored_x};
 use crate::dirty::Dirty;
 use ab_glyph::{Font, FontRef, Glyph, Outline, OutlinedGlyph, ScaleFont, point};
-use std::collections::HashMap;
 use coupler_layout::{self as font, Anchor, Ink, OutlineCmd, PT_PER_INCH, PagePoint};
+use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, LineCap, LineJoin, Mask, PathBuilder, Stroke, Transform};
 
