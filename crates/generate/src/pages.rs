@@ -24,7 +24,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// How to render an atlas's pages.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, PartialEq)]
 pub struct PageOptions {
     /// Layout settings (size, DPI, dash pattern, header/footer text).
     pub setup: PageSetup,
@@ -35,6 +35,21 @@ pub struct PageOptions {
     pub stem: String,
     /// How hard PNG pages are compressed (same pixels either way).
     pub png_compression: PngCompression,
+}
+
+/// As derived, but the PNG compression is shown only when it is not the default, so that
+/// run keys made from this text before the choice existed stay the same.
+impl std::fmt::Debug for PageOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("PageOptions");
+        d.field("setup", &self.setup)
+            .field("formats", &self.formats)
+            .field("stem", &self.stem);
+        if self.png_compression != PngCompression::Fast {
+            d.field("png_compression", &self.png_compression);
+        }
+        d.finish()
+    }
 }
 
 impl PageOptions {
