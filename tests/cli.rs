@@ -383,3 +383,67 @@ fn index_flags_what_the_numerics_cannot_resolve() {
     assert!(!text_index.contains("\"flags\""));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn png_compression_best_writes_smaller_pages_with_the_same_pixels() {
+    let (fast, best) = (tmp("png-fast"), tmp("png-best"));
+    for (dir, level) in [(&fast, "fast"), (&best, "best")] {
+        let out = run(&[
+            "generate",
+            &spec("quick.toml"),
+            "--out",
+            dir.to_str().unwrap(),
+            "--png-compression",
+            level,
+            "--quiet",
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+    }
+    let mut names: Vec<_> = std::fs::read_dir(fast.join("pages"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    names.sort();
+    assert!(names.len() > 3, "{names:?}");
+    let (mut fast_bytes, mut best_bytes) = (0, 0);
+    for n in &names {
+        let (a, b) = (fast.join("pages").join(n), best.join("pages").join(n));
+        let (sa, sb) = (
+            std::fs::metadata(&a).unwrap().len(),
+            std::fs::metadata(&b).unwrap().len(),
+        );
+        assert_ne!(
+            std::fs::read(&a).unwrap(),
+            std::fs::read(&b).unwrap(),
+            "{n:?}"
+        );
+        let (ia, ib) = (image::open(&a).unwrap(), image::open(&b).unwrap());
+        assert_eq!(ia.color(), image::ColorType::L8, "{n:?}");
+        assert_eq!(ia.to_luma8(), ib.to_luma8(), "{n:?}: same pixels");
+        fast_bytes += sa;
+        best_bytes += sb;
+    }
+    assert!(
+        best_bytes * 10 < fast_bytes * 9,
+        "best {best_bytes} B is not clearly smaller than fast {fast_bytes} B"
+    );
+    // The choice is recorded: a rerun with the other one replaces the atlas.
+    let again = run(&[
+        "generate",
+        &spec("quick.toml"),
+        "--out",
+        best.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(again.status.success(), "{}", text(&again.stderr));
+    for n in &names {
+        let (a, b) = (fast.join("pages").join(n), best.join("pages").join(n));
+        assert_eq!(
+            std::fs::read(&a).unwrap(),
+            std::fs::read(&b).unwrap(),
+            "{n:?}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&fast);
+    let _ = std::fs::remove_dir_all(&best);
+}

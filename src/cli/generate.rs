@@ -9,7 +9,7 @@ use coupler_atlas::generate::{
 };
 use coupler_atlas::generate::{CurveJob, run_curve_set};
 use coupler_atlas::generate::{PageOptions, PageRenderer};
-use coupler_atlas::render::PageFormat;
+use coupler_atlas::render::{PageFormat, PngCompression};
 use coupler_atlas::{AtlasSpec, DEFAULT_SPEC_SOURCE, DEFAULT_SPEC_TEXT, Spec};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
@@ -45,6 +45,10 @@ pub struct JobArgs {
     /// Page size: tabloid, letter, a4, a3, optionally -landscape (default: the spec's).
     #[arg(long)]
     page_size: Option<String>,
+    /// PNG compression: fast (the default: pages are encoded as fast as they are drawn)
+    /// or best (smaller files for archiving, several times slower; the same pixels).
+    #[arg(long, value_parser = parse_png_compression)]
+    png_compression: Option<PngCompression>,
     /// Write into a folder that holds files coupler-atlas did not write (none of them is deleted).
     #[arg(long)]
     force: bool,
@@ -95,6 +99,9 @@ pub struct MergeArgs {
     /// Check that the shards' pages have this size.
     #[arg(long)]
     page_size: Option<String>,
+    /// Check that the shards' PNG pages have this compression (fast or best).
+    #[arg(long, value_parser = parse_png_compression)]
+    png_compression: Option<PngCompression>,
     /// Write into a folder that holds files coupler-atlas did not write (none of them is
     /// touched).
     #[arg(long)]
@@ -105,6 +112,10 @@ pub struct MergeArgs {
 }
 
 fn parse_shard(s: &str) -> Result<Shard, String> {
+    s.parse()
+}
+
+fn parse_png_compression(s: &str) -> Result<PngCompression, String> {
     s.parse()
 }
 
@@ -222,6 +233,9 @@ fn page_options(mut opts: PageOptions, args: &JobArgs) -> Result<PageOptions> {
         opts.setup.size = size
             .parse()
             .map_err(|e| UsageError(format!("--page-size: {e}")))?;
+    }
+    if let Some(c) = args.png_compression {
+        opts.png_compression = c;
     }
     opts.setup
         .validate()
@@ -417,18 +431,25 @@ fn job_from_shards(args: &MergeArgs) -> Result<(Job, Box<dyn Renderer>)> {
         ))
     })?;
     let spec = Spec::parse(&text, &id.source)?;
-    let job_args = JobArgs {
-        out: Some(args.out.clone()),
-        no_pages: id.pages.is_none(),
-        format: id
-            .pages
-            .as_ref()
-            .map(|p| p.formats.clone())
-            .unwrap_or_else(|| vec!["png".into()]),
-        dpi: id.pages.as_ref().map(|p| p.dpi),
-        page_size: id.pages.as_ref().map(|p| p.page_size.clone()),
-        force: args.force,
-    };
+    let job_args =
+        JobArgs {
+            out: Some(args.out.clone()),
+            no_pages: id.pages.is_none(),
+            format: id
+                .pages
+                .as_ref()
+                .map(|p| p.formats.clone())
+                .unwrap_or_else(|| vec!["png".into()]),
+            dpi: id.pages.as_ref().map(|p| p.dpi),
+            page_size: id.pages.as_ref().map(|p| p.page_size.clone()),
+            png_compression: match &id.pages {
+                Some(p) => Some(p.png_compression.parse().map_err(|e: String| {
+                    UsageError(format!("shard folder {}: {e}", d0.display()))
+                })?),
+                None => None,
+            },
+            force: args.force,
+        };
     let (job, renderer) = plan_grid(spec, id.source.clone(), text, &job_args, 1)?;
     // What the flags given to merge say must hold.
     if let Some(path) = &args.spec {
@@ -479,7 +500,19 @@ fn job_from_shards(args: &MergeArgs) -> Result<(Job, Box<dyn Renderer>)> {
             ));
         }
     }
-    if (args.format.is_some() || args.dpi.is_some() || args.page_size.is_some())
+    if let (Some(c), Some(p)) = (args.png_compression, &id.pages) {
+        if c.name() != p.png_compression {
+            wrong.push(format!(
+                "--png-compression {}, but the shards' pages are {}",
+                c.name(),
+                p.png_compression
+            ));
+        }
+    }
+    if (args.format.is_some()
+        || args.dpi.is_some()
+        || args.page_size.is_some()
+        || args.png_compression.is_some())
         && id.pages.is_none()
     {
         wrong.push("page flags, but the shards were made without pages".into());
@@ -493,7 +526,13 @@ fn job_from_shards(args: &MergeArgs) -> Result<(Job, Box<dyn Renderer>)> {
 fn describe_pages(p: &Option<coupler_atlas::generate::PageFlags>) -> String {
     match p {
         None => "no pages".into(),
-        Some(p) => format!("{} at {} dpi, {}", p.formats.join(","), p.dpi, p.page_size),
+        Some(p) => format!(
+            "{} at {} dpi, {}, {} PNG compression",
+            p.formats.join(","),
+            p.dpi,
+            p.page_size,
+            p.png_compression
+        ),
     }
 }
 

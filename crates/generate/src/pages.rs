@@ -14,8 +14,8 @@ use coupler_layout::{
     layout_contents, layout_page,
 };
 use coupler_render::{
-    Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, RasterPage, SvgPage, draw,
-    write_pdf,
+    Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, PngCompression, RasterPage,
+    SvgPage, draw, write_pdf,
 };
 use coupler_specs::{PageSettings, Sampling, Spec};
 use rayon::prelude::*;
@@ -24,7 +24,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 /// How to render an atlas's pages.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, PartialEq)]
 pub struct PageOptions {
     /// Layout settings (size, DPI, dash pattern, header/footer text).
     pub setup: PageSetup,
@@ -33,6 +33,23 @@ pub struct PageOptions {
     /// File name stem (the spec's name): pages are `STEM-0001.png`, contents
     /// `STEM-0000-contents-001.png` (so that they come first in file order).
     pub stem: String,
+    /// How hard PNG pages are compressed (same pixels either way).
+    pub png_compression: PngCompression,
+}
+
+/// As derived, but the PNG compression is shown only when it is not the default, so that
+/// run keys made from this text before the choice existed stay the same.
+impl std::fmt::Debug for PageOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut d = f.debug_struct("PageOptions");
+        d.field("setup", &self.setup)
+            .field("formats", &self.formats)
+            .field("stem", &self.stem);
+        if self.png_compression != PngCompression::Fast {
+            d.field("png_compression", &self.png_compression);
+        }
+        d.finish()
+    }
 }
 
 impl PageOptions {
@@ -67,6 +84,7 @@ impl PageOptions {
             setup,
             formats: vec![PageFormat::Png],
             stem: name.to_string(),
+            png_compression: PngCompression::Fast,
         })
     }
 
@@ -218,10 +236,10 @@ fn emit(
                 let mut buf = pool.take(w, h, opts.setup.dpi)?;
                 draw(display, &mut buf);
                 t = PageTimings::add(&timings.draw, t);
-                let mut bytes = Vec::with_capacity(1 << 19);
-                let r = buf.finish_png(&mut bytes);
+                // Encoded, and the buffer cleared on the way, for the next page.
+                let r = buf.take_png(opts.png_compression);
                 pool.give(buf);
-                r.map_err(PageError::Png)?;
+                let bytes = r.map_err(PageError::Png)?;
                 t = PageTimings::add(&timings.encode, t);
                 out.push((format, bytes));
             }
@@ -677,8 +695,14 @@ impl Renderer for PageRenderer {
 
     fn settings(&self) -> String {
         let s = &self.opts.setup;
+        // The default compression adds nothing, so that runs made before the choice
+        // existed keep their key.
+        let png = match self.opts.png_compression {
+            PngCompression::Fast => String::new(),
+            c => format!(" png {}", c.name()),
+        };
         format!(
-            "pages {} formats {:?} {} dpi {} margin {} pt dash {}°×{} tolerance {} px curves/page {} stem {}",
+            "pages {} formats {:?} {} dpi {} margin {} pt dash {}°×{} tolerance {} px curves/page {} stem {}{png}",
             env!("CARGO_PKG_VERSION"),
             self.opts.formats,
             s.dpi,

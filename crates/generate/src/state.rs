@@ -33,6 +33,17 @@ pub struct PageFlags {
     pub dpi: f64,
     /// Paper and orientation, e.g. `tabloid` or `a4-landscape`.
     pub page_size: String,
+    /// PNG compression, `fast` or `best` (recorded only when not `fast`, the default).
+    #[serde(default = "fast", skip_serializing_if = "is_fast")]
+    pub png_compression: String,
+}
+
+fn fast() -> String {
+    coupler_render::PngCompression::Fast.name().into()
+}
+
+fn is_fast(s: &String) -> bool {
+    *s == fast()
 }
 
 impl PageFlags {
@@ -46,6 +57,7 @@ impl PageFlags {
                 .collect(),
             dpi: opts.setup.dpi,
             page_size: opts.setup.size.to_string(),
+            png_compression: opts.png_compression.name().into(),
         }
     }
 }

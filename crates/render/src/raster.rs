@@ -2,8 +2,9 @@
 
 use super::{Canvas, anchored_x};
 use crate::dirty::Dirty;
-use ab_glyph::{Font, FontRef, Glyph, point};
+use ab_glyph::{Font, FontRef, Glyph, Outline, OutlinedGlyph, ScaleFont, point};
 use coupler_layout::{self as font, Anchor, Ink, OutlineCmd, PT_PER_INCH, PagePoint};
+use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, LineCap, LineJoin, Mask, PathBuilder, Stroke, Transform};
 
@@ -27,6 +28,10 @@ pub struct RasterPage {
     /// Scratch: the pieces (segments `a`, `b` with the reach `r` of the stroke around
     /// them, pixels) of the path being filled; empty: its bounds.
     pieces: Vec<Piece>,
+    /// Glyph outlines read from the font so far, by glyph id (the font never changes).
+    outlines: HashMap<u16, Option<Outline>>,
+    /// Size of the last PNG encoded, to size the next one's buffer.
+    last_png: usize,
 }
 
 /// A segment of a stroke and the stroke's half width, in pixels.
@@ -55,6 +60,23 @@ struct GrayLayer {
     mask: Mask,
     level: u8,
     dirty: Dirty,
+    /// [`overprint`] of `level` as a table by coverage and page ink (`c << 8 | d`), and
+    /// the level it was made for.
+    table: Vec<u8>,
+    table_level: Option<u8>,
+}
+
+impl GrayLayer {
+    /// Makes the compositing table of the current level.
+    fn make_table(&mut self) {
+        if self.table_level != Some(self.level) {
+            let g = u32::from(self.level);
+            self.table = (0..=u16::MAX)
+                .map(|i| overprint(i as u8, (i >> 8) as u8, g))
+                .collect();
+            self.table_level = Some(self.level);
+        }
+    }
 }
 
 /// How hard to compress PNG pages.
@@ -104,6 +126,8 @@ impl RasterPage {
             gray: None,
             dirty: Dirty::new(width_px as usize, height_px as usize),
             pieces: Vec::new(),
+            outlines: HashMap::new(),
+            last_png: 0,
         })
     }
 
@@ -149,27 +173,29 @@ impl RasterPage {
             return;
         }
         let stride = self.mask.width() as usize;
-        let ink = Ink::Gray(layer.level);
-        let src = layer.mask.data_mut();
+        layer.make_table();
+        let GrayLayer {
+            mask, dirty, table, ..
+        } = layer;
+        let src = mask.data_mut();
         let dst = self.mask.data_mut();
-        layer.dirty.for_each_span(|j, x0, x1| {
+        dirty.for_each_span(|j, x0, x1| {
             let row = j * stride;
             let (d_row, s_row) = (&mut dst[row + x0..row + x1], &mut src[row + x0..row + x1]);
-            // Most of the layer is empty: skip it eight bytes at a time.
-            for (d8, s8) in d_row.chunks_mut(8).zip(s_row.chunks_mut(8)) {
-                if s8.len() == 8 && u64::from_ne_bytes(s8[..8].try_into().unwrap_or([1; 8])) == 0 {
+            // Most of the layer is empty: skip it sixteen bytes at a time; elsewhere
+            // composite without branches (no coverage composites to the same value).
+            for (d16, s16) in d_row.chunks_mut(16).zip(s_row.chunks_mut(16)) {
+                if s16.iter().fold(0, |a, &s| a | s) == 0 {
                     continue;
                 }
-                for (d, s) in d8.iter_mut().zip(s8.iter_mut()) {
-                    if *s != 0 {
-                        *d = composite(*d, *s, ink);
-                        *s = 0;
-                    }
+                for (d, s) in d16.iter_mut().zip(s16.iter()) {
+                    *d = table[usize::from(*s) << 8 | usize::from(*d)];
                 }
+                s16.fill(0);
             }
         });
-        self.dirty.include(&layer.dirty);
-        layer.dirty.reset();
+        self.dirty.include(dirty);
+        dirty.reset();
     }
 
     /// Writes the page as an 8-bit grayscale PNG (paper white, ink black), fast
@@ -186,19 +212,57 @@ impl RasterPage {
         compression: PngCompression,
         out: impl Write,
     ) -> Result<(), png::EncodingError> {
-        self.flush_gray();
-        let (w, h, dpi) = (self.width(), self.height(), self.dpi);
+        let mut out = out;
         match compression {
             PngCompression::Fast => {
-                write_png_fast(self.mask.data(), w, h, dpi, &self.dirty, out)?;
+                let bytes = self.encode_fast(false)?;
+                out.write_all(&bytes)?;
                 Ok(())
             }
             PngCompression::Best => {
+                self.flush_gray();
                 let mut gray = self.mask.data().to_vec();
                 invert(&mut gray);
-                encode_png_best(&gray, w, h, dpi, out)
+                encode_png_best(&gray, self.width(), self.height(), self.dpi, out)
             }
         }
+    }
+
+    /// The page as an 8-bit grayscale PNG (the same bytes as [`RasterPage::finish_png_with`]),
+    /// and the page cleared for the next one: the fast encoder erases each row once it
+    /// has been read, while it is in cache, instead of in a pass of its own.
+    pub fn take_png(&mut self, compression: PngCompression) -> Result<Vec<u8>, png::EncodingError> {
+        let bytes = match compression {
+            PngCompression::Fast => self.encode_fast(true)?,
+            PngCompression::Best => {
+                let mut v = Vec::with_capacity(self.last_png);
+                self.finish_png_with(compression, &mut v)?;
+                self.clear();
+                v
+            }
+        };
+        self.last_png = bytes.len();
+        Ok(bytes)
+    }
+
+    /// The fast PNG of the page in one buffer sized from the last page's; with `clear`,
+    /// the page is left blank (and the ink black).
+    fn encode_fast(&mut self, clear: bool) -> std::io::Result<Vec<u8>> {
+        self.flush_gray();
+        let (w, h, dpi) = (self.width(), self.height(), self.dpi);
+        let capacity = if self.last_png == 0 {
+            1 << 19
+        } else {
+            self.last_png + self.last_png / 8 + 4096
+        };
+        let data = self.mask.data_mut();
+        let bytes = write_png_fast(data, w, h, dpi, &self.dirty, clear, capacity)?;
+        if clear {
+            self.dirty.reset();
+            self.ink = Ink::Black;
+        }
+        self.last_png = bytes.len();
+        Ok(bytes)
     }
 
     /// The page as 8-bit gray levels (255 = paper), a new buffer.
@@ -278,6 +342,8 @@ impl RasterPage {
                         mask: Mask::new(w, h).expect("same size as the page"),
                         level,
                         dirty: Dirty::new(w as usize, h as usize),
+                        table: Vec::new(),
+                        table_level: None,
                     }),
                 };
                 layer.level = level;
@@ -336,14 +402,21 @@ impl RasterPage {
 /// black), in integers (deterministic): black and grays overprint (`dst + (255 − dst)·c·g`,
 /// never lighter), paper erases (`dst·(1 − c)`).
 fn composite(dst: u8, c: u8, ink: Ink) -> u8 {
-    let (d, c) = (u32::from(dst), u32::from(c));
     match ink {
-        Ink::Paper => (d - (d * c + 127) / 255) as u8,
-        ink => {
-            let g = u32::from(ink.level());
-            (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
+        Ink::Paper => {
+            let (d, c) = (u32::from(dst), u32::from(c));
+            (d - (d * c + 127) / 255) as u8
         }
+        ink => overprint(dst, c, u32::from(ink.level())),
     }
+}
+
+/// Ink of level `g` (0..=255) with coverage `c` over the page's ink `dst`: `dst` when
+/// `c` is 0.
+#[inline(always)]
+fn overprint(dst: u8, c: u8, g: u32) -> u8 {
+    let (d, c) = (u32::from(dst), u32::from(c));
+    (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
 }
 
 /// `x ← 255 − x` over a buffer (vectorises).
@@ -386,7 +459,10 @@ pub fn encode_png_with(
                 // Gray in: the same encoder on the ink it shows.
                 invert(&mut v);
             }
-            write_png_fast(&v, width, height, dpi, &all, out)?;
+            let capacity = v.len() / 4;
+            let bytes = write_png_fast(&mut v, width, height, dpi, &all, false, capacity)?;
+            let mut out = out;
+            out.write_all(&bytes)?;
             Ok(())
         }
         PngCompression::Best => {
@@ -407,18 +483,37 @@ fn ppm(dpi: f64) -> u32 {
 /// filter and fdeflate's PNG-tuned fast mode, the inversion folded into the filter:
 /// filtered = gray(row) − gray(row above) = ink(row above) − ink(row). Outside the blocks
 /// `dirty` marks (in this row or the one above) both rows are paper and the filtered bytes
-/// are 0, so only marked spans are computed; deflate sees runs of zeros there.
+/// are 0, so only marked spans are computed; deflate sees runs of zeros there. With
+/// `clear`, each row's marked spans are zeroed once the row below has been filtered (the
+/// buffer ends blank). The file is built in one buffer of `capacity` bytes to start with.
 fn write_png_fast(
-    ink: &[u8],
+    ink: &mut [u8],
     width: u32,
     height: u32,
     dpi: f64,
     dirty: &Dirty,
-    mut out: impl Write,
-) -> std::io::Result<()> {
+    clear: bool,
+    capacity: usize,
+) -> std::io::Result<Vec<u8>> {
     let (w, h) = (width as usize, height as usize);
     assert_eq!(ink.len(), w * h, "buffer size");
-    let mut z = fdeflate::Compressor::new(Vec::with_capacity(1 << 19))?;
+    let mut out = Vec::with_capacity(capacity);
+    out.extend_from_slice(&[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a]);
+    let mut ihdr = Vec::with_capacity(13);
+    ihdr.extend_from_slice(&width.to_be_bytes());
+    ihdr.extend_from_slice(&height.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]); // 8-bit grayscale, deflate, no interlace
+    write_chunk(&mut out, b"IHDR", &ihdr)?;
+    let mut phys = Vec::with_capacity(9);
+    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
+    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
+    phys.push(1); // metre
+    write_chunk(&mut out, b"pHYs", &phys)?;
+    // The IDAT chunk: its length is patched in once the stream is written.
+    let idat = out.len();
+    out.extend_from_slice(&[0, 0, 0, 0]);
+    out.extend_from_slice(b"IDAT");
+    let mut z = fdeflate::Compressor::new(out)?;
     let mut row = vec![0u8; w + 1];
     row[0] = 2; // Up
     if h > 0 {
@@ -430,7 +525,7 @@ fn write_png_fast(
         row[1..].fill(0);
     }
     for j in 1..h {
-        let (above, this) = (&ink[(j - 1) * w..j * w], &ink[j * w..(j + 1) * w]);
+        let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
         for (x0, x1) in dirty.row_pair_spans(j) {
             for ((o, a), b) in row[1 + x0..1 + x1]
                 .iter_mut()
@@ -439,26 +534,28 @@ fn write_png_fast(
             {
                 *o = a.wrapping_sub(*b);
             }
+            if clear {
+                above[x0..x1].fill(0);
+            }
         }
         z.write_data(&row)?;
         for (x0, x1) in dirty.row_pair_spans(j) {
             row[1 + x0..1 + x1].fill(0);
         }
     }
-    let idat = z.finish()?;
-    out.write_all(&[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a])?;
-    let mut ihdr = Vec::with_capacity(13);
-    ihdr.extend_from_slice(&width.to_be_bytes());
-    ihdr.extend_from_slice(&height.to_be_bytes());
-    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]); // 8-bit grayscale, deflate, no interlace
-    write_chunk(&mut out, b"IHDR", &ihdr)?;
-    let mut phys = Vec::with_capacity(9);
-    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
-    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
-    phys.push(1); // metre
-    write_chunk(&mut out, b"pHYs", &phys)?;
-    write_chunk(&mut out, b"IDAT", &idat)?;
-    write_chunk(&mut out, b"IEND", &[])
+    if clear && h > 0 {
+        let last = &mut ink[(h - 1) * w..];
+        for (x0, x1) in dirty.row_pair_spans(h - 1) {
+            last[x0..x1].fill(0);
+        }
+    }
+    let mut out = z.finish()?;
+    let len = u32::try_from(out.len() - idat - 8).map_err(std::io::Error::other)?;
+    out[idat..idat + 4].copy_from_slice(&len.to_be_bytes());
+    let crc = crc32fast::hash(&out[idat + 4..]);
+    out.extend_from_slice(&crc.to_be_bytes());
+    write_chunk(&mut out, b"IEND", &[])?;
+    Ok(out)
 }
 
 /// One PNG chunk: length, type, data, CRC-32 of type and data.
@@ -546,6 +643,27 @@ impl RasterPage {
     }
 }
 
+/// Chords of the circle of radius `r` about `c` (pixels) whose reach covers a stroke of
+/// half width `h` on it: the stroke lies within `h` plus the chords' sagitta of them, and
+/// half a pixel more is allowed for the curve's approximation by the path.
+fn ring_pieces(c: [f32; 2], r: f32, h: f32) -> Vec<Piece> {
+    let n = ((std::f32::consts::TAU * r / 16.0).ceil() as usize).clamp(8, 512);
+    let step = std::f32::consts::TAU / n as f32;
+    let sagitta = r * (1.0 - (0.5 * step).cos());
+    let reach = h + sagitta + 0.5;
+    let at = |k: usize| {
+        let t = k as f32 * step;
+        [c[0] + r * t.cos(), c[1] + r * t.sin()]
+    };
+    (0..n)
+        .map(|k| Piece {
+            a: at(k),
+            b: at(k + 1),
+            r: reach,
+        })
+        .collect()
+}
+
 impl Canvas for RasterPage {
     fn stroke_polyline(&mut self, points: &[PagePoint], width: f64) {
         self.stroke_paths(std::iter::once(points), width);
@@ -596,7 +714,10 @@ impl Canvas for RasterPage {
                     ..Stroke::default()
                 };
                 if let Some(outline) = path.stroke(&stroke, 1.0) {
+                    // A ring: marked chord by chord, not as its whole box.
+                    self.pieces = ring_pieces([x, y], r, 0.5 * stroke.width);
                     self.fill(&outline);
+                    self.pieces.clear();
                 }
             }
         }
@@ -650,9 +771,18 @@ impl Canvas for RasterPage {
                 scale,
                 position: point((x0 + g.x) as f32, y0 as f32),
             };
-            let Some(outlined) = self.font.outline_glyph(glyph) else {
+            // The same outline the font would give (`Font::outline_glyph`), read once.
+            let font = &self.font;
+            let Some(outline) = self
+                .outlines
+                .entry(g.id.0)
+                .or_insert_with(|| font.outline(g.id))
+                .clone()
+            else {
                 continue;
             };
+            let scale_factor = self.font.as_scaled(glyph.scale).scale_factor();
+            let outlined = OutlinedGlyph::new(glyph, outline, scale_factor);
             let b = outlined.px_bounds();
             let (bx, by) = (b.min.x as i64, b.min.y as i64);
             if ink != Ink::Paper {

@@ -1,0 +1,211 @@
+//! Where a raster page's CPU goes, by primitive kind, on pages of the default atlas:
+//! `cargo run --release --example pagecost -- [EVERY] [REPS] [OUT]`.
+//!
+//! Lays out every EVERY-th page of the built-in atlas (default 5: 175 of 875 pages) once,
+//! then draws and encodes them REPS times (default 3) on one reused buffer, one thread,
+//! and prints the median per-page time of each phase and primitive kind. A digest of all
+//! PNG bytes shows whether a change kept the pages byte-identical; with OUT, the pages are
+//! also written there (`page-NNNN.png`) for `cmp`.
+use coupler_atlas::generate::{
+    Job, PageJob, PageOptions, PageTimings, compute_group, median, thread_cpu_seconds,
+};
+use coupler_atlas::layout::{Anchor, DisplayList, Ink, PagePoint};
+use coupler_atlas::render::{Canvas, PngCompression, RasterPage, draw};
+use coupler_atlas::{AngleTables, Spec};
+use std::time::Instant;
+
+const KINDS: [&str; 10] = [
+    "dash sets",
+    "polylines",
+    "rects",
+    "polygons",
+    "circles",
+    "text",
+    "text + halo",
+    "clear",
+    "encode",
+    "gray flush",
+];
+
+/// Times every call by kind.
+struct Timed<'a> {
+    page: &'a mut RasterPage,
+    ns: [f64; KINDS.len()],
+}
+
+impl Timed<'_> {
+    fn time(&mut self, k: usize, f: impl FnOnce(&mut RasterPage)) {
+        let t = Instant::now();
+        f(self.page);
+        self.ns[k] += t.elapsed().as_nanos() as f64;
+    }
+}
+
+impl Canvas for Timed<'_> {
+    fn stroke_polyline(&mut self, points: &[PagePoint], width: f64) {
+        self.time(1, |p| p.stroke_polyline(points, width));
+    }
+    fn stroke_polylines(&mut self, lines: &[Vec<PagePoint>], width: f64) {
+        self.time(0, |p| p.stroke_polylines(lines, width));
+    }
+    fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
+        self.time(2, |p| p.stroke_rect(rect, width));
+    }
+    fn fill_polygon(&mut self, points: &[PagePoint]) {
+        self.time(3, |p| p.fill_polygon(points));
+    }
+    fn circle(&mut self, center: PagePoint, radius: f64, width: Option<f64>) {
+        self.time(4, |p| p.circle(center, radius, width));
+    }
+    fn text(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str, halo: f64) {
+        let k = if halo > 0.0 { 6 } else { 5 };
+        if halo > 0.0 {
+            // The gray layer is composited before a halo: timed on its own.
+            self.time(9, |p| {
+                p.ink();
+            });
+        }
+        self.time(k, |p| p.text(pos, size, anchor, text, halo));
+    }
+    fn set_ink(&mut self, ink: Ink) {
+        self.page.set_ink(ink);
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let every: usize = args.get(1).map_or(5, |s| s.parse().expect("EVERY"));
+    let reps: usize = args.get(2).map_or(3, |s| s.parse().expect("REPS"));
+    let out = args.get(3).map(std::path::PathBuf::from);
+    let spec = Spec::default_atlas();
+    let opts = PageOptions::from_spec(&spec).expect("page options");
+    let job = Job::new(spec, "default", "unused", 1);
+    let table = AngleTables::new(job.spec.sampling.crank_step_deg).expect("crank step");
+    let features = job
+        .spec
+        .features
+        .enabled
+        .then_some(&job.spec.features.tolerances);
+    let dash = job.spec.sampling.dash_pattern();
+    let per = opts.setup.curves_per_page.max(1);
+    let page_count = job.pages();
+    let timings = PageTimings::default();
+    let t = Instant::now();
+    let mut pages: Vec<(u64, DisplayList)> = Vec::new();
+    for g in job.groups() {
+        let curves = compute_group(&table, &g, features, &dash).expect("curves");
+        let feats: Vec<_> = curves.into_iter().map(|c| c.features).collect();
+        for (k, (pts, fs)) in g.points.chunks(per).zip(feats.chunks(per)).enumerate() {
+            let number = g.first_page + k as u64;
+            if (number - 1) % every as u64 != 0 {
+                continue;
+            }
+            let pj = PageJob {
+                linkage: g.linkage,
+                circuit: g.circuit,
+                points: pts,
+                grid: &g.points,
+                features: fs,
+                number,
+                page_count,
+            };
+            let layout = pj.layout(&opts.setup, &timings).expect("layout");
+            pages.push((number, layout.display));
+        }
+    }
+    let ([compute, layout, ..], _) = timings.seconds();
+    let n = pages.len() as f64;
+    println!(
+        "{} pages laid out in {:.1} s (per page: compute {:.2} ms, layout {:.2} ms)",
+        pages.len(),
+        t.elapsed().as_secs_f64(),
+        compute * 1e3 / n,
+        layout * 1e3 / n
+    );
+    let (w, h) = opts.setup.size_px();
+    let mut buf = RasterPage::new(w, h, opts.setup.dpi).expect("page");
+    let mut runs: Vec<[f64; KINDS.len()]> = Vec::new();
+    let mut totals = Vec::new();
+    let mut cpu = Vec::new();
+    let mut digest = 0xcbf2_9ce4_8422_2325u64;
+    let mut bytes_total = 0usize;
+    if let Some(o) = &out {
+        std::fs::create_dir_all(o).expect("out folder");
+    }
+    for rep in 0..reps {
+        let mut ns = [0.0; KINDS.len()];
+        let t0 = Instant::now();
+        let c0 = thread_cpu_seconds().unwrap_or(0.0);
+        for (number, display) in &pages {
+            let t = Instant::now();
+            buf.clear();
+            ns[7] += t.elapsed().as_nanos() as f64;
+            let mut timed = Timed {
+                page: &mut buf,
+                ns: [0.0; KINDS.len()],
+            };
+            draw(display, &mut timed);
+            for (a, b) in ns.iter_mut().zip(timed.ns) {
+                *a += b;
+            }
+            let t = Instant::now();
+            let bytes = buf.take_png(PngCompression::Fast).expect("encodes");
+            ns[8] += t.elapsed().as_nanos() as f64;
+            if rep == 0 {
+                bytes_total += bytes.len();
+                for b in &bytes {
+                    digest = (digest ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3);
+                }
+                if let Some(o) = &out {
+                    std::fs::write(o.join(format!("page-{number:04}.png")), &bytes)
+                        .expect("writes");
+                }
+            }
+        }
+        totals.push(t0.elapsed().as_secs_f64() * 1e3 / n);
+        cpu.push((thread_cpu_seconds().unwrap_or(0.0) - c0) * 1e3 / n);
+        runs.push(ns);
+    }
+    if let Ok(k) = std::env::var("PAGE_ITEMS") {
+        let (_, display) = &pages[k.parse::<usize>().expect("PAGE_ITEMS")];
+        let mut costs = Vec::new();
+        buf.clear();
+        for (i, item) in display.items.iter().enumerate() {
+            let mut one = DisplayList::new(display.width, display.height);
+            one.items.push(item.clone());
+            let mut best = f64::MAX;
+            for _ in 0..5 {
+                let t = Instant::now();
+                draw(&one, &mut buf);
+                best = best.min(t.elapsed().as_secs_f64() * 1e3);
+            }
+            costs.push((best, i));
+        }
+        costs.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (ms, i) in costs.iter().take(25) {
+            let ink = display.items[..*i]
+                .iter()
+                .rev()
+                .find_map(|p| match p {
+                    coupler_atlas::layout::Primitive::Ink(k) => Some(*k),
+                    _ => None,
+                })
+                .unwrap_or(Ink::Black);
+            let d = format!("{ink:?} {:?}", display.items[*i]);
+            println!("{ms:7.3} ms  #{i:4} {}", &d[..d.len().min(150)]);
+        }
+    }
+    println!(
+        "digest {digest:016x}, {:.0} KB per page",
+        bytes_total as f64 / n / 1e3
+    );
+    println!(
+        "per page (median of {reps}): {:.2} ms wall, {:.2} ms CPU; by kind (wall):",
+        median(totals.clone()),
+        median(cpu.clone())
+    );
+    for (k, name) in KINDS.iter().enumerate() {
+        let v: Vec<f64> = runs.iter().map(|r| r[k] * 1e-6 / n).collect();
+        println!("  {name:12} {:6.2} ms", median(v));
+    }
+}
