@@ -14,10 +14,10 @@
 use crate::font;
 use crate::labels::{LABEL_PAD, place_labels};
 use crate::page::{
-    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, PT_PER_INCH, PagePoint,
-    PageSetup, Primitive, WorldToPage, clip_segment, draw_dashes, draw_links, fit_into, fmt_num,
-    footer, footer_settings, frame_of, header, inset_rect, nice_inches_per_unit, pivot_labels,
-    scale_bar, start_marker, style, union,
+    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, Orientation, PT_PER_INCH,
+    PagePoint, PageSetup, Primitive, WorldToPage, clip_segment, draw_dashes, draw_links, fit_into,
+    fmt_num, footer, footer_settings, frame_for, header, inset_rect, nice_inches_per_unit,
+    pivot_labels, scale_bar, start_marker, style, union,
 };
 use coupler_features::CurveFeatures;
 use coupler_kinematics::{
@@ -87,6 +87,8 @@ pub struct PageGeometry {
     pub frame: [f64; 4],
     /// Where the linkage is drawn small (`None`: in the curves' frame, at their scale).
     pub inset: Option<Inset>,
+    /// The page's orientation (chosen here when the setup's is `auto`).
+    pub orientation: Orientation,
 }
 
 /// The mechanism at the drawn angle (crank-rockers assemble everywhere).
@@ -151,16 +153,18 @@ pub fn compute_page<M: Mechanism>(
     if !world[0].is_finite() {
         world = link;
     }
-    let frame = frame_of(setup);
-    let inner = inset_rect(frame, style::FRAME_PAD);
     let nice = nice_inches_per_unit();
-    let t_all = fit_into(union(world, link), inner, &nice);
-    let t_cur = fit_into(world, inner, &nice);
-    let (transform, inset) = if t_all.scale >= LINKAGE_SCALE_SHARE * t_cur.scale {
-        (t_all, None)
-    } else {
-        place_inset(world, link, &samples, inner, &nice)
-    };
+    // Each orientation the page may take (both under `auto`): the largest scale wins,
+    // portrait on a tie.
+    let mut best: Option<(WorldToPage, Option<Inset>, [f64; 4], Orientation)> = None;
+    for &o in setup.size.orientation.candidates() {
+        let frame = frame_for(setup, o);
+        let (t, inset) = fit_page(world, link, &samples, frame, &nice);
+        if best.as_ref().is_none_or(|b| t.scale > b.0.scale) {
+            best = Some((t, inset, frame, o));
+        }
+    }
+    let (transform, inset, frame, orientation) = best.expect("at least one orientation");
     let scale = transform.scale;
     let tol_world = setup.chord_tolerance_px / setup.px_per_pt() / scale;
     let curves = page
@@ -173,7 +177,28 @@ pub fn compute_page<M: Mechanism>(
         transform,
         frame,
         inset,
+        orientation,
     })
+}
+
+/// The curves' transform in `frame`: at the largest round scale at which the curves and
+/// the linkage fit, or, when the linkage would cost more than 20 % of the curves' own
+/// scale, the curves alone with the linkage in an inset.
+fn fit_page(
+    world: [f64; 4],
+    link: [f64; 4],
+    samples: &[(f64, f64)],
+    frame: [f64; 4],
+    nice: &[f64],
+) -> (WorldToPage, Option<Inset>) {
+    let inner = inset_rect(frame, style::FRAME_PAD);
+    let t_all = fit_into(union(world, link), inner, nice);
+    let t_cur = fit_into(world, inner, nice);
+    if t_all.scale >= LINKAGE_SCALE_SHARE * t_cur.scale {
+        (t_all, None)
+    } else {
+        place_inset(world, link, samples, inner, nice)
+    }
 }
 
 /// Caption height inside an inset, points.
@@ -529,6 +554,7 @@ pub fn layout_page<M: Mechanism>(
     geometry: &PageGeometry,
     setup: &PageSetup,
 ) -> PageLayout {
+    let setup = &setup.oriented(geometry.orientation);
     let (w, h) = setup.size_pt();
     let mut dl = DisplayList::new(w, h);
     let t = geometry.transform;

@@ -14,9 +14,9 @@ use crate::atlas::fmt_sig;
 use crate::atlas::{CurvePlacement, Inset, PageLayout, place_inset};
 use crate::font;
 use crate::page::{
-    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, PagePoint, PageSetup,
-    WorldToPage, draw_dashes, draw_links_width, fit_transform, fmt_num, footer_settings,
-    pivot_labels, rects_overlap, start_marker, style, union,
+    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, Orientation, PagePoint,
+    PageSetup, WorldToPage, draw_dashes, draw_links_width, fit_into, fmt_num, footer_settings,
+    frame_for, pivot_labels, rects_overlap, start_marker, style, union,
 };
 use coupler_features::{
     ClassicCurve, CrankWindow, LineDirection, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure,
@@ -79,6 +79,8 @@ pub struct ClassicGeometry {
     /// Where the linkage is drawn small, when at the curve's scale it would take most of
     /// the sheet (`None`: with the curve).
     pub inset: Option<Inset>,
+    /// The page's orientation (chosen here when the setup's is `auto`).
+    pub orientation: Orientation,
 }
 
 /// The pose the linkage is drawn in: the middle sample of the bracketed straight run (the
@@ -156,20 +158,25 @@ pub fn compute_classic(
     if !curve_world[0].is_finite() {
         curve_world = world;
     }
-    let (t_all, frame) = fit_transform(union(world, curve_world), setup, &NICE_INCHES_PER_UNIT);
-    let (t_cur, _) = fit_transform(curve_world, setup, &NICE_INCHES_PER_UNIT);
-    let (transform, inset) = if t_all.scale >= 0.8 * t_cur.scale {
-        (t_all, None)
-    } else {
+    // Each orientation the page may take (both under `auto`): the largest scale wins,
+    // portrait on a tie.
+    let mut best: Option<(WorldToPage, Option<Inset>, [f64; 4], Orientation)> = None;
+    for &o in setup.size.orientation.candidates() {
+        let frame = frame_for(setup, o);
         let inner = crate::page::inset_rect(frame, style::FRAME_PAD);
-        place_inset(
-            curve_world,
-            union(world, curve_world),
-            &samples,
-            inner,
-            &NICE_INCHES_PER_UNIT,
-        )
-    };
+        let all = union(world, curve_world);
+        let t_all = fit_into(all, inner, &NICE_INCHES_PER_UNIT);
+        let t_cur = fit_into(curve_world, inner, &NICE_INCHES_PER_UNIT);
+        let (t, inset) = if t_all.scale >= 0.8 * t_cur.scale {
+            (t_all, None)
+        } else {
+            place_inset(curve_world, all, &samples, inner, &NICE_INCHES_PER_UNIT)
+        };
+        if best.as_ref().is_none_or(|b| t.scale > b.0.scale) {
+            best = Some((t, inset, frame, o));
+        }
+    }
+    let (transform, inset, frame, orientation) = best.expect("at least one orientation");
     let tol = setup.chord_tolerance_px / setup.px_per_pt() / transform.scale;
     let mut legs = Vec::new();
     match &page.measured.range {
@@ -219,6 +226,7 @@ pub fn compute_classic(
         frame,
         drawn,
         inset,
+        orientation,
     })
 }
 
@@ -377,6 +385,7 @@ pub fn layout_classic(
     geometry: &ClassicGeometry,
     setup: &PageSetup,
 ) -> PageLayout {
+    let setup = &setup.oriented(geometry.orientation);
     let (w, h) = setup.size_pt();
     let mut dl = DisplayList::new(w, h);
     let t = geometry.transform;

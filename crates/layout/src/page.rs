@@ -128,21 +128,35 @@ impl std::str::FromStr for PaperSize {
     }
 }
 
-/// Portrait or landscape.
+/// Portrait, landscape, or chosen page by page.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Orientation {
     /// Long side vertical.
     Portrait,
     /// Long side horizontal.
     Landscape,
+    /// Each page takes the orientation that gives its curves the larger scale (portrait
+    /// on a tie, and for pages without curves: the contents).
+    Auto,
 }
 
 impl Orientation {
-    /// `"portrait"` or `"landscape"`.
+    /// `"portrait"`, `"landscape"` or `"auto"`.
     pub fn name(self) -> &'static str {
         match self {
             Orientation::Portrait => "portrait",
             Orientation::Landscape => "landscape",
+            Orientation::Auto => "auto",
+        }
+    }
+
+    /// The orientations a page may take: one, or both for [`Orientation::Auto`]
+    /// (portrait first: it wins ties).
+    pub fn candidates(self) -> &'static [Orientation] {
+        match self {
+            Orientation::Portrait => &[Orientation::Portrait],
+            Orientation::Landscape => &[Orientation::Landscape],
+            Orientation::Auto => &[Orientation::Portrait, Orientation::Landscape],
         }
     }
 }
@@ -155,18 +169,22 @@ impl std::fmt::Display for Orientation {
 
 impl std::str::FromStr for Orientation {
     type Err = String;
-    /// `portrait` or `landscape`.
+    /// `portrait`, `landscape` or `auto`.
     fn from_str(s: &str) -> Result<Orientation, String> {
         match s {
             "portrait" => Ok(Orientation::Portrait),
             "landscape" => Ok(Orientation::Landscape),
-            _ => Err(format!("must be `portrait` or `landscape`, got `{s}`")),
+            "auto" => Ok(Orientation::Auto),
+            _ => Err(format!(
+                "must be `portrait`, `landscape` or `auto`, got `{s}`"
+            )),
         }
     }
 }
 
 /// A page size: paper and orientation. Parses from `tabloid`, `letter`, `a4`, `a3`,
-/// optionally suffixed `-landscape` (or `-portrait`, the default).
+/// optionally suffixed `-landscape`, `-auto` (each page chooses) or `-portrait` (the
+/// default).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PageSize {
     /// Paper.
@@ -180,7 +198,7 @@ pub struct PageSize {
 pub enum LayoutError {
     /// Unknown page size name.
     #[error(
-        "unknown page size {0:?} (expected {names}, optionally with -landscape)",
+        "unknown page size {0:?} (expected {names}, optionally with -landscape or -auto)",
         names = PaperSize::names("or")
     )]
     UnknownPageSize(String),
@@ -207,6 +225,8 @@ impl std::str::FromStr for PageSize {
         let lower = s.trim().to_ascii_lowercase();
         let (name, orientation) = if let Some(n) = lower.strip_suffix("-landscape") {
             (n, Orientation::Landscape)
+        } else if let Some(n) = lower.strip_suffix("-auto") {
+            (n, Orientation::Auto)
         } else if let Some(n) = lower.strip_suffix("-portrait") {
             (n, Orientation::Portrait)
         } else {
@@ -224,17 +244,27 @@ impl std::fmt::Display for PageSize {
         match self.orientation {
             Orientation::Portrait => write!(f, "{}", self.paper.name()),
             Orientation::Landscape => write!(f, "{}-landscape", self.paper.name()),
+            Orientation::Auto => write!(f, "{}-auto", self.paper.name()),
         }
     }
 }
 
 impl PageSize {
-    /// (width, height) in points.
+    /// (width, height) in points (portrait for [`Orientation::Auto`]: the size of a
+    /// page that does not choose, such as the contents).
     pub fn size_pt(&self) -> (f64, f64) {
         let (w, h) = self.paper.portrait_pt();
         match self.orientation {
-            Orientation::Portrait => (w, h),
+            Orientation::Portrait | Orientation::Auto => (w, h),
             Orientation::Landscape => (h, w),
+        }
+    }
+
+    /// This paper in orientation `o`.
+    pub fn oriented(self, o: Orientation) -> PageSize {
+        PageSize {
+            paper: self.paper,
+            orientation: o,
         }
     }
 }
@@ -314,6 +344,15 @@ impl PageSetup {
     /// Page width and height in points.
     pub fn size_pt(&self) -> (f64, f64) {
         self.size.size_pt()
+    }
+
+    /// This setup with the page in orientation `o` (a page's own setup, once it has
+    /// chosen under [`Orientation::Auto`]).
+    pub fn oriented(&self, o: Orientation) -> PageSetup {
+        PageSetup {
+            size: self.size.oriented(o),
+            ..self.clone()
+        }
     }
 
     /// Device pixels per point.
@@ -459,6 +498,24 @@ impl DisplayList {
         }
     }
 
+    /// The raster size of this page at `dpi`, pixels (rounded).
+    pub fn size_px(&self, dpi: f64) -> (u32, u32) {
+        let k = dpi / PT_PER_INCH;
+        (
+            (self.width * k).round() as u32,
+            (self.height * k).round() as u32,
+        )
+    }
+
+    /// Portrait or landscape, by its size.
+    pub fn orientation(&self) -> Orientation {
+        if self.width > self.height {
+            Orientation::Landscape
+        } else {
+            Orientation::Portrait
+        }
+    }
+
     pub(crate) fn line(&mut self, points: Vec<PagePoint>, width: f64) {
         self.items.push(Primitive::Polyline { points, width });
     }
@@ -545,7 +602,12 @@ pub(crate) fn nice_inches_per_unit() -> Vec<f64> {
 }
 
 pub(crate) fn frame_of(setup: &PageSetup) -> [f64; 4] {
-    let (w, h) = setup.size_pt();
+    frame_for(setup, setup.size.orientation)
+}
+
+/// The frame of a page of `setup` in orientation `o`.
+pub(crate) fn frame_for(setup: &PageSetup, o: Orientation) -> [f64; 4] {
+    let (w, h) = setup.size.oriented(o).size_pt();
     let m = setup.margin_pt;
     [
         m,
@@ -562,22 +624,6 @@ pub(crate) fn union(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
         a[2].max(b[2]),
         a[3].max(b[3]),
     ]
-}
-
-/// The frame of the page and the transform that centres `world` (a curve-unit box, padded
-/// by 2 % of its extent) in it
-/// at the largest round scale that fits (inches per unit from `nice`, ascending, so pages
-/// of similar linkages share a scale; the exact fit if even the smallest is too large).
-pub(crate) fn fit_transform(
-    world: [f64; 4],
-    setup: &PageSetup,
-    nice: &[f64],
-) -> (WorldToPage, [f64; 4]) {
-    let frame = frame_of(setup);
-    (
-        fit_into(world, inset_rect(frame, style::FRAME_PAD), nice),
-        frame,
-    )
 }
 
 /// `r` shrunk by `d` on every side.
