@@ -197,12 +197,15 @@ fn fit_page(
     if t_all.scale >= LINKAGE_SCALE_SHARE * t_cur.scale {
         (t_all, None)
     } else {
-        place_inset(world, link, samples, inner, nice)
+        place_inset(world, link, samples, inner, nice, INSET_CAPTION_SAMPLE)
     }
 }
 
 /// Caption height inside an inset, points.
 const INSET_CAPTION: f64 = 11.0;
+
+/// The inset's caption with the longest numbers it prints, for its width.
+const INSET_CAPTION_SAMPLE: &str = "linkage at θ = 0, crank 1 = 0.000 in (curves: 0.000 in)";
 
 /// The curves' transform and the inset: the inset box (about a third of the frame's
 /// width) goes into the corner where the curves, fitted to the whole frame, leave it
@@ -214,12 +217,18 @@ pub(crate) fn place_inset(
     samples: &[(f64, f64)],
     inner: [f64; 4],
     nice: &[f64],
+    caption: &str,
 ) -> (WorldToPage, Option<Inset>) {
     let (fw, fh) = (inner[2] - inner[0], inner[3] - inner[1]);
     let (lw, lh) = ((link[2] - link[0]).max(1e-9), (link[3] - link[1]).max(1e-9));
     let pad = 10.0;
     let s = ((0.36 * fw - 2.0 * pad) / lw).min((0.24 * fh - 2.0 * pad - INSET_CAPTION) / lh);
-    let (bw, bh) = (lw * s + 2.0 * pad, lh * s + 2.0 * pad + INSET_CAPTION);
+    // At least as wide as its caption (a tall linkage makes a narrow box).
+    let caption_w = font::text_width(style::SMALL_SIZE, caption) + 12.0;
+    let (bw, bh) = (
+        (lw * s + 2.0 * pad).max(caption_w),
+        lh * s + 2.0 * pad + INSET_CAPTION,
+    );
     let corner = |k: usize, area: [f64; 4]| -> [f64; 4] {
         let x0 = if k % 2 == 0 { area[0] } else { area[2] - bw };
         let y0 = if k < 2 { area[1] } else { area[3] - bh };

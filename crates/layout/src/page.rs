@@ -1102,29 +1102,39 @@ fn dash_sample(dl: &mut DisplayList, x: f64, y: f64, fraction: f64) -> f64 {
     x + 3.0 * unit + 4.0
 }
 
-/// A scale bar one unit (`scale` points) long at `(x, y)` + 2 pt, with a half tick, and
-/// `label` with `{}` replaced by the unit's length in inches.
+/// Longest scale bar drawn, points (3 in): a longer unit gets a bar for a round part
+/// of it.
+const SCALE_BAR_MAX: f64 = 216.0;
+
+/// A scale bar at `(x, y)` + 2 pt, with a half tick: one unit (`scale` points) long, or
+/// the largest of ½, ⅕, 1/10 … of a unit that is at most 3 in when a unit is longer
+/// (then marked with its fraction). `label` with `{}` replaced by the unit's length in
+/// inches follows it.
 pub(crate) fn scale_bar(dl: &mut DisplayList, x: f64, y: f64, scale: f64, label: &str) {
     let x0 = x + 2.0;
+    let part = [1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01]
+        .into_iter()
+        .find(|f| f * scale <= SCALE_BAR_MAX)
+        .unwrap_or(0.01);
+    let len = part * scale;
     dl.line(
-        vec![
-            [x0, y - 3.0],
-            [x0, y],
-            [x0 + scale, y],
-            [x0 + scale, y - 3.0],
-        ],
+        vec![[x0, y - 3.0], [x0, y], [x0 + len, y], [x0 + len, y - 3.0]],
         0.8,
     );
-    let half = [x0 + 0.5 * scale, y];
+    let half = [x0 + 0.5 * len, y];
     dl.line(vec![half, [half[0], y - 2.0]], 0.5);
+    let mut text = label.replace(
+        "{}",
+        &fmt_num((scale / PT_PER_INCH * 1000.0).round() / 1000.0),
+    );
+    if part < 1.0 {
+        text = format!("bar = {} unit;  {text}", fmt_num(part));
+    }
     dl.text(
-        [x0 + scale + 6.0, y + 1.0],
+        [x0 + len + 6.0, y + 1.0],
         style::SMALL_SIZE,
         Anchor::Start,
-        label.replace(
-            "{}",
-            &fmt_num((scale / PT_PER_INCH * 1000.0).round() / 1000.0),
-        ),
+        text,
     );
 }
 
