@@ -51,7 +51,6 @@ fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
     let groups: Vec<_> = job.groups().collect();
     let per = setup.curves_per_page;
     assert_eq!(per, row_len, "curves per page follows the row");
-    let frame = setup.frame_pt();
     // (pages, labels, labels on another curve's dashes, problems)
     let results: Vec<(usize, usize, usize, Vec<String>)> = groups
         .par_iter()
@@ -81,6 +80,8 @@ fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
                 };
                 let geo = compute_page(&page, setup).unwrap();
                 let lay = layout_page(&page, &geo, setup);
+                // The page's own frame (portrait or landscape, as it chose).
+                let frame = geo.frame;
                 if lay.label_failures > 0 {
                     bad.push(format!(
                         "page {number}: {} labels off the rule",

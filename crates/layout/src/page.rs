@@ -1145,7 +1145,11 @@ pub fn footer_settings(setup: &PageSetup) -> String {
         fmt_num(setup.dash.step_deg),
         fmt_num((setup.dash.fraction * 100.0).round()),
         fmt_num(setup.dpi),
-        setup.size,
+        // The page as printed: a page that did not choose (the contents) is portrait.
+        match setup.size.orientation {
+            Orientation::Auto => setup.size.oriented(Orientation::Portrait),
+            _ => setup.size,
+        },
         fmt_num(setup.chord_tolerance_px)
     );
     if !setup.settings.is_empty() {
