@@ -1042,6 +1042,42 @@ mod tests {
         }
     }
 
+    /// Under `auto` a page of wide curves turns landscape, at a larger scale than
+    /// portrait gives it, and everything stays in its own frame; a fixed orientation is
+    /// kept.
+    #[test]
+    fn auto_orientation_takes_the_larger_scale() {
+        use crate::page::{Orientation, PageSize, PaperSize};
+        // Hoeken's straight-line point: a long flat curve.
+        let mut pg = page();
+        pg.linkage = FourBar::new(2.5, 2.5, 2.0).unwrap();
+        pg.points = vec![CouplerPoint::new(5.0, 0.0)];
+        let fixed = |o| PageSetup {
+            size: PageSize {
+                paper: PaperSize::Tabloid,
+                orientation: o,
+            },
+            ..PageSetup::default()
+        };
+        let portrait = compute_page(&pg, &fixed(Orientation::Portrait)).unwrap();
+        let landscape = compute_page(&pg, &fixed(Orientation::Landscape)).unwrap();
+        assert_eq!(portrait.orientation, Orientation::Portrait);
+        assert!(landscape.transform.scale > portrait.transform.scale);
+        let setup = fixed(Orientation::Auto);
+        let auto = compute_page(&pg, &setup).unwrap();
+        assert_eq!(auto.orientation, Orientation::Landscape);
+        assert_eq!(auto.transform, landscape.transform);
+        let lay = layout_page(&pg, &auto, &setup);
+        assert_eq!((lay.display.width, lay.display.height), (1224.0, 792.0));
+        assert_eq!(lay.display.size_px(300.0), (5100, 3300));
+        let f = auto.frame;
+        assert!(f[2] > 1100.0, "{f:?}");
+        for c in &lay.curves {
+            let b = c.bbox_pt;
+            assert!(b[0] >= f[0] && b[1] >= f[1] && b[2] <= f[2] && b[3] <= f[3]);
+        }
+    }
+
     #[test]
     fn a_dash_shrunk_at_a_cusp_stays_a_countable_dot() {
         let setup = PageSetup::default();
