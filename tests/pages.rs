@@ -51,7 +51,6 @@ fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
     let groups: Vec<_> = job.groups().collect();
     let per = setup.curves_per_page;
     assert_eq!(per, row_len, "curves per page follows the row");
-    let frame = setup.frame_pt();
     // (pages, labels, labels on another curve's dashes, problems)
     let results: Vec<(usize, usize, usize, Vec<String>)> = groups
         .par_iter()
@@ -81,6 +80,8 @@ fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
                 };
                 let geo = compute_page(&page, setup).unwrap();
                 let lay = layout_page(&page, &geo, setup);
+                // The page's own frame (portrait or landscape, as it chose).
+                let frame = geo.frame;
                 if lay.label_failures > 0 {
                     bad.push(format!(
                         "page {number}: {} labels off the rule",
@@ -231,6 +232,146 @@ fn classic_branches_start_their_dashes_at_the_branch_start() {
             );
         }
     }
+}
+
+/// Distance from the rectangle `r` to the segment `a`–`b` (0 when they meet).
+fn rect_segment_distance(r: [f64; 4], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let inside = |p: [f64; 2]| p[0] >= r[0] && p[0] <= r[2] && p[1] >= r[1] && p[1] <= r[3];
+    if inside(a) || inside(b) {
+        return 0.0;
+    }
+    let corners = [[r[0], r[1]], [r[2], r[1]], [r[2], r[3]], [r[0], r[3]]];
+    let cross = |o: [f64; 2], p: [f64; 2], q: [f64; 2]| {
+        (p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0])
+    };
+    for k in 0..4 {
+        let (c, d) = (corners[k], corners[(k + 1) % 4]);
+        let (d1, d2) = (cross(a, b, c), cross(a, b, d));
+        let (d3, d4) = (cross(c, d, a), cross(c, d, b));
+        if d1 * d2 <= 0.0 && d3 * d4 <= 0.0 && (d1 != d2 || d3 != d4) {
+            return 0.0;
+        }
+    }
+    let point_segment = |p: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l2 = dx * dx + dy * dy;
+        let t = if l2 > 0.0 {
+            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
+    };
+    let mut d = rect_distance(r, a).min(rect_distance(r, b));
+    for c in corners {
+        d = d.min(point_segment(c, a, b));
+    }
+    d
+}
+
+/// Every classic page's bracket labels (`εₛ ≤ …: n°, k dashes`) keep clear of all ink:
+/// at least 1 pt from the curve's dashes, the ghost linkage, the input's path, the
+/// brackets, markers and frames (measured from the stroke's edge), and they overlap no
+/// other text.
+#[test]
+fn classic_bracket_labels_touch_no_ink() {
+    use coupler_atlas::layout::{
+        Anchor, Ink, Primitive, ascent, descent, layout_classic, text_width,
+    };
+    let text = std::fs::read_to_string(root().join("atlas-spec/classics.toml")).unwrap();
+    let list = CurveList::parse(&text, "classics.toml").unwrap();
+    let opts = PageOptions::from_settings(&list.name, &list.sampling, &list.pages).unwrap();
+    let n = list.curves.len();
+    let mut bad = Vec::new();
+    let mut labels = 0;
+    for (i, c) in list.curves.iter().enumerate() {
+        let measured = ClassicCurve::compute(c, list.sampling.crank_step_deg);
+        let page = ClassicPage {
+            curve: c.clone(),
+            measured,
+            page_number: i + 1,
+            page_count: n,
+            step_deg: list.sampling.crank_step_deg,
+        };
+        let geo = compute_classic(&page, &opts.setup).unwrap();
+        let lay = layout_classic(&page, &geo, &opts.setup);
+        // Ink as segments with their half widths; text as boxes.
+        let mut ink: Vec<([f64; 2], [f64; 2], f64)> = Vec::new();
+        let mut texts: Vec<([f64; 4], String, bool)> = Vec::new();
+        let mut paper = false;
+        for item in &lay.display.items {
+            match item {
+                Primitive::Ink(k) => paper = *k == Ink::Paper,
+                _ if paper => {}
+                Primitive::Polyline { points, width } => {
+                    for w in points.windows(2) {
+                        ink.push((w[0], w[1], 0.5 * width));
+                    }
+                }
+                Primitive::Polylines { lines, width } => {
+                    for l in lines {
+                        for w in l.windows(2) {
+                            ink.push((w[0], w[1], 0.5 * width));
+                        }
+                    }
+                }
+                Primitive::Rect { rect: r, width } => {
+                    let q = [[r[0], r[1]], [r[2], r[1]], [r[2], r[3]], [r[0], r[3]]];
+                    for k in 0..4 {
+                        ink.push((q[k], q[(k + 1) % 4], 0.5 * width));
+                    }
+                }
+                Primitive::Polygon { points } => {
+                    for k in 0..points.len() {
+                        ink.push((points[k], points[(k + 1) % points.len()], 0.0));
+                    }
+                }
+                Primitive::Circle {
+                    center,
+                    radius,
+                    width,
+                } => {
+                    let r = radius + width.map_or(0.0, |w| 0.5 * w);
+                    ink.push((*center, *center, r));
+                }
+                Primitive::Text {
+                    pos,
+                    size,
+                    anchor,
+                    text,
+                    halo,
+                } => {
+                    let w = text_width(*size, text);
+                    let x0 = match anchor {
+                        Anchor::Start => pos[0],
+                        Anchor::Middle => pos[0] - 0.5 * w,
+                        Anchor::End => pos[0] - w,
+                    };
+                    let r = [x0, pos[1] - ascent(*size), x0 + w, pos[1] + descent(*size)];
+                    let bracket =
+                        *halo > 0.0 && text.starts_with("εₛ ≤") && text.contains("dashes");
+                    texts.push((r, text.clone(), bracket));
+                }
+            }
+        }
+        for (r, label, _) in texts.iter().filter(|t| t.2) {
+            labels += 1;
+            let gap = ink
+                .iter()
+                .map(|(a, b, hw)| rect_segment_distance(*r, *a, *b) - hw)
+                .fold(f64::INFINITY, f64::min);
+            if gap < 1.0 {
+                bad.push(format!("{}: \"{label}\" is {gap:.2} pt from ink", c.name));
+            }
+            for (q, other, _) in &texts {
+                if other != label && overlap(*r, *q) {
+                    bad.push(format!("{}: \"{label}\" overlaps \"{other}\"", c.name));
+                }
+            }
+        }
+    }
+    assert!(labels >= 12, "{labels} bracket labels");
+    assert!(bad.is_empty(), "{} problems: {bad:#?}", bad.len());
 }
 
 // ---- the atlas PDF: parse what we wrote ------------------------------------------------

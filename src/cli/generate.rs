@@ -42,7 +42,7 @@ pub struct JobArgs {
     /// Raster resolution of pages, dots per inch (default: the spec's).
     #[arg(long)]
     dpi: Option<f64>,
-    /// Page size: tabloid, letter, a4, a3, optionally -landscape (default: the spec's).
+    /// Page size: tabloid, letter, a4, a3, optionally -landscape or -auto (each page chooses; default: the spec's).
     #[arg(long)]
     page_size: Option<String>,
     /// PNG compression: fast (the default: pages are encoded as fast as they are drawn)

@@ -10,8 +10,8 @@ use coupler_features::CurveFeatures;
 use coupler_index::{IndexCurve, PageRef};
 use coupler_kinematics::{AngleTables, Circuit, CouplerPoint, Linkage};
 use coupler_layout::{
-    ContentsEntry, CurvePlacement, DisplayList, LayoutError, LinkagePage, PageSetup, compute_page,
-    layout_contents, layout_page,
+    ContentsEntry, CurvePlacement, DisplayList, LayoutError, LinkagePage, Orientation, PageSetup,
+    compute_page, layout_contents, layout_page,
 };
 use coupler_render::{
     Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, PngCompression, RasterPage,
@@ -161,15 +161,21 @@ impl BufferPool {
         BufferPool::default()
     }
 
+    /// A cleared buffer of `w × h` pixels at `dpi`: a free one of that size, or a free
+    /// one turned to it (a portrait page's buffer serves a landscape page: same pixels),
+    /// else a new one.
     fn take(&self, w: u32, h: u32, dpi: f64) -> Result<RasterPage, PageError> {
         let found = self.free.lock().map(|mut v| v.pop()).unwrap_or(None);
-        match found {
-            Some(mut b) if b.width() == w && b.height() == h && b.dpi() == dpi => {
+        if let Some(mut b) = found.filter(|b| b.dpi() == dpi) {
+            if (b.width(), b.height()) == (w, h) {
                 b.clear();
-                Ok(b)
+                return Ok(b);
             }
-            _ => RasterPage::new(w, h, dpi).ok_or(PageError::EmptyRaster(w, h)),
+            if b.reshape(w, h) {
+                return Ok(b);
+            }
         }
+        RasterPage::new(w, h, dpi).ok_or(PageError::EmptyRaster(w, h))
     }
 
     fn give(&self, b: RasterPage) {
@@ -232,7 +238,8 @@ fn emit(
     for format in opts.page_formats() {
         match format {
             PageFormat::Png => {
-                let (w, h) = opts.setup.size_px();
+                // The page's own size: under `auto` each page is portrait or landscape.
+                let (w, h) = display.size_px(opts.setup.dpi);
                 let mut buf = pool.take(w, h, opts.setup.dpi)?;
                 draw(display, &mut buf);
                 t = PageTimings::add(&timings.draw, t);
@@ -263,6 +270,8 @@ pub struct RenderedPage {
     pub files: Vec<(String, Vec<u8>)>,
     /// Where each curve is on the page (points), in point order.
     pub curves: Vec<CurvePlacement>,
+    /// The page's orientation (its own under `auto`).
+    pub orientation: Orientation,
 }
 
 /// Encodes a laid-out page in every format and counts it.
@@ -282,6 +291,7 @@ fn finish_page(
     Ok(RenderedPage {
         files,
         curves: layout.curves.clone(),
+        orientation: layout.display.orientation(),
     })
 }
 
@@ -435,10 +445,13 @@ impl PageRenderer {
         let rendered = render_classic(&self.opts, &self.pool, &self.timings, page)
             .map_err(|e| self.failure(self.opts.page_file(number, self.first_format()), e))?;
         let place = match (rendered.files.first(), rendered.curves.first()) {
-            (Some(first), Some(c)) => Some(PageRef::new(
-                format!("pages/{}", first.0),
-                c.bbox_px(self.opts.setup.dpi).map(f64::from),
-            )),
+            (Some(first), Some(c)) => Some(PageRef {
+                orientation: Some(rendered.orientation.name().to_string()),
+                ..PageRef::new(
+                    format!("pages/{}", first.0),
+                    c.bbox_px(self.opts.setup.dpi).map(f64::from),
+                )
+            }),
             _ => None,
         };
         let files = rendered
@@ -454,8 +467,15 @@ impl PageRenderer {
 }
 
 /// A curve's place on its page, for the index.
-fn page_ref(file: &str, number: u64, c: &CurvePlacement, dpi: f64) -> PageRef {
+fn page_ref(
+    file: &str,
+    number: u64,
+    c: &CurvePlacement,
+    dpi: f64,
+    orientation: Orientation,
+) -> PageRef {
     PageRef {
+        orientation: Some(orientation.name().to_string()),
         file: file.to_string(),
         bbox_px: c.bbox_px(dpi).map(f64::from),
         number: Some(number),
@@ -629,7 +649,13 @@ impl Renderer for PageRenderer {
             };
             for (i, c) in page.curves.iter().enumerate() {
                 if let Some(ic) = curves.get_mut(k * per + i) {
-                    ic.page = Some(page_ref(&first, number, c, self.opts.setup.dpi));
+                    ic.page = Some(page_ref(
+                        &first,
+                        number,
+                        c,
+                        self.opts.setup.dpi,
+                        page.orientation,
+                    ));
                 }
             }
             out.extend(page.files.into_iter().map(|(name, bytes)| {

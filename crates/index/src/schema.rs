@@ -34,6 +34,10 @@ pub struct PageRef {
     /// Drawn as a gray ghost: the curve of a pin (the crank circle or the rocker arc).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub ghost: bool,
+    /// The page's orientation, `portrait` or `landscape` (pages choose their own under
+    /// `orientation = "auto"`); the pixel boxes are in that page's frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation: Option<String>,
 }
 
 impl PageRef {
@@ -47,6 +51,7 @@ impl PageRef {
             label_bbox_px: None,
             label: None,
             ghost: false,
+            orientation: None,
         }
     }
 }

@@ -14,10 +14,10 @@
 use crate::font;
 use crate::labels::{LABEL_PAD, place_labels};
 use crate::page::{
-    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, PT_PER_INCH, PagePoint,
-    PageSetup, Primitive, WorldToPage, clip_segment, draw_dashes, draw_links, fit_into, fmt_num,
-    footer, footer_settings, frame_of, header, inset_rect, nice_inches_per_unit, pivot_labels,
-    scale_bar, start_marker, style, union,
+    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, Orientation, PT_PER_INCH,
+    PagePoint, PageSetup, Primitive, WorldToPage, clip_segment, draw_dashes, draw_links, fit_into,
+    fmt_num, footer, footer_settings, frame_for, header, inset_rect, nice_inches_per_unit,
+    pivot_labels, scale_bar, start_marker, style, union,
 };
 use coupler_features::CurveFeatures;
 use coupler_kinematics::{
@@ -87,6 +87,8 @@ pub struct PageGeometry {
     pub frame: [f64; 4],
     /// Where the linkage is drawn small (`None`: in the curves' frame, at their scale).
     pub inset: Option<Inset>,
+    /// The page's orientation (chosen here when the setup's is `auto`).
+    pub orientation: Orientation,
 }
 
 /// The mechanism at the drawn angle (crank-rockers assemble everywhere).
@@ -151,16 +153,18 @@ pub fn compute_page<M: Mechanism>(
     if !world[0].is_finite() {
         world = link;
     }
-    let frame = frame_of(setup);
-    let inner = inset_rect(frame, style::FRAME_PAD);
     let nice = nice_inches_per_unit();
-    let t_all = fit_into(union(world, link), inner, &nice);
-    let t_cur = fit_into(world, inner, &nice);
-    let (transform, inset) = if t_all.scale >= LINKAGE_SCALE_SHARE * t_cur.scale {
-        (t_all, None)
-    } else {
-        place_inset(world, link, &samples, inner, &nice)
-    };
+    // Each orientation the page may take (both under `auto`): the largest scale wins,
+    // portrait on a tie.
+    let mut best: Option<(WorldToPage, Option<Inset>, [f64; 4], Orientation)> = None;
+    for &o in setup.size.orientation.candidates() {
+        let frame = frame_for(setup, o);
+        let (t, inset) = fit_page(world, link, &samples, frame, &nice);
+        if best.as_ref().is_none_or(|b| t.scale > b.0.scale) {
+            best = Some((t, inset, frame, o));
+        }
+    }
+    let (transform, inset, frame, orientation) = best.expect("at least one orientation");
     let scale = transform.scale;
     let tol_world = setup.chord_tolerance_px / setup.px_per_pt() / scale;
     let curves = page
@@ -173,11 +177,35 @@ pub fn compute_page<M: Mechanism>(
         transform,
         frame,
         inset,
+        orientation,
     })
+}
+
+/// The curves' transform in `frame`: at the largest round scale at which the curves and
+/// the linkage fit, or, when the linkage would cost more than 20 % of the curves' own
+/// scale, the curves alone with the linkage in an inset.
+fn fit_page(
+    world: [f64; 4],
+    link: [f64; 4],
+    samples: &[(f64, f64)],
+    frame: [f64; 4],
+    nice: &[f64],
+) -> (WorldToPage, Option<Inset>) {
+    let inner = inset_rect(frame, style::FRAME_PAD);
+    let t_all = fit_into(union(world, link), inner, nice);
+    let t_cur = fit_into(world, inner, nice);
+    if t_all.scale >= LINKAGE_SCALE_SHARE * t_cur.scale {
+        (t_all, None)
+    } else {
+        place_inset(world, link, samples, inner, nice, INSET_CAPTION_SAMPLE)
+    }
 }
 
 /// Caption height inside an inset, points.
 const INSET_CAPTION: f64 = 11.0;
+
+/// The inset's caption with the longest numbers it prints, for its width.
+const INSET_CAPTION_SAMPLE: &str = "linkage at θ = 0, crank 1 = 0.000 in (curves: 0.000 in)";
 
 /// The curves' transform and the inset: the inset box (about a third of the frame's
 /// width) goes into the corner where the curves, fitted to the whole frame, leave it
@@ -189,12 +217,18 @@ pub(crate) fn place_inset(
     samples: &[(f64, f64)],
     inner: [f64; 4],
     nice: &[f64],
+    caption: &str,
 ) -> (WorldToPage, Option<Inset>) {
     let (fw, fh) = (inner[2] - inner[0], inner[3] - inner[1]);
     let (lw, lh) = ((link[2] - link[0]).max(1e-9), (link[3] - link[1]).max(1e-9));
     let pad = 10.0;
     let s = ((0.36 * fw - 2.0 * pad) / lw).min((0.24 * fh - 2.0 * pad - INSET_CAPTION) / lh);
-    let (bw, bh) = (lw * s + 2.0 * pad, lh * s + 2.0 * pad + INSET_CAPTION);
+    // At least as wide as its caption (a tall linkage makes a narrow box).
+    let caption_w = font::text_width(style::SMALL_SIZE, caption) + 12.0;
+    let (bw, bh) = (
+        (lw * s + 2.0 * pad).max(caption_w),
+        lh * s + 2.0 * pad + INSET_CAPTION,
+    );
     let corner = |k: usize, area: [f64; 4]| -> [f64; 4] {
         let x0 = if k % 2 == 0 { area[0] } else { area[2] - bw };
         let y0 = if k < 2 { area[1] } else { area[3] - bh };
@@ -529,6 +563,7 @@ pub fn layout_page<M: Mechanism>(
     geometry: &PageGeometry,
     setup: &PageSetup,
 ) -> PageLayout {
+    let setup = &setup.oriented(geometry.orientation);
     let (w, h) = setup.size_pt();
     let mut dl = DisplayList::new(w, h);
     let t = geometry.transform;
@@ -1003,6 +1038,42 @@ mod tests {
         for c in &lay.curves {
             let b = c.bbox_pt;
             let f = geo.frame;
+            assert!(b[0] >= f[0] && b[1] >= f[1] && b[2] <= f[2] && b[3] <= f[3]);
+        }
+    }
+
+    /// Under `auto` a page of wide curves turns landscape, at a larger scale than
+    /// portrait gives it, and everything stays in its own frame; a fixed orientation is
+    /// kept.
+    #[test]
+    fn auto_orientation_takes_the_larger_scale() {
+        use crate::page::{Orientation, PageSize, PaperSize};
+        // Hoeken's straight-line point: a long flat curve.
+        let mut pg = page();
+        pg.linkage = FourBar::new(2.5, 2.5, 2.0).unwrap();
+        pg.points = vec![CouplerPoint::new(5.0, 0.0)];
+        let fixed = |o| PageSetup {
+            size: PageSize {
+                paper: PaperSize::Tabloid,
+                orientation: o,
+            },
+            ..PageSetup::default()
+        };
+        let portrait = compute_page(&pg, &fixed(Orientation::Portrait)).unwrap();
+        let landscape = compute_page(&pg, &fixed(Orientation::Landscape)).unwrap();
+        assert_eq!(portrait.orientation, Orientation::Portrait);
+        assert!(landscape.transform.scale > portrait.transform.scale);
+        let setup = fixed(Orientation::Auto);
+        let auto = compute_page(&pg, &setup).unwrap();
+        assert_eq!(auto.orientation, Orientation::Landscape);
+        assert_eq!(auto.transform, landscape.transform);
+        let lay = layout_page(&pg, &auto, &setup);
+        assert_eq!((lay.display.width, lay.display.height), (1224.0, 792.0));
+        assert_eq!(lay.display.size_px(300.0), (5100, 3300));
+        let f = auto.frame;
+        assert!(f[2] > 1100.0, "{f:?}");
+        for c in &lay.curves {
+            let b = c.bbox_pt;
             assert!(b[0] >= f[0] && b[1] >= f[1] && b[2] <= f[2] && b[3] <= f[3]);
         }
     }

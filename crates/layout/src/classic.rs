@@ -13,10 +13,11 @@
 use crate::atlas::fmt_sig;
 use crate::atlas::{CurvePlacement, Inset, PageLayout, place_inset};
 use crate::font;
+use crate::labels::InkSegments;
 use crate::page::{
-    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, PagePoint, PageSetup,
-    WorldToPage, draw_dashes, draw_links_width, fit_transform, fmt_num, footer_settings,
-    pivot_labels, rects_overlap, start_marker, style, union,
+    Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, Orientation, PagePoint,
+    PageSetup, Primitive, WorldToPage, draw_dashes, draw_links_width, fit_into, fmt_num,
+    footer_settings, frame_for, pivot_labels, rects_overlap, start_marker, style, union,
 };
 use coupler_features::{
     ClassicCurve, CrankWindow, LineDirection, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure,
@@ -79,6 +80,8 @@ pub struct ClassicGeometry {
     /// Where the linkage is drawn small, when at the curve's scale it would take most of
     /// the sheet (`None`: with the curve).
     pub inset: Option<Inset>,
+    /// The page's orientation (chosen here when the setup's is `auto`).
+    pub orientation: Orientation,
 }
 
 /// The pose the linkage is drawn in: the middle sample of the bracketed straight run (the
@@ -156,20 +159,32 @@ pub fn compute_classic(
     if !curve_world[0].is_finite() {
         curve_world = world;
     }
-    let (t_all, frame) = fit_transform(union(world, curve_world), setup, &NICE_INCHES_PER_UNIT);
-    let (t_cur, _) = fit_transform(curve_world, setup, &NICE_INCHES_PER_UNIT);
-    let (transform, inset) = if t_all.scale >= 0.8 * t_cur.scale {
-        (t_all, None)
-    } else {
+    // Each orientation the page may take (both under `auto`): the largest scale wins,
+    // portrait on a tie.
+    let mut best: Option<(WorldToPage, Option<Inset>, [f64; 4], Orientation)> = None;
+    for &o in setup.size.orientation.candidates() {
+        let frame = frame_for(setup, o);
         let inner = crate::page::inset_rect(frame, style::FRAME_PAD);
-        place_inset(
-            curve_world,
-            union(world, curve_world),
-            &samples,
-            inner,
-            &NICE_INCHES_PER_UNIT,
-        )
-    };
+        let all = union(world, curve_world);
+        let t_all = fit_into(all, inner, &NICE_INCHES_PER_UNIT);
+        let t_cur = fit_into(curve_world, inner, &NICE_INCHES_PER_UNIT);
+        let (t, inset) = if t_all.scale >= 0.8 * t_cur.scale {
+            (t_all, None)
+        } else {
+            place_inset(
+                curve_world,
+                all,
+                &samples,
+                inner,
+                &NICE_INCHES_PER_UNIT,
+                "the linkage and its curve, input 1 = 0.000 in",
+            )
+        };
+        if best.as_ref().is_none_or(|b| t.scale > b.0.scale) {
+            best = Some((t, inset, frame, o));
+        }
+    }
+    let (transform, inset, frame, orientation) = best.expect("at least one orientation");
     let tol = setup.chord_tolerance_px / setup.px_per_pt() / transform.scale;
     let mut legs = Vec::new();
     match &page.measured.range {
@@ -219,6 +234,7 @@ pub fn compute_classic(
         frame,
         drawn,
         inset,
+        orientation,
     })
 }
 
@@ -377,6 +393,7 @@ pub fn layout_classic(
     geometry: &ClassicGeometry,
     setup: &PageSetup,
 ) -> PageLayout {
+    let setup = &setup.oriented(geometry.orientation);
     let (w, h) = setup.size_pt();
     let mut dl = DisplayList::new(w, h);
     let t = geometry.transform;
@@ -558,12 +575,15 @@ pub fn layout_classic(
     dl.ink(Ink::Black);
     occ.build();
 
-    // Nested brackets: the 0.01 % run nearest the curve, then 0.1 %, then 1 %.
+    // Nested brackets: the 0.01 % run nearest the curve, then 0.1 %, then 1 %. Every
+    // bracket is drawn before any label is placed, so that no label is set where a later
+    // bracket runs.
     let centroid = if centroid[2] > 0.0 {
         [centroid[0] / centroid[2], centroid[1] / centroid[2]]
     } else {
         [0.5 * (frame[0] + frame[2]), 0.5 * (frame[1] + frame[3])]
     };
+    let mut brackets = Vec::new();
     for (i, s) in page.measured.straight.iter().enumerate().rev() {
         let Some(mut s) = *s else { continue };
         if mirror == Some(s.branch) {
@@ -578,13 +598,20 @@ pub fn layout_classic(
             fmt_sig(s.input_span_deg),
             fmt_sig(s.input_span_deg / step)
         );
-        let r = bracket(&mut dl, &t, &s, centroid, &taken, &occ, off, text);
-        taken.push(r);
+        brackets.push((bracket(&mut dl, &t, &s, centroid, off), text));
     }
 
-    // Markers last: each branch's start dot and arrowhead.
+    // Markers: each branch's start dot and arrowhead, above the curve.
     for (start, end, dir) in markers {
         bbox = union(bbox, start_marker(&mut dl, &t, start, end, dir));
+    }
+
+    // The bracket labels, clear of all the ink and text drawn so far.
+    let (mut ink, texts) = ink_and_text(&dl.items);
+    taken.extend(texts);
+    for (b, text) in brackets {
+        let r = bracket_label(&mut dl, &b, text, &mut ink, &taken, frame);
+        taken.push(r);
     }
 
     // The measures, in the frame corner with the least ink.
@@ -675,19 +702,25 @@ fn travel_direction(page: &ClassicPage, circuit: Circuit, d: &Dash) -> Vector2<f
     }
 }
 
-/// A bracket beside the straight run, on the side away from the curve's centroid, with
-/// ticks at its ends and the run's input span; returns the label's box.
-#[allow(clippy::too_many_arguments)]
+/// A bracket drawn beside a straight run: its middle on the bracket line, its outward
+/// normal and direction along it (unit), and its length (points).
+struct Bracket {
+    mid: PagePoint,
+    ends: [PagePoint; 2],
+    n: PagePoint,
+    u: PagePoint,
+    len: f64,
+}
+
+/// A bracket beside the straight run, `off` pt out on the side away from the curve's
+/// centroid, with ticks at its ends.
 fn bracket(
     dl: &mut DisplayList,
     t: &WorldToPage,
     s: &StraightMeasure,
     centroid: PagePoint,
-    taken: &[[f64; 4]],
-    occ: &Occupancy,
     off: f64,
-    text: String,
-) -> [f64; 4] {
+) -> Bracket {
     let a = t.map(s.ends[0][0], s.ends[0][1]);
     let b = t.map(s.ends[1][0], s.ends[1][1]);
     let len = libm::hypot(b[0] - a[0], b[1] - a[1]).max(1e-9);
@@ -697,19 +730,92 @@ fn bracket(
     if n[0] * (centroid[0] - mid[0]) + n[1] * (centroid[1] - mid[1]) > 0.0 {
         n = [-n[0], -n[1]];
     }
-    let base = off;
-    let off = |p: PagePoint, d: f64| [p[0] + n[0] * d, p[1] + n[1] * d];
-    dl.line(vec![off(a, base), off(a, base + 6.0)], 0.6);
-    dl.line(vec![off(b, base), off(b, base + 6.0)], 0.6);
-    dl.line(vec![off(a, base + 4.0), off(b, base + 4.0)], 0.6);
+    let at = |p: PagePoint, d: f64| [p[0] + n[0] * d, p[1] + n[1] * d];
+    dl.line(vec![at(a, off), at(a, off + 6.0)], 0.6);
+    dl.line(vec![at(b, off), at(b, off + 6.0)], 0.6);
+    dl.line(vec![at(a, off + 4.0), at(b, off + 4.0)], 0.6);
+    Bracket {
+        mid: at(mid, off + 4.0),
+        ends: [at(a, off + 4.0), at(b, off + 4.0)],
+        n,
+        u,
+        len,
+    }
+}
+
+/// The ink of `items` as strokes (what is drawn in paper is skipped), and the boxes of
+/// their texts.
+fn ink_and_text(items: &[Primitive]) -> (InkSegments, Vec<[f64; 4]>) {
+    let mut ink = InkSegments::default();
+    let mut texts = Vec::new();
+    let mut paper = false;
+    for item in items {
+        match item {
+            Primitive::Ink(k) => paper = *k == Ink::Paper,
+            _ if paper => {}
+            Primitive::Polyline { points, width } => ink.polyline(points, *width),
+            Primitive::Polylines { lines, width } => {
+                for l in lines {
+                    ink.polyline(l, *width);
+                }
+            }
+            Primitive::Rect { rect, width } => ink.rect(*rect, *width),
+            Primitive::Polygon { points } => {
+                let n = points.len();
+                for k in 0..n {
+                    ink.segment(points[k], points[(k + 1) % n], 0.0);
+                }
+            }
+            Primitive::Circle {
+                center,
+                radius,
+                width,
+            } => ink.disc(*center, radius + width.map_or(0.0, |w| 0.5 * w)),
+            Primitive::Text {
+                pos,
+                size,
+                anchor,
+                text,
+                ..
+            } => {
+                let w = font::text_width(*size, text);
+                let x0 = match anchor {
+                    Anchor::Start => pos[0],
+                    Anchor::Middle => pos[0] - 0.5 * w,
+                    Anchor::End => pos[0] - w,
+                };
+                texts.push([
+                    x0,
+                    pos[1] - font::ascent(*size),
+                    x0 + w,
+                    pos[1] + font::descent(*size),
+                ]);
+            }
+        }
+    }
+    (ink, texts)
+}
+
+/// Clear space kept between a bracket label and any ink, points.
+const BRACKET_LABEL_CLEAR: f64 = 2.0;
+
+/// Places and draws a bracket's label: beside the bracket's middle on its outer side if
+/// that is clear of all ink (by [`BRACKET_LABEL_CLEAR`]) and of other text, else the
+/// nearest clear place out from or along the bracket, with a hairline leader back to the
+/// bracket. Returns the label's box; its leader joins `ink`.
+fn bracket_label(
+    dl: &mut DisplayList,
+    b: &Bracket,
+    text: String,
+    ink: &mut InkSegments,
+    taken: &[[f64; 4]],
+    frame: [f64; 4],
+) -> [f64; 4] {
     let size = style::LABEL_SIZE;
     let tw = font::text_width(size, &text);
     let (asc, desc) = (font::ascent(size), font::descent(size));
-    // Horizontal text beside the bracket's middle, on its outer side: the nearest of a
-    // few distances out that covers no pivot label, then the least ink.
-    let mut best: Option<(u64, [f64; 4])> = None;
-    for (k, d) in [10.0, 20.0, 32.0, 46.0, 60.0].into_iter().enumerate() {
-        let at = off(mid, base + d);
+    // The box whose side towards the bracket (which lies towards −n) touches `at`.
+    let place = |at: PagePoint, n: PagePoint| {
         let x0 = if n[0] > 0.35 {
             at[0]
         } else if n[0] < -0.35 {
@@ -722,23 +828,83 @@ fn bracket(
         } else {
             at[1] - asc - desc
         };
-        let r = [x0 - 1.0, y0 - 1.0, x0 + tw + 1.0, y0 + asc + desc + 1.0];
-        let clash = taken.iter().filter(|q| rects_overlap(**q, r)).count() as u64;
-        let cost = clash * 1_000_000 + occ.cost(r).unwrap_or(500_000) * 10 + k as u64;
-        if best.is_none_or(|b| cost < b.0) {
-            best = Some((cost, r));
+        [x0, y0, x0 + tw, y0 + asc + desc]
+    };
+    // The leader from the bracket line (its point nearest the box's centre) to the box,
+    // stopping short of it; none when the box is beside the bracket.
+    let leader = |r: [f64; 4]| -> Option<(PagePoint, PagePoint)> {
+        let c = [0.5 * (r[0] + r[2]), 0.5 * (r[1] + r[3])];
+        let [e0, e1] = b.ends;
+        let (dx, dy) = (e1[0] - e0[0], e1[1] - e0[1]);
+        let l2 = (dx * dx + dy * dy).max(1e-12);
+        let s = (((c[0] - e0[0]) * dx + (c[1] - e0[1]) * dy) / l2).clamp(0.0, 1.0);
+        let from = [e0[0] + s * dx, e0[1] + s * dy];
+        let near = [from[0].clamp(r[0], r[2]), from[1].clamp(r[1], r[3])];
+        let d = libm::hypot(near[0] - from[0], near[1] - from[1]);
+        (d > 10.0).then(|| {
+            let k = (d - 1.5 - BRACKET_LABEL_CLEAR) / d;
+            (
+                from,
+                [
+                    from[0] + k * (near[0] - from[0]),
+                    from[1] + k * (near[1] - from[1]),
+                ],
+            )
+        })
+    };
+    let inner = crate::page::inset_rect(frame, 3.0);
+    // Out from the bracket, along it, and (at a cost) across the curve on the other
+    // side: nearest first.
+    let mut candidates = Vec::new();
+    for (side, cost) in [(1.0, 0.0), (-1.0, 40.0)] {
+        let n = [side * b.n[0], side * b.n[1]];
+        for d in [
+            6.0, 10.0, 15.0, 21.0, 28.0, 36.0, 46.0, 58.0, 72.0, 90.0, 110.0, 135.0, 165.0,
+        ] {
+            if side < 0.0 && d < 21.0 {
+                continue; // the curve and the inner brackets are there
+            }
+            for s in [0.0, -0.25, 0.25, -0.5, 0.5, -0.75, 0.75, -1.0, 1.0] {
+                let along = s * b.len;
+                let at = [
+                    b.mid[0] + n[0] * d + b.u[0] * along,
+                    b.mid[1] + n[1] * d + b.u[1] * along,
+                ];
+                candidates.push((cost + d + 0.5 * along.abs(), place(at, n)));
+            }
         }
     }
-    let r = best
-        .map(|b| b.1)
-        .unwrap_or([mid[0], mid[1], mid[0], mid[1]]);
-    dl.text_halo(
-        [r[0] + 1.0, r[1] + 1.0 + asc],
-        size,
-        Anchor::Start,
-        text,
-        1.2,
-    );
+    candidates.sort_by(|x, y| x.0.total_cmp(&y.0));
+    let free = |r: [f64; 4]| {
+        r[0] >= inner[0]
+            && r[1] >= inner[1]
+            && r[2] <= inner[2]
+            && r[3] <= inner[3]
+            && !taken
+                .iter()
+                .any(|q| rects_overlap(*q, crate::labels::grow(r, 1.0)))
+            && leader(r).is_none_or(|(p, q)| {
+                !taken
+                    .iter()
+                    .any(|t| crate::labels::rect_segment_distance(*t, p, q) < 1.0)
+            })
+    };
+    let r = candidates
+        .iter()
+        .find(|(_, r)| free(*r) && ink.gap(*r, BRACKET_LABEL_CLEAR) >= BRACKET_LABEL_CLEAR)
+        .or_else(|| {
+            // Nowhere clear: the free place with the most room.
+            candidates
+                .iter()
+                .filter(|(_, r)| free(*r))
+                .max_by(|x, y| ink.gap(x.1, 20.0).total_cmp(&ink.gap(y.1, 20.0)))
+        })
+        .map_or_else(|| place(b.mid, b.n), |c| c.1);
+    if let Some((p, q)) = leader(r) {
+        dl.line(vec![p, q], style::THIN);
+        ink.segment(p, q, style::THIN);
+    }
+    dl.text_halo([r[0], r[1] + asc], size, Anchor::Start, text, 1.2);
     r
 }
 

@@ -18,6 +18,83 @@ pub fn rect_distance(r: [f64; 4], p: PagePoint) -> f64 {
     libm::hypot(dx, dy)
 }
 
+/// Distance from point `p` to the segment `a`–`b`.
+fn point_segment_distance(p: PagePoint, a: PagePoint, b: PagePoint) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let l2 = dx * dx + dy * dy;
+    let t = if l2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    libm::hypot(p[0] - a[0] - t * dx, p[1] - a[1] - t * dy)
+}
+
+/// Distance from the rectangle `r` to the segment `a`–`b` (0 when they meet).
+pub(crate) fn rect_segment_distance(r: [f64; 4], a: PagePoint, b: PagePoint) -> f64 {
+    if crate::page::clip_segment(a, b, r).is_some() || rect_distance(r, a) == 0.0 {
+        return 0.0;
+    }
+    let corners = [[r[0], r[1]], [r[2], r[1]], [r[2], r[3]], [r[0], r[3]]];
+    corners
+        .iter()
+        .map(|c| point_segment_distance(*c, a, b))
+        .fold(rect_distance(r, a).min(rect_distance(r, b)), f64::min)
+}
+
+/// The ink of a page as stroked segments (a point is a segment of length 0; a disc is a
+/// point with its radius as half width), for keeping text clear of it.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct InkSegments {
+    segs: Vec<(PagePoint, PagePoint, f64)>,
+}
+
+impl InkSegments {
+    /// A stroke from `a` to `b`, `width` wide.
+    pub(crate) fn segment(&mut self, a: PagePoint, b: PagePoint, width: f64) {
+        self.segs.push((a, b, 0.5 * width));
+    }
+
+    /// A polyline `width` wide.
+    pub(crate) fn polyline(&mut self, pts: &[PagePoint], width: f64) {
+        for w in pts.windows(2) {
+            self.segment(w[0], w[1], width);
+        }
+    }
+
+    /// A disc (or ring) of radius `r` about `c`.
+    pub(crate) fn disc(&mut self, c: PagePoint, r: f64) {
+        self.segs.push((c, c, r));
+    }
+
+    /// A rectangle's outline, `width` wide.
+    pub(crate) fn rect(&mut self, r: [f64; 4], width: f64) {
+        let q = [[r[0], r[1]], [r[2], r[1]], [r[2], r[3]], [r[0], r[3]]];
+        for k in 0..4 {
+            self.segment(q[k], q[(k + 1) % 4], width);
+        }
+    }
+
+    /// The gap between the rectangle `r` and the nearest ink's edge (negative: ink in
+    /// it), or `limit` if nothing is nearer.
+    pub(crate) fn gap(&self, r: [f64; 4], limit: f64) -> f64 {
+        let mut best = limit;
+        for &(a, b, hw) in &self.segs {
+            // Cheap reject: the segment's box is farther than the best gap so far.
+            let reach = best + hw;
+            if a[0].min(b[0]) > r[2] + reach
+                || a[0].max(b[0]) < r[0] - reach
+                || a[1].min(b[1]) > r[3] + reach
+                || a[1].max(b[1]) < r[1] - reach
+            {
+                continue;
+            }
+            best = best.min(rect_segment_distance(r, a, b) - hw);
+        }
+        best
+    }
+}
+
 /// The rule every label keeps: its own dot is nearer to its box than any other dot, by a
 /// clear margin (another dot at least `1.5·d + 2` pt away when its own is `d` pt away).
 pub fn own_dot_is_nearest(r: [f64; 4], own: usize, dots: &[PagePoint]) -> bool {
@@ -159,7 +236,7 @@ fn place_all(
     (boxes, failed)
 }
 
-fn grow(r: [f64; 4], d: f64) -> [f64; 4] {
+pub(crate) fn grow(r: [f64; 4], d: f64) -> [f64; 4] {
     [r[0] - d, r[1] - d, r[2] + d, r[3] + d]
 }
 
@@ -173,6 +250,11 @@ mod tests {
         assert_eq!(rect_distance(r, [5.0, 2.0]), 0.0);
         assert_eq!(rect_distance(r, [13.0, 2.0]), 3.0);
         assert_eq!(rect_distance(r, [13.0, 9.0]), 5.0);
+        // A segment crossing the box, one beside it, one past a corner.
+        assert_eq!(rect_segment_distance(r, [-5.0, 2.0], [20.0, 2.0]), 0.0);
+        assert_eq!(rect_segment_distance(r, [13.0, -5.0], [13.0, 50.0]), 3.0);
+        let d = rect_segment_distance(r, [11.0, 8.0], [14.0, 5.0]);
+        assert!((d - 8.0f64.sqrt()).abs() < 1e-12, "{d}");
     }
 
     #[test]

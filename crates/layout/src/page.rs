@@ -128,21 +128,35 @@ impl std::str::FromStr for PaperSize {
     }
 }
 
-/// Portrait or landscape.
+/// Portrait, landscape, or chosen page by page.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Orientation {
     /// Long side vertical.
     Portrait,
     /// Long side horizontal.
     Landscape,
+    /// Each page takes the orientation that gives its curves the larger scale (portrait
+    /// on a tie, and for pages without curves: the contents).
+    Auto,
 }
 
 impl Orientation {
-    /// `"portrait"` or `"landscape"`.
+    /// `"portrait"`, `"landscape"` or `"auto"`.
     pub fn name(self) -> &'static str {
         match self {
             Orientation::Portrait => "portrait",
             Orientation::Landscape => "landscape",
+            Orientation::Auto => "auto",
+        }
+    }
+
+    /// The orientations a page may take: one, or both for [`Orientation::Auto`]
+    /// (portrait first: it wins ties).
+    pub fn candidates(self) -> &'static [Orientation] {
+        match self {
+            Orientation::Portrait => &[Orientation::Portrait],
+            Orientation::Landscape => &[Orientation::Landscape],
+            Orientation::Auto => &[Orientation::Portrait, Orientation::Landscape],
         }
     }
 }
@@ -155,18 +169,22 @@ impl std::fmt::Display for Orientation {
 
 impl std::str::FromStr for Orientation {
     type Err = String;
-    /// `portrait` or `landscape`.
+    /// `portrait`, `landscape` or `auto`.
     fn from_str(s: &str) -> Result<Orientation, String> {
         match s {
             "portrait" => Ok(Orientation::Portrait),
             "landscape" => Ok(Orientation::Landscape),
-            _ => Err(format!("must be `portrait` or `landscape`, got `{s}`")),
+            "auto" => Ok(Orientation::Auto),
+            _ => Err(format!(
+                "must be `portrait`, `landscape` or `auto`, got `{s}`"
+            )),
         }
     }
 }
 
 /// A page size: paper and orientation. Parses from `tabloid`, `letter`, `a4`, `a3`,
-/// optionally suffixed `-landscape` (or `-portrait`, the default).
+/// optionally suffixed `-landscape`, `-auto` (each page chooses) or `-portrait` (the
+/// default).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct PageSize {
     /// Paper.
@@ -180,7 +198,7 @@ pub struct PageSize {
 pub enum LayoutError {
     /// Unknown page size name.
     #[error(
-        "unknown page size {0:?} (expected {names}, optionally with -landscape)",
+        "unknown page size {0:?} (expected {names}, optionally with -landscape or -auto)",
         names = PaperSize::names("or")
     )]
     UnknownPageSize(String),
@@ -207,6 +225,8 @@ impl std::str::FromStr for PageSize {
         let lower = s.trim().to_ascii_lowercase();
         let (name, orientation) = if let Some(n) = lower.strip_suffix("-landscape") {
             (n, Orientation::Landscape)
+        } else if let Some(n) = lower.strip_suffix("-auto") {
+            (n, Orientation::Auto)
         } else if let Some(n) = lower.strip_suffix("-portrait") {
             (n, Orientation::Portrait)
         } else {
@@ -224,17 +244,27 @@ impl std::fmt::Display for PageSize {
         match self.orientation {
             Orientation::Portrait => write!(f, "{}", self.paper.name()),
             Orientation::Landscape => write!(f, "{}-landscape", self.paper.name()),
+            Orientation::Auto => write!(f, "{}-auto", self.paper.name()),
         }
     }
 }
 
 impl PageSize {
-    /// (width, height) in points.
+    /// (width, height) in points (portrait for [`Orientation::Auto`]: the size of a
+    /// page that does not choose, such as the contents).
     pub fn size_pt(&self) -> (f64, f64) {
         let (w, h) = self.paper.portrait_pt();
         match self.orientation {
-            Orientation::Portrait => (w, h),
+            Orientation::Portrait | Orientation::Auto => (w, h),
             Orientation::Landscape => (h, w),
+        }
+    }
+
+    /// This paper in orientation `o`.
+    pub fn oriented(self, o: Orientation) -> PageSize {
+        PageSize {
+            paper: self.paper,
+            orientation: o,
         }
     }
 }
@@ -314,6 +344,15 @@ impl PageSetup {
     /// Page width and height in points.
     pub fn size_pt(&self) -> (f64, f64) {
         self.size.size_pt()
+    }
+
+    /// This setup with the page in orientation `o` (a page's own setup, once it has
+    /// chosen under [`Orientation::Auto`]).
+    pub fn oriented(&self, o: Orientation) -> PageSetup {
+        PageSetup {
+            size: self.size.oriented(o),
+            ..self.clone()
+        }
     }
 
     /// Device pixels per point.
@@ -459,6 +498,24 @@ impl DisplayList {
         }
     }
 
+    /// The raster size of this page at `dpi`, pixels (rounded).
+    pub fn size_px(&self, dpi: f64) -> (u32, u32) {
+        let k = dpi / PT_PER_INCH;
+        (
+            (self.width * k).round() as u32,
+            (self.height * k).round() as u32,
+        )
+    }
+
+    /// Portrait or landscape, by its size.
+    pub fn orientation(&self) -> Orientation {
+        if self.width > self.height {
+            Orientation::Landscape
+        } else {
+            Orientation::Portrait
+        }
+    }
+
     pub(crate) fn line(&mut self, points: Vec<PagePoint>, width: f64) {
         self.items.push(Primitive::Polyline { points, width });
     }
@@ -545,7 +602,12 @@ pub(crate) fn nice_inches_per_unit() -> Vec<f64> {
 }
 
 pub(crate) fn frame_of(setup: &PageSetup) -> [f64; 4] {
-    let (w, h) = setup.size_pt();
+    frame_for(setup, setup.size.orientation)
+}
+
+/// The frame of a page of `setup` in orientation `o`.
+pub(crate) fn frame_for(setup: &PageSetup, o: Orientation) -> [f64; 4] {
+    let (w, h) = setup.size.oriented(o).size_pt();
     let m = setup.margin_pt;
     [
         m,
@@ -562,22 +624,6 @@ pub(crate) fn union(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
         a[2].max(b[2]),
         a[3].max(b[3]),
     ]
-}
-
-/// The frame of the page and the transform that centres `world` (a curve-unit box, padded
-/// by 2 % of its extent) in it
-/// at the largest round scale that fits (inches per unit from `nice`, ascending, so pages
-/// of similar linkages share a scale; the exact fit if even the smallest is too large).
-pub(crate) fn fit_transform(
-    world: [f64; 4],
-    setup: &PageSetup,
-    nice: &[f64],
-) -> (WorldToPage, [f64; 4]) {
-    let frame = frame_of(setup);
-    (
-        fit_into(world, inset_rect(frame, style::FRAME_PAD), nice),
-        frame,
-    )
 }
 
 /// `r` shrunk by `d` on every side.
@@ -1056,29 +1102,39 @@ fn dash_sample(dl: &mut DisplayList, x: f64, y: f64, fraction: f64) -> f64 {
     x + 3.0 * unit + 4.0
 }
 
-/// A scale bar one unit (`scale` points) long at `(x, y)` + 2 pt, with a half tick, and
-/// `label` with `{}` replaced by the unit's length in inches.
+/// Longest scale bar drawn, points (3 in): a longer unit gets a bar for a round part
+/// of it.
+const SCALE_BAR_MAX: f64 = 216.0;
+
+/// A scale bar at `(x, y)` + 2 pt, with a half tick: one unit (`scale` points) long, or
+/// the largest of ½, ⅕, 1/10 … of a unit that is at most 3 in when a unit is longer
+/// (then marked with its fraction). `label` with `{}` replaced by the unit's length in
+/// inches follows it.
 pub(crate) fn scale_bar(dl: &mut DisplayList, x: f64, y: f64, scale: f64, label: &str) {
     let x0 = x + 2.0;
+    let part = [1.0, 0.5, 0.2, 0.1, 0.05, 0.02, 0.01]
+        .into_iter()
+        .find(|f| f * scale <= SCALE_BAR_MAX)
+        .unwrap_or(0.01);
+    let len = part * scale;
     dl.line(
-        vec![
-            [x0, y - 3.0],
-            [x0, y],
-            [x0 + scale, y],
-            [x0 + scale, y - 3.0],
-        ],
+        vec![[x0, y - 3.0], [x0, y], [x0 + len, y], [x0 + len, y - 3.0]],
         0.8,
     );
-    let half = [x0 + 0.5 * scale, y];
+    let half = [x0 + 0.5 * len, y];
     dl.line(vec![half, [half[0], y - 2.0]], 0.5);
+    let mut text = label.replace(
+        "{}",
+        &fmt_num((scale / PT_PER_INCH * 1000.0).round() / 1000.0),
+    );
+    if part < 1.0 {
+        text = format!("bar = {} unit;  {text}", fmt_num(part));
+    }
     dl.text(
-        [x0 + scale + 6.0, y + 1.0],
+        [x0 + len + 6.0, y + 1.0],
         style::SMALL_SIZE,
         Anchor::Start,
-        label.replace(
-            "{}",
-            &fmt_num((scale / PT_PER_INCH * 1000.0).round() / 1000.0),
-        ),
+        text,
     );
 }
 
@@ -1089,7 +1145,11 @@ pub fn footer_settings(setup: &PageSetup) -> String {
         fmt_num(setup.dash.step_deg),
         fmt_num((setup.dash.fraction * 100.0).round()),
         fmt_num(setup.dpi),
-        setup.size,
+        // The page as printed: a page that did not choose (the contents) is portrait.
+        match setup.size.orientation {
+            Orientation::Auto => setup.size.oriented(Orientation::Portrait),
+            _ => setup.size,
+        },
         fmt_num(setup.chord_tolerance_px)
     );
     if !setup.settings.is_empty() {

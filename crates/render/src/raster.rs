@@ -158,6 +158,36 @@ impl RasterPage {
         self.ink = Ink::Black;
     }
 
+    /// Erases all ink and turns the page to `width_px × height_px` when that is as many
+    /// pixels as now (a portrait page's buffer for a landscape page), keeping its memory;
+    /// `false` (the page only erased) for another size.
+    pub fn reshape(&mut self, width_px: u32, height_px: u32) -> bool {
+        self.clear();
+        let n = u64::from(width_px) * u64::from(height_px);
+        let Some(size) = tiny_skia::IntSize::from_wh(width_px, height_px) else {
+            return false;
+        };
+        if n != u64::from(self.width()) * u64::from(self.height()) {
+            return false;
+        }
+        // Cleared: every byte of both masks is 0, so the same bytes serve any shape.
+        let turn = |m: &mut Mask| {
+            if let Some(empty) = Mask::new(1, 1) {
+                let data = std::mem::replace(m, empty).take();
+                if let Some(turned) = Mask::from_vec(data, size) {
+                    *m = turned;
+                }
+            }
+        };
+        turn(&mut self.mask);
+        self.dirty = Dirty::new(width_px as usize, height_px as usize);
+        if let Some(layer) = self.gray.as_mut() {
+            turn(&mut layer.mask);
+            layer.dirty = Dirty::new(width_px as usize, height_px as usize);
+        }
+        self.width() == width_px && self.height() == height_px
+    }
+
     /// The ink coverage, row-major (grays composited in).
     pub fn ink(&mut self) -> &[u8] {
         self.flush_gray();
@@ -913,6 +943,35 @@ mod tests {
             draw(&dl, &mut page);
             assert_eq!(fresh.ink(), page.ink());
         }
+    }
+
+    /// A buffer turned from portrait to landscape (and back) draws a page exactly as a
+    /// fresh buffer of that shape does, with no ink left from the other shape.
+    #[test]
+    fn a_reshaped_buffer_draws_like_a_fresh_one() {
+        let wide = sample();
+        let mut tall = DisplayList::new(200.0, 300.0);
+        tall.items = wide.items.clone();
+        let (w, h) = (300u32, 200u32);
+        let mut page = RasterPage::new(h, w, 72.0).unwrap();
+        draw(&tall, &mut page);
+        for (dl, (pw, ph)) in [(&wide, (w, h)), (&tall, (h, w)), (&wide, (w, h))] {
+            assert!(page.reshape(pw, ph));
+            assert_eq!((page.width(), page.height()), (pw, ph));
+            assert!(page.ink().iter().all(|&x| x == 0));
+            draw(dl, &mut page);
+            let mut fresh = RasterPage::new(pw, ph, 72.0).unwrap();
+            draw(dl, &mut fresh);
+            assert_eq!(fresh.ink(), page.ink());
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            page.finish_png(&mut a).unwrap();
+            fresh.finish_png(&mut b).unwrap();
+            assert_eq!(a, b);
+        }
+        // Another pixel count: only cleared.
+        assert!(!page.reshape(100, 100));
+        assert_eq!((page.width(), page.height()), (w, h));
+        assert!(page.ink().iter().all(|&x| x == 0));
     }
 
     #[test]

@@ -808,7 +808,7 @@ impl Ctx<'_> {
         let mut pages = PageSettings {
             curves_per_page: if per_page { 10 } else { 1 },
             size: PaperSize::Tabloid,
-            orientation: Orientation::Portrait,
+            orientation: Orientation::Auto,
             dpi: 300,
         };
         let Some(raw_pages) = raw else {
