@@ -21,8 +21,9 @@ use nalgebra::{Point2, Vector2};
 pub const TRANSMISSION_STEP_DEG: f64 = 1.0;
 
 impl GearedFiveBar {
-    /// The frame of L3 at `angle` from the core's solution.
-    fn frame_with(
+    /// The frame of L3 at `angle` ([`Mechanism::frame`]) with the linkage's constants
+    /// computed once (`GearedGaps::of(self)`), for many angles.
+    pub fn frame_with(
         &self,
         gaps: &GearedGaps,
         circuit: Circuit,
