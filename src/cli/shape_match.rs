@@ -168,10 +168,34 @@ fn no_sidecar(dir: &Path) -> String {
         Some(n) => format!("the spec of atlas `{n}`"),
         None => "the spec it was made from".into(),
     };
+    let older = match atlas_mechanism(dir).as_deref() {
+        Some("geared-fivebar") => "without shape codes for geared five-bars",
+        _ => "without shape search",
+    };
     format!(
-        "the atlas in {} has no shape codes: its manifest lists no {SHAPES_FILE}, which `match` searches (a version of coupler-atlas without shape codes for this atlas's mechanism wrote it); write it again with `coupler-atlas generate SPEC --out {}` ({spec}), which adds {SHAPES_FILE}",
+        "the atlas in {} has no shape codes: its manifest lists no {SHAPES_FILE}, which `match` searches (a version of coupler-atlas {older} wrote it); write it again with `coupler-atlas generate SPEC --out {}` ({spec}), which adds {SHAPES_FILE}",
         dir.display(),
         dir.display()
+    )
+}
+
+/// The mechanism of the atlas in `dir` as its index header names it
+/// (`spec.linkages.mechanism`; a four-bar atlas's header may not name it), or `None` if
+/// the header cannot be read.
+fn atlas_mechanism(dir: &Path) -> Option<String> {
+    let file = std::fs::File::open(dir.join("index.json")).ok()?;
+    let mut lines = std::io::BufReader::new(file).lines();
+    lines.next()?.ok()?;
+    let spec = lines.next()?.ok()?;
+    let spec = spec.trim_end().strip_suffix(',').unwrap_or(spec.trim_end());
+    let v: serde_json::Value = serde_json::from_str(&format!("{{{spec}}}")).ok()?;
+    let linkages = v.get("spec")?.get("linkages")?;
+    Some(
+        linkages
+            .get("mechanism")
+            .and_then(|m| m.as_str())
+            .unwrap_or("four-bar")
+            .to_string(),
     )
 }
 
