@@ -584,6 +584,42 @@ fn window_measures_are_the_librarys_for_the_geared_five_bar() {
         measured("10:60", "ground"),
         library(10.0, 60.0, LineDirection::Given(0.0))
     );
+    // A window over the whole 720° period of λ = −1/2 (one turn is half the curve); a
+    // four-bar's window still spans at most one turn, and a five-bar's its period.
+    let whole = measured("0:720", "fitted");
+    assert_eq!(whole, library(0.0, 720.0, LineDirection::Fitted));
+    assert_eq!(whole["end_deg"], 720.0);
+    let out = geared(
+        ["3", "3", "3", "1"],
+        "-1/2",
+        "30",
+        &["--point", "1,1", "--window", "0:721"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("crank window 0:721 spans more than the mechanism's period of 720° of input"),
+        "{err}"
+    );
+    let out = run(&[
+        "curve",
+        "--coupler",
+        "3",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "3",
+        "--point",
+        "1,1",
+        "--window",
+        "0:400",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("period of 360°"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // The straight line: the joint (L3, 0) of λ = −1, φ = 180°.
     let out = geared(
         ["3", "3", "3", "1"],
