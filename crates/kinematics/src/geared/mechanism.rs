@@ -59,6 +59,15 @@ impl GearedFiveBar {
     }
 }
 
+/// Text with a leading hyphen-minus replaced by a real minus sign (U+2212), for what a
+/// reader sees (page headers); parsers accept both.
+fn minus_sign(text: String) -> String {
+    match text.strip_prefix('-') {
+        Some(rest) => format!("\u{2212}{rest}"),
+        None => text,
+    }
+}
+
 impl Mechanism for GearedFiveBar {
     #[inline]
     fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
@@ -134,8 +143,8 @@ impl Mechanism for GearedFiveBar {
         format!(
             "Ting {} ({what}{change}), λ = {}, φ = {}°",
             class.code(),
-            self.ratio,
-            self.phase
+            minus_sign(self.ratio.to_string()),
+            minus_sign(self.phase.to_string())
         )
     }
 
@@ -268,6 +277,15 @@ mod tests {
             l.class_description().starts_with("Ting II"),
             "{}",
             l.class_description()
+        );
+        // A real minus sign for λ and φ, not a hyphen.
+        let half =
+            GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), -30.0).unwrap();
+        assert!(
+            half.class_description()
+                .ends_with("λ = \u{2212}1/2, φ = \u{2212}30°"),
+            "{}",
+            half.class_description()
         );
     }
 }
