@@ -475,6 +475,19 @@ fn straight_line_page_set_measures_its_line_at_rounding_level() {
     for s in segs {
         assert!(s["straightness_pct"].as_f64().unwrap() < 1e-12, "{s}");
     }
+    // The joint is not a trivial pin (its curve is no arc about a ground pivot, as a
+    // four-bar's rocker pin's is), so search shows it without --include-trivial.
+    assert!(joint["features"]["trivial"].is_null(), "{joint}");
+    let found = json(&run(&[
+        "search",
+        dir.to_str().unwrap(),
+        "--straight",
+        "90:0.01",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(found["total"], 1, "{found}");
+    assert_eq!(found["hits"][0]["id"], joint["id"]);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -806,5 +819,103 @@ fn match_finds_a_geared_curve_and_places_it() {
         assert!((f(&l[key]) - want).abs() < 1e-6, "{key}: {r}");
     }
     assert_eq!(r["class"], "I");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A `[[curve]]` page set of geared five-bars (`atlas-spec/geared-classics.toml`, issue
+/// 14): each entry is traced over its period (λ = −1/2: 720° of input) or across its
+/// toggles, `curves.json` records the five-bar's dimensions and Ting class, the exact
+/// straight line's run is straight at rounding level, `search` reads the set, and an entry
+/// missing its gear ratio is refused naming it. Before, `[[curve]]` entries were
+/// four-bars only.
+#[test]
+fn geared_curve_page_set_traces_and_measures_each_entry() {
+    use coupler_atlas::{ClassicCurve, CurveList, InputRange, Linkage};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = root.join("atlas-spec/geared-classics.toml");
+    let list = CurveList::parse(&std::fs::read_to_string(&spec).unwrap(), "g").unwrap();
+    assert!(
+        list.curves
+            .iter()
+            .all(|c| matches!(c.linkage, Linkage::GearedFiveBar(_)))
+    );
+    let dir = std::env::temp_dir().join(format!("geared-classics-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--dpi",
+        "72",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for k in 1..=3 {
+        assert!(
+            dir.join(format!("pages/geared-classics-{k:04}.png"))
+                .exists()
+        );
+    }
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("curves.json")).unwrap()).unwrap();
+    let curves = v["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), 3);
+    let step = list.sampling.crank_step_deg;
+    for (c, named) in curves.iter().zip(&list.curves) {
+        assert_eq!(c["linkage"], serde_json::to_value(named.linkage).unwrap());
+        assert!(c["linkage"]["l1"].is_number() && c["linkage"]["ratio"].is_string());
+        // The library's measure of the entry, as recorded.
+        let m = ClassicCurve::compute(named, step);
+        assert_eq!(c["branches"], m.branches.len());
+        assert_eq!(c["closure"], 0.0, "{}", named.name);
+    }
+    // The straight line: Ting class I, a crank; its run straight to rounding.
+    assert_eq!(curves[0]["class"], "I");
+    assert_eq!(curves[0]["input"]["kind"], "full");
+    let run0 = &curves[0]["straight"][2];
+    assert!(run0["straightness"].as_f64().unwrap() < 1e-14, "{run0}");
+    assert!(run0["input_span_deg"].as_f64().unwrap() > 150.0, "{run0}");
+    // λ = −1/2: one branch over two turns (720° at 0.5°, closing on its first sample).
+    assert_eq!(curves[1]["samples"][0], 1441);
+    // The rocking input: Ting class II, rocking between two toggles, one branch out and
+    // back.
+    assert_eq!(curves[2]["class"], "II");
+    assert!(matches!(
+        ClassicCurve::compute(&list.curves[2], step).range,
+        InputRange::Rocks { .. }
+    ));
+    // search reads the set: the straight line's 150° run at 0.01 %.
+    let o = run(&[
+        "search",
+        dir.to_str().unwrap(),
+        "--straight",
+        "150:0.01",
+        "--format",
+        "json",
+    ]);
+    let found = json(&o);
+    assert_eq!(found["total"], 1, "{found}");
+    assert_eq!(found["hits"][0]["id"], 0);
+    assert_eq!(found["hits"][0]["linkage"]["ratio"], "-1");
+    // An entry without its gear ratio is refused, naming it and the key.
+    let text = std::fs::read_to_string(&spec)
+        .unwrap()
+        .replace("ratio = \"-1/2\"\n", "");
+    let bad = dir.join("no-ratio.toml");
+    std::fs::write(&bad, text).unwrap();
+    let o = run(&[
+        "generate",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.join("x").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("`Two-turn loop` has no `ratio`"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -186,7 +186,7 @@ fn classics_find_their_families() {
     };
     for name in ["Hoeken", "Watt"] {
         let c = list.curves.iter().find(|c| c.name == name).unwrap();
-        let full = trace_full(&c.linkage, c.point, 2.0);
+        let full = trace_full(c.linkage.four_bar().unwrap(), c.point, 2.0);
         let branch = &full.branches[0];
         let mut pts: Vec<[f64; 2]> = branch.points().iter().map(|p| [p.x, p.y]).collect();
         pts.pop(); // the branch repeats its first sample

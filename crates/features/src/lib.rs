@@ -263,6 +263,15 @@ pub enum Trivial {
 }
 
 impl Trivial {
+    /// Which trivial pin of `linkage` `point` is ([`Trivial::of`]); the far pin counts
+    /// only where it moves on a circle about a ground pivot
+    /// ([`Mechanism::far_pin_on_ground_arc`]: a four-bar's rocker pin, not a geared
+    /// five-bar's dyad joint, whose curve is no arc).
+    pub fn of_linkage<M: Mechanism>(point: CouplerPoint, linkage: &M) -> Option<Trivial> {
+        Trivial::of(point, linkage.coupler_length())
+            .filter(|t| *t == Trivial::CrankPin || linkage.far_pin_on_ground_arc())
+    }
+
     /// Which pin `point` is, to 1e-12 relative to the coupler link (`coupler_length`).
     pub fn of(point: CouplerPoint, coupler_length: f64) -> Option<Trivial> {
         let eps = 1e-12 * coupler_length.max(1.0);
@@ -337,7 +346,7 @@ impl<M: Mechanism> FeatureExtractor<M> {
             },
             symmetry: symmetry(l, c, point, curve, t),
             cognates: cogs,
-            trivial: Trivial::of(point, l.coupler_length()),
+            trivial: Trivial::of_linkage(point, l),
         }
     }
 }

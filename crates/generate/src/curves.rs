@@ -18,7 +18,7 @@ use crate::{
 };
 use coupler_features::{ClassicCurve, NamedCurve, StraightMeasure};
 use coupler_index::PageRef;
-use coupler_kinematics::{Class, CouplerPoint, FourBar, InputRange};
+use coupler_kinematics::{CouplerPoint, InputRange, Linkage, LinkageClass, Mechanism};
 use coupler_layout::ClassicPage;
 use coupler_specs::{CurveList, Sampling};
 use rayon::prelude::*;
@@ -69,12 +69,13 @@ pub struct CurveRecord {
     pub id: usize,
     /// Name.
     pub name: String,
-    /// Lengths (input = 1).
-    pub linkage: FourBar,
+    /// Dimensions (input = 1): a four-bar's `{coupler, rocker, ground}`, a geared
+    /// five-bar's `{l1, l3, l4, l5, ratio, phase}` (as in index.json).
+    pub linkage: Linkage,
     /// Coupler point.
     pub point: CouplerPoint,
-    /// Barker class.
-    pub class: Class,
+    /// Barker's class of a four-bar, Ting's of a geared five-bar.
+    pub class: LinkageClass,
     /// `"full"`, `"open"` or `"crossed"`.
     pub trace: String,
     /// The input's range: a full turn, or rocking intervals between toggles.

@@ -162,6 +162,11 @@ impl Mechanism for GearedFiveBar {
         self.l3
     }
 
+    /// No: the dyad joint P hangs from the moving pin Pd.
+    fn far_pin_on_ground_arc(&self) -> bool {
+        false
+    }
+
     fn convention(&self) -> &'static str {
         "input crank = 1, point on L3, θ5 = λ·θ2 + φ"
     }
