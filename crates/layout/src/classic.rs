@@ -242,9 +242,7 @@ pub fn mirror_branch(page: &ClassicPage) -> Option<usize> {
     let InputRange::Rocks { intervals } = &page.measured.range else {
         return None;
     };
-    if page.curve.linkage.four_bar().is_none() {
-        return None;
-    }
+    page.curve.linkage.four_bar()?;
     if intervals.len() != 2 {
         return None;
     }

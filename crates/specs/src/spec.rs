@@ -893,11 +893,18 @@ impl Ctx<'_> {
     /// The linkage of one `[[curve]]` entry: a four-bar's `coupler`, `rocker`, `ground`,
     /// or with `mechanism = "geared-fivebar"` a geared five-bar's `l1`, `l3`, `l4`, `l5`,
     /// `ratio` and `phase` (degrees, default 0); keys of the other mechanism are refused.
-    fn curve_linkage(
-        &self,
-        entry: &Spanned<RawCurve>,
-        length: &dyn Fn(&Spanned<f64>, &str) -> Result<f64, SpecError>,
-    ) -> Result<Linkage, SpecError> {
+    fn curve_linkage(&self, entry: &Spanned<RawCurve>) -> Result<Linkage, SpecError> {
+        let length = |x: &Spanned<f64>, key: &str| -> Result<f64, SpecError> {
+            let v = *x.get_ref();
+            if !v.is_finite() || v <= 0.0 {
+                return Err(self.error(
+                    x.span(),
+                    Some(key),
+                    format!("link lengths must be finite and > 0 (input link = 1), got {v}"),
+                ));
+            }
+            Ok(v)
+        };
         let c = entry.get_ref();
         let geared = match &c.mechanism {
             None => false,
@@ -1041,18 +1048,7 @@ impl Ctx<'_> {
                     format!("`{name}` is used by an earlier [[curve]]"),
                 ));
             }
-            let length = |x: &Spanned<f64>, key: &str| -> Result<f64, SpecError> {
-                let v = *x.get_ref();
-                if !v.is_finite() || v <= 0.0 {
-                    return Err(self.error(
-                        x.span(),
-                        Some(key),
-                        format!("link lengths must be finite and > 0 (input link = 1), got {v}"),
-                    ));
-                }
-                Ok(v)
-            };
-            let linkage = self.curve_linkage(entry, &length)?;
+            let linkage = self.curve_linkage(entry)?;
             for (x, key) in [(&c.u, "curve.u"), (&c.v, "curve.v")] {
                 if !x.get_ref().is_finite() {
                     return Err(self.error(
