@@ -105,6 +105,7 @@ fn main() {
                 circuit: g.circuit,
                 points: pts,
                 grid: &g.points,
+                tables: None,
                 features: fs,
                 number,
                 page_count,

@@ -365,22 +365,7 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
         "json",
     ]);
     assert_eq!(json(&out)["total"], 0);
-    // match compares four-bar curves only: it says so (exit 2), not "made by an older
-    // version".
-    let target = dirs[0].join("target.csv");
-    std::fs::write(&target, "0,0\n1,0\n1,1\n0,1\n0.2,0.5\n").unwrap();
-    let out = run(&[
-        "match",
-        target.to_str().unwrap(),
-        "--atlas",
-        dirs[0].to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("is a geared-fivebar atlas: match compares four-bar coupler curves only"),
-        "{err}"
-    );
+    // match works on the five-bar atlas: see `match_finds_a_geared_curve_and_places_it`.
     // dwell designs four-bar dwell linkages: a five-bar curve is refused, naming it.
     let out = run(&[
         "dwell",
@@ -490,6 +475,19 @@ fn straight_line_page_set_measures_its_line_at_rounding_level() {
     for s in segs {
         assert!(s["straightness_pct"].as_f64().unwrap() < 1e-12, "{s}");
     }
+    // The joint is not a trivial pin (its curve is no arc about a ground pivot, as a
+    // four-bar's rocker pin's is), so search shows it without --include-trivial.
+    assert!(joint["features"]["trivial"].is_null(), "{joint}");
+    let found = json(&run(&[
+        "search",
+        dir.to_str().unwrap(),
+        "--straight",
+        "90:0.01",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(found["total"], 1, "{found}");
+    assert_eq!(found["hits"][0]["id"], joint["id"]);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -599,6 +597,42 @@ fn window_measures_are_the_librarys_for_the_geared_five_bar() {
         measured("10:60", "ground"),
         library(10.0, 60.0, LineDirection::Given(0.0))
     );
+    // A window over the whole 720° period of λ = −1/2 (one turn is half the curve); a
+    // four-bar's window still spans at most one turn, and a five-bar's its period.
+    let whole = measured("0:720", "fitted");
+    assert_eq!(whole, library(0.0, 720.0, LineDirection::Fitted));
+    assert_eq!(whole["end_deg"], 720.0);
+    let out = geared(
+        ["3", "3", "3", "1"],
+        "-1/2",
+        "30",
+        &["--point", "1,1", "--window", "0:721"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("crank window 0:721 spans more than the mechanism's period of 720° of input"),
+        "{err}"
+    );
+    let out = run(&[
+        "curve",
+        "--coupler",
+        "3",
+        "--rocker",
+        "2.5",
+        "--ground",
+        "3",
+        "--point",
+        "1,1",
+        "--window",
+        "0:400",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("period of 360°"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // The straight line: the joint (L3, 0) of λ = −1, φ = 180°.
     let out = geared(
         ["3", "3", "3", "1"],
@@ -634,4 +668,254 @@ fn window_measures_are_the_librarys_for_the_geared_five_bar() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// The points of a geared five-bar's coupler curve at `angles` (input degrees), placed in
+/// a user's frame by `z ↦ a·z + b` (reflected first when `mirror`).
+fn user_points(
+    g: &GearedFiveBar,
+    point: CouplerPoint,
+    angles: &[f64],
+    mirror: bool,
+) -> Vec<[f64; 2]> {
+    let (a, b) = ((3.0, 4.0), (100.0, -20.0)); // scale 5, rotation 53.13°
+    angles
+        .iter()
+        .map(|&t| {
+            let m = g.pose_at(Circuit::Open, t).unwrap().point(point);
+            let (x, y) = (m.x, if mirror { -m.y } else { m.y });
+            [a.0 * x - a.1 * y + b.0, a.0 * y + a.1 * x + b.1]
+        })
+        .collect()
+}
+
+/// `match` on a geared five-bar atlas (issue 14): a closed target and an open window
+/// drawn from an atlas curve of period 720° (λ = −1/2) are found exactly, the hit
+/// reports the five-bar's dimensions and gears and its pivots in the user's frame; a
+/// reflected target is reported as the mirror five-bar (other circuit, v and φ negated),
+/// and that reported linkage, driven at the reported input angles, passes through the
+/// target; `--refine` moves L1, L3, L4, L5, φ and the point off the grid to the exact
+/// linkage. Before this, match refused a five-bar atlas.
+#[test]
+fn match_finds_a_geared_curve_and_places_it() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("geared-match-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let spec = root.join("atlas-spec/geared-quick.toml");
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--no-pages",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let atlas = dir.to_str().unwrap();
+    let half = GearRatio::new(-1, 2).unwrap();
+    let src = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, half, 90.0).unwrap();
+    let p = CouplerPoint::new(1.5, 1.5);
+    let write = |name: &str, pts: &[[f64; 2]]| {
+        let f = dir.join(name);
+        let text: String = pts.iter().map(|q| format!("{},{}\n", q[0], q[1])).collect();
+        std::fs::write(&f, text).unwrap();
+        f.to_str().unwrap().to_string()
+    };
+    let find = |file: &str, extra: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "match", file, "--atlas", atlas, "--top", "1", "--format", "json",
+        ];
+        args.extend_from_slice(extra);
+        json(&run(&args))["matches"][0].clone()
+    };
+    // Closed: the whole 720° period; open: 160° of input past the first turn.
+    let closed: Vec<f64> = (0..120).map(|k| 6.0 * k as f64).collect();
+    let open: Vec<f64> = (0..41).map(|k| 400.0 + 4.0 * k as f64).collect();
+    for (name, angles, flag) in [("closed", &closed, "--closed"), ("open", &open, "--open")] {
+        let file = write(&format!("{name}.csv"), &user_points(&src, p, angles, false));
+        let best = find(&file, &[flag]);
+        assert_eq!(best["curve"]["linkage"]["ratio"], "-1/2", "{name}: {best}");
+        assert_eq!(best["curve"]["linkage"]["phase"], 90.0, "{name}: {best}");
+        assert_eq!(best["curve"]["point"]["u"], 1.5, "{name}: {best}");
+        assert!(
+            best["error"]["rms_pct"].as_f64().unwrap() < 1e-6,
+            "{name}: {best}"
+        );
+        let pl = &best["placement"];
+        assert!((pl["scale"].as_f64().unwrap() - 5.0).abs() < 1e-6, "{pl}");
+        assert!((pl["l1"].as_f64().unwrap() - 15.0).abs() < 1e-5, "{pl}");
+        assert!((pl["o5"][0].as_f64().unwrap() - 109.0).abs() < 1e-5, "{pl}");
+        assert!((pl["o5"][1].as_f64().unwrap() + 8.0).abs() < 1e-5, "{pl}");
+        assert_eq!(pl["ratio"], "-1/2");
+        if name == "open" {
+            // The window starts at 400° of input: 40° into the second turn, which a
+            // crank angle taken modulo 360° would confuse with the first.
+            let c0 = pl["crank_deg"][0].as_f64().unwrap();
+            assert!(
+                (c0 - 40.0).abs() < 1e-3 || (c0 + 320.0).abs() < 1e-3,
+                "{c0}"
+            );
+        }
+    }
+    // Reflected: reported as the mirror five-bar, which traces the target as placed.
+    let pts = user_points(&src, p, &closed, true);
+    let file = write("mirrored.csv", &pts);
+    let best = find(&file, &["--closed", "--mirror"]);
+    assert!(best["error"]["rms_pct"].as_f64().unwrap() < 1e-6, "{best}");
+    let pl = &best["placement"];
+    assert_eq!(pl["mirrored"], true);
+    assert_eq!(pl["circuit"], "crossed");
+    assert_eq!(pl["phase_deg"], -90.0);
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    let scale = f(&pl["scale"]);
+    let reported = GearedFiveBar::new(
+        f(&pl["l1"]) / scale,
+        f(&pl["l3"]) / scale,
+        f(&pl["l4"]) / scale,
+        f(&pl["l5"]) / scale,
+        pl["ratio"].as_str().unwrap().parse().unwrap(),
+        f(&pl["phase_deg"]),
+    )
+    .unwrap();
+    let q = CouplerPoint::new(f(&pl["point"][0]) / scale, f(&pl["point"][1]) / scale);
+    let (o2, o5) = (&pl["o2"], &pl["o5"]);
+    let (dx, dy) = (f(&o5[0]) - f(&o2[0]), f(&o5[1]) - f(&o2[1]));
+    let (cx, sx) = (dx / reported.l1, dy / reported.l1);
+    let first = f(&pl["crank_deg"][0]);
+    for (k, target) in pts.iter().enumerate().step_by(7) {
+        // Clockwise in the user's frame: the mirror's input runs backwards.
+        let m = reported
+            .pose_at(Circuit::Crossed, first - 6.0 * k as f64)
+            .unwrap()
+            .point(q);
+        let z = [
+            f(&o2[0]) + cx * m.x - sx * m.y,
+            f(&o2[1]) + sx * m.x + cx * m.y,
+        ];
+        let d = (z[0] - target[0]).hypot(z[1] - target[1]);
+        assert!(d < 1e-8, "point {k}: {z:?} vs {target:?}");
+    }
+    // --refine: an off-grid five-bar of the same gears is recovered exactly.
+    let truth = GearedFiveBar::new(3.05, 3.1, 2.95, 1.0, half, 95.0).unwrap();
+    let file = write(
+        "off-grid.csv",
+        &user_points(&truth, CouplerPoint::new(1.4, 1.55), &closed, false),
+    );
+    let best = find(&file, &["--closed", "--refine"]);
+    let r = &best["refined"];
+    assert!(r["error"]["rms_pct"].as_f64().unwrap() < 1e-6, "{best}");
+    let l = &r["curve"]["linkage"];
+    for (key, want) in [
+        ("l1", 3.05),
+        ("l3", 3.1),
+        ("l4", 2.95),
+        ("l5", 1.0),
+        ("phase", 95.0),
+    ] {
+        assert!((f(&l[key]) - want).abs() < 1e-6, "{key}: {r}");
+    }
+    assert_eq!(r["class"], "I");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A `[[curve]]` page set of geared five-bars (`atlas-spec/geared-classics.toml`, issue
+/// 14): each entry is traced over its period (λ = −1/2: 720° of input) or across its
+/// toggles, `curves.json` records the five-bar's dimensions and Ting class, the exact
+/// straight line's run is straight at rounding level, `search` reads the set, and an entry
+/// missing its gear ratio is refused naming it. Before, `[[curve]]` entries were
+/// four-bars only.
+#[test]
+fn geared_curve_page_set_traces_and_measures_each_entry() {
+    use coupler_atlas::{ClassicCurve, CurveList, InputRange, Linkage};
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let spec = root.join("atlas-spec/geared-classics.toml");
+    let list = CurveList::parse(&std::fs::read_to_string(&spec).unwrap(), "g").unwrap();
+    assert!(
+        list.curves
+            .iter()
+            .all(|c| matches!(c.linkage, Linkage::GearedFiveBar(_)))
+    );
+    let dir = std::env::temp_dir().join(format!("geared-classics-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--dpi",
+        "72",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for k in 1..=3 {
+        assert!(
+            dir.join(format!("pages/geared-classics-{k:04}.png"))
+                .exists()
+        );
+    }
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("curves.json")).unwrap()).unwrap();
+    let curves = v["curves"].as_array().unwrap();
+    assert_eq!(curves.len(), 3);
+    let step = list.sampling.crank_step_deg;
+    for (c, named) in curves.iter().zip(&list.curves) {
+        assert_eq!(c["linkage"], serde_json::to_value(named.linkage).unwrap());
+        assert!(c["linkage"]["l1"].is_number() && c["linkage"]["ratio"].is_string());
+        // The library's measure of the entry, as recorded.
+        let m = ClassicCurve::compute(named, step);
+        assert_eq!(c["branches"], m.branches.len());
+        assert_eq!(c["closure"], 0.0, "{}", named.name);
+    }
+    // The straight line: Ting class I, a crank; its run straight to rounding.
+    assert_eq!(curves[0]["class"], "I");
+    assert_eq!(curves[0]["input"]["kind"], "full");
+    let run0 = &curves[0]["straight"][2];
+    assert!(run0["straightness"].as_f64().unwrap() < 1e-14, "{run0}");
+    assert!(run0["input_span_deg"].as_f64().unwrap() > 150.0, "{run0}");
+    // λ = −1/2: one branch over two turns (720° at 0.5°, closing on its first sample).
+    assert_eq!(curves[1]["samples"][0], 1441);
+    // The rocking input: Ting class II, rocking between two toggles, one branch out and
+    // back.
+    assert_eq!(curves[2]["class"], "II");
+    assert!(matches!(
+        ClassicCurve::compute(&list.curves[2], step).range,
+        InputRange::Rocks { .. }
+    ));
+    // search reads the set: the straight line's 150° run at 0.01 %.
+    let o = run(&[
+        "search",
+        dir.to_str().unwrap(),
+        "--straight",
+        "150:0.01",
+        "--format",
+        "json",
+    ]);
+    let found = json(&o);
+    assert_eq!(found["total"], 1, "{found}");
+    assert_eq!(found["hits"][0]["id"], 0);
+    assert_eq!(found["hits"][0]["linkage"]["ratio"], "-1");
+    // An entry without its gear ratio is refused, naming it and the key.
+    let text = std::fs::read_to_string(&spec)
+        .unwrap()
+        .replace("ratio = \"-1/2\"\n", "");
+    let bad = dir.join("no-ratio.toml");
+    std::fs::write(&bad, text).unwrap();
+    let o = run(&[
+        "generate",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.join("x").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("`Two-turn loop` has no `ratio`"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

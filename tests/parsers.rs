@@ -72,7 +72,7 @@ proptest! {
             Ok(AtlasSpec::Curves(list)) => {
                 // Every curve of a page set that parses has a valid linkage and point.
                 for c in &list.curves {
-                    prop_assert!(c.linkage.coupler > 0.0 && c.point.u.is_finite(), "{c:?}");
+                    prop_assert!(c.linkage.four_bar().is_some_and(|l| l.coupler > 0.0) && c.point.u.is_finite(), "{c:?}");
                 }
             }
             Err(e) => {

@@ -85,7 +85,7 @@ fn generate_writes_the_shape_sidecar() {
     for (s, c) in atlas.curves.iter().zip(curves) {
         assert_eq!(s.id, c["id"].as_u64().unwrap());
         assert_eq!(
-            s.curve.linkage.coupler,
+            s.curve.linkage.four_bar().unwrap().coupler,
             c["linkage"]["coupler"].as_f64().unwrap()
         );
         assert_eq!(s.curve.point.v, c["point"]["v"].as_f64().unwrap());
@@ -111,11 +111,11 @@ fn match_finds_the_source_and_places_it() {
     quick_atlas(&dir, true);
     let atlas = dir.to_str().unwrap();
     // Curve: A = 3, B = 2.5, C = 3, point (1.5, 1.5) (u = 0.5 A, v = 0.5 A), open circuit.
-    let src = CouplerCurve {
-        linkage: FourBar::new(3.0, 2.5, 3.0).unwrap(),
-        circuit: Circuit::Open,
-        point: CouplerPoint::new(1.5, 1.5),
-    };
+    let src = CouplerCurve::new(
+        FourBar::new(3.0, 2.5, 3.0).unwrap(),
+        Circuit::Open,
+        CouplerPoint::new(1.5, 1.5),
+    );
     let (a, b) = (C64::new(3.0, 4.0), C64::new(100.0, -20.0)); // scale 5, rotation 53.13°
     let closed: Vec<f64> = (0..60).map(|k| 7.0 + 6.0 * k as f64).collect();
     let open: Vec<f64> = (0..40).map(|k| 30.0 + 4.0 * k as f64).collect();

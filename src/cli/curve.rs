@@ -25,7 +25,8 @@ pub struct Args {
     /// Output format.
     #[arg(long, default_value = "json", value_parser = ["json", "csv", "table"])]
     format: String,
-    /// Measure a crank window START:END in degrees (may pass 360, e.g. 300:420), sampled
+    /// Measure a crank window START:END in degrees (may pass 360, e.g. 300:420; it spans at
+    /// most the mechanism's period: 360°, or 720° for a geared five-bar of ratio p/2), sampled
     /// every --step with both ends: adds a `"window"` object (straightness, velocity
     /// variation, best circle) to the JSON. See docs/features.md.
     #[arg(long, allow_hyphen_values = true)]

@@ -118,9 +118,11 @@ pub struct Args {
     format: String,
 }
 
+/// A dwell window (a four-bar's: at most one turn).
 fn window(s: &str, step: f64) -> Result<CrankWindow, UsageError> {
     s.parse::<CrankWindow>()
         .and_then(|w| w.with_step(step))
+        .and_then(|w| w.within_period(360.0).map(|()| w))
         .map_err(|e| UsageError(e.to_string()))
 }
 

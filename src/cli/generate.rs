@@ -597,13 +597,22 @@ fn run_curves(list: CurveList, source: String, args: &Args, jobs: usize) -> Resu
     if args.dry_run {
         outln!("spec:     {} ({source}), a full-curve page set", list.name)?;
         for (i, c) in list.curves.iter().enumerate() {
+            use coupler_atlas::Mechanism as _;
+            let mut dims: Vec<String> = c
+                .linkage
+                .dimensions()
+                .iter()
+                .map(|(n, x)| format!("{n} = {x}"))
+                .collect();
+            if let coupler_atlas::Linkage::GearedFiveBar(g) = &c.linkage {
+                dims.push(format!("λ = {}", g.ratio));
+                dims.push(format!("φ = {}°", g.phase));
+            }
             outln!(
-                "curve {}: {} (A = {}, B = {}, C = {}, point ({}, {}), class {}, trace {})",
+                "curve {}: {} ({}, point ({}, {}), class {}, trace {})",
                 i + 1,
                 c.name,
-                c.linkage.coupler,
-                c.linkage.rocker,
-                c.linkage.ground,
+                dims.join(", "),
                 c.point.u,
                 c.point.v,
                 c.linkage.class().code(),

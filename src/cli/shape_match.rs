@@ -12,7 +12,7 @@ use coupler_atlas::shape::{
     OverlayText, Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing, coarse_candidates,
     decode_sidecar, open_finish, open_scan, rank_candidates, refine,
 };
-use coupler_atlas::{Circuit, IndexCurve, TargetFile};
+use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile};
 use rayon::prelude::*;
 use serde_json::{Value, json};
 use std::io::BufRead as _;
@@ -39,8 +39,9 @@ pub struct Args {
     /// crank steps between points if the file gives no angles.
     #[arg(long)]
     timed: bool,
-    /// Allow reflected matches (a mirrored curve is traced by another real four-bar,
-    /// which is what is reported).
+    /// Allow reflected matches (a mirrored curve is traced by another real linkage,
+    /// which is what is reported: the other circuit, v negated, and for a geared
+    /// five-bar the phase negated).
     #[arg(long)]
     mirror: bool,
     /// Matches to report.
@@ -50,8 +51,9 @@ pub struct Args {
     /// target, 256 for an open one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     candidates: Option<u32>,
-    /// Refine each match off the atlas grid (Levenberg–Marquardt over A, B, C, the
-    /// coupler point and the transform).
+    /// Refine each match off the atlas grid (Levenberg–Marquardt over the linkage's
+    /// dimensions: a four-bar's A, B, C, a geared five-bar's L1, L3, L4, L5 and phase φ
+    /// with its gear ratio held; the coupler point and the transform).
     #[arg(long)]
     refine: bool,
     /// Write the overlay of the best match (refined if --refine) as PNG.
@@ -129,16 +131,7 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
         .files
         .iter()
         .find(|f| f.name == SHAPES_FILE)
-        .ok_or_else(|| match atlas_mechanism(dir).as_deref() {
-            // Shape codes, fits and --refine are a four-bar's (A, B, C): a geared
-            // five-bar atlas is written without them.
-            Some(m) if m != "four-bar" => UsageError(format!(
-                "the atlas in {} is a {m} atlas: match compares four-bar coupler curves only (its shape codes, fits and --refine are over a four-bar's A, B, C), so this atlas has no shape codes; search it by features with `coupler-atlas search {}`",
-                dir.display(),
-                dir.display()
-            )),
-            _ => UsageError(no_sidecar(dir)),
-        })?;
+        .ok_or_else(|| UsageError(no_sidecar(dir)))?;
     let path = dir.join(SHAPES_FILE);
     if !path.is_file() {
         return Err(UsageError(format!(
@@ -158,9 +151,10 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
     decode_sidecar(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
 }
 
-/// Why an atlas whose manifest lists no shape sidecar cannot be searched, and what to do,
-/// for a four-bar atlas (which lacks them when it was written before shape search
-/// existed), naming its spec from the head of its index.
+/// Why an atlas whose manifest lists no shape sidecar cannot be searched, and what to do
+/// (an atlas lacks them when it was written before shape search existed, or, for a
+/// geared five-bar atlas, before its curves had shape codes), naming its spec from the
+/// head of its index.
 fn no_sidecar(dir: &Path) -> String {
     let mut head = String::new();
     if let Ok(f) = std::fs::File::open(dir.join("index.json")) {
@@ -174,8 +168,12 @@ fn no_sidecar(dir: &Path) -> String {
         Some(n) => format!("the spec of atlas `{n}`"),
         None => "the spec it was made from".into(),
     };
+    let older = match atlas_mechanism(dir).as_deref() {
+        Some("geared-fivebar") => "without shape codes for geared five-bars",
+        _ => "without shape search",
+    };
     format!(
-        "the atlas in {} has no shape codes: its manifest lists no {SHAPES_FILE}, which `match` searches (a version of coupler-atlas without shape search wrote it); write it again with `coupler-atlas generate SPEC --out {}` ({spec}), which adds {SHAPES_FILE}",
+        "the atlas in {} has no shape codes: its manifest lists no {SHAPES_FILE}, which `match` searches (a version of coupler-atlas {older} wrote it); write it again with `coupler-atlas generate SPEC --out {}` ({spec}), which adds {SHAPES_FILE}",
         dir.display(),
         dir.display()
     )
@@ -185,7 +183,6 @@ fn no_sidecar(dir: &Path) -> String {
 /// (`spec.linkages.mechanism`; a four-bar atlas's header may not name it), or `None` if
 /// the header cannot be read.
 fn atlas_mechanism(dir: &Path) -> Option<String> {
-    use std::io::BufRead;
     let file = std::fs::File::open(dir.join("index.json")).ok()?;
     let mut lines = std::io::BufReader::new(file).lines();
     lines.next()?.ok()?;
@@ -319,29 +316,77 @@ fn short(x: f64) -> String {
     }
 }
 
+/// The placement as JSON: a four-bar's pivots O2, O4 and lengths crank, coupler, rocker,
+/// ground; a geared five-bar's pivots O2, O5, lengths L1 … L5 (L2 the input crank) and
+/// its gears (ratio λ, phase φ in degrees, the mirror's for a reflected match), all in
+/// user units and the user's frame.
 fn placement_json(p: &Placement) -> Value {
-    json!({
+    let mut v = json!({
         "mirrored": p.mirrored,
         "scale": p.scale,
         "rotation_deg": p.rotation_deg,
         "o2": p.o2,
-        "o4": p.o4,
-        "crank": p.crank,
-        "coupler": p.coupler,
-        "rocker": p.rocker,
-        "ground": p.ground,
-        "point": p.point,
-        "circuit": circuit_name(p.circuit),
-        "crank_deg": crank_interval(p),
-    })
+    });
+    v[pivot_name(&p.linkage).to_lowercase()] = json!(p.pivot);
+    for (name, x) in p.lengths() {
+        v[name.to_lowercase()] = json!(x);
+    }
+    if let Linkage::GearedFiveBar(l) = &p.linkage {
+        v["ratio"] = json!(l.ratio);
+        v["phase_deg"] = json!(l.phase);
+    }
+    v["point"] = json!(p.point);
+    v["circuit"] = json!(circuit_name(p.circuit));
+    v["crank_deg"] = json!(crank_interval(p));
+    v
 }
 
+/// `"O4"` (a four-bar's rocker pivot) or `"O5"` (a geared five-bar's second crank's).
+fn pivot_name(l: &Linkage) -> &'static str {
+    match l {
+        Linkage::FourBar(_) => "O4",
+        Linkage::GearedFiveBar(_) => "O5",
+    }
+}
+
+/// The curve as JSON; its linkage as in index.json (a four-bar's
+/// `{coupler, rocker, ground}`, a geared five-bar's `{l1, l3, l4, l5, ratio, phase}`).
 fn curve_json(c: &CouplerCurve) -> Value {
     json!({
-        "linkage": {"coupler": c.linkage.coupler, "rocker": c.linkage.rocker, "ground": c.linkage.ground},
+        "linkage": c.linkage,
         "point": {"u": c.point.u, "v": c.point.v},
         "circuit": circuit_name(c.circuit),
     })
+}
+
+/// A real minus sign for negative numbers in text (a hyphen is not one).
+fn minus(s: String) -> String {
+    match s.strip_prefix('-') {
+        Some(r) => format!("\u{2212}{r}"),
+        None => s,
+    }
+}
+
+/// The linkage's dimensions in crank units with `num` formatting the numbers: a
+/// four-bar's `A=… B=… C=…`, a geared five-bar's `L1=… L3=… L4=… L5=… λ=… φ=…°`.
+fn linkage_text(l: &Linkage, num: fn(f64) -> String) -> String {
+    match l {
+        Linkage::FourBar(l) => format!(
+            "A={} B={} C={}",
+            num(l.coupler),
+            num(l.rocker),
+            num(l.ground)
+        ),
+        Linkage::GearedFiveBar(l) => format!(
+            "L1={} L3={} L4={} L5={} λ={} φ={}°",
+            num(l.l1),
+            num(l.l3),
+            num(l.l4),
+            num(l.l5),
+            minus(l.ratio.to_string()),
+            minus(num(l.phase))
+        ),
+    }
 }
 
 fn error_json(fit: &CurveFit, size: f64) -> Value {
@@ -351,13 +396,17 @@ fn error_json(fit: &CurveFit, size: f64) -> Value {
     })
 }
 
-/// The crank angles at the first and last point as reported: the first in (−180°, 180°],
-/// the last the first plus the signed travel.
+/// The crank angles at the first and last point as reported: the first in (−P/2, P/2]
+/// (P the mechanism's period: 360° for a four-bar, 720° for a geared five-bar of ratio
+/// p/2, where θ and θ + 360° are different points), the last the first plus the signed
+/// travel.
 fn crank_interval(p: &Placement) -> [f64; 2] {
+    use coupler_atlas::Mechanism as _;
+    let period = p.linkage.period_deg();
     let [a, b] = p.crank_deg;
-    let mut first = a.rem_euclid(360.0);
-    if first > 180.0 {
-        first -= 360.0;
+    let mut first = a.rem_euclid(period);
+    if first > 0.5 * period {
+        first -= period;
     }
     [first, first + (b - a)]
 }
@@ -372,22 +421,37 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
             g(p.rotation_deg),
             g(p.o2[0]),
             g(p.o2[1]),
-            if p.mirrored {
-                ", reflected (reported as the mirror four-bar)"
-            } else {
-                ""
+            match (p.mirrored, &p.linkage) {
+                (false, _) => "",
+                (true, Linkage::FourBar(_)) => ", reflected (reported as the mirror four-bar)",
+                (true, Linkage::GearedFiveBar(_)) =>
+                    ", reflected (reported as the mirror five-bar: phase negated)",
             }
         ),
         format!(
-            "four-bar in your frame: O2 ({}, {}), O4 ({}, {}); crank {}, coupler {}, rocker {}, ground {}; coupler point (u, v) = ({}, {}), {} circuit",
+            "{} in your frame: O2 ({}, {}), {} ({}, {}); {}{}; coupler point (u, v) = ({}, {}), {} circuit",
+            match p.linkage {
+                Linkage::FourBar(_) => "four-bar",
+                Linkage::GearedFiveBar(_) => "geared five-bar",
+            },
             g(p.o2[0]),
             g(p.o2[1]),
-            g(p.o4[0]),
-            g(p.o4[1]),
-            g(p.crank),
-            g(p.coupler),
-            g(p.rocker),
-            g(p.ground),
+            pivot_name(&p.linkage),
+            g(p.pivot[0]),
+            g(p.pivot[1]),
+            p.lengths()
+                .iter()
+                .map(|(n, x)| format!("{n} {}", g(*x)))
+                .collect::<Vec<_>>()
+                .join(", "),
+            match &p.linkage {
+                Linkage::FourBar(_) => String::new(),
+                Linkage::GearedFiveBar(l) => format!(
+                    "; gears λ = {}, φ = {}°",
+                    minus(l.ratio.to_string()),
+                    minus(g(l.phase))
+                ),
+            },
             g(p.point[0]),
             g(p.point[1]),
             circuit_name(p.circuit)
@@ -396,8 +460,15 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
     let travel = crank[1] - crank[0];
     v.push(if closed {
         format!(
-            "crank: {}° at the first point, a full turn {}",
+            "crank: {}° at the first point, {} {}",
             g(crank[0]),
+            {
+                use coupler_atlas::Mechanism as _;
+                match p.linkage.period_deg() {
+                    360.0 => "a full turn".to_string(),
+                    x => format!("a full period of {}°", g(x)),
+                }
+            },
             if travel >= 0.0 {
                 "counter-clockwise"
             } else {
@@ -428,11 +499,20 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
 
 fn warnings(r: &Refined) -> Vec<&'static str> {
     let mut w = Vec::new();
-    if r.not_crank_rocker {
-        w.push("no longer a crank-rocker: the crank does not turn fully");
+    let geared = matches!(r.curve.linkage, Linkage::GearedFiveBar(_));
+    if r.input_does_not_turn {
+        w.push(if geared {
+            "the input no longer turns fully: the dyad does not close all round"
+        } else {
+            "no longer a crank-rocker: the crank does not turn fully"
+        });
     }
     if r.crossed_change_point {
-        w.push("crossed a change point (Grashof type changed)");
+        w.push(if geared {
+            "crossed a change point (Ting class changed, or Class III)"
+        } else {
+            "crossed a change point (Grashof type changed)"
+        });
     }
     w
 }
@@ -489,12 +569,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         };
         let text = OverlayText {
             title: format!(
-                "{}: {} A={} B={} C={}, point ({}, {}), {} circuit",
+                "{}: {} {}, point ({}, {}), {} circuit",
                 args.target.display(),
                 label,
-                short(curve.linkage.coupler),
-                short(curve.linkage.rocker),
-                short(curve.linkage.ground),
+                linkage_text(&curve.linkage, short),
                 short(curve.point.u),
                 short(curve.point.v),
                 circuit_name(curve.circuit)
@@ -578,12 +656,10 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let c = &m.curve;
         outln!()?;
         outln!(
-            "#{} curve {}: A={} B={} C={}, point ({}, {}), {} circuit{}",
+            "#{} curve {}: {}, point ({}, {}), {} circuit{}",
             k + 1,
             m.id,
-            g(c.linkage.coupler),
-            g(c.linkage.rocker),
-            g(c.linkage.ground),
+            linkage_text(&c.linkage, g),
             g(c.point.u),
             g(c.point.v),
             circuit_name(c.circuit),
@@ -606,12 +682,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
             outln!("   {l}")?;
         }
         if let Some(r) = r {
-            let l = &r.curve.linkage;
             outln!(
-                "   refined: A={} B={} C={}, point ({}, {}), class {}: RMS {} ({} %), max {} ({} %){}",
-                g(l.coupler),
-                g(l.rocker),
-                g(l.ground),
+                "   refined: {}, point ({}, {}), class {}: RMS {} ({} %), max {} ({} %){}",
+                linkage_text(&r.curve.linkage, g),
                 g(r.curve.point.u),
                 g(r.curve.point.v),
                 r.class.code(),

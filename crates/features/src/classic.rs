@@ -1,10 +1,12 @@
 //! Named full curves (the `[[curve]]` entries of a page set such as
 //! `atlas-spec/classics.toml`): the classic straight-line linkages, mostly not
 //! crank-rockers, traced in full across toggles and measured by their longest straight
-//! runs. Pure.
+//! runs, for either mechanism (a four-bar, or a geared five-bar over its period). Pure.
 
 use crate::run::longest_straight_run;
-use coupler_kinematics::{Branch, Circuit, CouplerPoint, FourBar, InputRange, trace_full};
+use coupler_kinematics::{
+    Branch, Circuit, CouplerPoint, FullCurve, InputRange, Linkage, trace_full,
+};
 use serde::Serialize;
 
 /// How a curve of an explicit spec is traced.
@@ -31,8 +33,8 @@ impl TraceMode {
 pub struct NamedCurve {
     /// Name (e.g. `"Watt"`).
     pub name: String,
-    /// The linkage (input = 1).
-    pub linkage: FourBar,
+    /// The linkage (input = 1): a four-bar or a geared five-bar.
+    pub linkage: Linkage,
     /// The coupler point.
     pub point: CouplerPoint,
     /// How it is traced.
@@ -84,8 +86,14 @@ impl ClassicCurve {
     /// its total-least-squares line with ε_S ≤ the tolerance (Norton §3.8) and travels
     /// the farthest in input angle, over every run of every branch
     /// ([`crate::longest_straight_run`]; ties: the smaller ε_S, then the earlier branch).
+    ///
+    /// A geared five-bar is traced by [`coupler_kinematics::GearedFiveBar::trace_full`]
+    /// (the same branches and toggles, over its period).
     pub fn compute(c: &NamedCurve, step_deg: f64) -> ClassicCurve {
-        let full = trace_full(&c.linkage, c.point, step_deg);
+        let full: FullCurve = match &c.linkage {
+            Linkage::FourBar(l) => trace_full(l, c.point, step_deg),
+            Linkage::GearedFiveBar(g) => g.trace_full(c.point, step_deg),
+        };
         let branches: Vec<Branch> = match c.trace {
             TraceMode::Full => full.branches,
             TraceMode::Circuit(circ) => full

@@ -43,8 +43,8 @@ pub use window::{
 };
 
 use coupler_kinematics::{
-    Circuit, Cognate, CouplerPoint, CrankTable, Curve, DashPattern, Mechanism, PoseTable,
-    divides_turn,
+    AngleTables, Circuit, Cognate, CouplerPoint, CrankTable, Curve, DashPattern, Linkage,
+    Mechanism, PoseTable, divides_turn,
 };
 use serde::{Deserialize, Serialize};
 
@@ -263,6 +263,15 @@ pub enum Trivial {
 }
 
 impl Trivial {
+    /// Which trivial pin of `linkage` `point` is ([`Trivial::of`]); the far pin counts
+    /// only where it moves on a circle about a ground pivot
+    /// ([`Mechanism::far_pin_on_ground_arc`]: a four-bar's rocker pin, not a geared
+    /// five-bar's dyad joint, whose curve is no arc).
+    pub fn of_linkage<M: Mechanism>(point: CouplerPoint, linkage: &M) -> Option<Trivial> {
+        Trivial::of(point, linkage.coupler_length())
+            .filter(|t| *t == Trivial::CrankPin || linkage.far_pin_on_ground_arc())
+    }
+
     /// Which pin `point` is, to 1e-12 relative to the coupler link (`coupler_length`).
     pub fn of(point: CouplerPoint, coupler_length: f64) -> Option<Trivial> {
         let eps = 1e-12 * coupler_length.max(1.0);
@@ -304,6 +313,19 @@ impl<M: Mechanism> FeatureExtractor<M> {
         dash.validate().ok()?;
         let table = CrankTable::over(tolerances.step_deg, linkage.period_deg())?;
         let poses = linkage.pose_table(circuit, &table);
+        Self::with_poses(linkage, circuit, tolerances, dash, poses)
+    }
+
+    /// [`FeatureExtractor::new`] with the pose table given: `poses` must be
+    /// `linkage.pose_table(circuit, &CrankTable::over(tolerances.step_deg, period))`
+    /// (e.g. from a run's shared [`AngleTables`]: [`FeatureExtractor::with_tables`]).
+    fn with_poses(
+        linkage: &M,
+        circuit: Circuit,
+        tolerances: &FeatureTolerances,
+        dash: &DashPattern,
+        poses: PoseTable,
+    ) -> Option<FeatureExtractor<M>> {
         poses.all_valid().then(|| FeatureExtractor {
             linkage: linkage.clone(),
             circuit,
@@ -337,8 +359,27 @@ impl<M: Mechanism> FeatureExtractor<M> {
             },
             symmetry: symmetry(l, c, point, curve, t),
             cognates: cogs,
-            trivial: Trivial::of(point, l.coupler_length()),
+            trivial: Trivial::of_linkage(point, l),
         }
+    }
+}
+
+impl FeatureExtractor<Linkage> {
+    /// [`FeatureExtractor::new`] with its pose table from a run's shared `tables`
+    /// ([`AngleTables::pose_table_at`] at the features' step: the crank table, and a
+    /// geared five-bar's gear table, built once for every linkage of the run, not per
+    /// linkage). The same features to the bit.
+    pub fn with_tables(
+        linkage: &Linkage,
+        circuit: Circuit,
+        tolerances: &FeatureTolerances,
+        dash: &DashPattern,
+        tables: &AngleTables,
+    ) -> Option<FeatureExtractor<Linkage>> {
+        tolerances.validate().ok()?;
+        dash.validate().ok()?;
+        let poses = tables.pose_table_at(linkage, circuit, tolerances.step_deg);
+        Self::with_poses(linkage, circuit, tolerances, dash, poses)
     }
 }
 

@@ -6,7 +6,9 @@ use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, Mechanism};
 use serde::Serialize;
 
 /// A crank window `[start, end]` in degrees (`end > start`; it may run past 360°, e.g.
-/// `300:420`), sampled every `step` degrees with both ends included.
+/// `300:420`), sampled every `step` degrees with both ends included. It spans at most the
+/// mechanism's period ([`Mechanism::period_deg`]: 360° for a four-bar, 720° for a geared
+/// five-bar of gear ratio p/2), checked when it is sampled ([`CrankWindow::within_period`]).
 ///
 /// The samples are `θ_k = start + k·(end − start)/n`, `k = 0..=n`, `n = ⌈(end − start)/step⌉`:
 /// exactly every `step` when `step` divides the span (Norton's Table 3-1 uses 2°).
@@ -39,13 +41,17 @@ pub enum WindowError {
         "bad crank window `{0}`: expected START:END in degrees with END > START (e.g. 300:420)"
     )]
     Syntax(String),
-    /// The window spans more than one revolution.
-    #[error("crank window {start}:{end} spans more than 360°")]
+    /// The window spans more than the mechanism's period.
+    #[error(
+        "crank window {start}:{end} spans more than the mechanism's period of {period}° of input"
+    )]
     TooLong {
         /// Start, degrees.
         start: f64,
         /// End, degrees.
         end: f64,
+        /// The period, degrees.
+        period: f64,
     },
     /// The step is not a finite positive number.
     #[error("window step must be a finite number > 0, got {0}")]
@@ -59,16 +65,11 @@ pub enum WindowError {
 }
 
 impl CrankWindow {
-    /// The window `[start, end]` sampled every `step` degrees.
+    /// The window `[start, end]` sampled every `step` degrees. Its span is checked
+    /// against a mechanism's period when it is sampled ([`CrankWindow::within_period`]).
     pub fn new(start_deg: f64, end_deg: f64, step_deg: f64) -> Result<CrankWindow, WindowError> {
         if !(start_deg.is_finite() && end_deg.is_finite() && end_deg > start_deg) {
             return Err(WindowError::Syntax(format!("{start_deg}:{end_deg}")));
-        }
-        if end_deg - start_deg > 360.0 {
-            return Err(WindowError::TooLong {
-                start: start_deg,
-                end: end_deg,
-            });
         }
         if !(step_deg.is_finite() && step_deg > 0.0) {
             return Err(WindowError::BadStep(step_deg));
@@ -78,6 +79,19 @@ impl CrankWindow {
             end_deg,
             step_deg,
         })
+    }
+
+    /// `Ok` unless the window spans more than `period_deg` (a mechanism's period: one
+    /// window never covers a point of the curve twice).
+    pub fn within_period(&self, period_deg: f64) -> Result<(), WindowError> {
+        if self.span_deg() > period_deg {
+            return Err(WindowError::TooLong {
+                start: self.start_deg,
+                end: self.end_deg,
+                period: period_deg,
+            });
+        }
+        Ok(())
     }
 
     /// The same window with another step.
@@ -148,14 +162,15 @@ pub struct WindowSamples {
 }
 
 impl WindowSamples {
-    /// Solves the pose at every angle of the window. Errors where the linkage does not
-    /// assemble or sits at a toggle.
+    /// Solves the pose at every angle of the window. Errors where the window spans more
+    /// than the mechanism's period, or the linkage does not assemble or sits at a toggle.
     pub fn sample<M: Mechanism>(
         linkage: &M,
         circuit: Circuit,
         point: CouplerPoint,
         window: &CrankWindow,
     ) -> Result<WindowSamples, WindowError> {
+        window.within_period(linkage.period_deg())?;
         let mut s = WindowSamples::default();
         for t in window.angles() {
             let pose = linkage
@@ -484,7 +499,18 @@ mod tests {
         let a = w.with_step(30.0).unwrap().angles();
         assert_eq!(a, vec![300.0, 330.0, 360.0, 390.0, 420.0]);
         assert!("420:300".parse::<CrankWindow>().is_err());
-        assert!("0:400".parse::<CrankWindow>().is_err());
+        // Longer than a turn parses; a four-bar's period refuses it, a 720° one does not.
+        let long: CrankWindow = "0:400".parse().unwrap();
+        assert!(matches!(
+            long.within_period(360.0),
+            Err(WindowError::TooLong { period: 360.0, .. })
+        ));
+        assert!(long.within_period(720.0).is_ok());
+        let l = coupler_kinematics::FourBar::new(3.0, 2.5, 3.0).unwrap();
+        assert!(matches!(
+            WindowSamples::sample(&l, Circuit::Open, CouplerPoint::new(1.0, 1.0), &long),
+            Err(WindowError::TooLong { .. })
+        ));
         assert!("abc".parse::<CrankWindow>().is_err());
         let odd = CrankWindow::new(0.0, 10.0, 3.0).unwrap().angles();
         assert_eq!(odd.len(), 5);

@@ -18,7 +18,7 @@ use crate::{
 };
 use coupler_features::{ClassicCurve, NamedCurve, StraightMeasure};
 use coupler_index::PageRef;
-use coupler_kinematics::{Class, CouplerPoint, FourBar, InputRange};
+use coupler_kinematics::{CouplerPoint, InputRange, Linkage, LinkageClass, Mechanism};
 use coupler_layout::ClassicPage;
 use coupler_specs::{CurveList, Sampling};
 use rayon::prelude::*;
@@ -69,12 +69,13 @@ pub struct CurveRecord {
     pub id: usize,
     /// Name.
     pub name: String,
-    /// Lengths (input = 1).
-    pub linkage: FourBar,
+    /// Dimensions (input = 1): a four-bar's `{coupler, rocker, ground}`, a geared
+    /// five-bar's `{l1, l3, l4, l5, ratio, phase}` (as in index.json).
+    pub linkage: Linkage,
     /// Coupler point.
     pub point: CouplerPoint,
-    /// Barker class.
-    pub class: Class,
+    /// Barker's class of a four-bar, Ting's of a geared five-bar.
+    pub class: LinkageClass,
     /// `"full"`, `"open"` or `"crossed"`.
     pub trace: String,
     /// The input's range: a full turn, or rocking intervals between toggles.
@@ -135,12 +136,56 @@ fn record(id: usize, c: &NamedCurve, m: &ClassicCurve) -> CurveRecord {
 /// The key written in the manifest: program version, spec and page settings.
 fn run_key(job: &CurveJob, pages: Option<&PageOptions>) -> String {
     let text = format!(
-        "coupler-atlas {} curves\n{:?}\n{:?}",
+        "coupler-atlas {} curves\n{}\n{:?}",
         env!("CARGO_PKG_VERSION"),
-        job.list,
+        list_key_text(&job.list),
         pages
     );
     format!("{:032x}", xxhash_rust::xxh3::xxh3_128(text.as_bytes()))
+}
+
+/// The page set as the run key hashes it: `Debug` of the list as versions before geared
+/// five-bar entries printed it (a four-bar's linkage as `FourBar { … }`, not wrapped in a
+/// `Linkage`), so their complete page sets are not redone; a geared entry prints its
+/// `Linkage`.
+fn list_key_text(list: &CurveList) -> String {
+    #[derive(Debug)]
+    #[allow(dead_code)]
+    struct CurveList<'a> {
+        name: &'a String,
+        title: &'a String,
+        sampling: &'a Sampling,
+        pages: &'a coupler_specs::PageSettings,
+        curves: Vec<NamedCurve<'a>>,
+    }
+    #[derive(Debug)]
+    #[allow(dead_code)]
+    struct NamedCurve<'a> {
+        name: &'a String,
+        linkage: &'a dyn std::fmt::Debug,
+        point: &'a CouplerPoint,
+        trace: &'a coupler_features::TraceMode,
+    }
+    let shadow = CurveList {
+        name: &list.name,
+        title: &list.title,
+        sampling: &list.sampling,
+        pages: &list.pages,
+        curves: list
+            .curves
+            .iter()
+            .map(|c| NamedCurve {
+                name: &c.name,
+                linkage: match &c.linkage {
+                    Linkage::FourBar(l) => l,
+                    l => l,
+                },
+                point: &c.point,
+                trace: &c.trace,
+            })
+            .collect(),
+    };
+    format!("{shadow:?}")
 }
 
 /// Runs the job: traces and measures every curve (in parallel), renders its page when

@@ -321,8 +321,9 @@ pub fn compute_group(
     features: Option<&FeatureTolerances>,
     dash: &DashPattern,
 ) -> Result<Vec<IndexCurve>, GenerateError> {
-    let mut extractor =
-        features.and_then(|t| FeatureExtractor::new(&group.linkage, group.circuit, t, dash));
+    let mut extractor = features.and_then(|t| {
+        FeatureExtractor::with_tables(&group.linkage, group.circuit, t, dash, tables)
+    });
     let poses = tables.pose_table(&group.linkage, group.circuit);
     if !poses.all_valid() {
         return Err(GenerateError::NotAssembled {

@@ -10,8 +10,8 @@ use coupler_features::CurveFeatures;
 use coupler_index::{IndexCurve, PageRef};
 use coupler_kinematics::{AngleTables, Circuit, CouplerPoint, Linkage};
 use coupler_layout::{
-    ContentsEntry, CurvePlacement, DisplayList, LayoutError, LinkagePage, Orientation, PageSetup,
-    compute_page, layout_contents, layout_page,
+    ContentsEntry, CurvePlacement, DisplayList, EXTENT_STEP_DEG, LayoutError, LinkagePage,
+    Orientation, PageSetup, compute_page, compute_page_with_tables, layout_contents, layout_page,
 };
 use coupler_render::{
     Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, PngCompression, RasterPage,
@@ -307,6 +307,9 @@ pub struct PageJob<'a> {
     pub points: &'a [CouplerPoint],
     /// The linkage's grid.
     pub grid: &'a [CouplerPoint],
+    /// The run's shared input-angle tables for the page's extent trace (`None`: built for
+    /// the page; the same page either way).
+    pub tables: Option<&'a AngleTables>,
     /// The curves' features, marked on the page.
     pub features: &'a [Option<CurveFeatures>],
     /// Page number (1-based).
@@ -332,7 +335,11 @@ impl PageJob<'_> {
             page_count: self.page_count as usize,
             features: self.features.to_vec(),
         };
-        let geometry = compute_page(&page, setup).map_err(|source| PageError::Layout {
+        let geometry = match self.tables {
+            Some(tables) => compute_page_with_tables(&page, setup, tables),
+            None => compute_page(&page, setup),
+        }
+        .map_err(|source| PageError::Layout {
             page: self.number,
             source,
         })?;
@@ -406,6 +413,9 @@ pub struct PageRenderer {
     /// Settings.
     pub opts: PageOptions,
     pool: BufferPool,
+    /// Input-angle tables shared by every page's extent trace (a geared five-bar's gear
+    /// tables built once per gears, not per page).
+    tables: AngleTables,
     /// Time spent per phase, summed over workers.
     pub timings: PageTimings,
 }
@@ -416,6 +426,7 @@ impl PageRenderer {
         PageRenderer {
             opts,
             pool: BufferPool::new(),
+            tables: AngleTables::new(EXTENT_STEP_DEG).expect("a valid step"),
             timings: PageTimings::default(),
         }
     }
@@ -528,6 +539,7 @@ impl PageRenderer {
                                 circuit: g.circuit,
                                 points: pts,
                                 grid: &g.points,
+                                tables: Some(&table),
                                 features: fs,
                                 number: g.first_page + k as u64,
                                 page_count,
@@ -630,6 +642,7 @@ impl Renderer for PageRenderer {
                 circuit: group.circuit,
                 points: chunk,
                 grid: &group.points,
+                tables: Some(&self.tables),
                 features: &fs[..fs.len().min(chunk.len())],
                 number,
                 page_count,

@@ -5,27 +5,21 @@
 use crate::files::{FileEntry, write_atomically};
 use crate::{GenerateError, Job};
 use coupler_shape::{
-    AtlasCurve, CouplerCurve, RECORD_BYTES, SHAPES_FILE, ShapeCode, encode_record, sidecar_header,
+    AtlasCurve, CouplerCurve, RecordKind, SHAPES_FILE, ShapeCode, encode_record, sidecar_header_for,
 };
 use rayon::prelude::*;
 use std::io::Write;
 
-/// Every curve of `job`'s atlas in id order, as shape search sees it (`None` for an
-/// atlas of mechanisms other than four-bars, which has no shape codes).
-pub fn atlas_curves(job: &Job) -> Option<Vec<AtlasCurve>> {
+/// Every curve of `job`'s atlas in id order, as shape search sees it.
+pub fn atlas_curves(job: &Job) -> Vec<AtlasCurve> {
     let mut curves = Vec::new();
     for g in job.groups() {
-        let linkage = g.linkage.four_bar()?;
         curves.extend(g.points.iter().enumerate().map(|(k, &point)| AtlasCurve {
             id: g.first_id + k as u64,
-            curve: CouplerCurve {
-                linkage: *linkage,
-                circuit: g.circuit,
-                point,
-            },
+            curve: CouplerCurve::new(g.linkage, g.circuit, point),
         }));
     }
-    Some(curves)
+    curves
 }
 
 /// Curves coded and written per batch: memory stays at a batch's curves and records
@@ -33,8 +27,9 @@ pub fn atlas_curves(job: &Job) -> Option<Vec<AtlasCurve>> {
 const BATCH: usize = 16_384;
 
 /// Computes the codes of every curve of `job` on `job.jobs` threads and writes the
-/// sidecar into `job.out`, streaming the groups in batches of [`BATCH`] curves; `None`
-/// (nothing written) for an atlas of mechanisms other than four-bars.
+/// sidecar into `job.out`, streaming the groups in batches of [`BATCH`] curves (four-bar
+/// or geared five-bar records, as the atlas's mechanism is); `None` (nothing written) for
+/// an atlas without curves.
 pub(crate) fn write_shapes(job: &Job) -> Result<Option<FileEntry>, GenerateError> {
     write_shapes_in_batches(job, BATCH)
 }
@@ -44,12 +39,9 @@ fn write_shapes_in_batches(
     batch_size: usize,
 ) -> Result<Option<FileEntry>, GenerateError> {
     let mut groups = job.groups().peekable();
-    if groups
-        .peek()
-        .is_some_and(|g| g.linkage.four_bar().is_none())
-    {
+    let Some(kind) = groups.peek().map(|g| RecordKind::of(&g.linkage)) else {
         return Ok(None);
-    }
+    };
     let io = |e: std::io::Error| GenerateError::Io {
         path: job.out.clone(),
         source: e,
@@ -61,10 +53,10 @@ fn write_shapes_in_batches(
     let total = job.curves();
     let path = job.out.join(SHAPES_FILE);
     write_atomically(&path, |w| {
-        w.write_all(&sidecar_header(total))?;
+        w.write_all(&sidecar_header_for(kind, total))?;
         let mut written = 0u64;
         let mut batch: Vec<CouplerCurve> = Vec::with_capacity(batch_size);
-        let mut records = Vec::with_capacity(batch_size * RECORD_BYTES);
+        let mut records = Vec::with_capacity(batch_size * kind.record_bytes());
         let mut flush = |batch: &mut Vec<CouplerCurve>, w: &mut dyn Write| {
             let codes: Vec<Option<ShapeCode>> =
                 pool.install(|| batch.par_iter().map(ShapeCode::of_curve).collect());
@@ -77,17 +69,13 @@ fn write_shapes_in_batches(
             w.write_all(&records)
         };
         for g in groups {
-            let Some(linkage) = g.linkage.four_bar() else {
+            if RecordKind::of(&g.linkage) != kind {
                 return Err(std::io::Error::other(
                     "an atlas mixes four-bars with other mechanisms",
                 ));
-            };
+            }
             for &point in &g.points {
-                batch.push(CouplerCurve {
-                    linkage: *linkage,
-                    circuit: g.circuit,
-                    point,
-                });
+                batch.push(CouplerCurve::new(g.linkage, g.circuit, point));
                 if batch.len() == batch_size {
                     flush(&mut batch, w)?;
                 }
@@ -123,7 +111,6 @@ mod tests {
         let entry = write_shapes_in_batches(&job, 5).unwrap().unwrap();
         let written = std::fs::read(dir.join(SHAPES_FILE)).unwrap();
         let whole: Vec<(CouplerCurve, Option<ShapeCode>)> = atlas_curves(&job)
-            .unwrap()
             .iter()
             .map(|c| (c.curve, ShapeCode::of_curve(&c.curve)))
             .collect();

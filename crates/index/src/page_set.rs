@@ -10,7 +10,9 @@ use crate::search::{CurveRow, SearchError, SearchTable, SegmentRow};
 use coupler_features::{
     ClassicCurve, NamedCurve, STRAIGHTNESS_TOLERANCES, StraightMeasure, TraceMode, Trivial,
 };
-use coupler_kinematics::{Circuit, Class, CouplerPoint, FourBar, Linkage, LinkageClass};
+use coupler_kinematics::{
+    Circuit, CouplerPoint, FourBar, GearRatio, GearedFiveBar, Linkage, LinkageClass,
+};
 use serde_json::Value;
 
 /// The `kind` of a page set's `curves.json`.
@@ -53,16 +55,37 @@ impl SearchTable {
                 message: format!("curves.json curve {}: {m}", n + 1),
             };
             let num = |x: &Value, k: &str| x[k].as_f64().ok_or_else(|| bad(&format!("no {k}")));
+            // A four-bar's {coupler, rocker, ground} or a geared five-bar's
+            // {l1, l3, l4, l5, ratio, phase}, as curves.json records them.
             let l = &c["linkage"];
-            let linkage = FourBar::new(num(l, "coupler")?, num(l, "rocker")?, num(l, "ground")?)
-                .map_err(|e| bad(&e.to_string()))?;
+            let linkage: Linkage = if l.get("l1").is_some() {
+                let ratio: GearRatio = l["ratio"]
+                    .as_str()
+                    .ok_or_else(|| bad("no ratio"))?
+                    .parse()
+                    .map_err(|e: coupler_kinematics::GearedError| bad(&e.to_string()))?;
+                GearedFiveBar::new(
+                    num(l, "l1")?,
+                    num(l, "l3")?,
+                    num(l, "l4")?,
+                    num(l, "l5")?,
+                    ratio,
+                    num(l, "phase")?,
+                )
+                .map_err(|e| bad(&e.to_string()))?
+                .into()
+            } else {
+                FourBar::new(num(l, "coupler")?, num(l, "rocker")?, num(l, "ground")?)
+                    .map_err(|e| bad(&e.to_string()))?
+                    .into()
+            };
             let point = CouplerPoint::new(num(&c["point"], "u")?, num(&c["point"], "v")?);
             let trace = match c["trace"].as_str() {
                 Some("full") => TraceMode::Full,
                 Some(s) => TraceMode::Circuit(s.parse::<Circuit>().map_err(|e| bad(&e))?),
                 None => return Err(bad("no trace")),
             };
-            let class: Class = c["class"]
+            let class: LinkageClass = c["class"]
                 .as_str()
                 .ok_or_else(|| bad("no class"))?
                 .parse()
@@ -101,13 +124,13 @@ impl SearchTable {
             };
             t.rows.push(CurveRow {
                 id: c["id"].as_u64().unwrap_or(n as u64),
-                linkage: Linkage::FourBar(linkage),
+                linkage,
                 point: [point.u, point.v],
                 circuit: match trace {
                     TraceMode::Circuit(c) => c,
                     TraceMode::Full => Circuit::Open,
                 },
-                class: LinkageClass::Barker(class),
+                class,
                 transmission_deg: [f64::NAN; 2],
                 page: page_index,
                 page_bbox: page.map_or([0.0; 4], |p| p.1),
@@ -119,7 +142,7 @@ impl SearchTable {
                 crunodes: 0,
                 cusps: 0,
                 has_features: true,
-                trivial: Trivial::of(point, linkage.coupler).is_some(),
+                trivial: Trivial::of_linkage(point, &linkage).is_some(),
             });
             t.segments.extend(runs.iter().map(|r| {
                 let [a, b] = r.ends;

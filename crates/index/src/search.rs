@@ -15,7 +15,7 @@ use crate::schema::{IndexCurve, PageRef, SCHEMA_VERSION};
 use coupler_features::{
     CurveFeatures, PseudoArc, Side, StraightSegment, Trivial, window_transmission,
 };
-use coupler_kinematics::{Circuit, Linkage, LinkageClass, Mechanism};
+use coupler_kinematics::{Circuit, Linkage, LinkageClass};
 use serde::Serialize;
 
 /// One straight segment, as searched.
@@ -205,7 +205,7 @@ pub(crate) fn decompose(c: &IndexCurve) -> (CurveRow, Vec<SegmentRow>, Vec<ArcRo
         crunodes: f.double_points.crunodes.len() as u32,
         cusps: f.double_points.cusps.len() as u32,
         has_features: c.features.is_some(),
-        trivial: Trivial::of(c.point, c.linkage.coupler_length()).is_some(),
+        trivial: Trivial::of_linkage(c.point, &c.linkage).is_some(),
     };
     let segments = f
         .straight_segments

@@ -74,6 +74,12 @@ pub trait Mechanism: Clone + fmt::Debug + fmt::Display + Send + Sync {
     /// four-bar): pages draw the coupler plate over it.
     fn coupler_length(&self) -> f64;
 
+    /// Whether the pin at the far end of that link, the point `(coupler_length, 0)`,
+    /// moves on a circle about a ground pivot (a four-bar's rocker pin: its curve is a
+    /// trivial arc). A geared five-bar's dyad joint does not: the second crank's pin it
+    /// hangs from moves (its curve is §9's exact straight line for λ = −1, φ = 180°).
+    fn far_pin_on_ground_arc(&self) -> bool;
+
     /// The naming convention of its links, for page headers, e.g.
     /// `"crank = 1, coupler A, rocker B, ground C"`.
     fn convention(&self) -> &'static str;
@@ -163,6 +169,10 @@ impl Mechanism for FourBar {
 
     fn coupler_length(&self) -> f64 {
         self.coupler
+    }
+
+    fn far_pin_on_ground_arc(&self) -> bool {
+        true
     }
 
     fn convention(&self) -> &'static str {
@@ -379,6 +389,13 @@ impl Mechanism for Linkage {
         match self {
             Linkage::FourBar(l) => l.coupler_length(),
             Linkage::GearedFiveBar(l) => l.coupler_length(),
+        }
+    }
+
+    fn far_pin_on_ground_arc(&self) -> bool {
+        match self {
+            Linkage::FourBar(l) => l.far_pin_on_ground_arc(),
+            Linkage::GearedFiveBar(l) => l.far_pin_on_ground_arc(),
         }
     }
 

@@ -37,8 +37,10 @@ pub struct AngleTables {
 
 #[derive(Debug, Default)]
 struct Shared {
-    /// Gear tables by (λ, φ's bits).
-    gears: HashMap<(GearRatio, u64), Arc<GearTable>>,
+    /// Gear tables by (λ, φ's bits, the step's bits).
+    gears: HashMap<(GearRatio, u64, u64), Arc<GearTable>>,
+    /// Crank tables at steps other than the run's, by the step's bits.
+    cranks: HashMap<u64, Arc<CrankTable>>,
 }
 
 impl AngleTables {
@@ -63,13 +65,18 @@ impl AngleTables {
 
     /// The gear table of λ = `ratio`, φ = `phase` at this step (built on first use).
     pub fn gears(&self, ratio: GearRatio, phase: f64) -> Option<Arc<GearTable>> {
-        let key = (ratio, phase.to_bits());
+        self.gears_at(ratio, phase, self.step())
+    }
+
+    /// The gear table of λ = `ratio`, φ = `phase` at `step_deg` (built on first use).
+    pub fn gears_at(&self, ratio: GearRatio, phase: f64, step_deg: f64) -> Option<Arc<GearTable>> {
+        let key = (ratio, phase.to_bits(), step_deg.to_bits());
         if let Some(t) = self.lock().gears.get(&key) {
             return Some(t.clone());
         }
         // Built outside the lock: another thread may build the same table meanwhile
         // (the same bits); the first one stored is kept.
-        let t = Arc::new(GearTable::new(ratio, phase, self.step())?);
+        let t = Arc::new(GearTable::new(ratio, phase, step_deg)?);
         let mut shared = self.lock();
         if let Some(kept) = shared.gears.get(&key) {
             return Some(kept.clone());
@@ -93,6 +100,49 @@ impl AngleTables {
                     Some(t) => g.pose_table(circuit, &t),
                     None => PoseTable::from_frames(&self.crank, |_| None),
                 },
+            },
+        }
+    }
+
+    /// The crank table over one turn at `step_deg` (this run's, or another built on first
+    /// use and kept, up to [`MAX_SHARED_TABLES`]).
+    fn crank_at(&self, step_deg: f64) -> Option<Arc<CrankTable>> {
+        let key = step_deg.to_bits();
+        if let Some(t) = self.lock().cranks.get(&key) {
+            return Some(t.clone());
+        }
+        let t = Arc::new(CrankTable::new(step_deg)?);
+        let mut shared = self.lock();
+        if let Some(kept) = shared.cranks.get(&key) {
+            return Some(kept.clone());
+        }
+        if shared.cranks.len() < MAX_SHARED_TABLES {
+            shared.cranks.insert(key, t.clone());
+        }
+        Some(t)
+    }
+
+    /// [`AngleTables::pose_table`] at another step: exactly
+    /// `linkage.pose_table(circuit, &CrankTable::over(step_deg, period))`, from a crank
+    /// table and gear tables at that step shared like this run's (the features' 5°
+    /// samples, the pages' 2° extents). A step no crank table takes gives the
+    /// per-linkage table's answer.
+    pub fn pose_table_at(&self, linkage: &Linkage, circuit: Circuit, step_deg: f64) -> PoseTable {
+        if step_deg.to_bits() == self.step().to_bits() {
+            return self.pose_table(linkage, circuit);
+        }
+        let own = || match CrankTable::over(step_deg, linkage.period_deg()) {
+            Some(t) => linkage.pose_table(circuit, &t),
+            None => PoseTable::from_frames(&self.crank, |_| None),
+        };
+        match linkage {
+            Linkage::FourBar(l) => match self.crank_at(step_deg) {
+                Some(t) => l.pose_table(circuit, &t),
+                None => own(),
+            },
+            Linkage::GearedFiveBar(g) => match self.gears_at(g.ratio, g.phase, step_deg) {
+                Some(gears) => g.gear_pose_table(circuit, &gears),
+                None => own(),
             },
         }
     }
@@ -143,6 +193,20 @@ mod tests {
             }
         }
         assert_eq!(tables.lock().gears.len(), 15);
+        // At other steps (the features' 5°, the pages' 2°), likewise to the bit.
+        for step in [5.0, 2.0] {
+            for l in &linkages {
+                for circuit in [Circuit::Open, Circuit::Crossed] {
+                    let own =
+                        l.pose_table(circuit, &CrankTable::over(step, l.period_deg()).unwrap());
+                    let shared = tables.pose_table_at(l, circuit, step);
+                    assert_eq!(bits(&shared), bits(&own), "{l} {circuit} at {step}°");
+                    assert_eq!(shared.valid, own.valid, "{l} {circuit} at {step}°");
+                }
+            }
+        }
+        assert_eq!(tables.lock().gears.len(), 45);
+        assert_eq!(tables.lock().cranks.len(), 2);
     }
 
     #[test]

@@ -742,6 +742,7 @@ pub fn stability(out: Option<&Path>) -> Result<ExitCode> {
 /// (on any branch of the full curve) moving one way with ε_S below each tolerance.
 pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
     use coupler_features::{ClassicCurve, STRAIGHTNESS_TOLERANCES};
+    use coupler_kinematics::{Linkage, Mechanism as _};
     use coupler_specs::CurveList;
     let text =
         std::fs::read_to_string(spec).with_context(|| format!("reading {}", spec.display()))?;
@@ -792,7 +793,16 @@ pub fn classics(spec: &Path, out: Option<&Path>) -> Result<ExitCode> {
                 .map(|b| b.samples.iter().map(|s| (s.point.x, s.point.y)).collect())
                 .collect(),
             straight,
-            pivots: vec![(0.0, 0.0), (c.linkage.ground, 0.0)],
+            pivots: vec![
+                (0.0, 0.0),
+                (
+                    match &c.linkage {
+                        Linkage::FourBar(l) => l.ground,
+                        Linkage::GearedFiveBar(g) => g.l1,
+                    },
+                    0.0,
+                ),
+            ],
         });
         for s in &m.straight {
             match s {

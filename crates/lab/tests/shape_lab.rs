@@ -32,10 +32,9 @@ struct AtlasCurve {
 fn atlas(spec: &Spec) -> Vec<AtlasCurve> {
     let job = Job::new(spec.clone(), "lab", "/nonexistent", 1);
     coupler_generate::atlas_curves(&job)
-        .expect("a four-bar atlas")
         .into_iter()
         .map(|c| AtlasCurve {
-            linkage: c.curve.linkage,
+            linkage: *c.curve.linkage.four_bar().expect("a four-bar atlas"),
             circuit: c.curve.circuit,
             point: c.curve.point,
         })
@@ -585,7 +584,7 @@ fn open_oracle() {
             .par_iter()
             .map(|c| {
                 let cc = CouplerCurve {
-                    linkage: c.linkage,
+                    linkage: c.linkage.into(),
                     circuit: c.circuit,
                     point: c.point,
                 };
@@ -717,7 +716,7 @@ fn closed_timing() {
         .map(|(i, c)| AtlasCurve {
             id: i as u64,
             curve: CouplerCurve {
-                linkage: c.linkage,
+                linkage: c.linkage.into(),
                 circuit: c.circuit,
                 point: c.point,
             },
@@ -781,7 +780,7 @@ fn open_query_time() {
         .map(|(i, c)| AtlasCurve {
             id: i as u64,
             curve: CouplerCurve {
-                linkage: c.linkage,
+                linkage: c.linkage.into(),
                 circuit: c.circuit,
                 point: c.point,
             },

@@ -21,8 +21,8 @@ use crate::page::{
 };
 use coupler_features::CurveFeatures;
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, DashedCurve, Drawing, Linkage, Mechanism,
-    dash_curve,
+    AngleTables, Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, DashedCurve, Drawing,
+    Linkage, Mechanism, PoseTable, dash_curve,
 };
 
 /// Crank angle (degrees) at which the linkage is drawn: θ = 0, so every coupler point of
@@ -132,11 +132,35 @@ pub fn compute_page<M: Mechanism>(
     page: &LinkagePage<M>,
     setup: &PageSetup,
 ) -> Result<PageGeometry, LayoutError> {
-    setup.validate()?;
     // A mechanism whose period is longer than a turn (a geared five-bar of gear ratio
     // p/q) is traced over its whole period.
-    let table = CrankTable::over(2.0, page.linkage.period_deg()).expect("valid step");
+    let table = CrankTable::over(EXTENT_STEP_DEG, page.linkage.period_deg()).expect("valid step");
     let poses = page.linkage.pose_table(page.circuit, &table);
+    compute_page_from(page, setup, &poses)
+}
+
+/// Input step of the trace that estimates a page's extent, degrees.
+pub const EXTENT_STEP_DEG: f64 = 2.0;
+
+/// [`compute_page`] with the extent trace's poses from a run's shared `tables`
+/// ([`AngleTables::pose_table_at`] at [`EXTENT_STEP_DEG`]: the crank table, and a geared
+/// five-bar's gear table, built once for the run, not per page). The same page to the
+/// bit.
+pub fn compute_page_with_tables(
+    page: &LinkagePage<Linkage>,
+    setup: &PageSetup,
+    tables: &AngleTables,
+) -> Result<PageGeometry, LayoutError> {
+    let poses = tables.pose_table_at(&page.linkage, page.circuit, EXTENT_STEP_DEG);
+    compute_page_from(page, setup, &poses)
+}
+
+fn compute_page_from<M: Mechanism>(
+    page: &LinkagePage<M>,
+    setup: &PageSetup,
+    poses: &PoseTable,
+) -> Result<PageGeometry, LayoutError> {
+    setup.validate()?;
     let mut world = EMPTY;
     let mut samples: Vec<(f64, f64)> = Vec::new();
     let mut curve = Curve::default();

@@ -24,7 +24,7 @@ use coupler_features::{
     WindowMeasures,
 };
 use coupler_kinematics::{
-    Circuit, CrankAngle, Dash, InputRange, Mechanism, Pose, dash_curve, dash_leg_from,
+    Circuit, CrankAngle, Dash, InputRange, Linkage, Mechanism, Pose, dash_curve, dash_leg_from,
 };
 use nalgebra::Vector2;
 
@@ -103,12 +103,16 @@ fn drawn_state(page: &ClassicPage) -> Option<(f64, Circuit)> {
         .or_else(|| pick(0, 1))
 }
 
-fn drawn_pose(page: &ClassicPage, drawn: (f64, Circuit)) -> Option<Pose> {
-    Pose::solve(
-        &page.curve.linkage,
-        drawn.1,
-        &CrankAngle::from_degrees(drawn.0),
-    )
+/// The coupler point where the linkage is drawn (the four-bar's by its [`Pose`], as the
+/// pages always drew it; a geared five-bar's by its frame); `None` where it does not
+/// assemble.
+fn drawn_point(page: &ClassicPage, drawn: (f64, Circuit)) -> Option<nalgebra::Point2<f64>> {
+    let angle = CrankAngle::from_degrees(drawn.0);
+    let p = page.curve.point;
+    match &page.curve.linkage {
+        Linkage::FourBar(l) => Pose::solve(l, drawn.1, &angle).map(|pose| pose.point(p)),
+        Linkage::GearedFiveBar(g) => g.frame(drawn.1, &angle).map(|f| f.point(p)),
+    }
 }
 
 /// Computes the page: the extent of every branch, the linkage and the input's path at the
@@ -121,8 +125,16 @@ pub fn compute_classic(
     let l = page.curve.linkage;
     let p = page.curve.point;
     let drawn = drawn_state(page).unwrap_or((0.0, Circuit::Open));
-    // Both pivots, the input's path (its circle, or the arcs it rocks over), the branches.
-    let mut world = [0.0, 0.0, l.ground, 0.0];
+    // The ground pivots, the input's path (its circle, or the arcs it rocks over), the
+    // branches, the linkage's joints where it is drawn.
+    let drawing = l.drawing(drawn.1, &CrankAngle::from_degrees(drawn.0));
+    let mut world = [0.0, 0.0, 0.0, 0.0];
+    for j in drawing.joints.iter().filter(|j| j.ground) {
+        world = union(
+            world,
+            [j.position.x, j.position.y, j.position.x, j.position.y],
+        );
+    }
     let mut curve_world = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
     let mut samples = Vec::new();
     let mirror = mirror_branch(page);
@@ -147,14 +159,11 @@ pub fn compute_classic(
             samples.push((s.point.x, s.point.y));
         }
     }
-    if let Some(pose) = drawn_pose(page, drawn) {
-        for q in [pose.rocker_pin, pose.point(p)] {
+    if let Some(m) = drawn_point(page, drawn) {
+        let moving = drawing.joints.iter().filter(|j| !j.ground);
+        for q in moving.map(|j| j.position).chain([m]) {
             world = union(world, [q.x, q.y, q.x, q.y]);
         }
-    }
-    if let Some(pose) = drawn_pose(page, drawn) {
-        let q = pose.crank_pin;
-        world = union(world, [q.x, q.y, q.x, q.y]);
     }
     if !curve_world[0].is_finite() {
         curve_world = world;
@@ -242,10 +251,14 @@ pub fn compute_classic(
 /// input rocks in two intervals that are mirror images in the ground line (the linkage
 /// reflected: its curve is this curve reflected), the one without the bracketed straight
 /// run. It is not drawn (the page says so).
+///
+/// Only a four-bar's: a geared five-bar's mirror image is another linkage (its phase
+/// negated), so its intervals are two assemblies of this one and both are drawn.
 pub fn mirror_branch(page: &ClassicPage) -> Option<usize> {
     let InputRange::Rocks { intervals } = &page.measured.range else {
         return None;
     };
+    page.curve.linkage.four_bar()?;
     if intervals.len() != 2 {
         return None;
     }
@@ -293,15 +306,27 @@ fn arc_points(a0: f64, a1: f64) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// In words, how the input moves and which kind of four-bar this is.
+/// In words, how the input moves and which kind of linkage this is (a four-bar's Barker
+/// class and Grashof family; a geared five-bar's Ting class and gears).
 fn kind_text(page: &ClassicPage) -> String {
-    let class = page.curve.linkage.class();
-    let family = if class.is_grashof() {
-        "Grashof"
-    } else if class.is_change_point() {
-        "change point"
-    } else {
-        "non-Grashof"
+    let family = match &page.curve.linkage {
+        Linkage::FourBar(l) => {
+            let class = l.class();
+            let family = if class.is_grashof() {
+                "Grashof"
+            } else if class.is_change_point() {
+                "change point"
+            } else {
+                "non-Grashof"
+            };
+            format!("class {} ({family})", class.code())
+        }
+        Linkage::GearedFiveBar(g) => format!(
+            "geared five-bar, Ting class {}, λ = {}, φ = {}°",
+            g.ting_class().code(),
+            minus_sign(g.ratio.to_string()),
+            minus_sign(fmt_sig(g.phase))
+        ),
     };
     let input = match &page.measured.range {
         InputRange::Full => "the input turns fully (a crank)".to_string(),
@@ -311,7 +336,15 @@ fn kind_text(page: &ClassicPage) -> String {
             page.measured.range_text()
         ),
     };
-    format!("class {} ({family}): {input}", class.code())
+    format!("{family}: {input}")
+}
+
+/// Text with a leading hyphen-minus as a real minus sign (U+2212).
+fn minus_sign(text: String) -> String {
+    match text.strip_prefix('-') {
+        Some(rest) => format!("\u{2212}{rest}"),
+        None => text,
+    }
 }
 
 /// ε_V over a straight run (percent), measured on its circuit over its input window with
@@ -407,11 +440,13 @@ pub fn layout_classic(
         &mut dl,
         setup,
         format!(
-            "{}    A = {}   B = {}   C = {}   M = ({}, {})",
+            "{}    {}   M = ({}, {})",
             page.curve.name,
-            fmt_sig(l.coupler),
-            fmt_sig(l.rocker),
-            fmt_sig(l.ground),
+            l.dimensions()
+                .iter()
+                .map(|(name, x)| format!("{name} = {}", fmt_sig(*x)))
+                .collect::<Vec<_>>()
+                .join("   "),
             fmt_sig(p.u),
             fmt_sig(p.v)
         ),
@@ -478,16 +513,18 @@ pub fn layout_classic(
     }
     let mut segments = Vec::new();
     let mut pins = Vec::new();
-    if let Some(pose) = drawn_pose(page, geometry.drawn) {
+    if let Some(mq) = drawn_point(page, geometry.drawn) {
         let drawing = l.drawing(
             geometry.drawn.1,
             &CrankAngle::from_degrees(geometry.drawn.0),
         );
         pins = draw_links_width(&mut dl, &t, &drawing, &mut segments, 0.7);
-        let (pa, pb) = (pins[2].0, pins[3].0);
-        let mq = pose.point(p);
+        // The coupler body's ends: the input's pin and the far end of its link (a
+        // four-bar's rocker pin, a geared five-bar's dyad joint).
+        let pin = |name: &str| pins.iter().find(|q| q.1 == name).map(|q| q.0);
+        let ends = [pin("Pa"), pin("Pb").or_else(|| pin("P"))];
         let mp = t.map(mq.x, mq.y);
-        for a in [pa, pb] {
+        for a in ends.into_iter().flatten() {
             if libm::hypot(mp[0] - a[0], mp[1] - a[1]) > 2.0 * style::PIN_RADIUS {
                 dl.line(vec![a, mp], style::THIN);
                 segments.push((a, mp));
@@ -687,12 +724,13 @@ fn travel_direction(page: &ClassicPage, circuit: Circuit, d: &Dash) -> Vector2<f
     } else {
         -1.0
     };
-    let v = Pose::solve(
-        &page.curve.linkage,
-        circuit,
-        &CrankAngle::from_degrees(d.theta_end),
-    )
-    .map(|pose| pose.velocity(page.curve.point) * sign)
+    let angle = CrankAngle::from_degrees(d.theta_end);
+    let p = page.curve.point;
+    let v = match &page.curve.linkage {
+        Linkage::FourBar(l) => Pose::solve(l, circuit, &angle).map(|pose| pose.velocity(p)),
+        Linkage::GearedFiveBar(g) => g.frame(circuit, &angle).map(|f| f.velocity(p)),
+    }
+    .map(|v| v * sign)
     .filter(|v| v.norm() > 1e-12 && v.iter().all(|x| x.is_finite()));
     let chord = d.points[d.points.len() - 1] - d.points[0];
     match v {

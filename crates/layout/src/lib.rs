@@ -16,8 +16,9 @@ mod labels;
 mod page;
 
 pub use atlas::{
-    CurvePlacement, DRAWN_CRANK_ANGLE_DEG, Inset, LinkagePage, MU_WARNING_DEG, PageGeometry,
-    PageLayout, compute_page, fmt_sig, is_pin_point, layout_page,
+    CurvePlacement, DRAWN_CRANK_ANGLE_DEG, EXTENT_STEP_DEG, Inset, LinkagePage, MU_WARNING_DEG,
+    PageGeometry, PageLayout, compute_page, compute_page_with_tables, fmt_sig, is_pin_point,
+    layout_page,
 };
 pub use card::{CARD_HEIGHT_PT, CARD_WIDTH_PT, dwell_card, straight_family_chart, wrap};
 pub use classic::{

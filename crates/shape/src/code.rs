@@ -218,7 +218,7 @@ mod tests {
     #[test]
     fn invariant_to_similarity_start_and_bytes_round_trip() {
         let c = CouplerCurve {
-            linkage: FourBar::new(3.0, 2.5, 3.5).unwrap(),
+            linkage: FourBar::new(3.0, 2.5, 3.5).unwrap().into(),
             circuit: Circuit::Open,
             point: CouplerPoint::new(1.5, 1.0),
         };

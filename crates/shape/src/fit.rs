@@ -159,7 +159,7 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec
             .collect();
         starts.push(Start {
             mirrored: mir,
-            theta: unwrap_sequence(theta),
+            theta: unwrap_sequence(theta, traced.period),
             score: 1.0 - best.0,
         });
     }
@@ -310,7 +310,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
             .collect();
         out.push(Start {
             mirrored: *mir,
-            theta: unwrap_sequence(theta),
+            theta: unwrap_sequence(theta, traced.period),
             score: m,
         });
     }
@@ -321,11 +321,13 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
 /// Ratio between consecutive window lengths of the open scan.
 const OPEN_LENGTH_RATIO: f64 = 1.2;
 
-/// Makes consecutive angles differ by less than 180° (adding whole turns).
-fn unwrap_sequence(mut t: Vec<f64>) -> Vec<f64> {
+/// Makes consecutive angles differ by less than half the mechanism's period (adding whole
+/// periods: 360° for a four-bar, 720° for a geared five-bar of ratio p/2, where θ and
+/// θ + 360° are different points of the curve).
+fn unwrap_sequence(mut t: Vec<f64>, period: f64) -> Vec<f64> {
     for k in 1..t.len() {
         let d = t[k] - t[k - 1];
-        t[k] -= 360.0 * (d / 360.0).round();
+        t[k] -= period * (d / period).round();
     }
     t
 }
@@ -338,7 +340,7 @@ pub(crate) fn fit_untimed(
     options: &FitOptions,
 ) -> Option<CurveFit> {
     let mir = start.mirrored;
-    let gaps = coupler_kinematics::ToggleGaps::of(&curve.linkage);
+    let gaps = curve.gaps();
     let m0: Vec<C64> = start
         .theta
         .iter()
@@ -373,7 +375,8 @@ pub(crate) fn fit_untimed(
         ..LmOptions::DEFAULT
     };
     let res = solve(vec![a.re, a.im, b.re, b.im], start.theta.clone(), eval, &lm)?;
-    finish_fit(p, curve, mir, &res.global, unwrap_sequence(res.local), None)
+    let theta = unwrap_sequence(res.local, curve.period_deg());
+    finish_fit(p, curve, mir, &res.global, theta, None)
 }
 
 fn finish_fit(
@@ -385,7 +388,7 @@ fn finish_fit(
     step: Option<f64>,
 ) -> Option<CurveFit> {
     let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
-    let gaps = coupler_kinematics::ToggleGaps::of(&curve.linkage);
+    let gaps = curve.gaps();
     let mut sum = 0.0;
     let mut max = 0.0f64;
     for (k, &pk) in p.iter().enumerate() {
@@ -416,7 +419,7 @@ fn timed_offsets(target: &Target) -> Vec<f64> {
 }
 
 /// Timed fit: `θ_k = θ₀ + s·o_k` with `o_k` from [`timed_offsets`] and the step `s`
-/// fixed (±1 for angles, ±360°/n for a closed target of equal steps) or fitted (an open
+/// fixed (±1 for angles, ±P/n for a closed target of equal steps, P the mechanism's period) or fitted (an open
 /// target of equal steps). Starts: every θ₀ on a 2° grid for each sense and reflection
 /// (Procrustes on the dense trace), and, when `hint` is given (an untimed fit), the
 /// regression of its angles on the offsets.
@@ -433,7 +436,7 @@ pub(crate) fn fit_timed(
     let free_step = matches!(target.timing(), Timing::EqualSteps) && !target.is_closed();
     let unit_step = match target.timing() {
         Timing::Angles(_) => 1.0,
-        _ if target.is_closed() => 360.0 / n as f64,
+        _ if target.is_closed() => curve.period_deg() / n as f64,
         _ => 0.0,
     };
     // Candidate (mirrored, θ₀, step) starts.
@@ -448,7 +451,7 @@ pub(crate) fn fit_timed(
             for sense in [1.0, -1.0] {
                 let step = sense * unit_step;
                 let mut best = (f64::INFINITY, 0.0);
-                for i in 0..180 {
+                for i in 0..(curve.period_deg() / 2.0).round() as usize {
                     let t0 = 2.0 * i as f64;
                     let m: Vec<C64> = o
                         .iter()
@@ -509,7 +512,7 @@ fn timed_lm(
     free_step: bool,
     options: &FitOptions,
 ) -> Option<CurveFit> {
-    let gaps = coupler_kinematics::ToggleGaps::of(&curve.linkage);
+    let gaps = curve.gaps();
     let m0: Vec<C64> = o
         .iter()
         .map(|&x| curve.at_with(&gaps, t0 + step * x).map(|a| tilde(mir, a.m)))
@@ -617,7 +620,7 @@ mod tests {
 
     fn curve() -> CouplerCurve {
         CouplerCurve {
-            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap(),
+            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap().into(),
             circuit: Circuit::Open,
             point: CouplerPoint::new(1.25, 1.0),
         }

@@ -1,8 +1,13 @@
 //! The coupler point and its derivatives, for fitting: position `M(θ)`, velocity
-//! `dM/dθ`, and the sensitivities `∂M/∂(A, B, C, u, v)` of the closed-form pose.
+//! `dM/dθ`, and the sensitivities `∂M/∂(dimensions, u, v)` of the closed-form pose, for
+//! either mechanism of an atlas ([`Linkage`]): the mechanism-generic seam of shape search
+//! (how a hit becomes a linkage, how its curve is regenerated).
 
 use crate::geom::C64;
-use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, FourBar, Pose, ToggleGaps};
+use coupler_kinematics::{
+    Circuit, CouplerPoint, CrankAngle, FourBar, GearedFiveBar, GearedGaps, Linkage, Mechanism,
+    Pose, ToggleGaps,
+};
 
 /// A curve a search can return: its id (in the atlas) and what traces it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -13,15 +18,29 @@ pub struct AtlasCurve {
     pub curve: CouplerCurve,
 }
 
-/// A coupler point on one circuit of a linkage: the curve a candidate traces.
+/// A coupler point on one circuit of a linkage (a four-bar or a geared five-bar, input
+/// crank = 1): the curve a candidate traces, over the mechanism's period of input
+/// ([`CouplerCurve::period_deg`]: 360° for a four-bar, `360°·q` for a geared five-bar of
+/// gear ratio p/q).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CouplerCurve {
-    /// The linkage (crank = 1).
-    pub linkage: FourBar,
+    /// The linkage (input crank = 1).
+    pub linkage: Linkage,
     /// The circuit.
     pub circuit: Circuit,
-    /// The coupler point (crank units).
+    /// The coupler point (crank units), on the coupler of a four-bar or on L3 of a geared
+    /// five-bar.
     pub point: CouplerPoint,
+}
+
+/// A curve's linkage constants computed once, for evaluating it at many angles
+/// ([`CouplerCurve::gaps`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CurveGaps {
+    /// A four-bar's.
+    FourBar(ToggleGaps),
+    /// A geared five-bar's.
+    Geared(GearedGaps),
 }
 
 /// The coupler point at one crank angle, with derivatives.
@@ -33,70 +52,172 @@ pub struct PointAt {
     pub dm_dtheta: C64,
 }
 
-/// [`PointAt`] plus `∂M/∂A`, `∂M/∂B`, `∂M/∂C`, `∂M/∂u`, `∂M/∂v` (θ held).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// [`PointAt`] plus `∂M/∂p` for each of the curve's parameters `p`
+/// ([`CouplerCurve::params`]), θ held.
+#[derive(Clone, Debug, PartialEq)]
 pub struct PointSensitivity {
     /// Position and velocity.
     pub at: PointAt,
-    /// `∂M/∂(A, B, C, u, v)`.
-    pub d: [C64; 5],
+    /// `∂M/∂p`, in the order of [`CouplerCurve::params`].
+    pub d: Vec<C64>,
 }
 
 const RAD_PER_DEG: f64 = std::f64::consts::PI / 180.0;
 
 impl CouplerCurve {
+    /// The curve of `point` on `circuit` of `linkage`.
+    pub fn new(linkage: impl Into<Linkage>, circuit: Circuit, point: CouplerPoint) -> Self {
+        CouplerCurve {
+            linkage: linkage.into(),
+            circuit,
+            point,
+        }
+    }
+
+    /// Degrees of input after which the curve closes ([`Mechanism::period_deg`]).
+    pub fn period_deg(&self) -> f64 {
+        self.linkage.period_deg()
+    }
+
+    /// The linkage's constants, for [`CouplerCurve::at_with`].
+    pub fn gaps(&self) -> CurveGaps {
+        match &self.linkage {
+            Linkage::FourBar(l) => CurveGaps::FourBar(ToggleGaps::of(l)),
+            Linkage::GearedFiveBar(l) => CurveGaps::Geared(GearedGaps::of(l)),
+        }
+    }
+
     /// The position and velocity at `deg`; `None` where the linkage does not assemble or
     /// is at a toggle (infinite velocity).
     pub fn at(&self, deg: f64) -> Option<PointAt> {
-        self.at_with(&ToggleGaps::of(&self.linkage), deg)
+        self.at_with(&self.gaps(), deg)
     }
 
     /// [`CouplerCurve::at`] with the linkage's constants computed once
-    /// (`ToggleGaps::of(&self.linkage)`), for many angles.
-    pub fn at_with(&self, gaps: &ToggleGaps, deg: f64) -> Option<PointAt> {
-        let pose = Pose::solve_with(
-            &self.linkage,
-            gaps,
-            self.circuit,
-            &CrankAngle::from_degrees(deg),
-        )?;
-        if !pose.is_finite() {
+    /// ([`CouplerCurve::gaps`]), for many angles. `None` also if `gaps` are another
+    /// mechanism's.
+    pub fn at_with(&self, gaps: &CurveGaps, deg: f64) -> Option<PointAt> {
+        let angle = CrankAngle::from_degrees(deg);
+        let (m, v) = match (&self.linkage, gaps) {
+            (Linkage::FourBar(l), CurveGaps::FourBar(g)) => {
+                let pose = Pose::solve_with(l, g, self.circuit, &angle)?;
+                if !pose.is_finite() {
+                    return None;
+                }
+                (pose.point(self.point), pose.velocity(self.point))
+            }
+            (Linkage::GearedFiveBar(l), CurveGaps::Geared(g)) => {
+                let frame = l.frame_with(g, self.circuit, &angle)?;
+                if !frame.omega.is_finite() {
+                    return None;
+                }
+                (frame.point(self.point), frame.velocity(self.point))
+            }
+            _ => return None,
+        };
+        if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()) {
             return None;
         }
-        let m = pose.point(self.point);
-        let v = pose.velocity(self.point);
         Some(PointAt {
             m: C64::new(m.x, m.y),
             dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
         })
     }
 
-    /// [`CouplerCurve::at`] with the sensitivities to the linkage's dimensions and the
-    /// coupler point. The rocker pin Pb satisfies `|Pb − Pa|² = A²` and `|Pb − O4|² = B²`
-    /// with `O4 = (C, 0)`; differentiating, with `q = Pb − Pa`, `w = Pb − O4`:
-    /// `q·dPb = A·dA` and `w·dPb = B·dB + w_x·dC`, a 2 × 2 system (singular only at a
-    /// toggle, where `q ∥ w`). Then `e = q/A`, `de = dPb/A − q·dA/A²`, and
+    /// The curve's continuous parameters, as refinement moves them: a four-bar's
+    /// `[A, B, C, u, v]`; a geared five-bar's `[L1, L3, L4, L5, φ (degrees), u, v]` (its
+    /// gear ratio λ is discrete: it sets the period and the curve's family, and is held).
+    pub fn params(&self) -> Vec<f64> {
+        let (u, v) = (self.point.u, self.point.v);
+        match &self.linkage {
+            Linkage::FourBar(l) => vec![l.coupler, l.rocker, l.ground, u, v],
+            Linkage::GearedFiveBar(l) => vec![l.l1, l.l3, l.l4, l.l5, l.phase, u, v],
+        }
+    }
+
+    /// The names of [`CouplerCurve::params`].
+    pub fn param_names(&self) -> &'static [&'static str] {
+        match &self.linkage {
+            Linkage::FourBar(_) => &["A", "B", "C", "u", "v"],
+            Linkage::GearedFiveBar(_) => &["L1", "L3", "L4", "L5", "φ", "u", "v"],
+        }
+    }
+
+    /// The same mechanism (circuit, and gear ratio of a geared five-bar) with parameters
+    /// `p` in the order of [`CouplerCurve::params`]; `None` unless they make a linkage
+    /// (lengths finite and positive, point finite).
+    pub fn with_params(&self, p: &[f64]) -> Option<CouplerCurve> {
+        let (linkage, point): (Linkage, _) = match &self.linkage {
+            Linkage::FourBar(_) if p.len() == 5 => (
+                FourBar::new(p[0], p[1], p[2]).ok()?.into(),
+                CouplerPoint::new(p[3], p[4]),
+            ),
+            Linkage::GearedFiveBar(l) if p.len() == 7 => (
+                GearedFiveBar::new(p[0], p[1], p[2], p[3], l.ratio, p[4])
+                    .ok()?
+                    .into(),
+                CouplerPoint::new(p[5], p[6]),
+            ),
+            _ => return None,
+        };
+        (point.u.is_finite() && point.v.is_finite()).then_some(CouplerCurve {
+            linkage,
+            circuit: self.circuit,
+            point,
+        })
+    }
+
+    /// The mirror image's linkage: reflecting the whole linkage in its ground line maps
+    /// this curve onto the curve of `(u, −v)` on the other circuit, the input angle
+    /// negated (domain conventions §1, the mirror identity); for a geared five-bar the
+    /// second crank's angle is negated too, `−θ5 = λ·(−θ2) − φ`, so the phase becomes
+    /// `−φ`. So `self.mirrored().at(−θ)` is the conjugate of `self.at(θ)` (velocities
+    /// per degree of the mirror's own input).
+    pub fn mirrored(&self) -> CouplerCurve {
+        let linkage = match self.linkage {
+            Linkage::FourBar(l) => Linkage::FourBar(l),
+            Linkage::GearedFiveBar(l) => Linkage::GearedFiveBar(GearedFiveBar {
+                phase: if l.phase == 0.0 { 0.0 } else { -l.phase },
+                ..l
+            }),
+        };
+        CouplerCurve {
+            linkage,
+            circuit: self.circuit.other(),
+            point: CouplerPoint::new(self.point.u, -self.point.v),
+        }
+    }
+
+    /// [`CouplerCurve::at`] with the sensitivities to the curve's parameters
+    /// ([`CouplerCurve::params`]).
+    ///
+    /// Four-bar, in closed form: the rocker pin Pb satisfies `|Pb − Pa|² = A²` and
+    /// `|Pb − O4|² = B²` with `O4 = (C, 0)`; differentiating, with `q = Pb − Pa`,
+    /// `w = Pb − O4`: `q·dPb = A·dA` and `w·dPb = B·dB + w_x·dC`, a 2 × 2 system (singular
+    /// only at a toggle, where `q ∥ w`). Then `e = q/A`, `de = dPb/A − q·dA/A²`, and
     /// `dM = u·de + v·J·de`; `∂M/∂u = e`, `∂M/∂v = J·e`.
+    ///
+    /// Geared five-bar: `∂M/∂u = e3`, `∂M/∂v = J·e3` exactly; the dimensions' by central
+    /// differences of the closed-form pose (step `1e-6·max(1, |p|)`; error about 1e-9
+    /// relative, ample for a Gauss–Newton step). `None` if a moved linkage does not
+    /// assemble at `deg`.
     pub fn sensitivity(&self, deg: f64) -> Option<PointSensitivity> {
-        self.sensitivity_with(&ToggleGaps::of(&self.linkage), deg)
+        self.sensitivity_with(&self.gaps(), deg)
     }
 
     /// [`CouplerCurve::sensitivity`] with the linkage's constants computed once.
-    pub fn sensitivity_with(&self, gaps: &ToggleGaps, deg: f64) -> Option<PointSensitivity> {
-        let pose = Pose::solve_with(
-            &self.linkage,
-            gaps,
-            self.circuit,
-            &CrankAngle::from_degrees(deg),
-        )?;
-        if !pose.is_finite() {
-            return None;
-        }
-        let (a_len, b_len, c_len) = (
-            self.linkage.coupler,
-            self.linkage.rocker,
-            self.linkage.ground,
-        );
+    pub fn sensitivity_with(&self, gaps: &CurveGaps, deg: f64) -> Option<PointSensitivity> {
+        let at = self.at_with(gaps, deg)?;
+        let l = match (&self.linkage, gaps) {
+            (Linkage::FourBar(l), CurveGaps::FourBar(g)) => (l, g),
+            (Linkage::GearedFiveBar(_), CurveGaps::Geared(_)) => {
+                return self.geared_sensitivity(at, deg);
+            }
+            _ => return None,
+        };
+        let (linkage, gaps) = l;
+        let pose = Pose::solve_with(linkage, gaps, self.circuit, &CrankAngle::from_degrees(deg))?;
+        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
         let pa = C64::new(pose.crank_pin.x, pose.crank_pin.y);
         let pb = C64::new(pose.rocker_pin.x, pose.rocker_pin.y);
         let q = pb - pa;
@@ -119,22 +240,47 @@ impl CouplerCurve {
         let d_a = dm_from(solve(a_len, 0.0), 1.0);
         let d_b = dm_from(solve(0.0, b_len), 0.0);
         let d_c = dm_from(solve(0.0, w.re), 0.0);
-        let m = pose.point(self.point);
-        let vel = pose.velocity(self.point);
         Some(PointSensitivity {
-            at: PointAt {
-                m: C64::new(m.x, m.y),
-                dm_dtheta: C64::new(vel.x, vel.y) * RAD_PER_DEG,
-            },
-            d: [d_a, d_b, d_c, e, j * e],
+            at,
+            d: vec![d_a, d_b, d_c, e, j * e],
         })
     }
 
-    /// The curve sampled at `n` crank angles `k·360°/n`, `k = 0..n`; `None` unless it
-    /// assembles at all of them.
+    /// The geared five-bar's sensitivities (see [`CouplerCurve::sensitivity`]).
+    fn geared_sensitivity(&self, at: PointAt, deg: f64) -> Option<PointSensitivity> {
+        let p = self.params();
+        let dims = p.len() - 2;
+        let mut d = Vec::with_capacity(p.len());
+        for i in 0..dims {
+            let h = 1e-6 * p[i].abs().max(1.0);
+            let moved = |sign: f64| {
+                let mut q = p.clone();
+                q[i] += sign * h;
+                self.with_params(&q)?.at(deg).map(|x| x.m)
+            };
+            d.push((moved(1.0)? - moved(-1.0)?) / (2.0 * h));
+        }
+        // ∂M/∂u = e, ∂M/∂v = J·e: the unit direction of L3 from the point (0, 0) and (1, 0).
+        let origin = CouplerCurve {
+            point: CouplerPoint::new(0.0, 0.0),
+            ..*self
+        };
+        let unit = CouplerCurve {
+            point: CouplerPoint::new(1.0, 0.0),
+            ..*self
+        };
+        let e = unit.at(deg)?.m - origin.at(deg)?.m;
+        d.push(e);
+        d.push(C64::new(0.0, 1.0) * e);
+        Some(PointSensitivity { at, d })
+    }
+
+    /// The curve sampled at `n` input angles `k·P/n`, `k = 0..n`, over its period `P`
+    /// ([`CouplerCurve::period_deg`]); `None` unless it assembles at all of them.
     pub fn sample(&self, n: usize) -> Option<Vec<C64>> {
-        let table = coupler_kinematics::CrankTable::new(360.0 / n as f64)?;
-        let poses = coupler_kinematics::PoseTable::new(&self.linkage, self.circuit, &table);
+        let period = self.period_deg();
+        let table = coupler_kinematics::CrankTable::over(period / n as f64, period)?;
+        let poses = self.linkage.pose_table(self.circuit, &table);
         if !poses.all_valid() {
             return None;
         }
@@ -146,49 +292,102 @@ impl CouplerCurve {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use coupler_kinematics::GearRatio;
 
+    fn geared(ratio: GearRatio, phase: f64) -> CouplerCurve {
+        CouplerCurve::new(
+            GearedFiveBar::new(3.0, 3.2, 3.5, 1.2, ratio, phase).unwrap(),
+            Circuit::Open,
+            CouplerPoint::new(1.3, -0.8),
+        )
+    }
+
+    /// Every parameter's sensitivity against central differences of the curve moved
+    /// through [`CouplerCurve::with_params`] (an independent path for the four-bar's
+    /// closed form; for the five-bar, a check of the step and of u, v).
     #[test]
     fn sensitivities_match_finite_differences() {
-        let base = CouplerCurve {
-            linkage: FourBar::new(2.37, 3.1, 3.4).unwrap(),
-            circuit: Circuit::Open,
-            point: CouplerPoint::new(1.3, -0.8),
-        };
-        for circuit in [Circuit::Open, Circuit::Crossed] {
-            let c = CouplerCurve { circuit, ..base };
-            for k in 0..12 {
-                let deg = 13.0 + 30.0 * k as f64;
-                let s = c.sensitivity(deg).unwrap();
-                let h = 1e-6;
-                let moved = |i: usize, sign: f64| {
-                    let mut d = [
-                        c.linkage.coupler,
-                        c.linkage.rocker,
-                        c.linkage.ground,
-                        c.point.u,
-                        c.point.v,
-                    ];
-                    d[i] += sign * h;
-                    CouplerCurve {
-                        linkage: FourBar::new(d[0], d[1], d[2]).unwrap(),
-                        circuit,
-                        point: CouplerPoint::new(d[3], d[4]),
+        let four = CouplerCurve::new(
+            FourBar::new(2.37, 3.1, 3.4).unwrap(),
+            Circuit::Open,
+            CouplerPoint::new(1.3, -0.8),
+        );
+        let half = GearRatio::new(-1, 2).unwrap();
+        for base in [
+            four,
+            geared(GearRatio::integer(-2).unwrap(), 40.0),
+            geared(half, -70.0),
+        ] {
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                let c = CouplerCurve { circuit, ..base };
+                for k in 0..12 {
+                    let deg = 13.0 + c.period_deg() / 12.0 * k as f64;
+                    let s = c.sensitivity(deg).unwrap();
+                    let p = c.params();
+                    assert_eq!(s.d.len(), p.len());
+                    for i in 0..p.len() {
+                        let h = 1e-5;
+                        let moved = |sign: f64| {
+                            let mut q = p.clone();
+                            q[i] += sign * h;
+                            c.with_params(&q).unwrap().at(deg).unwrap().m
+                        };
+                        let fd = (moved(1.0) - moved(-1.0)) / (2.0 * h);
+                        assert!(
+                            (fd - s.d[i]).norm() < 1e-6 * (1.0 + fd.norm()),
+                            "{} {circuit} {deg} {}: {fd} {}",
+                            c.linkage,
+                            c.param_names()[i],
+                            s.d[i]
+                        );
                     }
-                    .at(deg)
-                    .unwrap()
-                    .m
-                };
-                for i in 0..5 {
-                    let fd = (moved(i, 1.0) - moved(i, -1.0)) / (2.0 * h);
-                    assert!(
-                        (fd - s.d[i]).norm() < 1e-7,
-                        "{circuit} {deg} {i}: {fd} {}",
-                        s.d[i]
-                    );
+                    let fd = (c.at(deg + 1e-5).unwrap().m - c.at(deg - 1e-5).unwrap().m) / 2e-5;
+                    assert!((fd - s.at.dm_dtheta).norm() < 1e-7 * (1.0 + fd.norm()));
                 }
-                let fd = (c.at(deg + 1e-5).unwrap().m - c.at(deg - 1e-5).unwrap().m) / 2e-5;
-                assert!((fd - s.at.dm_dtheta).norm() < 1e-7);
             }
         }
+    }
+
+    /// The mirror identity for both mechanisms: the mirror linkage at −θ traces the
+    /// conjugate point (a five-bar's phase negated), over a whole period.
+    #[test]
+    fn mirrored_linkage_traces_the_reflected_curve() {
+        let four = CouplerCurve::new(
+            FourBar::new(2.37, 3.1, 3.4).unwrap(),
+            Circuit::Crossed,
+            CouplerPoint::new(1.3, -0.8),
+        );
+        let half = GearRatio::new(-1, 2).unwrap();
+        for c in [
+            four,
+            geared(GearRatio::integer(2).unwrap(), 35.0),
+            geared(half, -70.0),
+        ] {
+            let m = c.mirrored();
+            let mut seen = 0;
+            for k in 0..97 {
+                let deg = c.period_deg() * k as f64 / 97.0;
+                let (Some(a), Some(b)) = (c.at(deg), m.at(-deg)) else {
+                    assert_eq!(c.at(deg).is_some(), m.at(-deg).is_some(), "{deg}");
+                    continue;
+                };
+                seen += 1;
+                assert!((a.m.conj() - b.m).norm() < 1e-12, "{} {deg}", c.linkage);
+                assert!((a.dm_dtheta.conj() + b.dm_dtheta).norm() < 1e-12);
+            }
+            assert!(seen > 40, "{}: {seen}", c.linkage);
+        }
+    }
+
+    /// A ratio of −1/2 closes after 720° of input, and `sample` covers it.
+    #[test]
+    fn samples_cover_the_period() {
+        let c = geared(GearRatio::new(-1, 2).unwrap(), -70.0);
+        assert_eq!(c.period_deg(), 720.0);
+        let z = c.sample(720).unwrap();
+        assert_eq!(z.len(), 720);
+        assert!((z[1] - c.at(1.0).unwrap().m).norm() < 1e-12);
+        assert!((z[500] - c.at(500.0).unwrap().m).norm() < 1e-12);
+        assert!((z[500] - c.at(140.0).unwrap().m).norm() > 1e-3);
     }
 }

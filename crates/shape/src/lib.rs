@@ -31,7 +31,7 @@ mod traced;
 pub use code::{CODE_BYTES, CODE_LEN, ClosedQuery, HARMONICS, ShapeCode};
 pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
-pub use kin::{AtlasCurve, CouplerCurve, PointAt, PointSensitivity};
+pub use kin::{AtlasCurve, CouplerCurve, CurveGaps, PointAt, PointSensitivity};
 pub use matching::{
     Candidate, Match, MatchError, MatchOptions, OpenScan, coarse_candidates, find_matches,
     open_finish, open_scan, rank_candidates,
@@ -40,8 +40,9 @@ pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;
 pub use refine::{Refined, refine};
 pub use sidecar::{
-    HEADER_BYTES, RECORD_BYTES, SHAPES_FILE, SIDECAR_VERSION, ShapeAtlas, SidecarError,
-    decode_sidecar, encode_record, encode_sidecar, sidecar_header,
+    GEARED_RECORD_BYTES, HEADER_BYTES, RECORD_BYTES, RecordKind, SHAPES_FILE, SIDECAR_VERSION,
+    ShapeAtlas, SidecarError, decode_sidecar, encode_record, encode_sidecar, sidecar_header,
+    sidecar_header_for,
 };
 pub use smooth::{default_terms, smooth_resample};
 pub use target::{Target, TargetError, Timing};

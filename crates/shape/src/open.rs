@@ -29,7 +29,7 @@ use crate::geom::C64;
 use crate::kin::AtlasCurve;
 use crate::smooth::{default_terms, smooth_resample};
 use crate::target::{Target, Timing};
-use coupler_kinematics::{Circuit, CrankTable, FourBar, PoseTable};
+use coupler_kinematics::{Circuit, CrankTable, Linkage, Mechanism};
 
 /// Most points of an untimed query (the target's own points, thinned by index).
 const QUERY_POINTS: usize = 32;
@@ -40,16 +40,20 @@ const REESTIMATIONS: usize = 5;
 /// Projection steps of stage 1b (untimed), on every curve.
 const PROJECTIONS: usize = 10;
 
-/// One linkage on one circuit at 1° crank steps: crank pin and coupler direction.
+/// One linkage on one circuit at 1° crank steps over its period (360° for a four-bar,
+/// `360°·q` for a geared five-bar of ratio p/q): crank pin and coupler direction.
 struct Table {
     pa: Vec<C64>,
     e: Vec<C64>,
+    /// The period, degrees of input.
+    period: f64,
 }
 
 impl Table {
-    fn new(linkage: &FourBar, circuit: Circuit) -> Option<Table> {
-        let crank = CrankTable::new(1.0)?;
-        let t = PoseTable::new(linkage, circuit, &crank);
+    fn new(linkage: &Linkage, circuit: Circuit) -> Option<Table> {
+        let period = linkage.period_deg();
+        let crank = CrankTable::over(1.0, period)?;
+        let t = linkage.pose_table(circuit, &crank);
         if !t.all_valid() {
             return None;
         }
@@ -62,14 +66,14 @@ impl Table {
         }
         pa.push(pa[0]);
         e.push(e[0]);
-        Some(Table { pa, e })
+        Some(Table { pa, e, period })
     }
 
     /// `(Pa, e)` at `deg` by linear interpolation.
     #[inline]
     fn at(&self, deg: f64) -> (C64, C64) {
-        let x = deg.rem_euclid(360.0);
-        let k = (x as usize).min(359);
+        let x = deg.rem_euclid(self.period);
+        let k = (x as usize).min(self.pa.len() - 2);
         let t = x - k as f64;
         (
             self.pa[k] + (self.pa[k + 1] - self.pa[k]) * t,
@@ -80,8 +84,8 @@ impl Table {
     /// `(Pa, e, dPa/dθ, de/dθ)` at `deg` (derivatives per degree, of the interpolant).
     #[inline]
     fn with_slope(&self, deg: f64) -> (C64, C64, C64, C64) {
-        let x = deg.rem_euclid(360.0);
-        let k = (x as usize).min(359);
+        let x = deg.rem_euclid(self.period);
+        let k = (x as usize).min(self.pa.len() - 2);
         let t = x - k as f64;
         let (dp, de) = (self.pa[k + 1] - self.pa[k], self.e[k + 1] - self.e[k]);
         (self.pa[k] + dp * t, self.e[k] + de * t, dp, de)
@@ -165,14 +169,15 @@ struct Window {
 
 impl Window {
     /// Whether two hypotheses describe about the same window: same reflection and sense,
-    /// centres closer than a quarter of the longer span, spans within a ratio of 1.44.
-    fn alike(&self, o: &Window) -> bool {
+    /// centres closer than a quarter of the longer span (modulo the `period`), spans
+    /// within a ratio of 1.44.
+    fn alike(&self, o: &Window, period: f64) -> bool {
         let centre = |w: &Window| w.start + 0.5 * w.sense * w.span;
-        let d = (centre(self) - centre(o)).rem_euclid(360.0);
+        let d = (centre(self) - centre(o)).rem_euclid(period);
         let ratio = self.span.max(o.span) / self.span.min(o.span);
         self.mirror == o.mirror
             && self.sense == o.sense
-            && d.min(360.0 - d) < 0.25 * self.span.max(o.span)
+            && d.min(period - d) < 0.25 * self.span.max(o.span)
             && ratio < 1.44
     }
 }
@@ -183,13 +188,14 @@ impl Window {
 /// apart.
 const WINDOWS: usize = 6;
 
-/// Keeps `list` (best first) the `WINDOWS` best pairwise distinct windows offered.
+/// Keeps `list` (best first) the `WINDOWS` best pairwise distinct windows offered, on a
+/// linkage of the given `period`.
 #[inline]
-fn offer(list: &mut Vec<Window>, h: Window) {
+fn offer(list: &mut Vec<Window>, h: Window, period: f64) {
     if !h.misfit.is_finite() || (list.len() == WINDOWS && h.misfit >= list[WINDOWS - 1].misfit) {
         return;
     }
-    if let Some(i) = list.iter().position(|x| x.alike(&h)) {
+    if let Some(i) = list.iter().position(|x| x.alike(&h, period)) {
         if h.misfit < list[i].misfit {
             list[i] = h;
         } else {
@@ -297,18 +303,19 @@ impl OpenQuery {
         })
     }
 
-    fn spans(&self) -> Vec<f64> {
+    /// The crank spans tried on a linkage of the given `period`.
+    fn spans(&self, period: f64) -> Vec<f64> {
         match self.layout {
             Layout::Angles { span } => vec![span],
             _ => {
-                // 30° to a full turn, ratio 1.2.
+                // 30° to a whole period, ratio 1.2.
                 let mut v = Vec::new();
                 let mut s: f64 = 30.0;
-                while s < 360.0 {
+                while s < period {
                     v.push(s);
                     s *= 1.2;
                 }
-                v.push(360.0);
+                v.push(period);
                 v
             }
         }
@@ -327,13 +334,14 @@ impl OpenQuery {
             &[false]
         };
         let mut best: Vec<Vec<Window>> = points.iter().map(|_| Vec::new()).collect();
-        for span in self.spans() {
+        let period = table.period;
+        for span in self.spans(period) {
             let h = match self.layout {
                 Layout::Angles { .. } => 3.0,
                 _ => (span / 16.0).max(3.0),
             };
-            let count = (360.0 / h).ceil() as usize;
-            let h = 360.0 / count as f64;
+            let count = (period / h).ceil() as usize;
+            let h = period / count as f64;
             for sense in [1.0, -1.0] {
                 for i in 0..count {
                     let start = i as f64 * h;
@@ -357,6 +365,7 @@ impl OpenQuery {
                                     span,
                                     sense,
                                 },
+                                period,
                             );
                         }
                     }
@@ -463,7 +472,7 @@ impl OpenQuery {
                     let mut moved = false;
                     let mut tries = vec![(start + ds, span), (start - ds, span)];
                     if free_span {
-                        tries.push((start, (span * (1.0 + dl)).min(360.0)));
+                        tries.push((start, (span * (1.0 + dl)).min(table.period)));
                         tries.push((start, span * (1.0 - dl)));
                     }
                     for (a, b) in tries {
@@ -513,10 +522,12 @@ impl OpenQuery {
         };
         let n = theta.len();
         // A grid of crank angles running with the sense of the current assignment, over
-        // its window extended on both sides, at most two turns in all.
+        // its window extended on both sides, at most two periods in all.
         let sense = if theta[n - 1] >= theta[0] { 1.0 } else { -1.0 };
         let span = (theta[n - 1] - theta[0]).abs();
-        let ext = (0.5 * span).max(30.0).min(0.5 * (720.0 - span));
+        let ext = (0.5 * span)
+            .max(30.0)
+            .min(0.5 * (2.0 * table.period - span));
         let from = theta[0] - sense * ext;
         let cells = (span + 2.0 * ext).ceil() as usize + 1;
         let grid: Vec<C64> = (0..cells).map(|g| curve(from + sense * g as f64)).collect();
@@ -769,7 +780,7 @@ mod lab {
     use crate::cases::{SplitMix64 as Rng, crank_angles};
     use crate::fit::{FitOptions, fit_untimed};
     use crate::kin::CouplerCurve;
-    use coupler_kinematics::CouplerPoint;
+    use coupler_kinematics::{CouplerPoint, FourBar};
 
     fn atlas() -> Vec<AtlasCurve> {
         let mut out = Vec::new();
@@ -791,11 +802,7 @@ mod lab {
                             );
                             out.push(AtlasCurve {
                                 id: out.len() as u64,
-                                curve: CouplerCurve {
-                                    linkage: l,
-                                    circuit: Circuit::Open,
-                                    point: p,
-                                },
+                                curve: CouplerCurve::new(l, Circuit::Open, p),
                             });
                         }
                     }

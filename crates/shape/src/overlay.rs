@@ -8,7 +8,7 @@ use crate::fit::CurveFit;
 use crate::geom::C64;
 use crate::kin::CouplerCurve;
 use crate::target::Target;
-use coupler_kinematics::{CrankAngle, DashPattern, Pose};
+use coupler_kinematics::{CouplerPoint, CrankAngle, DashPattern, Mechanism};
 use coupler_layout::{Anchor, DisplayList, PagePoint, Primitive};
 
 /// What to say about the match in the picture's heading.
@@ -39,7 +39,7 @@ pub fn overlay(
     // The curve at 0.5° steps, user frame; dashes of `fraction · step` every `step`.
     let sub = 20usize;
     let per = dash.step_deg / sub as f64;
-    let n = (360.0 / per).round() as usize;
+    let n = (curve.period_deg() / per).round() as usize;
     let mut samples = Vec::with_capacity(n + 1);
     for k in 0..=n {
         samples.push(user(curve.at(k as f64 * per)?.m));
@@ -52,22 +52,28 @@ pub fn overlay(
         .collect::<Option<_>>()?;
     let pts: Vec<C64> = target.complex_points();
     let first = *fit.theta_deg.first()?;
-    let pose = Pose::solve(
-        &curve.linkage,
-        curve.circuit,
-        &CrankAngle::from_degrees(first),
-    )?;
+    let drawing = curve
+        .linkage
+        .drawing(curve.circuit, &CrankAngle::from_degrees(first));
+    let frame = drawing.coupler?;
     let c2 = |p: nalgebra::Point2<f64>| C64::new(p.x, p.y);
-    let o2 = user(C64::new(0.0, 0.0));
-    let o4 = user(C64::new(curve.linkage.ground, 0.0));
-    let pa = user(c2(pose.crank_pin));
-    let pb = user(c2(pose.rocker_pin));
-    let m = user(c2(pose.point(curve.point)));
+    let joints: Vec<(C64, bool)> = drawing
+        .joints
+        .iter()
+        .map(|j| (user(c2(j.position)), j.ground))
+        .collect();
+    // The coupler body: from the input crank's pin along its link (to the rocker pin of a
+    // four-bar, to the dyad joint of a five-bar), and the coupler point on it.
+    let pa = user(c2(frame.origin));
+    let pb = user(c2(
+        frame.point(CouplerPoint::new(curve.linkage.coupler_length(), 0.0))
+    ));
+    let m = user(c2(frame.point(curve.point)));
 
     // World box of everything drawn, then a uniform scale into the plot area (y up).
     let [w, h] = OVERLAY_SIZE_PT;
     let (left, right, top, bottom) = (36.0, w - 36.0, 84.0, h - 48.0);
-    let linkage = [o2, o4, pa, pb, m];
+    let linkage: Vec<C64> = joints.iter().map(|j| j.0).chain([m]).collect();
     let all = samples.iter().chain(&pts).chain(linkage.iter());
     let (mut x0, mut y0, mut x1, mut y1) = (
         f64::INFINITY,
@@ -117,17 +123,21 @@ pub fn overlay(
         lines: dashes,
         width: 1.0,
     });
-    // The linkage in place at the first target point: ground pivots, crank, coupler
-    // triangle to the coupler point, rocker.
-    d.items.push(Primitive::Polyline {
-        points: vec![page(o2), page(pa), page(pb), page(o4)],
+    // The linkage in place at the first target point: its links, the coupler triangle to
+    // the coupler point, ground pivots and moving joints.
+    d.items.push(Primitive::Polylines {
+        lines: drawing
+            .links
+            .iter()
+            .map(|&[i, j]| vec![page(joints[i].0), page(joints[j].0)])
+            .collect(),
         width: 2.0,
     });
     d.items.push(Primitive::Polyline {
         points: vec![page(pa), page(m), page(pb)],
         width: 1.2,
     });
-    for p in [o2, o4] {
+    for p in joints.iter().filter(|j| j.1).map(|j| j.0) {
         let [x, y] = page(p);
         d.items.push(Primitive::Polygon {
             points: vec![[x, y], [x - 6.0, y + 10.0], [x + 6.0, y + 10.0]],
@@ -137,7 +147,7 @@ pub fn overlay(
             width: 1.0,
         });
     }
-    for p in [pa, pb] {
+    for p in joints.iter().filter(|j| !j.1).map(|j| j.0) {
         d.items.push(Primitive::Circle {
             center: page(p),
             radius: 2.5,

@@ -1,7 +1,8 @@
 //! Refinement: from a match, Levenberg–Marquardt over the linkage's continuous dimensions
-//! (A, B, C), the coupler point (u, v), the similarity transform and the crank angles
-//! (per point when untimed; offset and rate when timed). The result is an exact four-bar
-//! no longer tied to the atlas grid.
+//! (a four-bar's A, B, C; a geared five-bar's L1, L3, L4, L5 and phase φ, its gear ratio
+//! held), the coupler point (u, v), the similarity transform and the crank angles (per
+//! point when untimed; offset and rate when timed). The result is an exact linkage no
+//! longer tied to the atlas grid.
 
 use crate::fit::{CurveFit, FitOptions};
 use crate::geom::{C64, abs};
@@ -10,9 +11,11 @@ use crate::lm::{Eval, LmOptions, solve};
 use crate::matching::Match;
 use crate::placement::Placement;
 use crate::target::{Target, Timing};
-use coupler_kinematics::{Class, CouplerPoint, FourBar};
+use coupler_kinematics::{
+    Class, Linkage, LinkageClass, MARGIN_TOL, Mechanism, Rotatability, TingClass,
+};
 
-/// A refined four-bar and its fit.
+/// A refined linkage and its fit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Refined {
     /// The refined linkage, circuit and coupler point (atlas frame, crank units).
@@ -25,14 +28,18 @@ pub struct Refined {
     pub rms_pct: f64,
     /// Largest distance, % of the target's size.
     pub max_pct: f64,
-    /// Barker class of the refined linkage.
-    pub class: Class,
-    /// It is no longer a crank-rocker: the crank does not turn fully (for a closed target
-    /// the curve is then not traced by a crank turn; for an open one, check that the fitted
-    /// crank interval is within the crank's range).
-    pub not_crank_rocker: bool,
-    /// The refinement moved across a change point (`s + l = p + q`): the start and the
-    /// result differ in Grashof type, or the result is a change-point linkage.
+    /// Class of the refined linkage (Barker's for a four-bar, Ting's for a geared
+    /// five-bar).
+    pub class: LinkageClass,
+    /// The input crank no longer turns fully: a four-bar that is no longer a
+    /// crank-rocker, a geared five-bar whose dyad does not close all round (for a closed
+    /// target the curve is then not traced by turning the input; for an open one, check
+    /// that the fitted crank interval is within the input's range).
+    pub input_does_not_turn: bool,
+    /// The refinement moved across a change point: a four-bar's Grashof type changed
+    /// (`s + l = p + q` crossed) or the result is a change-point linkage; a geared
+    /// five-bar's Ting class changed between I and II (through Class III) or the result
+    /// is Class III.
     pub crossed_change_point: bool,
     /// LM iterations used.
     pub iterations: usize,
@@ -44,18 +51,15 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
     let p = target.complex_points();
     let mir = start.fit.mirrored;
     let c0 = start.curve;
-    let l0 = c0.linkage;
-    let mut g = vec![
-        l0.coupler,
-        l0.rocker,
-        l0.ground,
-        c0.point.u,
-        c0.point.v,
+    // The curve's parameters (dimensions, u, v), then a, b, then the timing's.
+    let mut g = c0.params();
+    let nd = g.len();
+    g.extend([
         start.fit.a[0],
         start.fit.a[1],
         start.fit.b[0],
         start.fit.b[1],
-    ];
+    ]);
     let timed = target.timing().is_timed();
     let offsets: Vec<f64> = match target.timing() {
         Timing::Angles(t) => t.iter().map(|x| x - t[0]).collect(),
@@ -72,26 +76,20 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
     } else {
         start.fit.theta_deg.clone()
     };
-    let make = |g: &[f64]| -> Option<CouplerCurve> {
-        Some(CouplerCurve {
-            linkage: FourBar::new(g[0], g[1], g[2]).ok()?,
-            circuit: c0.circuit,
-            point: CouplerPoint::new(g[3], g[4]),
-        })
-    };
+    let make = |g: &[f64]| -> Option<CouplerCurve> { c0.with_params(&g[..nd]) };
     let tilde = |z: C64| if mir { z.conj() } else { z };
     let theta_of = |g: &[f64], l: &[f64], k: usize| -> f64 {
         if timed {
-            let s = if free_step { g[10] } else { rate };
-            g[9] + s * offsets[k]
+            let s = if free_step { g[nd + 5] } else { rate };
+            g[nd + 4] + s * offsets[k]
         } else {
             l[k]
         }
     };
     let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
         let curve = make(g)?;
-        let gaps = coupler_kinematics::ToggleGaps::of(&curve.linkage);
-        let (a, b) = (C64::new(g[5], g[6]), C64::new(g[7], g[8]));
+        let gaps = curve.gaps();
+        let (a, b) = (C64::new(g[nd], g[nd + 1]), C64::new(g[nd + 2], g[nd + 3]));
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
             jg: Vec::new(),
@@ -107,7 +105,7 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
             let s = curve.sensitivity_with(&gaps, t)?;
             let m = tilde(s.at.m);
             e.r.push(a * m + b - pk);
-            for d in s.d {
+            for &d in &s.d {
                 e.jg.push(a * tilde(d));
             }
             e.jg.extend([
@@ -137,7 +135,7 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
     let g = res.global;
     let curve = make(&g)?;
     let theta: Vec<f64> = (0..p.len()).map(|k| theta_of(&g, &res.local, k)).collect();
-    let (a, b) = (C64::new(g[5], g[6]), C64::new(g[7], g[8]));
+    let (a, b) = (C64::new(g[nd], g[nd + 1]), C64::new(g[nd + 2], g[nd + 3]));
     let mut sum = 0.0;
     let mut max = 0.0f64;
     for (k, &pk) in p.iter().enumerate() {
@@ -153,18 +151,33 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
         theta_deg: theta,
         rms,
         max,
-        timing_rate: timed.then(|| if free_step { g[10] } else { rate }),
+        timing_rate: timed.then(|| if free_step { g[nd + 5] } else { rate }),
     };
     let class = curve.linkage.class();
-    let start_class = l0.class();
+    let (input_does_not_turn, crossed_change_point) = match (&curve.linkage, &c0.linkage) {
+        (Linkage::FourBar(l), Linkage::FourBar(l0)) => {
+            let (class, start_class) = (l.class(), l0.class());
+            (
+                class != Class::Gcrr,
+                class.is_change_point() || class.is_grashof() != start_class.is_grashof(),
+            )
+        }
+        (Linkage::GearedFiveBar(l), Linkage::GearedFiveBar(l0)) => {
+            let (class, start_class) = (l.ting_class(), l0.ting_class());
+            (
+                l.rotatability(MARGIN_TOL) != Rotatability::Full,
+                class == TingClass::III || class != start_class,
+            )
+        }
+        _ => return None,
+    };
     let size = target.size();
     Some(Refined {
         placement: Placement::of(&curve, &fit),
         rms_pct: 100.0 * rms / size,
         max_pct: 100.0 * max / size,
-        not_crank_rocker: class != Class::Gcrr,
-        crossed_change_point: class.is_change_point()
-            || class.is_grashof() != start_class.is_grashof(),
+        input_does_not_turn,
+        crossed_change_point,
         class,
         curve,
         fit,

@@ -10,27 +10,67 @@
 //! | 8 | magic `CASHAPE\0` |
 //! | 4 | format version (1) |
 //! | 4 | harmonics of the codes ([`HARMONICS`]) |
-//! | 4 | bytes per record ([`RECORD_BYTES`]) |
-//! | 4 | zero |
+//! | 4 | bytes per record ([`RECORD_BYTES`], [`GEARED_RECORD_BYTES`]) |
+//! | 4 | mechanism of the records: 0 four-bar, 1 geared five-bar ([`RecordKind`]) |
 //! | 8 | curves `n` |
 //! | `n` × [`RECORD_BYTES`] | records, curve `id` = position |
 //!
-//! A record: coupler, rocker, ground, u, v (`f64` each, crank units, exactly as the index
-//! states them), the circuit (`u8`: 0 open, 1 crossed), a flag (`u8`: 1 if the code is
-//! present), then the code ([`CODE_BYTES`]; zeros when absent: a curve that does not
-//! assemble all round or has no length).
+//! A four-bar record: coupler, rocker, ground, u, v (`f64` each, crank units, exactly as
+//! the index states them), the circuit (`u8`: 0 open, 1 crossed), a flag (`u8`: 1 if the
+//! code is present), then the code ([`CODE_BYTES`]; zeros when absent: a curve that does
+//! not assemble all round or has no length). A geared five-bar record: L1, L3, L4, L5,
+//! the phase φ (degrees), u, v (`f64` each), the gear ratio's numerator and denominator
+//! (`i64` each, lowest terms), then circuit, flag and code as above. A four-bar atlas's
+//! file is the same bytes as before geared records existed (the mechanism word was a
+//! reserved zero).
 
 use crate::code::{CODE_BYTES, HARMONICS, ShapeCode};
 use crate::kin::AtlasCurve;
 use crate::kin::CouplerCurve;
-use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+use coupler_kinematics::{Circuit, CouplerPoint, FourBar, GearRatio, GearedFiveBar, Linkage};
 
 /// The sidecar's file name in an atlas folder.
 pub const SHAPES_FILE: &str = "shapes.bin";
 /// Format version.
 pub const SIDECAR_VERSION: u32 = 1;
-/// Bytes of one curve's record.
+/// Bytes of one four-bar curve's record.
 pub const RECORD_BYTES: usize = 5 * 8 + 2 + CODE_BYTES;
+/// Bytes of one geared five-bar curve's record.
+pub const GEARED_RECORD_BYTES: usize = 9 * 8 + 2 + CODE_BYTES;
+
+/// Which mechanism a sidecar's records describe (one per file: an atlas holds one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecordKind {
+    /// Four-bar records ([`RECORD_BYTES`]).
+    FourBar,
+    /// Geared five-bar records ([`GEARED_RECORD_BYTES`]).
+    GearedFiveBar,
+}
+
+impl RecordKind {
+    /// The kind of records for curves of `linkage`'s mechanism.
+    pub fn of(linkage: &Linkage) -> RecordKind {
+        match linkage {
+            Linkage::FourBar(_) => RecordKind::FourBar,
+            Linkage::GearedFiveBar(_) => RecordKind::GearedFiveBar,
+        }
+    }
+
+    /// Bytes per record.
+    pub fn record_bytes(self) -> usize {
+        match self {
+            RecordKind::FourBar => RECORD_BYTES,
+            RecordKind::GearedFiveBar => GEARED_RECORD_BYTES,
+        }
+    }
+
+    fn word(self) -> u32 {
+        match self {
+            RecordKind::FourBar => 0,
+            RecordKind::GearedFiveBar => 1,
+        }
+    }
+}
 const MAGIC: &[u8; 8] = b"CASHAPE\0";
 /// Bytes of the header before the records.
 pub const HEADER_BYTES: usize = 32;
@@ -51,7 +91,7 @@ pub enum SidecarError {
         /// Harmonics found.
         harmonics: u32,
     },
-    /// A record that does not describe a four-bar.
+    /// A record that does not describe a linkage.
     #[error("shape file record {id}: {message}")]
     Record {
         /// Curve id.
@@ -61,35 +101,57 @@ pub enum SidecarError {
     },
 }
 
-/// The sidecar's bytes for `curves` (ids must be `0..n` in order) with their codes.
+/// The sidecar's bytes for `curves` (ids must be `0..n` in order, all of one mechanism:
+/// the first curve's) with their codes.
 pub fn encode_sidecar(curves: &[(CouplerCurve, Option<ShapeCode>)]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(HEADER_BYTES + curves.len() * RECORD_BYTES);
-    out.extend_from_slice(&sidecar_header(curves.len() as u64));
+    let kind = curves
+        .first()
+        .map_or(RecordKind::FourBar, |c| RecordKind::of(&c.0.linkage));
+    let mut out = Vec::with_capacity(HEADER_BYTES + curves.len() * kind.record_bytes());
+    out.extend_from_slice(&sidecar_header_for(kind, curves.len() as u64));
     for (c, code) in curves {
         encode_record(&mut out, c, code.as_ref());
     }
     out
 }
 
-/// The sidecar's header for `n` curves: with [`encode_record`] for each curve in id
-/// order after it, the bytes of [`encode_sidecar`], written without holding every curve
-/// (`generate` streams them).
+/// The sidecar's header for `n` four-bar curves: with [`encode_record`] for each curve
+/// in id order after it, the bytes of [`encode_sidecar`], written without holding every
+/// curve (`generate` streams them).
 pub fn sidecar_header(n: u64) -> [u8; HEADER_BYTES] {
+    sidecar_header_for(RecordKind::FourBar, n)
+}
+
+/// [`sidecar_header`] for `n` curves of the mechanism `kind`.
+pub fn sidecar_header_for(kind: RecordKind, n: u64) -> [u8; HEADER_BYTES] {
     let mut out = [0u8; HEADER_BYTES];
     out[..8].copy_from_slice(MAGIC);
     out[8..12].copy_from_slice(&SIDECAR_VERSION.to_le_bytes());
     out[12..16].copy_from_slice(&(HARMONICS as u32).to_le_bytes());
-    out[16..20].copy_from_slice(&(RECORD_BYTES as u32).to_le_bytes());
-    // 20..24 reserved (zero).
+    out[16..20].copy_from_slice(&(kind.record_bytes() as u32).to_le_bytes());
+    out[20..24].copy_from_slice(&kind.word().to_le_bytes());
     out[24..32].copy_from_slice(&n.to_le_bytes());
     out
 }
 
-/// Appends one curve's record ([`RECORD_BYTES`] bytes) to `out`.
+/// Appends one curve's record to `out` ([`RECORD_BYTES`] bytes for a four-bar,
+/// [`GEARED_RECORD_BYTES`] for a geared five-bar).
 pub fn encode_record(out: &mut Vec<u8>, c: &CouplerCurve, code: Option<&ShapeCode>) {
-    let l = &c.linkage;
-    for x in [l.coupler, l.rocker, l.ground, c.point.u, c.point.v] {
-        out.extend_from_slice(&x.to_le_bytes());
+    let (u, v) = (c.point.u, c.point.v);
+    match &c.linkage {
+        Linkage::FourBar(l) => {
+            for x in [l.coupler, l.rocker, l.ground, u, v] {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        Linkage::GearedFiveBar(l) => {
+            for x in [l.l1, l.l3, l.l4, l.l5, l.phase, u, v] {
+                out.extend_from_slice(&x.to_le_bytes());
+            }
+            for k in [l.ratio.num(), l.ratio.den()] {
+                out.extend_from_slice(&k.to_le_bytes());
+            }
+        }
     }
     out.push(match c.circuit {
         Circuit::Open => 0,
@@ -127,14 +189,22 @@ pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
     }
     let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().expect("4 bytes"));
     let (version, harmonics, record) = (u32_at(8), u32_at(12), u32_at(16) as usize);
-    if version != SIDECAR_VERSION || harmonics as usize != HARMONICS || record != RECORD_BYTES {
+    let kind = match u32_at(20) {
+        0 => RecordKind::FourBar,
+        1 => RecordKind::GearedFiveBar,
+        _ => return Err(SidecarError::Version { version, harmonics }),
+    };
+    if version != SIDECAR_VERSION
+        || harmonics as usize != HARMONICS
+        || record != kind.record_bytes()
+    {
         return Err(SidecarError::Version { version, harmonics });
     }
     let n = u64::from_le_bytes(bytes[24..32].try_into().expect("8 bytes"));
     let body = &bytes[HEADER_BYTES..];
-    if (body.len() as u64) != n.saturating_mul(RECORD_BYTES as u64) {
+    if (body.len() as u64) != n.saturating_mul(record as u64) {
         return Err(bad(&format!(
-            "{} bytes of records for {n} curves of {RECORD_BYTES} bytes",
+            "{} bytes of records for {n} curves of {record} bytes",
             body.len()
         )));
     }
@@ -143,21 +213,38 @@ pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
         codes: Vec::with_capacity(n as usize),
         has_code: Vec::with_capacity(n as usize),
     };
-    for (id, r) in body.chunks_exact(RECORD_BYTES).enumerate() {
+    for (id, r) in body.chunks_exact(record).enumerate() {
         let id = id as u64;
         let f = |k: usize| f64::from_le_bytes(r[8 * k..8 * k + 8].try_into().expect("8 bytes"));
-        let linkage = FourBar::new(f(0), f(1), f(2)).map_err(|e| SidecarError::Record {
-            id,
-            message: e.to_string(),
-        })?;
-        let (u, v) = (f(3), f(4));
+        let at = |message: String| SidecarError::Record { id, message };
+        // Where the circuit byte is, and the linkage.
+        let (tail, linkage, (u, v)): (usize, Linkage, _) = match kind {
+            RecordKind::FourBar => (
+                40,
+                FourBar::new(f(0), f(1), f(2))
+                    .map_err(|e| at(e.to_string()))?
+                    .into(),
+                (f(3), f(4)),
+            ),
+            RecordKind::GearedFiveBar => {
+                let i = |k: usize| i64::from_le_bytes(r[8 * k..8 * k + 8].try_into().expect("8"));
+                let ratio = GearRatio::new(i(7), i(8)).map_err(|e| at(e.to_string()))?;
+                (
+                    72,
+                    GearedFiveBar::new(f(0), f(1), f(2), f(3), ratio, f(4))
+                        .map_err(|e| at(e.to_string()))?
+                        .into(),
+                    (f(5), f(6)),
+                )
+            }
+        };
         if !u.is_finite() || !v.is_finite() {
             return Err(SidecarError::Record {
                 id,
                 message: "coupler point is not finite".into(),
             });
         }
-        let circuit = match r[40] {
+        let circuit = match r[tail] {
             0 => Circuit::Open,
             1 => Circuit::Crossed,
             x => {
@@ -167,7 +254,7 @@ pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
                 });
             }
         };
-        let has = match r[41] {
+        let has = match r[tail + 1] {
             0 => false,
             1 => true,
             x => {
@@ -186,7 +273,7 @@ pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
             },
         });
         out.codes.push(if has {
-            ShapeCode::from_bytes(&r[42..]).expect("CODE_BYTES")
+            ShapeCode::from_bytes(&r[tail + 2..]).expect("CODE_BYTES")
         } else {
             ShapeCode::ABSENT
         });
@@ -201,11 +288,11 @@ mod tests {
 
     #[test]
     fn round_trip_and_damage() {
-        let c = CouplerCurve {
-            linkage: FourBar::new(2.5, 3.0, 3.5).unwrap(),
-            circuit: Circuit::Crossed,
-            point: CouplerPoint::new(1.25, -0.625),
-        };
+        let c = CouplerCurve::new(
+            FourBar::new(2.5, 3.0, 3.5).unwrap(),
+            Circuit::Crossed,
+            CouplerPoint::new(1.25, -0.625),
+        );
         let code = ShapeCode::of_curve(&c).unwrap();
         let bytes = encode_sidecar(&[(c, Some(code)), (c, None)]);
         assert_eq!(bytes.len(), HEADER_BYTES + 2 * RECORD_BYTES);
@@ -226,6 +313,35 @@ mod tests {
         ));
         let mut v = bytes;
         v[HEADER_BYTES + 40] = 7;
+        assert!(matches!(
+            decode_sidecar(&v),
+            Err(SidecarError::Record { id: 0, .. })
+        ));
+    }
+
+    /// A geared five-bar's record keeps its dimensions, gears, circuit and point, the
+    /// header says so, and a four-bar reader's record size is not accepted for it.
+    #[test]
+    fn geared_round_trip() {
+        let l =
+            GearedFiveBar::new(3.0, 3.2, 3.5, 1.2, GearRatio::new(-1, 2).unwrap(), -70.0).unwrap();
+        let c = CouplerCurve::new(l, Circuit::Crossed, CouplerPoint::new(1.25, -0.625));
+        let code = ShapeCode::of_curve(&c).unwrap();
+        let bytes = encode_sidecar(&[(c, Some(code)), (c, None)]);
+        assert_eq!(bytes.len(), HEADER_BYTES + 2 * GEARED_RECORD_BYTES);
+        assert_eq!(bytes[20], 1);
+        let a = decode_sidecar(&bytes).unwrap();
+        assert_eq!(a.curves[0].curve, c);
+        assert_eq!(a.codes[0], code);
+        assert_eq!(a.has_code, vec![true, false]);
+        let mut v = bytes.clone();
+        v[20] = 0; // claims four-bar records of the geared size
+        assert!(matches!(
+            decode_sidecar(&v),
+            Err(SidecarError::Version { .. })
+        ));
+        let mut v = bytes;
+        v[HEADER_BYTES + 7 * 8..HEADER_BYTES + 8 * 8].fill(0); // ratio numerator 0
         assert!(matches!(
             decode_sidecar(&v),
             Err(SidecarError::Record { id: 0, .. })

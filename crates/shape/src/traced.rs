@@ -4,22 +4,26 @@
 use crate::geom::{C64, abs};
 use crate::kin::CouplerCurve;
 
-/// A closed coupler curve sampled at `n` equal crank steps, with the cumulative arc length
-/// of the polyline through the samples.
+/// A closed coupler curve sampled at equal crank steps over the mechanism's period, with
+/// the cumulative arc length of the polyline through the samples.
 #[derive(Clone, Debug)]
 pub(crate) struct Traced {
-    /// Samples at θ_k = k·360°/n.
+    /// Samples at θ_k = k·P/n, P the period.
     pub z: Vec<C64>,
     /// Cumulative length: `cum[k]` at sample k, `cum[n]` = the whole loop.
     pub cum: Vec<f64>,
     /// Crank step, degrees.
     pub step: f64,
+    /// The mechanism's period P, degrees of input (360 for a four-bar).
+    pub period: f64,
 }
 
 impl Traced {
-    /// Traces `curve` at `n` crank samples; `None` unless it assembles all round with a
-    /// positive length.
+    /// Traces `curve` at `n` crank samples per turn (`n·P/360` over its period P);
+    /// `None` unless it assembles all round with a positive length.
     pub fn new(curve: &CouplerCurve, n: usize) -> Option<Traced> {
+        let period = curve.period_deg();
+        let n = n * (period / 360.0).round().max(1.0) as usize;
         let z = curve.sample(n)?;
         let mut cum = Vec::with_capacity(n + 1);
         let mut s = 0.0;
@@ -31,7 +35,8 @@ impl Traced {
         (s > 0.0 && s.is_finite()).then_some(Traced {
             z,
             cum,
-            step: 360.0 / n as f64,
+            step: period / n as f64,
+            period,
         })
     }
 
@@ -40,9 +45,9 @@ impl Traced {
         self.cum[self.z.len()]
     }
 
-    /// The crank angle (degrees, unwrapped: may exceed 360 or be negative) at which the
-    /// polyline reaches arc length `s` (any real; taken modulo the length, whole loops
-    /// adding 360°).
+    /// The crank angle (degrees, unwrapped: may exceed the period or be negative) at which
+    /// the polyline reaches arc length `s` (any real; taken modulo the length, whole loops
+    /// adding the period).
     pub fn theta_at(&self, s: f64) -> f64 {
         let len = self.length();
         let turns = (s / len).floor();
@@ -59,7 +64,7 @@ impl Traced {
         } else {
             0.0
         };
-        (turns * 360.0) + (k as f64 + t) * self.step
+        (turns * self.period) + (k as f64 + t) * self.step
     }
 
     /// The point at arc length `s` (modulo the length).
@@ -92,7 +97,7 @@ impl Traced {
     /// The point at crank angle `deg` by linear interpolation between samples.
     pub fn point_at_theta(&self, deg: f64) -> C64 {
         let n = self.z.len();
-        let x = deg.rem_euclid(360.0) / self.step;
+        let x = deg.rem_euclid(self.period) / self.step;
         let k = (x.floor() as usize).min(n - 1);
         let t = x - k as f64;
         let (a, b) = (self.z[k], self.z[(k + 1) % n]);

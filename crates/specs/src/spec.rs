@@ -12,8 +12,8 @@ use crate::ranges::{DecimalRange, LinkageRanges};
 use crate::settings::{PageSettings, Sampling};
 use coupler_features::{NamedCurve, TraceMode};
 use coupler_kinematics::{
-    Circuit, Class, CouplerPoint, Decimal, FourBar, GearRatio, GearedError, Linkage, divides_turn,
-    samples_per_turn,
+    Circuit, Class, CouplerPoint, Decimal, FourBar, GearRatio, GearedError, GearedFiveBar, Linkage,
+    Mechanism, divides_turn, samples_per_turn,
 };
 use coupler_layout::{DPI_RANGE, Orientation, PaperSize};
 use serde::{Deserialize, Serialize};
@@ -221,9 +221,27 @@ struct RawAtlas {
 #[serde(deny_unknown_fields)]
 struct RawCurve {
     name: Spanned<String>,
-    coupler: Spanned<f64>,
-    rocker: Spanned<f64>,
-    ground: Spanned<f64>,
+    /// `"four-bar"` (the default) or `"geared-fivebar"`.
+    #[serde(default)]
+    mechanism: Option<Spanned<String>>,
+    #[serde(default)]
+    coupler: Option<Spanned<f64>>,
+    #[serde(default)]
+    rocker: Option<Spanned<f64>>,
+    #[serde(default)]
+    ground: Option<Spanned<f64>>,
+    #[serde(default)]
+    l1: Option<Spanned<f64>>,
+    #[serde(default)]
+    l3: Option<Spanned<f64>>,
+    #[serde(default)]
+    l4: Option<Spanned<f64>>,
+    #[serde(default)]
+    l5: Option<Spanned<f64>>,
+    #[serde(default)]
+    ratio: Option<Spanned<String>>,
+    #[serde(default)]
+    phase: Option<Spanned<f64>>,
     u: Spanned<f64>,
     v: Spanned<f64>,
     #[serde(default)]
@@ -872,8 +890,138 @@ impl Ctx<'_> {
         Ok(pages)
     }
 
+    /// The linkage of one `[[curve]]` entry: a four-bar's `coupler`, `rocker`, `ground`,
+    /// or with `mechanism = "geared-fivebar"` a geared five-bar's `l1`, `l3`, `l4`, `l5`,
+    /// `ratio` and `phase` (degrees, default 0); keys of the other mechanism are refused.
+    fn curve_linkage(&self, entry: &Spanned<RawCurve>) -> Result<Linkage, SpecError> {
+        let length = |x: &Spanned<f64>, key: &str| -> Result<f64, SpecError> {
+            let v = *x.get_ref();
+            if !v.is_finite() || v <= 0.0 {
+                return Err(self.error(
+                    x.span(),
+                    Some(key),
+                    format!("link lengths must be finite and > 0 (input link = 1), got {v}"),
+                ));
+            }
+            Ok(v)
+        };
+        let c = entry.get_ref();
+        let geared = match &c.mechanism {
+            None => false,
+            Some(m) if m.get_ref() == "four-bar" => false,
+            Some(m) if m.get_ref() == "geared-fivebar" => true,
+            Some(m) => {
+                return Err(self.error(
+                    m.span(),
+                    Some("curve.mechanism"),
+                    format!(
+                        "must be `four-bar` or `geared-fivebar`, got `{}`",
+                        m.get_ref()
+                    ),
+                ));
+            }
+        };
+        let four = [
+            ("coupler", c.coupler.as_ref()),
+            ("rocker", c.rocker.as_ref()),
+            ("ground", c.ground.as_ref()),
+        ];
+        let five = [
+            ("l1", c.l1.as_ref()),
+            ("l3", c.l3.as_ref()),
+            ("l4", c.l4.as_ref()),
+            ("l5", c.l5.as_ref()),
+            ("phase", c.phase.as_ref()),
+        ];
+        let (mechanism, other) = if geared {
+            ("a geared five-bar", &four[..])
+        } else {
+            ("a four-bar", &five[..])
+        };
+        if let Some((key, x)) = other.iter().find_map(|(k, x)| x.map(|x| (k, x))) {
+            return Err(self.error(
+                x.span(),
+                Some(&format!("curve.{key}")),
+                format!(
+                    "`{key}` is not a dimension of {mechanism} (a four-bar takes coupler, rocker, ground; a geared five-bar, with mechanism = \"geared-fivebar\", takes l1, l3, l4, l5, ratio, phase)"
+                ),
+            ));
+        }
+        if !geared {
+            if let Some(r) = &c.ratio {
+                return Err(self.error(
+                    r.span(),
+                    Some("curve.ratio"),
+                    "`ratio` is a geared five-bar's: add mechanism = \"geared-fivebar\"".into(),
+                ));
+            }
+        }
+        let need = |x: Option<&Spanned<f64>>, key: &str| -> Result<f64, SpecError> {
+            match x {
+                Some(x) => length(x, &format!("curve.{key}")),
+                None => Err(self.error(
+                    entry.span(),
+                    Some("curve"),
+                    format!(
+                        "`{}` has no `{key}`: {mechanism} needs {}",
+                        c.name.get_ref(),
+                        if geared {
+                            "l1, l3, l4, l5 and ratio (phase defaults to 0)"
+                        } else {
+                            "coupler, rocker and ground"
+                        }
+                    ),
+                )),
+            }
+        };
+        if !geared {
+            let l = FourBar::new(
+                need(four[0].1, "coupler")?,
+                need(four[1].1, "rocker")?,
+                need(four[2].1, "ground")?,
+            )
+            .map_err(|e| self.error(entry.span(), Some("curve"), e.to_string()))?;
+            return Ok(Linkage::FourBar(l));
+        }
+        let (l1, l3, l4, l5) = (
+            need(five[0].1, "l1")?,
+            need(five[1].1, "l3")?,
+            need(five[2].1, "l4")?,
+            need(five[3].1, "l5")?,
+        );
+        let Some(ratio) = &c.ratio else {
+            return Err(self.error(
+                entry.span(),
+                Some("curve"),
+                format!(
+                    "`{}` has no `ratio`: a geared five-bar needs its gear ratio, e.g. ratio = \"-1\"",
+                    c.name.get_ref()
+                ),
+            ));
+        };
+        let ratio: GearRatio = ratio.get_ref().parse().map_err(|e: GearedError| {
+            self.error(ratio.span(), Some("curve.ratio"), e.to_string())
+        })?;
+        let phase = match &c.phase {
+            None => 0.0,
+            Some(p) if p.get_ref().is_finite() => *p.get_ref(),
+            Some(p) => {
+                return Err(self.error(
+                    p.span(),
+                    Some("curve.phase"),
+                    format!("must be a finite number of degrees, got {}", p.get_ref()),
+                ));
+            }
+        };
+        let g = GearedFiveBar::new(l1, l3, l4, l5, ratio, phase)
+            .map_err(|e| self.error(entry.span(), Some("curve"), e.to_string()))?;
+        Ok(Linkage::GearedFiveBar(g))
+    }
+
     /// The `[[curve]]` entries: lengths > 0 and finite (input link = 1), finite point,
-    /// a trace mode, and distinct names that can name files.
+    /// a trace mode, and distinct names that can name files. An entry is a four-bar
+    /// (`coupler`, `rocker`, `ground`) unless it says `mechanism = "geared-fivebar"`
+    /// (`l1`, `l3`, `l4`, `l5`, `ratio`, `phase`, default 0).
     fn curves(&self, raw: &Spanned<Vec<Spanned<RawCurve>>>) -> Result<Vec<NamedCurve>, SpecError> {
         if raw.get_ref().is_empty() {
             return Err(self.error(
@@ -900,22 +1048,7 @@ impl Ctx<'_> {
                     format!("`{name}` is used by an earlier [[curve]]"),
                 ));
             }
-            let length = |x: &Spanned<f64>, key: &str| -> Result<f64, SpecError> {
-                let v = *x.get_ref();
-                if !v.is_finite() || v <= 0.0 {
-                    return Err(self.error(
-                        x.span(),
-                        Some(key),
-                        format!("link lengths must be finite and > 0 (input link = 1), got {v}"),
-                    ));
-                }
-                Ok(v)
-            };
-            let coupler = length(&c.coupler, "curve.coupler")?;
-            let rocker = length(&c.rocker, "curve.rocker")?;
-            let ground = length(&c.ground, "curve.ground")?;
-            let linkage = FourBar::new(coupler, rocker, ground)
-                .map_err(|e| self.error(entry.span(), Some("curve"), e.to_string()))?;
+            let linkage = self.curve_linkage(entry)?;
             for (x, key) in [(&c.u, "curve.u"), (&c.v, "curve.v")] {
                 if !x.get_ref().is_finite() {
                     return Err(self.error(
@@ -937,10 +1070,11 @@ impl Ctx<'_> {
                 })?),
             };
             if let TraceMode::Circuit(circuit) = trace {
-                if !matches!(
-                    coupler_kinematics::input_range(&linkage),
-                    coupler_kinematics::InputRange::Full
-                ) {
+                let range = match &linkage {
+                    Linkage::FourBar(l) => coupler_kinematics::input_range(l),
+                    Linkage::GearedFiveBar(g) => g.input_range(),
+                };
+                if !matches!(range, coupler_kinematics::InputRange::Full) {
                     return Err(self.error(
                         c.trace.as_ref().map(|t| t.span()).unwrap_or(entry.span()),
                         Some("curve.trace"),

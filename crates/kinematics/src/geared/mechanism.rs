@@ -21,8 +21,9 @@ use nalgebra::{Point2, Vector2};
 pub const TRANSMISSION_STEP_DEG: f64 = 1.0;
 
 impl GearedFiveBar {
-    /// The frame of L3 at `angle` from the core's solution.
-    fn frame_with(
+    /// The frame of L3 at `angle` ([`Mechanism::frame`]) with the linkage's constants
+    /// computed once (`GearedGaps::of(self)`), for many angles.
+    pub fn frame_with(
         &self,
         gaps: &GearedGaps,
         circuit: Circuit,
@@ -55,6 +56,15 @@ impl GearedFiveBar {
     pub fn pitch_radii(&self) -> (f64, f64) {
         let k = self.ratio.value().abs();
         (self.l1 * k / (1.0 + k), self.l1 / (1.0 + k))
+    }
+}
+
+/// Text with a leading hyphen-minus replaced by a real minus sign (U+2212), for what a
+/// reader sees (page headers); parsers accept both.
+fn minus_sign(text: String) -> String {
+    match text.strip_prefix('-') {
+        Some(rest) => format!("\u{2212}{rest}"),
+        None => text,
     }
 }
 
@@ -133,8 +143,8 @@ impl Mechanism for GearedFiveBar {
         format!(
             "Ting {} ({what}{change}), λ = {}, φ = {}°",
             class.code(),
-            self.ratio,
-            self.phase
+            minus_sign(self.ratio.to_string()),
+            minus_sign(self.phase.to_string())
         )
     }
 
@@ -150,6 +160,11 @@ impl Mechanism for GearedFiveBar {
 
     fn coupler_length(&self) -> f64 {
         self.l3
+    }
+
+    /// No: the dyad joint P hangs from the moving pin Pd.
+    fn far_pin_on_ground_arc(&self) -> bool {
+        false
     }
 
     fn convention(&self) -> &'static str {
@@ -267,6 +282,15 @@ mod tests {
             l.class_description().starts_with("Ting II"),
             "{}",
             l.class_description()
+        );
+        // A real minus sign for λ and φ, not a hyphen.
+        let half =
+            GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, GearRatio::new(-1, 2).unwrap(), -30.0).unwrap();
+        assert!(
+            half.class_description()
+                .ends_with("λ = \u{2212}1/2, φ = \u{2212}30°"),
+            "{}",
+            half.class_description()
         );
     }
 }
