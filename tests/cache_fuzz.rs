@@ -21,7 +21,10 @@ const BIN: &str = env!("CARGO_BIN_EXE_coupler-atlas");
 fn atlas() -> &'static (PathBuf, Vec<u8>) {
     static ATLAS: OnceLock<(PathBuf, Vec<u8>)> = OnceLock::new();
     ATLAS.get_or_init(|| {
-        let dir = std::env::temp_dir().join(format!("coupler-fuzz-{}", std::process::id()));
+        // Shared by every test of this file and never removed (a static): kept in the
+        // build's own scratch folder rather than the system's temporary folder.
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("coupler-fuzz-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("atlas-spec/quick.toml");
         let o = Command::new(BIN)
@@ -608,4 +611,41 @@ fn damaged_or_stale_columns_in_search_and_dwell() {
     let o = search(&[]);
     assert_eq!(o.stdout, fresh.stdout, "answered from stale columns");
     assert!(String::from_utf8_lossy(&o.stderr).contains("another index"));
+}
+
+/// A file refused as not an index gets no stamp (nor anything else) beside it, even once
+/// it has settled; the same file's folder is left as it was. A real index, settled, is
+/// stamped (so the test cannot pass by never stamping).
+#[test]
+fn refused_file_is_not_stamped() {
+    let dir = std::env::temp_dir().join(format!("coupler-atlas-stamp-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let junk = dir.join("notes.json");
+    std::fs::write(&junk, "{\"not\": \"an index\"}\n").unwrap();
+    let good = dir.join("index.json");
+    std::fs::write(&good, &atlas().1).unwrap();
+    std::thread::sleep(coupler_atlas::SETTLED + Duration::from_millis(200));
+    let search = |idx: &Path| {
+        Command::new(BIN)
+            .args(["search", idx.to_str().unwrap(), "--straight", "30:0.01"])
+            .output()
+            .unwrap()
+    };
+    let o = search(&junk);
+    assert!(!o.status.success(), "a non-index was searched");
+    assert!(!stamp_path(&junk).exists(), "refused file was stamped");
+    let o = search(&good);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stamp_path(&good).is_file(), "a settled index is stamped");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert!(
+        names.iter().all(|n| !n.starts_with("notes.json.")),
+        "files written beside the refused file: {names:?}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

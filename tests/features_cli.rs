@@ -218,6 +218,7 @@ fn dwell_reports_and_draws() {
     let img = image::open(&png).unwrap();
     // A landscape 11 × 8.5 in card at the default 150 dpi.
     assert_eq!((img.width(), img.height()), (1650, 1275));
+    let _ = std::fs::remove_dir_all(&dir);
     // Hoeken's straight run and a second, short run are no double dwell: the slot's
     // output wanders half its swing during the second (once printed with exit 0).
     let out = bin()

@@ -352,17 +352,23 @@ pub(crate) fn load_table_keyed(
         source,
     };
     let cache = cache_path(index);
+    // The stamp of an index hashed here is written only once the file has proved to be
+    // an index (its cache verified, or it parsed).
+    let mut pending = None;
     if use_cache {
         let key = match key {
             Some(k) => k,
             None => {
                 let file = open_file(index).map_err(read_err)?;
-                crate::stamp::index_key(&file, index, true)
-                    .map_err(read_err)?
-                    .0
+                let (k, p) = crate::stamp::index_key(&file, index).map_err(read_err)?;
+                pending = p.map(|p| (file, p));
+                k
             }
         };
         if let Ok(t) = read_cache(&cache, key) {
+            if let Some((file, p)) = pending {
+                p.write(&file);
+            }
             return Ok((t, TableSource::Cache));
         }
     }
@@ -386,6 +392,9 @@ pub(crate) fn load_table_keyed(
             hash: reader.hasher.digest128(),
         };
         write_cache(&cache, &table, key);
+        if let Some((file, p)) = pending {
+            p.write(&file);
+        }
     }
     Ok((table, TableSource::Index))
 }

@@ -44,7 +44,7 @@ pub fn load(index: &Path, use_cache: bool) -> Result<Loaded, LoadError> {
     };
     if use_cache {
         let file = open_file(index).map_err(read_err)?;
-        let (key, _) = crate::stamp::index_key(&file, index, true).map_err(read_err)?;
+        let (key, pending) = crate::stamp::index_key(&file, index).map_err(read_err)?;
         loaded.key = Some(key);
         let columns = columns_path(index);
         if columns.exists() {
@@ -52,11 +52,21 @@ pub fn load(index: &Path, use_cache: bool) -> Result<Loaded, LoadError> {
                 Ok(t) => {
                     loaded.source = Source::Columns(t);
                     loaded.from = TableSource::Columns;
+                    // Columns made for this content: the file is an index; stamp it.
+                    if let Some(p) = pending {
+                        p.write(&file);
+                    }
                     return Ok(loaded);
                 }
                 Err(e) => loaded.note = Some(format!("{}: {e}", columns.display())),
             }
         }
+        loaded.rebuild()?;
+        // Only a file accepted as an index (its cache verified, or it parsed) is stamped.
+        if let Some(p) = pending {
+            p.write(&file);
+        }
+        return Ok(loaded);
     }
     loaded.rebuild()?;
     Ok(loaded)

@@ -119,28 +119,40 @@ fn settled(id: &Identity) -> bool {
     at(id.0[3], id.0[4]) && at(id.0[5], id.0[6])
 }
 
+/// A stamp not yet written: the identity `index` had when it was hashed whole. Written
+/// by [`PendingStamp::write`] only once the caller has found the file to be an index (a
+/// file refused as not an index gets no stamp beside it).
+#[must_use]
+pub struct PendingStamp {
+    stamp: PathBuf,
+    id: Identity,
+    key: IndexKey,
+}
+
+impl PendingStamp {
+    /// Writes the stamp if `file` is still the file that was hashed (size and times
+    /// unchanged) and has settled; best effort.
+    pub fn write(self, file: &std::fs::File) {
+        let now = file.metadata().ok().and_then(|m| Identity::of(&m));
+        if now == Some(self.id) && self.key.bytes == self.id.0[2] && settled(&self.id) {
+            write_stamp(&self.stamp, self.id, self.key);
+        }
+    }
+}
+
 /// The content key of the open index `file` (at `index`): from its stamp if the stamp is
-/// this file's, else by hashing the file whole (and stamping it when it has settled and
-/// `remember`). Returns the key and whether it came from the stamp.
+/// this file's, else by hashing the file whole, with the stamp to write
+/// ([`PendingStamp::write`]) once the caller has accepted the file as an index.
 pub fn index_key(
     file: &std::fs::File,
     index: &Path,
-    remember: bool,
-) -> std::io::Result<(IndexKey, bool)> {
+) -> std::io::Result<(IndexKey, Option<PendingStamp>)> {
     let meta = file.metadata()?;
     let id = Identity::of(&meta);
     let stamp = stamp_path(index);
     if let Some(key) = id.and_then(|id| read_stamp(&stamp, id)) {
-        return Ok((key, true));
+        return Ok((key, None));
     }
     let key = IndexKey::of_reader(file)?;
-    if let Some(id) = id.filter(|_| remember) {
-        // The file as it is now must be the one hashed (size and times unchanged), and
-        // settled.
-        let now = file.metadata().ok().and_then(|m| Identity::of(&m));
-        if now == Some(id) && key.bytes == id.0[2] && settled(&id) {
-            write_stamp(&stamp, id, key);
-        }
-    }
-    Ok((key, false))
+    Ok((key, id.map(|id| PendingStamp { stamp, id, key })))
 }
