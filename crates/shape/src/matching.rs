@@ -35,13 +35,13 @@ pub struct MatchOptions {
 }
 
 impl MatchOptions {
-    /// Mirror allowed, top 5, 64 candidates fitted exactly (256 for an open target), at
+    /// Mirror allowed, top 5, 64 candidates fitted exactly (1,024 for an open target), at
     /// most 256 linkages scanned for an open target.
     pub const DEFAULT: MatchOptions = MatchOptions {
         allow_mirror: true,
         top: 5,
         candidates: 64,
-        open_candidates: 256,
+        open_candidates: 1024,
         open_linkages: 256,
         fit: FitOptions::DEFAULT,
     };

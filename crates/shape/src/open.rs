@@ -89,7 +89,7 @@ impl Table {
 /// remainder (the hot loops call it for every point of every hypothesis).
 #[inline]
 fn cell(deg: f64) -> (usize, f64) {
-    if !(deg.abs() < 1e15) {
+    if deg.is_nan() || deg.abs() >= 1e15 {
         // Not reached by the scan's angles; the general form for completeness.
         let x = deg.rem_euclid(360.0);
         let k = (x as usize).min(359);
@@ -707,7 +707,7 @@ impl LinkageScreen {
                     );
                     let (g11, g12, g22) = s.gram();
                     let det = g11 * g22 - g12.norm_sqr();
-                    if !(det > 0.0) {
+                    if det.is_nan() || det <= 0.0 {
                         continue;
                     }
                     for &mirror in mirrors {
