@@ -51,7 +51,9 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     candidates: Option<u32>,
     /// Most linkages an open target's scan covers: an atlas of more is screened first
-    /// and only the most promising this many are scanned (docs/shape-search.md).
+    /// and only the best this many by a coarse score are scanned. The score is rough
+    /// (measured: it does not pick out the source's linkage on the dense atlas), so on a
+    /// large atlas the answer is a sample; raise N to search more (docs/shape-search.md).
     #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..))]
     linkages: u32,
     /// Refine each match off the atlas grid (Levenberg–Marquardt over A, B, C, the

@@ -642,8 +642,9 @@ const SCREEN_POINTS: usize = 12;
 /// least-squares fit `y ≈ α·Pa + β·e + γ` gives `w = β/α`, which is clamped to the box of
 /// the linkage's coupler points in the atlas and scored there exactly
 /// ([`Sums::at_point`]). The score is the least over the hypotheses: an estimate, not a
-/// bound (the even-crank layout is not re-estimated here), so the screen can drop the
-/// source's linkage; `docs/shape-search.md` gives its measured cost in retrieval.
+/// bound (the even-crank layout is not re-estimated here). Measured on the dense atlas it
+/// ranks the source's linkage no better than chance, so a screened scan is a sample of
+/// the atlas (`docs/shape-search.md`, "Open targets").
 #[derive(Clone, Debug)]
 pub struct LinkageScreen {
     query: OpenQuery,
