@@ -227,6 +227,13 @@ fn coarse(
             .map(|g| screen.score(&curves[g.clone()]))
             .collect()
     });
+    let all = coupler_atlas::shape::linkage_groups(curves).len();
+    if groups.len() < all {
+        eprintln!(
+            "note: {} of the atlas's {all} linkages scanned, picked by a coarse screen: the answer is a sample of the atlas, not a full search (--linkages {all} scans them all, slowly)",
+            groups.len()
+        );
+    }
     // Shares of about equal curve counts, several per thread.
     let parts = 8 * rayon::current_num_threads();
     let total: usize = groups.iter().map(|g| g.len()).sum();
