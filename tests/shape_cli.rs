@@ -165,6 +165,16 @@ fn match_finds_the_source_and_places_it() {
         }
         let page = best["page"]["file"].as_str().unwrap();
         assert!(dir.join(page).exists(), "{page}");
+        // Every hit's page reference is its index record's, whole (the lookup bisects
+        // the index by id rather than reading it through).
+        let index: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
+        for m in v["matches"].as_array().unwrap() {
+            let c = &index["curves"][m["id"].as_u64().unwrap() as usize];
+            assert_eq!(c["id"], m["id"]);
+            assert!(c["page"].is_object(), "{c}");
+            assert_eq!(m["page"], c["page"], "{name}: curve {}", m["id"]);
+        }
         let img = image::open(&png).unwrap();
         assert_eq!((img.width(), img.height()), (1200, 1050));
         let _ = id;

@@ -8,9 +8,9 @@ use anyhow::{Context, Result};
 use coupler_atlas::generate::FileEntry;
 use coupler_atlas::render::{RasterPage, SvgPage, draw};
 use coupler_atlas::shape::{
-    AtlasCurve, Candidate, CouplerCurve, CurveFit, Match, MatchOptions, OVERLAY_SIZE_PT, OpenScan,
-    OverlayText, Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing, coarse_candidates,
-    decode_sidecar, open_finish, open_scan, rank_candidates, refine,
+    Candidate, CouplerCurve, CurveFit, Match, MatchOptions, OVERLAY_SIZE_PT, OpenScan, OverlayText,
+    Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing, coarse_candidates, decode_sidecar,
+    open_finish, open_linkages, open_scan, rank_candidates, refine,
 };
 use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile};
 use rayon::prelude::*;
@@ -48,9 +48,15 @@ pub struct Args {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
     top: u32,
     /// Candidates from the coarse stage that get an exact fit (default: 64 for a closed
-    /// target, 256 for an open one).
+    /// target, 1,024 for an open one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     candidates: Option<u32>,
+    /// Most linkages an open target's scan covers: an atlas of more is screened first
+    /// and only the best this many by a coarse score are scanned. The score is rough
+    /// (measured: it does not pick out the source's linkage on the dense atlas), so on a
+    /// large atlas the answer is a sample; raise N to search more (docs/shape-search.md).
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..))]
+    linkages: u32,
     /// Refine each match off the atlas grid (Levenberg–Marquardt over the linkage's
     /// dimensions: a four-bar's A, B, C, a geared five-bar's L1, L3, L4, L5 and phase φ
     /// with its gear ratio held; the coupler point and the transform).
@@ -199,9 +205,10 @@ fn atlas_mechanism(dir: &Path) -> Option<String> {
     )
 }
 
-/// The coarse stage on the pool's threads: open targets scanned in parts cut at linkage
-/// boundaries, then finished on the whole (the same candidates however it is cut);
-/// closed targets in one pass (the codes are cheap; the query's description is the cost).
+/// The coarse stage on the pool's threads: open targets' linkages screened (an atlas of
+/// many linkages) and scanned in shares, then finished on the whole (the same candidates
+/// however they are shared out); closed targets in one pass (the codes are cheap; the
+/// query's description is the cost).
 fn coarse(
     target: &Target,
     atlas: &ShapeAtlas,
@@ -211,37 +218,162 @@ fn coarse(
         return coarse_candidates(target, &atlas.curves, &atlas.codes, options);
     }
     let curves = &atlas.curves;
-    let parts = 8 * rayon::current_num_threads();
-    let want = curves.len().div_ceil(parts).max(1);
-    let mut cuts = vec![0];
-    let mut i = want;
-    while i < curves.len() {
-        let same = |a: &AtlasCurve, b: &AtlasCurve| {
-            a.curve.linkage == b.curve.linkage && a.curve.circuit == b.curve.circuit
-        };
-        while i < curves.len() && same(&curves[i - 1], &curves[i]) {
-            i += 1;
-        }
-        if i < curves.len() {
-            cuts.push(i);
-        }
-        i += want;
+    let groups = open_linkages(target, curves, options, |screen, groups| {
+        groups
+            .par_iter()
+            .map(|g| screen.score(&curves[g.clone()]))
+            .collect()
+    });
+    let all = coupler_atlas::shape::linkage_groups(curves).len();
+    if groups.len() < all {
+        eprintln!(
+            "note: {} of the atlas's {all} linkages scanned, picked by a coarse screen: the answer is a sample of the atlas, not a full search (--linkages {all} scans them all, slowly)",
+            groups.len()
+        );
     }
-    cuts.push(curves.len());
-    let scans: Vec<OpenScan> = cuts
-        .par_windows(2)
-        .map(|w| open_scan(target, &curves[w[0]..w[1]], w[0], options))
+    // Shares of about equal curve counts, several per thread.
+    let parts = 8 * rayon::current_num_threads();
+    let total: usize = groups.iter().map(|g| g.len()).sum();
+    let want = total.div_ceil(parts).max(1);
+    let mut shares: Vec<Vec<std::ops::Range<usize>>> = vec![Vec::new()];
+    let mut size = 0;
+    for g in groups {
+        if size >= want {
+            shares.push(Vec::new());
+            size = 0;
+        }
+        size += g.len();
+        shares.last_mut().expect("one share").push(g);
+    }
+    let scans: Vec<OpenScan> = shares
+        .par_iter()
+        .map(|share| open_scan(target, curves, share, options))
         .collect::<Result<_, _>>()?;
     open_finish(target, curves, scans, options)
 }
 
-/// Where each hit is drawn (page file and box), from the index: its curve lines are
-/// streamed and only the wanted ones parsed. Missing pages (an atlas made with
-/// `--no-pages`) give `None`.
+/// Where each hit is drawn (page file and box), from the index, without reading it
+/// whole: its curve lines are in id order (`docs/index-schema.md`), so each hit's line is
+/// found by bisection over byte offsets (a few dozen short reads, however large the
+/// index), and only that line is parsed. An index whose lines are not in id order is
+/// streamed instead. Missing pages (an atlas made with `--no-pages`) give `None`.
 fn page_refs(dir: &Path, ids: &[u64]) -> Result<Vec<Option<coupler_atlas::PageRef>>> {
     let path = dir.join("index.json");
-    let file = std::fs::File::open(&path)
-        .map_err(|e| UsageError(format!("cannot read {}: {e}", path.display())))?;
+    let open = || {
+        std::fs::File::open(&path)
+            .map_err(|e| UsageError(format!("cannot read {}: {e}", path.display())))
+    };
+    let file = open()?;
+    let len = file
+        .metadata()
+        .with_context(|| format!("reading {}", path.display()))?
+        .len();
+    let mut lines = IndexLines {
+        r: std::io::BufReader::with_capacity(16 << 10, file),
+        buf: Vec::new(),
+    };
+    let mut found: std::collections::HashMap<u64, Option<coupler_atlas::PageRef>> =
+        std::collections::HashMap::new();
+    for &id in ids {
+        if found.contains_key(&id) {
+            continue;
+        }
+        match lines
+            .bisect(id, len)
+            .with_context(|| format!("reading {}", path.display()))?
+        {
+            Some(line) => {
+                let c: IndexCurve = serde_json::from_str(line)
+                    .with_context(|| format!("{}: curve {id}", path.display()))?;
+                found.insert(id, c.page);
+            }
+            None => return stream_page_refs(&path, open()?, ids),
+        }
+    }
+    Ok(ids
+        .iter()
+        .map(|id| found.get(id).cloned().flatten())
+        .collect())
+}
+
+/// Curve lines of an index read at byte offsets.
+struct IndexLines {
+    r: std::io::BufReader<std::fs::File>,
+    buf: Vec<u8>,
+}
+
+impl IndexLines {
+    /// The id of the first curve line that starts at or after `pos` (`u64::MAX` if none),
+    /// and where that line starts; its text is left in `self.buf`.
+    fn next_curve(&mut self, pos: u64) -> std::io::Result<(u64, u64)> {
+        use std::io::{Seek, SeekFrom};
+        let mut at = pos;
+        self.r.seek(SeekFrom::Start(pos))?;
+        if pos > 0 {
+            // Back up one byte: a line starts at `pos` if the byte before it ends a line.
+            self.r.seek(SeekFrom::Start(pos - 1))?;
+            at = pos - 1;
+            let n = coupler_atlas::read_line_bounded(
+                &mut self.r,
+                &mut self.buf,
+                coupler_atlas::MAX_INDEX_LINE,
+            )?;
+            at += n as u64;
+        }
+        loop {
+            let n = coupler_atlas::read_line_bounded(
+                &mut self.r,
+                &mut self.buf,
+                coupler_atlas::MAX_INDEX_LINE,
+            )?;
+            if n == 0 {
+                return Ok((u64::MAX, at));
+            }
+            if let Some(id) = curve_id(&self.buf) {
+                return Ok((id, at));
+            }
+            at += n as u64;
+        }
+    }
+
+    /// The text of curve `id`'s line, by bisection over the file's `len` bytes; `None`
+    /// if there is no such line where id order puts it.
+    fn bisect(&mut self, id: u64, len: u64) -> std::io::Result<Option<&str>> {
+        // The least offset whose next curve line has an id >= `id`.
+        let (mut lo, mut hi) = (0u64, len);
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            let (found, start) = self.next_curve(mid)?;
+            if found < id {
+                lo = start.max(mid) + 1;
+            } else {
+                hi = mid;
+            }
+        }
+        let (found, _) = self.next_curve(lo)?;
+        if found != id {
+            return Ok(None);
+        }
+        let line = std::str::from_utf8(&self.buf).map_err(|e| {
+            std::io::Error::new(std::io::ErrorKind::InvalidData, format!("curve {id}: {e}"))
+        })?;
+        Ok(Some(line.trim_end().trim_end_matches(',')))
+    }
+}
+
+/// The id of an index curve line (`{"id":N,…`).
+fn curve_id(line: &[u8]) -> Option<u64> {
+    let rest = line.strip_prefix(b"{\"id\":")?;
+    let digits = rest.iter().take_while(|c| c.is_ascii_digit()).count();
+    std::str::from_utf8(&rest[..digits]).ok()?.parse().ok()
+}
+
+/// [`page_refs`] by streaming every curve line of the index (its lines not in id order).
+fn stream_page_refs(
+    path: &Path,
+    file: std::fs::File,
+    ids: &[u64],
+) -> Result<Vec<Option<coupler_atlas::PageRef>>> {
     let mut want: Vec<u64> = ids.to_vec();
     want.sort_unstable();
     want.dedup();
@@ -249,11 +381,7 @@ fn page_refs(dir: &Path, ids: &[u64]) -> Result<Vec<Option<coupler_atlas::PageRe
         std::collections::HashMap::new();
     for line in std::io::BufReader::new(file).lines() {
         let line = line.with_context(|| format!("reading {}", path.display()))?;
-        let Some(rest) = line.strip_prefix("{\"id\":") else {
-            continue;
-        };
-        let digits: String = rest.chars().take_while(|c| c.is_ascii_digit()).collect();
-        let Ok(id) = digits.parse::<u64>() else {
+        let Some(id) = curve_id(line.as_bytes()) else {
             continue;
         };
         if want.binary_search(&id).is_err() {
@@ -540,6 +668,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         open_candidates: args
             .candidates
             .map_or(MatchOptions::DEFAULT.open_candidates, |c| c as usize),
+        open_linkages: args.linkages as usize,
         ..MatchOptions::DEFAULT
     };
     let size = target.size();

@@ -6,7 +6,8 @@
 //!
 //!     cargo bench -p coupler-lab --features four-bar --bench fourbar
 //!
-//! (`CASES=N` for the first N cases of each kind; default 60). One run, one thread each:
+//! (`CASES=N` for the first N cases of each kind, default 60; `HALF=closed` or `HALF=open`
+//! for one kind only). One run, one thread each:
 //!
 //! - **ours**: `find_matches` on the default atlas (shape codes for loops, the per-linkage
 //!   scan for open paths, then exact fits);
@@ -123,7 +124,12 @@ fn main() {
         ours_build,
         fb_codes_build
     );
+    // HALF=closed or HALF=open runs one half only.
+    let half = std::env::var("HALF").unwrap_or_default();
     for closed in [true, false] {
+        if (half == "closed" && !closed) || (half == "open" && closed) {
+            continue;
+        }
         let t0 = Instant::now();
         let fb_atlas = FbAtlas::make(
             Cfg::new()

@@ -34,8 +34,9 @@ pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, r
 pub use kin::{AtlasCurve, CouplerCurve, CurveGaps, PointAt, PointSensitivity};
 pub use matching::{
     Candidate, Match, MatchError, MatchOptions, OpenScan, coarse_candidates, find_matches,
-    open_finish, open_scan, rank_candidates,
+    open_finish, open_linkages, open_scan, rank_candidates,
 };
+pub use open::{LinkageScreen, linkage_groups};
 pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;
 pub use refine::{Refined, refine};

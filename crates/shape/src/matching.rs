@@ -4,10 +4,13 @@
 use crate::code::{ClosedQuery, ShapeCode};
 use crate::fit::{CurveFit, FitOptions, Start, fit_timed, fit_untimed, fit_with};
 use crate::kin::{AtlasCurve, CouplerCurve};
-use crate::open::{OpenQuery, Stage1, open_candidates, open_stage1, open_stage2};
+use crate::open::{
+    LinkageScreen, OpenQuery, Stage1, linkage_groups, open_candidates, open_stage1, open_stage2,
+};
 use crate::placement::Placement;
 use crate::target::Target;
 use crate::traced::Traced;
+use std::ops::Range;
 
 /// Settings of a search.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,17 +26,23 @@ pub struct MatchOptions {
     /// misfit ranks less sharply than the closed codes' distance, and are cheap to fit:
     /// they start from the scan's crank angles).
     pub open_candidates: usize,
+    /// Most linkages an open target's scan covers: an atlas of more linkages is first
+    /// screened ([`LinkageScreen`]) and only the most promising this many are scanned
+    /// (the default atlas has 175, so it is scanned whole).
+    pub open_linkages: usize,
     /// The exact fit's settings (its `allow_mirror` is overridden by this one's).
     pub fit: FitOptions,
 }
 
 impl MatchOptions {
-    /// Mirror allowed, top 5, 64 candidates fitted exactly (256 for an open target).
+    /// Mirror allowed, top 5, 64 candidates fitted exactly (1,024 for an open target), at
+    /// most 256 linkages scanned for an open target.
     pub const DEFAULT: MatchOptions = MatchOptions {
         allow_mirror: true,
         top: 5,
         candidates: 64,
-        open_candidates: 256,
+        open_candidates: 1024,
+        open_linkages: 256,
         fit: FitOptions::DEFAULT,
     };
 }
@@ -101,10 +110,13 @@ pub struct Candidate {
 /// - **Open** target: a scan per linkage (runs of `curves` that share a linkage and
 ///   circuit, as an atlas lists them): the coupler point enters the curve linearly, so
 ///   one least-squares problem per crank-window hypothesis answers for every coupler point
-///   of the linkage (`docs/shape-search.md`, "Open targets").
+///   of the linkage (`docs/shape-search.md`, "Open targets"); an atlas of more than
+///   `options.open_linkages` linkages is screened first ([`open_linkages`]).
 ///
-/// To use several threads, split `curves` (at linkage boundaries, for open targets), call
-/// this on each part in parallel and hand all the candidates to [`rank_candidates`].
+/// To use several threads: for a closed target, split `curves`, call this on each part in
+/// parallel and hand all the candidates to [`rank_candidates`]; for an open one, score the
+/// linkages in parallel in [`open_linkages`]'s closure, share its linkages out to
+/// [`open_scan`] in parallel, and finish with [`open_finish`].
 pub fn coarse_candidates(
     target: &Target,
     curves: &[AtlasCurve],
@@ -143,7 +155,13 @@ pub fn coarse_candidates(
             .collect())
     } else {
         let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
-        Ok(open_candidates(&q, curves, keep)
+        let groups = open_linkages(target, curves, options, |screen, groups| {
+            groups
+                .iter()
+                .map(|g| screen.score(&curves[g.clone()]))
+                .collect()
+        });
+        Ok(open_candidates(&q, curves, &groups, keep)
             .into_iter()
             .map(|c| Candidate {
                 curve: c.curve,
@@ -181,17 +199,53 @@ pub fn find_matches(
 #[derive(Clone, Debug)]
 pub struct OpenScan(Vec<Stage1>);
 
-/// Stage 1 of the coarse stage of an **open** target over `part = curves[first..]` (cut
-/// at linkage boundaries), to run parts in parallel; [`open_finish`] completes it on the
-/// whole atlas. The result does not depend on how the atlas is cut.
+/// The linkages of `curves` an open target's scan covers, as [`coarse_candidates`] picks
+/// them: every run of curves sharing a linkage and circuit ([`linkage_groups`]) when
+/// there are at most `options.open_linkages`; else those with the best
+/// [`LinkageScreen::score`]s. `score` scores one run (callers may compute them in
+/// parallel; [`LinkageScreen::score`] is what it must return). In atlas order.
+pub fn open_linkages(
+    target: &Target,
+    curves: &[AtlasCurve],
+    options: &MatchOptions,
+    score: impl Fn(&LinkageScreen, &[Range<usize>]) -> Vec<f64>,
+) -> Vec<Range<usize>> {
+    let groups = linkage_groups(curves);
+    match LinkageScreen::new(target, options.allow_mirror) {
+        Some(screen) if groups.len() > options.open_linkages => {
+            let scores = score(&screen, &groups);
+            select_linkages(&groups, &scores, options.open_linkages)
+        }
+        _ => groups,
+    }
+}
+
+/// The `keep` groups of least score (ties by position), in their original order.
+fn select_linkages(groups: &[Range<usize>], scores: &[f64], keep: usize) -> Vec<Range<usize>> {
+    let mut order: Vec<usize> = (0..groups.len()).collect();
+    order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]).then(a.cmp(&b)));
+    order.truncate(keep);
+    order.sort_unstable();
+    order.into_iter().map(|i| groups[i].clone()).collect()
+}
+
+/// Stage 1 of the coarse stage of an **open** target over some of its linkages (`groups`,
+/// ranges of `curves`, e.g. a share of [`open_linkages`]), to run shares in parallel;
+/// [`open_finish`] completes it. The result does not depend on how the linkages are
+/// shared out.
 pub fn open_scan(
     target: &Target,
-    part: &[AtlasCurve],
-    first: usize,
+    curves: &[AtlasCurve],
+    groups: &[Range<usize>],
     options: &MatchOptions,
 ) -> Result<OpenScan, MatchError> {
     let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
-    Ok(OpenScan(open_stage1(&q, part, first, options.kept(target))))
+    Ok(OpenScan(open_stage1(
+        &q,
+        curves,
+        groups,
+        options.kept(target),
+    )))
 }
 
 /// Stage 2 of an open target's coarse stage, from the [`open_scan`]s of parts of

@@ -72,9 +72,7 @@ impl Table {
     /// `(Pa, e)` at `deg` by linear interpolation.
     #[inline]
     fn at(&self, deg: f64) -> (C64, C64) {
-        let x = deg.rem_euclid(self.period);
-        let k = (x as usize).min(self.pa.len() - 2);
-        let t = x - k as f64;
+        let (k, t) = cell(deg, self.pa.len() - 1);
         (
             self.pa[k] + (self.pa[k + 1] - self.pa[k]) * t,
             self.e[k] + (self.e[k + 1] - self.e[k]) * t,
@@ -84,12 +82,29 @@ impl Table {
     /// `(Pa, e, dPa/dθ, de/dθ)` at `deg` (derivatives per degree, of the interpolant).
     #[inline]
     fn with_slope(&self, deg: f64) -> (C64, C64, C64, C64) {
-        let x = deg.rem_euclid(self.period);
-        let k = (x as usize).min(self.pa.len() - 2);
-        let t = x - k as f64;
+        let (k, t) = cell(deg, self.pa.len() - 1);
         let (dp, de) = (self.pa[k + 1] - self.pa[k], self.e[k + 1] - self.e[k]);
         (self.pa[k] + dp * t, self.e[k] + de * t, dp, de)
     }
+}
+
+/// The 1° cell of an input angle (any finite value) and the fraction into it: `deg`
+/// modulo the table's `period` (whole degrees: 360 for a four-bar, `360·q` for a geared
+/// five-bar) split into whole and fractional degrees, without a floating-point remainder
+/// (the hot loops call it for every point of every hypothesis).
+#[inline]
+fn cell(deg: f64, period: usize) -> (usize, f64) {
+    if deg.is_nan() || deg.abs() >= 1e15 {
+        // Not reached by the scan's angles; the general form for completeness.
+        let x = deg.rem_euclid(period as f64);
+        let k = (x as usize).min(period - 1);
+        return (k, x - k as f64);
+    }
+    let mut whole = deg as i64;
+    if whole as f64 > deg {
+        whole -= 1;
+    }
+    (whole.rem_euclid(period as i64) as usize, deg - whole as f64)
 }
 
 /// The sums of one hypothesis: `S_P = Σ Pa`, `S_e = Σ e`, `S_Pe = Σ conj(Pa)·e`,
@@ -256,6 +271,16 @@ fn centred_unit(z: &[C64]) -> Option<Vec<C64>> {
 
 impl OpenQuery {
     pub(crate) fn new(target: &Target, allow_mirror: bool) -> Option<OpenQuery> {
+        OpenQuery::with_points(target, allow_mirror, QUERY_POINTS, TIMED_QUERY_POINTS)
+    }
+
+    /// [`OpenQuery::new`] on at most `untimed` (`timed`) of the target's points.
+    fn with_points(
+        target: &Target,
+        allow_mirror: bool,
+        untimed: usize,
+        timed: usize,
+    ) -> Option<OpenQuery> {
         let p = target.complex_points();
         let n = p.len();
         let (pts, x, target_x, layout): (Vec<C64>, Vec<f64>, Vec<f64>, Layout) =
@@ -264,7 +289,7 @@ impl OpenQuery {
                     // Positions: arc-length fractions along the smoothed path (noise would
                     // stretch the polyline's own length).
                     let (_, tau) = smooth_resample(&p, false, default_terms(n, 12).min(n / 2), 64)?;
-                    let idx = thin(n, QUERY_POINTS);
+                    let idx = thin(n, untimed);
                     (
                         idx.iter().map(|&i| p[i]).collect(),
                         idx.iter().map(|&i| tau[i]).collect(),
@@ -275,7 +300,7 @@ impl OpenQuery {
                 Timing::Angles(t) => {
                     let span = (t[n - 1] - t[0]).abs();
                     let tx: Vec<f64> = t.iter().map(|a| (a - t[0]).abs() / span).collect();
-                    let idx = thin(n, TIMED_QUERY_POINTS);
+                    let idx = thin(n, timed);
                     (
                         idx.iter().map(|&i| p[i]).collect(),
                         idx.iter().map(|&i| tx[i]).collect(),
@@ -285,7 +310,7 @@ impl OpenQuery {
                 }
                 Timing::EqualSteps => {
                     let tx: Vec<f64> = (0..n).map(|k| k as f64 / (n - 1) as f64).collect();
-                    let idx = thin(n, TIMED_QUERY_POINTS);
+                    let idx = thin(n, timed);
                     (
                         idx.iter().map(|&i| p[i]).collect(),
                         idx.iter().map(|&i| tx[i]).collect(),
@@ -404,8 +429,9 @@ impl OpenQuery {
         let limit = (hyp.span / 8.0).max(2.0);
         let mut theta = std::mem::take(&mut hyp.theta);
         let mut next = theta.clone();
+        // The sums at `theta` (each step's trial sums become the next step's).
+        let mut s = Sums::of(table, theta.iter().copied(), &self.y, hyp.mirror);
         for _ in 0..PROJECTIONS {
-            let s = Sums::of(table, theta.iter().copied(), &self.y, hyp.mirror);
             let (_, alpha) = s.at_point(v, w);
             let gamma = -alpha * (s.sp + w * s.se) / s.m;
             for (j, (t, n)) in theta.iter().zip(next.iter_mut()).enumerate() {
@@ -420,13 +446,13 @@ impl OpenQuery {
                     *t
                 };
             }
-            let misfit = Sums::of(table, next.iter().copied(), &self.y, hyp.mirror)
-                .at_point(v, w)
-                .0;
+            let trial = Sums::of(table, next.iter().copied(), &self.y, hyp.mirror);
+            let misfit = trial.at_point(v, w).0;
             if misfit.partial_cmp(&hyp.misfit) != Some(std::cmp::Ordering::Less) {
                 break;
             }
             hyp.misfit = misfit;
+            s = trial;
             std::mem::swap(&mut theta, &mut next);
         }
         hyp.theta = theta;
@@ -439,18 +465,18 @@ impl OpenQuery {
         let mut out = hyp.clone();
         match self.layout {
             Layout::Untimed => {
+                let mut s = Sums::of(table, out.theta.iter().copied(), &self.y, hyp.mirror);
                 for _ in 0..REESTIMATIONS {
-                    let s = Sums::of(table, out.theta.iter().copied(), &self.y, hyp.mirror);
                     let (_, alpha) = s.at_point(v, w);
                     let theta = self.reproject(table, &s, v, w, alpha, &out.theta);
-                    let misfit = Sums::of(table, theta.iter().copied(), &self.y, hyp.mirror)
-                        .at_point(v, w)
-                        .0;
+                    let trial = Sums::of(table, theta.iter().copied(), &self.y, hyp.mirror);
+                    let misfit = trial.at_point(v, w).0;
                     if misfit.partial_cmp(&out.misfit) != Some(std::cmp::Ordering::Less) {
                         break;
                     }
                     out.theta = theta;
                     out.misfit = misfit;
+                    s = trial;
                 }
             }
             _ => {
@@ -615,6 +641,128 @@ impl OpenQuery {
     }
 }
 
+/// Points of the linkage screen's query.
+const SCREEN_POINTS: usize = 12;
+
+/// The linkage screen of an open target (the coarse-to-fine step before the scan, for
+/// atlases of many linkages): a cheap estimate of how well the best coupler point of a
+/// linkage can fit the target, to scan only the most promising linkages.
+///
+/// Each linkage is tried under a coarse grid of hypotheses (12 of the target's points,
+/// every other span of the scan, starts every eighth of the span, both senses and, if
+/// allowed, reflections). For each, the coupler point is left free: the two-term
+/// least-squares fit `y ≈ α·Pa + β·e + γ` gives `w = β/α`, which is clamped to the box of
+/// the linkage's coupler points in the atlas and scored there exactly
+/// ([`Sums::at_point`]). The score is the least over the hypotheses: an estimate, not a
+/// bound (the even-crank layout is not re-estimated here). Measured on the dense atlas it
+/// ranks the source's linkage no better than chance, so a screened scan is a sample of
+/// the atlas (`docs/shape-search.md`, "Open targets").
+#[derive(Clone, Debug)]
+pub struct LinkageScreen {
+    query: OpenQuery,
+}
+
+impl LinkageScreen {
+    /// The screen of an open target; `None` for a closed one or one that cannot be
+    /// described.
+    pub fn new(target: &Target, allow_mirror: bool) -> Option<LinkageScreen> {
+        if target.is_closed() {
+            return None;
+        }
+        Some(LinkageScreen {
+            query: OpenQuery::with_points(target, allow_mirror, SCREEN_POINTS, SCREEN_POINTS)?,
+        })
+    }
+
+    /// The score of one linkage: `group` is a run of atlas curves that share a linkage
+    /// and circuit (as [`linkage_groups`] cuts them). Lower is more promising; infinite
+    /// if the linkage does not assemble all round.
+    pub fn score(&self, group: &[AtlasCurve]) -> f64 {
+        let Some(first) = group.first() else {
+            return f64::INFINITY;
+        };
+        let c = &first.curve;
+        let Some(table) = Table::new(&c.linkage, c.circuit) else {
+            return f64::INFINITY;
+        };
+        let (mut u0, mut u1, mut v0, mut v1) = (
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for a in group {
+            let w = w_of(a);
+            (u0, u1) = (u0.min(w.re), u1.max(w.re));
+            (v0, v1) = (v0.min(w.im), v1.max(w.im));
+        }
+        let q = &self.query;
+        let mirrors: &[bool] = if q.allow_mirror {
+            &[false, true]
+        } else {
+            &[false]
+        };
+        let mut best = f64::INFINITY;
+        let period = table.period;
+        for span in q.spans(period).into_iter().step_by(2) {
+            let h = match q.layout {
+                Layout::Angles { .. } => 6.0,
+                _ => (span / 8.0).max(5.0),
+            };
+            let count = (period / h).ceil() as usize;
+            let h = period / count as f64;
+            for sense in [1.0, -1.0] {
+                for i in 0..count {
+                    let s = Sums::of(
+                        &table,
+                        q.thetas(i as f64 * h, span, sense),
+                        &q.y,
+                        q.allow_mirror,
+                    );
+                    let (g11, g12, g22) = s.gram();
+                    let det = g11 * g22 - g12.norm_sqr();
+                    if det.is_nan() || det <= 0.0 {
+                        continue;
+                    }
+                    for &mirror in mirrors {
+                        let v = usize::from(mirror);
+                        let [r1, r2] = s.r[v];
+                        let alpha = (r1 * g22 - g12 * r2) / det;
+                        let beta = (r2 * g11 - g12.conj() * r1) / det;
+                        if alpha.norm_sqr() == 0.0 {
+                            continue;
+                        }
+                        let w = beta / alpha;
+                        let w = C64::new(w.re.clamp(u0, u1), w.im.clamp(v0, v1));
+                        best = best.min(s.at_point_with((g11, g12, g22), v, w).0);
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// The runs of `curves` that share a linkage and circuit (as an atlas lists them), as
+/// index ranges: the units the open scan and [`LinkageScreen`] work on.
+pub fn linkage_groups(curves: &[AtlasCurve]) -> Vec<std::ops::Range<usize>> {
+    let mut groups = Vec::new();
+    let mut i = 0;
+    while i < curves.len() {
+        let c = &curves[i].curve;
+        let mut j = i + 1;
+        while j < curves.len()
+            && curves[j].curve.linkage == c.linkage
+            && curves[j].curve.circuit == c.circuit
+        {
+            j += 1;
+        }
+        groups.push(i..j);
+        i = j;
+    }
+    groups
+}
+
 /// Indices `0..n` thinned to at most `max`, evenly, keeping both ends.
 fn thin(n: usize, max: usize) -> Vec<usize> {
     if n <= max {
@@ -650,48 +798,44 @@ pub(crate) struct Stage1 {
     hyp: Hypothesis,
 }
 
-/// The coarse stage for an open target over `curves` (runs of curves that share a
-/// linkage and circuit are scanned once): candidates ordered by misfit, best first.
+/// The coarse stage for an open target over the linkages `groups` of `curves` (runs of
+/// curves that share a linkage and circuit, [`linkage_groups`], are scanned once):
+/// candidates ordered by misfit, best first.
 pub(crate) fn open_candidates(
     query: &OpenQuery,
     curves: &[AtlasCurve],
+    groups: &[std::ops::Range<usize>],
     keep: usize,
 ) -> Vec<OpenCandidate> {
-    open_stage2(query, curves, open_stage1(query, curves, 0, keep), keep)
+    open_stage2(
+        query,
+        curves,
+        open_stage1(query, curves, groups, keep),
+        keep,
+    )
 }
 
-/// Stage 1 over a part of the atlas, `part = atlas[base..]` (cut at linkage boundaries):
-/// the best `stage2_count(keep)` curves of the part by their best hypothesis. The union of
-/// the parts' lists holds the whole atlas's best, so [`open_stage2`] gives the same
-/// result however the atlas is cut.
+/// Stage 1 over some linkages of the atlas (`groups`, ranges of `curves` as
+/// [`linkage_groups`] cuts them): the best `stage2_count(keep)` of their curves by their
+/// best hypothesis. The union of such lists over any split of the linkages holds the best
+/// of them all, so [`open_stage2`] gives the same result however they are split.
 pub(crate) fn open_stage1(
     query: &OpenQuery,
-    part: &[AtlasCurve],
-    base: usize,
+    curves: &[AtlasCurve],
+    groups: &[std::ops::Range<usize>],
     keep: usize,
 ) -> Vec<Stage1> {
-    // Groups: runs of equal linkage and circuit.
-    let mut groups: Vec<(usize, usize)> = Vec::new();
-    let mut i = 0;
-    while i < part.len() {
-        let c = &part[i].curve;
-        let mut j = i + 1;
-        while j < part.len()
-            && part[j].curve.linkage == c.linkage
-            && part[j].curve.circuit == c.circuit
-        {
-            j += 1;
-        }
-        groups.push((i, j));
-        i = j;
-    }
     let mut stage1: Vec<Stage1> = Vec::new();
-    for &(a, b) in &groups {
-        let c = &part[a].curve;
+    for g in groups {
+        let (a, b) = (g.start, g.end);
+        let Some(first) = curves.get(a) else {
+            continue;
+        };
+        let c = &first.curve;
         let Some(table) = Table::new(&c.linkage, c.circuit) else {
             continue;
         };
-        let pts: Vec<C64> = (a..b).map(|k| w_of(&part[k])).collect();
+        let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
         for (k, hs) in query.scan(&table, &pts).into_iter().enumerate() {
             let Some(h) = hs
                 .into_iter()
@@ -705,8 +849,8 @@ pub(crate) fn open_stage1(
             };
             if h.misfit.is_finite() {
                 stage1.push(Stage1 {
-                    group: base + a,
-                    index: base + a + k,
+                    group: a,
+                    index: a + k,
                     hyp: h,
                 });
             }
@@ -846,7 +990,7 @@ mod lab {
             )
             .unwrap();
             let q = OpenQuery::new(&t, true).unwrap();
-            let cands = open_candidates(&q, &curves, 100000);
+            let cands = open_candidates(&q, &curves, &linkage_groups(&curves), 100000);
             let pos = cands.iter().position(|x| x.curve.id == src as u64);
             let p = t.complex_points();
             let from_start = pos
