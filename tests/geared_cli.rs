@@ -822,6 +822,109 @@ fn match_finds_a_geared_curve_and_places_it() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `match --timed` with a closed target on a geared five-bar of period 720° (λ = −1/2,
+/// issue 14): the timing spans the whole period. A loop timed by angles over two input
+/// turns finds its source exactly at crank rate 1 (the angles' offset is free), equal
+/// steps divide the curve's own period (6° a point for 120 points on a 720° curve), the
+/// same loop with the wrong timing (half the travel) fits nothing, and angles spanning
+/// more than the atlas's longest period are refused naming the target, the span and the
+/// period. Before, any closed target timed over 360° or more was refused.
+#[test]
+fn match_timed_closed_target_spans_the_geared_period() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("geared-timed-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let spec = root.join("atlas-spec/geared-quick.toml");
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        dir.to_str().unwrap(),
+        "--no-pages",
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let atlas = dir.to_str().unwrap();
+    let half = GearRatio::new(-1, 2).unwrap();
+    let src = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, half, 90.0).unwrap();
+    let p = CouplerPoint::new(1.5, 1.5);
+    let angles: Vec<f64> = (0..120).map(|k| 6.0 * k as f64).collect();
+    let pts = user_points(&src, p, &angles, false);
+    // Points with a timing column `t_k = 30° + step·k`, or none (equal steps).
+    let write = |name: &str, step: Option<f64>| {
+        let f = dir.join(name);
+        let text: String = pts
+            .iter()
+            .enumerate()
+            .map(|(k, q)| match step {
+                Some(s) => format!("{},{},{}\n", q[0], q[1], 30.0 + s * k as f64),
+                None => format!("{},{}\n", q[0], q[1]),
+            })
+            .collect();
+        std::fs::write(&f, text).unwrap();
+        f.to_str().unwrap().to_string()
+    };
+    let find = |file: &str| -> serde_json::Value {
+        json(&run(&[
+            "match", file, "--atlas", atlas, "--closed", "--timed", "--top", "3", "--format",
+            "json",
+        ]))["matches"]
+            .clone()
+    };
+    for (name, step, rate) in [("angles", Some(6.0), 1.0), ("steps", None, 6.0)] {
+        let file = write(&format!("{name}.csv"), step);
+        let best = find(&file)[0].clone();
+        assert_eq!(best["curve"]["linkage"]["ratio"], "-1/2", "{name}: {best}");
+        assert_eq!(best["curve"]["linkage"]["phase"], 90.0, "{name}: {best}");
+        assert_eq!(best["curve"]["point"]["u"], 1.5, "{name}: {best}");
+        assert!(
+            best["error"]["rms_pct"].as_f64().unwrap() < 1e-6,
+            "{name}: {best}"
+        );
+        assert!(
+            (best["timing_rate"].as_f64().unwrap() - rate).abs() < 1e-9,
+            "{name}: {best}"
+        );
+        // The crank runs the whole period: from the first point to the last, 714°.
+        let c = &best["placement"]["crank_deg"];
+        let travel = c[1].as_f64().unwrap() - c[0].as_f64().unwrap();
+        assert!((travel - 714.0).abs() < 1e-6, "{name}: {c}");
+    }
+    // Timed at 3° a point (357° in all), the loop is not that curve's timing: nothing
+    // in the atlas fits it closely.
+    let file = write("wrong.csv", Some(3.0));
+    for m in find(&file).as_array().unwrap() {
+        assert!(m["error"]["rms_pct"].as_f64().unwrap() > 1.0, "{m}");
+    }
+    // More than the longest period: refused, naming the target, its span and the period.
+    let f = dir.join("too-long.csv");
+    let mut text = std::fs::read_to_string(write("angles.csv", Some(6.0))).unwrap();
+    text.push_str("100,-15,750\n");
+    std::fs::write(&f, text).unwrap();
+    let out = run(&[
+        "match",
+        f.to_str().unwrap(),
+        "--atlas",
+        atlas,
+        "--closed",
+        "--timed",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("too-long.csv")
+            && err.contains(
+                "angles span 720°, but the longest period of the curves is 720° of input"
+            ),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A `[[curve]]` page set of geared five-bars (`atlas-spec/geared-classics.toml`, issue
 /// 14): each entry is traced over its period (λ = −1/2: 720° of input) or across its
 /// toggles, `curves.json` records the five-bar's dimensions and Ting class, the exact

@@ -76,7 +76,8 @@ pub struct Args {
     jobs: Option<usize>,
 }
 
-/// Reads the target file into a validated target.
+/// Reads the target file into a validated target. Timed angles are checked against
+/// the atlas's periods once it is loaded ([`check_timing`]).
 fn read_target(args: &Args) -> Result<Target> {
     let name = args.target.display().to_string();
     let text = if name == "-" {
@@ -113,8 +114,32 @@ fn read_target(args: &Args) -> Result<Target> {
     } else {
         Timing::EqualSteps
     };
-    Target::new(file.points, closed, timing)
+    Target::with_period(file.points, closed, timing, f64::INFINITY)
         .map_err(|e| UsageError(format!("target {name}: {e}")).into())
+}
+
+/// Refuses a target timed by angles that no curve of the atlas can carry: its angles
+/// span at least the longest period of the atlas's curves (more, for an open target).
+/// The period is 360° on a four-bar atlas and `360°·q` for a geared five-bar of gear
+/// ratio p/q (720° for λ = −1/2), so a closed loop timed over two input turns is matched
+/// on the curves that close after two turns.
+fn check_timing(target: &Target, atlas: &ShapeAtlas, name: &str, dir: &Path) -> Result<()> {
+    let longest = atlas
+        .curves
+        .iter()
+        .map(|c| c.curve.period_deg())
+        .fold(0.0, f64::max);
+    match target.angle_span() {
+        Some(span) if !atlas.curves.is_empty() && !target.fits_period(longest) => {
+            let e = coupler_atlas::shape::TargetError::AngleSpan {
+                span,
+                period: longest,
+                closed: target.is_closed(),
+            };
+            Err(UsageError(format!("target {name} on atlas {}: {e}", dir.display())).into())
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Reads the atlas's shape sidecar, checked against the manifest.
@@ -658,6 +683,12 @@ pub fn run(args: Args) -> Result<ExitCode> {
         .build()
         .context("starting worker threads")?;
     let atlas = load_shapes(&args.atlas)?;
+    check_timing(
+        &target,
+        &atlas,
+        &args.target.display().to_string(),
+        &args.atlas,
+    )?;
     let t_load = t0.elapsed();
     let options = MatchOptions {
         allow_mirror: args.mirror,

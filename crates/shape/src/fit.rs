@@ -430,6 +430,9 @@ pub(crate) fn fit_timed(
     hint: Option<&CurveFit>,
     options: &FitOptions,
 ) -> Option<CurveFit> {
+    if !target.fits_period(curve.period_deg()) {
+        return None;
+    }
     let p = target.complex_points();
     let o = timed_offsets(target);
     let n = p.len();

@@ -134,7 +134,10 @@ pub fn coarse_candidates(
         let q = ClosedQuery::new(&target.complex_points(), options.allow_mirror)
             .ok_or(MatchError::Undescribable)?;
         let d: Vec<f64> = codes.iter().map(|c| q.distance(c)).collect();
-        let mut order: Vec<usize> = (0..curves.len()).filter(|&i| d[i].is_finite()).collect();
+        // A curve whose period is shorter than the target's timed angles cannot carry it.
+        let mut order: Vec<usize> = (0..curves.len())
+            .filter(|&i| d[i].is_finite() && target.fits_period(curves[i].curve.period_deg()))
+            .collect();
         let by = |a: &usize, b: &usize| {
             d[*a]
                 .total_cmp(&d[*b])

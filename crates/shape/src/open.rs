@@ -328,9 +328,11 @@ impl OpenQuery {
         })
     }
 
-    /// The crank spans tried on a linkage of the given `period`.
+    /// The crank spans tried on a linkage of the given `period` (none when the target's
+    /// angles span more than it: such a linkage cannot carry the timing).
     fn spans(&self, period: f64) -> Vec<f64> {
         match self.layout {
+            Layout::Angles { span } if span > period => Vec::new(),
             Layout::Angles { span } => vec![span],
             _ => {
                 // 30° to a whole period, ratio 1.2.

@@ -10,11 +10,14 @@ pub enum Timing {
     /// Each point has an input (crank) angle in degrees. The crank reaches point `k` at
     /// `θ_k = θ₀ + σ·(t_k − t₀)`: the offset `θ₀` and the sense `σ = ±1` are free (a motor
     /// turns either way), the travel between points is as given. The angles must be
-    /// strictly monotone and span at most 360°.
+    /// strictly monotone and span at most the mechanism's period (360° for a four-bar,
+    /// `360°·q` for a geared five-bar of gear ratio p/q); a closed target's less than it,
+    /// the crank closing the loop over the rest of the period.
     Angles(Vec<f64>),
     /// The points are equally spaced in time, so in crank angle: `θ_k = θ₀ + ω·k` with
-    /// a common step `ω` (degrees, either sign). For a closed target the points divide one
-    /// turn (`|ω| = 360°/n`); for an open one `ω` is fitted.
+    /// a common step `ω` (degrees, either sign). For a closed target the points divide the
+    /// curve's period (`|ω| = P/n`: 360°/n on a four-bar, 720°/n on a geared five-bar of
+    /// ratio p/2); for an open one `ω` is fitted.
     EqualSteps,
 }
 
@@ -76,13 +79,29 @@ pub enum TargetError {
         /// Points given.
         points: usize,
     },
-    /// Angles that do not move one way, or span more than one turn.
-    #[error(
-        "angles must be strictly monotone and span at most 360° (a closed target: less than 360°): {detail}"
-    )]
+    /// Angles that do not move one way.
+    #[error("angles must be strictly monotone: {detail}")]
     BadAngles {
         /// What is wrong, naming the point.
         detail: String,
+    },
+    /// Angles that span more than the longest period a curve can have.
+    #[error(
+        "angles span {span}°, but the longest period of the curves is {period}° of input{}: {}",
+        if *period == 360.0 { " (one turn)" } else { "" },
+        if *closed {
+            "a closed target's angles must span less than a period, the crank closing the loop over the rest of it"
+        } else {
+            "an open path's angles can span at most one period"
+        }
+    )]
+    AngleSpan {
+        /// The span of the angles, degrees.
+        span: f64,
+        /// The longest period allowed, degrees of input.
+        period: f64,
+        /// Whether the target is closed.
+        closed: bool,
     },
 }
 
@@ -135,11 +154,21 @@ impl Target {
     /// for timing by angles one angle per point, strictly monotone, spanning at most 360°
     /// (less than 360° when closed). A closed target whose last point repeats its first
     /// (and, when timed by angles, whose last angle is a full turn from its first) loses
-    /// that repeat.
-    pub fn new(
+    /// that repeat. For curves of a longer period (a geared five-bar atlas), see
+    /// [`Target::with_period`].
+    pub fn new(points: Vec<[f64; 2]>, closed: bool, timing: Timing) -> Result<Target, TargetError> {
+        Target::with_period(points, closed, timing, 360.0)
+    }
+
+    /// [`Target::new`] for curves whose period is at most `period_deg` of input (the
+    /// longest of an atlas's mechanisms: 720° on a geared five-bar atlas with λ = −1/2):
+    /// angles may span up to it (a closed target's less). Each curve then takes the
+    /// timing only if it fits its own period ([`Target::fits_period`]).
+    pub fn with_period(
         mut points: Vec<[f64; 2]>,
         closed: bool,
         mut timing: Timing,
+        period_deg: f64,
     ) -> Result<Target, TargetError> {
         for (index, p) in points.iter().enumerate() {
             for (field, v) in [("x", p[0]), ("y", p[1])] {
@@ -188,7 +217,7 @@ impl Target {
             });
         }
         if let Timing::Angles(a) = &timing {
-            check_angles(a, closed)?;
+            check_angles(a, closed, period_deg)?;
         }
         let z: Vec<C64> = points.iter().map(|p| C64::new(p[0], p[1])).collect();
         let size = diameter(&z);
@@ -267,9 +296,24 @@ impl Target {
     pub fn size(&self) -> f64 {
         self.size
     }
+
+    /// The span of the angles, degrees, when timed by angles.
+    pub fn angle_span(&self) -> Option<f64> {
+        match &self.timing {
+            Timing::Angles(a) => Some((a[a.len() - 1] - a[0]).abs()),
+            _ => None,
+        }
+    }
+
+    /// Whether a curve of period `period_deg` can carry the target's timing: always unless
+    /// timed by angles, which must span at most the period (a closed target: less).
+    pub fn fits_period(&self, period_deg: f64) -> bool {
+        self.angle_span()
+            .is_none_or(|s| s < period_deg || (!self.closed && s == period_deg))
+    }
 }
 
-fn check_angles(a: &[f64], closed: bool) -> Result<(), TargetError> {
+fn check_angles(a: &[f64], closed: bool, period: f64) -> Result<(), TargetError> {
     let rising = a[1] > a[0];
     for k in 1..a.len() {
         let step = a[k] - a[k - 1];
@@ -285,9 +329,11 @@ fn check_angles(a: &[f64], closed: bool) -> Result<(), TargetError> {
         }
     }
     let span = (a[a.len() - 1] - a[0]).abs();
-    if span > 360.0 || (closed && span >= 360.0) {
-        return Err(TargetError::BadAngles {
-            detail: format!("they span {span}°"),
+    if span > period || (closed && span >= period) {
+        return Err(TargetError::AngleSpan {
+            span,
+            period,
+            closed,
         });
     }
     Ok(())
@@ -354,6 +400,28 @@ mod tests {
         )
         .unwrap_err();
         assert!(t.to_string().contains("400"), "{t}");
+        // Over a longer period (a geared five-bar atlas's 720°): the same angles pass, and
+        // a closed loop may cover up to the period.
+        let a = vec![0.0, 100.0, 200.0, 400.0];
+        let t = Target::with_period(sq.clone(), false, Timing::Angles(a), 720.0).unwrap();
+        assert_eq!(t.angle_span(), Some(400.0));
+        assert!(t.fits_period(720.0) && !t.fits_period(360.0));
+        let loop6: Vec<[f64; 2]> = (0..6)
+            .map(|k| {
+                let (s, c) = coupler_kinematics::sincos_deg(60.0 * k as f64);
+                [c, s]
+            })
+            .collect();
+        let steps = |last: f64| Timing::Angles(vec![0.0, 120.0, 240.0, 360.0, 480.0, last]);
+        let t = Target::with_period(loop6.clone(), true, steps(600.0), 720.0).unwrap();
+        assert!(t.fits_period(720.0) && !t.fits_period(360.0));
+        let t = Target::with_period(loop6.clone(), true, steps(720.0), 720.0);
+        assert!(
+            matches!(t, Err(TargetError::AngleSpan { closed: true, .. })),
+            "{t:?}"
+        );
+        let t = Target::with_period(loop6, false, steps(720.0), 720.0).unwrap();
+        assert!(t.fits_period(720.0) && !t.fits_period(719.0));
         // A closed loop given with its first point repeated at the end.
         let mut hexagon: Vec<[f64; 2]> = (0..6)
             .map(|k| {
