@@ -351,7 +351,7 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
     let out = run(&["search", dirs[0].to_str().unwrap(), "--limit", "0"]);
     let table = String::from_utf8(out.stdout).unwrap();
     assert!(
-        table.contains("# L1 3  L3 3  L4 3  L5 1  λ -1/2  φ 90°  (class I)"),
+        table.contains("# L1 3  L3 3  L4 3  L5 1  λ \u{2212}1/2  φ 90°  (class I)"),
         "{table}"
     );
     assert!(table.lines().all(|l| l.chars().count() <= 120), "{table}");

@@ -4,8 +4,8 @@ use super::UsageError;
 use anyhow::Result;
 use coupler_atlas::{
     ArcRow, Circuit, CouplerPoint, CrankTable, DashPattern, FeatureTolerances, FourBar, GearRatio,
-    GearedFiveBar, Linkage, LinkageClass, Mechanism, SegmentRow, pseudo_arcs, straight_segments,
-    transmission_margin, window_transmission,
+    GearedFiveBar, Linkage, LinkageClass, Mechanism, SegmentRow, minus_sign, pseudo_arcs,
+    straight_segments, transmission_margin, window_transmission,
 };
 use coupler_atlas::{DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchTable, SortKey, SpanFilter};
 use std::io::Write;
@@ -543,6 +543,8 @@ fn page_spot(table: &SearchTable, r: &coupler_atlas::CurveRow) -> Option<(String
 /// its first), page number and the centre of the curve's box on it in pixels. A
 /// four-bar's A, B, C are columns; a geared five-bar's six dimensions would not fit, so
 /// its rows are grouped under a `# L1 … L3 … λ … φ …` line wherever the linkage changes.
+/// Negative numbers carry a real minus sign (U+2212), as on the pages; the CSV and JSON
+/// keep the hyphen-minus, for programs.
 /// `μ±` is the whole turn's transmission margin `min(μmin, 180 − μmax)` (the largest DEG
 /// that `--min-transmission` accepts), `μwin` the same over the feature's window.
 fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<()> {
@@ -583,8 +585,8 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
                     g.l3,
                     g.l4,
                     g.l5,
-                    g.ratio,
-                    g.phase,
+                    minus_sign(g.ratio.to_string()),
+                    minus_sign(g.phase.to_string()),
                     r.class.code()
                 )?,
                 l => writeln!(w, "# {l}")?,
@@ -611,8 +613,8 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
             "{:>7}{} {:>6} {:>6} {:>4} {:>5}",
             r.id,
             abc([&lengths[0], &lengths[1], &lengths[2]]),
-            r.point[0],
-            r.point[1],
+            minus_sign(r.point[0].to_string()),
+            minus_sign(r.point[1].to_string()),
             circ,
             dash_if_nan(transmission_margin(r.transmission_deg))
         );
@@ -638,7 +640,7 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
                 c.span_deg,
                 c.error_pct,
                 opt(c.radius, 3),
-                opt(c.turn_deg, 0),
+                minus_sign(opt(c.turn_deg, 0)),
                 opt(c.velocity_variation_pct.filter(|x| !x.is_nan()), 1),
                 dash_if_nan(margin),
             )?;

@@ -12,7 +12,7 @@ use coupler_atlas::shape::{
     Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing, coarse_candidates, decode_sidecar,
     open_finish, open_linkages, open_scan, rank_candidates, refine,
 };
-use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile};
+use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile, minus_sign};
 use rayon::prelude::*;
 use serde_json::{Value, json};
 use std::io::BufRead as _;
@@ -512,14 +512,6 @@ fn curve_json(c: &CouplerCurve) -> Value {
     })
 }
 
-/// A real minus sign for negative numbers in text (a hyphen is not one).
-fn minus(s: String) -> String {
-    match s.strip_prefix('-') {
-        Some(r) => format!("\u{2212}{r}"),
-        None => s,
-    }
-}
-
 /// The linkage's dimensions in crank units with `num` formatting the numbers: a
 /// four-bar's `A=… B=… C=…`, a geared five-bar's `L1=… L3=… L4=… L5=… λ=… φ=…°`.
 fn linkage_text(l: &Linkage, num: fn(f64) -> String) -> String {
@@ -536,8 +528,8 @@ fn linkage_text(l: &Linkage, num: fn(f64) -> String) -> String {
             num(l.l3),
             num(l.l4),
             num(l.l5),
-            minus(l.ratio.to_string()),
-            minus(num(l.phase))
+            minus_sign(l.ratio.to_string()),
+            minus_sign(num(l.phase))
         ),
     }
 }
@@ -601,8 +593,8 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
                 Linkage::FourBar(_) => String::new(),
                 Linkage::GearedFiveBar(l) => format!(
                     "; gears λ = {}, φ = {}°",
-                    minus(l.ratio.to_string()),
-                    minus(g(l.phase))
+                    minus_sign(l.ratio.to_string()),
+                    minus_sign(g(l.phase))
                 ),
             },
             g(p.point[0]),

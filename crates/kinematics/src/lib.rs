@@ -43,7 +43,7 @@ pub use frame::{CouplerFrame, Drawing, Joint};
 pub use geared::{
     AssemblyMargin, EquivalentError, GearAngle, GearRatio, GearTable, GearedEquivalent,
     GearedError, GearedFiveBar, GearedGaps, GearedPose, MARGIN_STEP_DEG, MARGIN_TOL, MAX_GEAR_TERM,
-    Rotatability, TRANSMISSION_STEP_DEG, TingClass, geared_equivalent,
+    Rotatability, TRANSMISSION_STEP_DEG, TingClass, geared_equivalent, minus_sign,
 };
 pub use length::{ARC_LENGTH_PANELS_PER_TURN, ARC_LENGTH_TOL, ArcLength};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};

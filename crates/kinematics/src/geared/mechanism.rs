@@ -60,8 +60,9 @@ impl GearedFiveBar {
 }
 
 /// Text with a leading hyphen-minus replaced by a real minus sign (U+2212), for what a
-/// reader sees (page headers); parsers accept both.
-fn minus_sign(text: String) -> String {
+/// reader sees (page headers, the `search` and `match` tables); parsers accept both.
+/// Machine-readable output (JSON, CSV) keeps the hyphen-minus.
+pub fn minus_sign(text: String) -> String {
     match text.strip_prefix('-') {
         Some(rest) => format!("\u{2212}{rest}"),
         None => text,

@@ -26,5 +26,5 @@ pub use angle::{GearAngle, GearTable};
 pub use equivalent::{EquivalentError, GearedEquivalent, geared_equivalent};
 pub use linkage::{GearRatio, GearedError, GearedFiveBar, MAX_GEAR_TERM, TingClass};
 pub use margin::{AssemblyMargin, MARGIN_STEP_DEG, MARGIN_TOL, Rotatability};
-pub use mechanism::TRANSMISSION_STEP_DEG;
+pub use mechanism::{TRANSMISSION_STEP_DEG, minus_sign};
 pub use pose::{GearedGaps, GearedPose};
