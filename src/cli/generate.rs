@@ -361,7 +361,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             s.combinations,
             skipped,
             if job.spec.geared.is_some() {
-                "their input does not turn fully"
+                "their input does not turn fully or their phase repeats another's curves"
             } else {
                 "not strict crank-rockers"
             },

@@ -285,7 +285,7 @@ impl Plan {
             "skipped:      {} {}{detail}",
             self.skipped,
             if geared {
-                "whose input does not turn fully"
+                "whose input does not turn fully, or whose phase repeats another's curves (360°/q apart for λ = p/q)"
             } else {
                 "not strict crank-rockers"
             }

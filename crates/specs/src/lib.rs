@@ -17,7 +17,7 @@ mod target_file;
 pub use count::CrankRockers;
 pub use curves::CurveList;
 pub use features::FeatureSettings;
-pub use geared::{GearedEnumeration, GearedRanges};
+pub use geared::{GearedEnumeration, GearedRanges, REPEATED_PHASE, same_curves};
 pub use ranges::{DecimalRange, LinkageRanges};
 pub use settings::{PageSettings, Sampling};
 pub use spec::{
