@@ -355,6 +355,20 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
         "{table}"
     );
     assert!(table.lines().all(|l| l.chars().count() <= 120), "{table}");
+    // λ = −1/2 at φ = 270° is φ = 90° one input turn later: the atlas lists it once, and a
+    // search for the repeat says where to look.
+    let out = run(&[
+        "search",
+        dirs[0].to_str().unwrap(),
+        "--linkage",
+        "3,3,3,1,-1/2,270",
+    ]);
+    assert!(
+        String::from_utf8_lossy(&out.stderr)
+            .contains("traces the same curves as every phase 180° apart (90° …)"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // A four-bar's A,B,C matches no geared row.
     let out = run(&[
         "search",

@@ -466,6 +466,20 @@ pub fn run(args: Args) -> Result<ExitCode> {
         (t1 - t0).as_secs_f64(),
         (t2 - t1).as_secs_f64()
     );
+    if let (0, Some(Linkage::GearedFiveBar(g))) = (total, &query.linkage) {
+        // A geared atlas lists each curve once: a phase 360°/q from a listed one is that
+        // phase's curves again (docs/spec-format.md, "Geared five-bar atlases").
+        let apart = 360.0 / g.ratio.den() as f64;
+        if g.ratio.den() > 1 {
+            eprintln!(
+                "note: --linkage: λ = {} at φ = {}° traces the same curves as every phase {}° apart ({}° …); a geared atlas lists them once, under the first such phase of its spec",
+                minus_sign(g.ratio.to_string()),
+                minus_sign(g.phase.to_string()),
+                apart,
+                g.phase.rem_euclid(apart)
+            );
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -640,7 +654,8 @@ fn write_table(w: &mut impl Write, table: &SearchTable, hits: &[Hit]) -> Result<
                 c.span_deg,
                 c.error_pct,
                 opt(c.radius, 3),
-                minus_sign(opt(c.turn_deg, 0)),
+                c.turn_deg
+                    .map_or(String::from("-"), |x| minus_sign(format!("{x:.0}"))),
                 opt(c.velocity_variation_pct.filter(|x| !x.is_nan()), 1),
                 dash_if_nan(margin),
             )?;
