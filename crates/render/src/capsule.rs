@@ -19,6 +19,7 @@
 //! byte-deterministic.
 
 use crate::dirty::Dirty;
+use crate::layer::GrayLayer;
 use coupler_layout::Ink;
 
 /// One segment of a stroke, in pixels, with the rows it may reach.
@@ -39,6 +40,8 @@ pub(crate) struct Target<'a> {
     pub(crate) height: usize,
     pub(crate) ink: Ink,
     pub(crate) dirty: &'a mut Dirty,
+    /// Where gray goes instead of the page, until it is composited.
+    pub(crate) layer: Option<&'a mut GrayLayer>,
 }
 
 /// Scratch of the scan converter, reused from stroke to stroke (a few kilobytes).
@@ -143,7 +146,10 @@ impl Capsules {
                 k += 1;
             }
             let (x0, x1) = (x0 as usize, x1 as usize);
-            composite_span(&mut row[x0..x1], &mut self.row[x0..x1], t.ink);
+            match t.layer.as_deref_mut() {
+                Some(layer) => layer.add_span(j, x0, &mut self.row[x0..x1]),
+                None => composite_span(&mut row[x0..x1], &mut self.row[x0..x1], t.ink),
+            }
             if t.ink != Ink::Paper {
                 t.dirty.mark_px(x0, j, x1, j + 1);
             }
@@ -299,6 +305,7 @@ mod tests {
             height: h,
             ink,
             dirty,
+            layer: None,
         }
     }
 

@@ -15,6 +15,7 @@
 mod capsule;
 mod diff;
 mod dirty;
+mod layer;
 mod pdf;
 mod raster;
 mod svg;

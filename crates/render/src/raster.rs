@@ -4,6 +4,7 @@
 use super::{Canvas, anchored_x};
 use crate::capsule::{Capsules, Target};
 use crate::dirty::Dirty;
+use crate::layer::GrayLayer;
 use ab_glyph::{Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point};
 use coupler_layout::{self as font, Anchor, Ink, PT_PER_INCH, PagePoint};
 use std::collections::HashMap;
@@ -12,15 +13,19 @@ use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
 
 /// A page being drawn: an 8-bit ink-coverage buffer (0 = paper, 255 = full ink) at a
 /// given DPI. Ink of gray level `g` with coverage `c` overprints in integers
-/// (`ink ← ink + (255 − ink)·c·g`, see [`overprint`]), paper erases. Each stroke,
-/// polygon or glyph is composited into the page as it is drawn. One buffer per worker,
-/// cleared and reused for every page, keeps memory bounded (tabloid at 300 dpi: 16.8 MB).
+/// (`ink ← ink + (255 − ink)·c·g`, see [`overprint`]), paper erases. Black is composited
+/// as it is drawn; the strokes and polygons of one gray merge in a sparse layer
+/// ([`GrayLayer`]) composited when the gray changes, before paper and when the page is
+/// read. One buffer per worker, cleared and reused for every page, keeps memory bounded
+/// (tabloid at 300 dpi: 16.8 MB).
 pub struct RasterPage {
     mask: Mask,
     px_per_pt: f64,
     dpi: f64,
     font: FontRef<'static>,
     ink: Ink,
+    /// Gray waiting to be composited.
+    gray: GrayLayer,
     /// Where the page may hold ink: clearing and encoding visit only these blocks.
     dirty: Dirty,
     /// The stroke scan converter's scratch.
@@ -78,6 +83,7 @@ impl RasterPage {
             dpi,
             font: font::embedded_font(),
             ink: Ink::Black,
+            gray: GrayLayer::new(width_px as usize, height_px as usize),
             dirty: Dirty::new(width_px as usize, height_px as usize),
             capsules: Capsules::default(),
             halos: HashMap::new(),
@@ -105,6 +111,7 @@ impl RasterPage {
     /// Erases all ink (and sets the ink back to black). Only the blocks that were drawn
     /// into are visited.
     pub fn clear(&mut self) {
+        self.flush_gray();
         let stride = self.mask.width() as usize;
         let data = self.mask.data_mut();
         self.dirty
@@ -136,12 +143,22 @@ impl RasterPage {
         };
         turn(&mut self.mask);
         self.dirty = Dirty::new(width_px as usize, height_px as usize);
+        self.gray = GrayLayer::new(width_px as usize, height_px as usize);
         self.width() == width_px && self.height() == height_px
     }
 
-    /// The ink coverage, row-major.
+    /// The ink coverage, row-major (gray composited in).
     pub fn ink(&mut self) -> &[u8] {
+        self.flush_gray();
         self.mask.data()
+    }
+
+    /// Composites the waiting gray into the page.
+    fn flush_gray(&mut self) {
+        if self.gray.any() {
+            self.gray
+                .flush(self.mask.data_mut(), &mut self.dirty, overprint);
+        }
     }
 
     /// Writes the page as an 8-bit grayscale PNG (paper white, ink black), fast
@@ -166,6 +183,7 @@ impl RasterPage {
                 Ok(())
             }
             PngCompression::Best => {
+                self.flush_gray();
                 let mut gray = self.mask.data().to_vec();
                 invert(&mut gray);
                 encode_png_best(&gray, self.width(), self.height(), self.dpi, out)
@@ -193,6 +211,7 @@ impl RasterPage {
     /// The fast PNG of the page in one buffer sized from the last page's; with `clear`,
     /// the page is left blank (and the ink black).
     fn encode_fast(&mut self, clear: bool) -> std::io::Result<Vec<u8>> {
+        self.flush_gray();
         let (w, h, dpi) = (self.width(), self.height(), self.dpi);
         let capacity = if self.last_png == 0 {
             1 << 19
@@ -244,7 +263,9 @@ impl RasterPage {
             (y1.ceil() as usize).min(self.height() as usize),
         );
         let ink_of = self.ink;
-        if ink_of != Ink::Paper {
+        if ink_of == Ink::Paper {
+            self.flush_gray();
+        } else {
             self.dirty.mark_px(i0, j0, i1, j1);
         }
         let data = self.mask.data_mut();
@@ -273,13 +294,36 @@ impl RasterPage {
                 let b = path.bounds();
                 self.dirty.mark([b.left(), b.top(), b.right(), b.bottom()]);
             }
-            ink => self.fill_with(path, ink),
+            Ink::Gray(level) => {
+                if self.gray.level != level {
+                    self.flush_gray();
+                    self.gray.level = level;
+                }
+                self.fill_with(path, self.ink);
+            }
+            Ink::Paper => {
+                self.flush_gray();
+                self.fill_with(path, Ink::Paper);
+            }
         }
     }
 
-    /// The page as a target of the stroke scan converter, in the current ink.
+    /// The page as a target of the stroke scan converter, in the current ink: gray
+    /// into the layer (composited first if it holds another gray), paper once the
+    /// layer is composited.
     fn target(&mut self) -> (&mut Capsules, Target<'_>) {
+        match self.ink {
+            Ink::Gray(level) => {
+                if self.gray.level != level {
+                    self.flush_gray();
+                    self.gray.level = level;
+                }
+            }
+            Ink::Paper => self.flush_gray(),
+            Ink::Black => {}
+        }
         let (width, height) = (self.width() as usize, self.height() as usize);
+        let layer = matches!(self.ink, Ink::Gray(_)).then_some(&mut self.gray);
         (
             &mut self.capsules,
             Target {
@@ -288,6 +332,7 @@ impl RasterPage {
                 height,
                 ink: self.ink,
                 dirty: &mut self.dirty,
+                layer,
             },
         )
     }
@@ -318,6 +363,13 @@ impl RasterPage {
         if ink != Ink::Paper {
             self.dirty
                 .mark_px(x0 as usize, y0 as usize, x1 as usize, y1 as usize);
+        }
+        if let Ink::Gray(_) = ink {
+            // Merged with the other strokes of this gray.
+            for (j, row) in scratch.data_mut().chunks_mut(sw).enumerate() {
+                self.gray.add_span(y0 as usize + j, x0 as usize, row);
+            }
+            return;
         }
         let data = self.mask.data_mut();
         for (j, row) in scratch.data().chunks(sw).enumerate() {
@@ -585,7 +637,9 @@ impl RasterPage {
             self.halo_scratch.placed = placed;
             return;
         }
-        // The union of the glyphs' halos over the label's box, clipped to the page.
+        // The union of the glyphs' halos over the label's box, clipped to the page, in
+        // paper over everything drawn so far.
+        self.flush_gray();
         let (pw, ph) = (i64::from(self.width()), i64::from(self.height()));
         let (cx0, cy0, cx1, cy1) = (bx0.max(0), by0.max(0), bx1.min(pw), by1.min(ph));
         if cx0 < cx1 && cy0 < cy1 {
@@ -727,6 +781,7 @@ impl HaloTile {
                 height: h,
                 ink: Ink::Black,
                 dirty: &mut dirty,
+                layer: None,
             },
         );
         HaloTile {
