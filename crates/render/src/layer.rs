@@ -34,10 +34,6 @@ pub(crate) struct GrayLayer {
     /// Tiles made so far; the first `used` hold coverage.
     tiles: Vec<Tile>,
     used: usize,
-    /// [`overprint`](crate::raster) of `level` by coverage and page ink (`c << 8 | d`),
-    /// and the level it was made for.
-    table: Vec<u8>,
-    table_level: Option<u8>,
 }
 
 impl GrayLayer {
@@ -52,8 +48,6 @@ impl GrayLayer {
             slot: vec![NONE; cols * height.div_ceil(TILE)],
             tiles: Vec::new(),
             used: 0,
-            table: Vec::new(),
-            table_level: None,
         }
     }
 
@@ -112,14 +106,7 @@ impl GrayLayer {
         if self.used == 0 {
             return;
         }
-        if self.table_level != Some(self.level) {
-            let g = u32::from(self.level);
-            self.table = (0..=u16::MAX)
-                .map(|i| overprint(i as u8, (i >> 8) as u8, g))
-                .collect();
-            self.table_level = Some(self.level);
-        }
-        let table = &self.table;
+        let g = u32::from(self.level);
         for tile in &mut self.tiles[..self.used] {
             let at = tile.at as usize;
             let (ty, tx) = (at / self.cols, at % self.cols);
@@ -132,7 +119,7 @@ impl GrayLayer {
                 let dst = &mut page[j * self.width + x + lo..j * self.width + x + hi];
                 let src = &mut tile.cov[r * TILE + lo..r * TILE + hi];
                 for (d, c) in dst.iter_mut().zip(src.iter()) {
-                    *d = table[usize::from(*c) << 8 | usize::from(*d)];
+                    *d = overprint(*d, *c, g);
                 }
                 src.fill(0);
                 dirty.mark_px(x + lo, j, x + hi, j + 1);

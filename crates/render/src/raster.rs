@@ -268,18 +268,32 @@ impl RasterPage {
         } else {
             self.dirty.mark_px(i0, j0, i1, j1);
         }
+        let columns: Vec<f64> = (i0..i1).map(|i| cover(x0, x1, i)).collect();
         let data = self.mask.data_mut();
         for j in j0..j1 {
             let cy = cover(y0, y1, j);
             let row = &mut data[j * stride..(j + 1) * stride];
-            for (i, px) in row.iter_mut().enumerate().take(i1).skip(i0) {
-                let c = cover(x0, x1, i) * cy;
-                if ink_of == Ink::Black {
-                    let ink = f64::from(*px);
-                    *px = (ink + (255.0 - ink) * c + 0.5).min(255.0) as u8;
-                } else {
-                    *px = composite(*px, (c * 255.0 + 0.5).min(255.0) as u8, ink_of);
+            let mut span = |a: usize, b: usize| {
+                for (px, cx) in row[a..b].iter_mut().zip(&columns[a - i0..b - i0]) {
+                    let c = cx * cy;
+                    if ink_of == Ink::Black {
+                        let ink = f64::from(*px);
+                        *px = (ink + (255.0 - ink) * c + 0.5).min(255.0) as u8;
+                    } else {
+                        *px = composite(*px, (c * 255.0 + 0.5).min(255.0) as u8, ink_of);
+                    }
                 }
+            };
+            if ink_of == Ink::Paper {
+                // Paper changes only pixels with ink: the marked blocks.
+                for (a, b) in self.dirty.row_pair_spans(j) {
+                    let (a, b) = (a.max(i0), b.min(i1));
+                    if a < b {
+                        span(a, b);
+                    }
+                }
+            } else {
+                span(i0, i1);
             }
         }
     }
