@@ -99,7 +99,8 @@ impl Capsules {
             s.rows = (lo as u32, hi as u32);
             self.order.push(k as u32);
         }
-        self.order.sort_unstable_by_key(|&k| segs[k as usize].rows.0);
+        self.order
+            .sort_unstable_by_key(|&k| segs[k as usize].rows.0);
         if self.row.len() != t.width {
             self.row = vec![0; t.width];
         }
@@ -349,7 +350,7 @@ mod tests {
         }
     }
 
-/// The row coverage with whole interior spans and measured edges is the coverage of
+    /// The row coverage with whole interior spans and measured edges is the coverage of
     /// every pixel measured, for segments of every slope, length and width.
     #[test]
     fn interiors_and_edges_match_measuring_every_pixel() {
@@ -384,7 +385,10 @@ mod tests {
                         let (x0, x1) = span.expect("a span");
                         assert!((x0 as usize..x1 as usize).contains(&i));
                     }
-                    assert!(want == 0 || span.is_some(), "{a:?} {b:?} {r} row {j} px {i}");
+                    assert!(
+                        want == 0 || span.is_some(),
+                        "{a:?} {b:?} {r} row {j} px {i}"
+                    );
                 }
             }
         }
@@ -397,7 +401,12 @@ mod tests {
         let mut data = vec![0u8; w * h];
         let mut dirty = Dirty::new(w, h);
         let mut c = Capsules::default();
-        c.ring([60.0, 60.0], 40.0, 1.0, &mut target(&mut data, w, &mut dirty, Ink::Black));
+        c.ring(
+            [60.0, 60.0],
+            40.0,
+            1.0,
+            &mut target(&mut data, w, &mut dirty, Ink::Black),
+        );
         let ink: f64 = data.iter().map(|&v| f64::from(v) / 255.0).sum();
         let expected = 2.0 * std::f64::consts::PI * 40.0 * 2.0;
         assert!((ink / expected - 1.0).abs() < 0.01, "{ink} {expected}");

@@ -102,7 +102,12 @@ impl GrayLayer {
 
     /// Composites the layer into `page` (row-major ink, the layer's size) with the
     /// layer's gray, marks what it inked in `dirty` and empties the layer.
-    pub(crate) fn flush(&mut self, page: &mut [u8], dirty: &mut Dirty, overprint: impl Fn(u8, u8, u32) -> u8) {
+    pub(crate) fn flush(
+        &mut self,
+        page: &mut [u8],
+        dirty: &mut Dirty,
+        overprint: impl Fn(u8, u8, u32) -> u8,
+    ) {
         if self.used == 0 {
             return;
         }

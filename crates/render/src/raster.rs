@@ -5,7 +5,9 @@ use super::{Canvas, anchored_x};
 use crate::capsule::{Capsules, Target};
 use crate::dirty::Dirty;
 use crate::layer::GrayLayer;
-use ab_glyph::{Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point};
+use ab_glyph::{
+    Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
+};
 use coupler_layout::{self as font, Anchor, Ink, PT_PER_INCH, PagePoint};
 use std::collections::HashMap;
 use std::io::Write;
@@ -747,7 +749,13 @@ struct HaloScratch {
 impl HaloTile {
     /// The outline (font units, y up) scaled by `scale` to pixels (y down), its origin
     /// at `sub` in the tile's first pixel's frame, stroked `r` pixels on each side.
-    fn make(outline: &Outline, scale: f32, r: f32, sub: [f32; 2], capsules: &mut Capsules) -> HaloTile {
+    fn make(
+        outline: &Outline,
+        scale: f32,
+        r: f32,
+        sub: [f32; 2],
+        capsules: &mut Capsules,
+    ) -> HaloTile {
         // ab_glyph gives the box as (x_min, y_max), (x_max, y_min): take both ends.
         let b = outline.bounds;
         let (top, bottom) = (b.min.y.max(b.max.y), b.min.y.min(b.max.y));
@@ -762,7 +770,9 @@ impl HaloTile {
         let mut last: Option<ab_glyph::Point> = None;
         for c in &outline.curves {
             let start = match *c {
-                OutlineCurve::Line(a, _) | OutlineCurve::Quad(a, _, _) | OutlineCurve::Cubic(a, ..) => a,
+                OutlineCurve::Line(a, _)
+                | OutlineCurve::Quad(a, _, _)
+                | OutlineCurve::Cubic(a, ..) => a,
             };
             if last != Some(start) {
                 flat.close(capsules);
