@@ -93,7 +93,7 @@ impl Capsules {
             // Rows whose centre j + ½ lies within `reach` of the segment's rows.
             let lo = (y0 - reach - 0.5).floor().clamp(0.0, h);
             let hi = (y1 + reach + 0.5).ceil().clamp(0.0, h);
-            if !(lo < hi) || !s.a[0].is_finite() || !s.d[0].is_finite() {
+            if lo.is_nan() || hi.is_nan() || lo >= hi || !(s.a[0] + s.d[0]).is_finite() {
                 continue; // off the page, or not a number
             }
             s.rows = (lo as u32, hi as u32);

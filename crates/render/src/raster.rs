@@ -32,7 +32,7 @@ pub struct RasterPage {
     dirty: Dirty,
     /// The stroke scan converter's scratch.
     capsules: Capsules,
-    /// Glyph halos made so far (`None`: a glyph without outline).
+    /// Glyphs and glyph halos made so far (`None`: a glyph without outline).
     halos: HashMap<HaloKey, Option<HaloTile>>,
     halo_scratch: HaloScratch,
     /// Glyph outlines read from the font so far, by glyph id (the font never changes).
@@ -716,7 +716,8 @@ impl RasterPage {
     }
 }
 
-/// Glyph halos kept at most (a few kilobytes each); the cache is emptied when full.
+/// Glyphs and glyph halos kept at most (a few kilobytes each); the cache is emptied when
+/// full.
 const MAX_HALO_TILES: usize = 4096;
 
 /// A glyph's halo: its glyph id, em size and halo half width in pixels (bits of the
@@ -973,47 +974,88 @@ impl Canvas for RasterPage {
         let (glyphs, advance) = font::shape_line(&self.font, size_px, text);
         let x0 = anchored_x(pos[0] * self.px_per_pt, advance, anchor);
         let y0 = pos[1] * self.px_per_pt;
-        let scale = font::px_scale(&self.font, size_px as f32);
-        let (w, h) = (self.mask.width() as i64, self.mask.height() as i64);
+        let em = size_px as f32;
+        let (w, h) = (i64::from(self.width()), i64::from(self.height()));
         for g in glyphs {
-            let glyph = Glyph {
-                id: g.id,
-                scale,
-                position: point((x0 + g.x) as f32, y0 as f32),
-            };
-            // The same outline the font would give (`Font::outline_glyph`), read once.
-            let font = &self.font;
-            let Some(outline) = self
-                .outlines
-                .entry(g.id.0)
-                .or_insert_with(|| font.outline(g.id))
-                .clone()
-            else {
+            // The glyph's coverage at its quarter-pixel position, made once and kept.
+            let (gx, gy) = ((x0 + g.x) as f32, y0 as f32);
+            if !(gx.is_finite() && gy.is_finite()) || gx.abs() > 1e7 || gy.abs() > 1e7 {
                 continue;
+            }
+            let (qx, qy) = ((gx * 4.0).round(), (gy * 4.0).round());
+            let (ix, iy) = ((qx / 4.0).floor(), (qy / 4.0).floor());
+            let key = HaloKey {
+                glyph: g.id.0,
+                em: em.to_bits(),
+                r: 0,
+                sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
+            };
+            self.glyph_tile(key);
+            let Some(Some(tile)) = self.halos.get(&key) else {
+                continue;
+            };
+            let (tx, ty) = (ix as i64 + tile.x0, iy as i64 + tile.y0);
+            let (cx0, cy0) = (tx.max(0), ty.max(0));
+            let (cx1, cy1) = ((tx + tile.w as i64).min(w), (ty + tile.h as i64).min(h));
+            if cx0 >= cx1 || cy0 >= cy1 {
+                continue;
+            }
+            if ink != Ink::Paper {
+                self.dirty
+                    .mark_px(cx0 as usize, cy0 as usize, cx1 as usize, cy1 as usize);
+            }
+            let data = self.mask.data_mut();
+            let n = (cx1 - cx0) as usize;
+            for y in cy0..cy1 {
+                let src = (y - ty) as usize * tile.w + (cx0 - tx) as usize;
+                let dst = (y * w + cx0) as usize;
+                for (d, &c) in data[dst..dst + n].iter_mut().zip(&tile.cov[src..src + n]) {
+                    *d = composite(*d, c, ink);
+                }
+            }
+        }
+    }
+}
+
+impl RasterPage {
+    /// Makes the coverage of a glyph (`key.r == 0`) at its em size and quarter-pixel
+    /// position, if not made yet.
+    fn glyph_tile(&mut self, key: HaloKey) {
+        if self.halos.contains_key(&key) {
+            return;
+        }
+        if self.halos.len() >= MAX_HALO_TILES {
+            self.halos.clear();
+        }
+        let font = &self.font;
+        let outline = self
+            .outlines
+            .entry(key.glyph)
+            .or_insert_with(|| font.outline(GlyphId(key.glyph)))
+            .clone();
+        let em = f32::from_bits(key.em);
+        let tile = outline.map(|outline| {
+            let glyph = Glyph {
+                id: GlyphId(key.glyph),
+                scale: font::px_scale(&self.font, em),
+                position: point(f32::from(key.sub[0]) / 4.0, f32::from(key.sub[1]) / 4.0),
             };
             let scale_factor = self.font.as_scaled(glyph.scale).scale_factor();
             let outlined = OutlinedGlyph::new(glyph, outline, scale_factor);
             let b = outlined.px_bounds();
-            let (bx, by) = (b.min.x as i64, b.min.y as i64);
-            if ink != Ink::Paper {
-                self.dirty.mark([b.min.x, b.min.y, b.max.x, b.max.y]);
-            }
-            let data = self.mask.data_mut();
+            let (x0, y0) = (b.min.x as i64, b.min.y as i64);
+            let w = (b.max.x as i64 - x0).max(0) as usize;
+            let h = (b.max.y as i64 - y0).max(0) as usize;
+            let mut cov = vec![0u8; w * h];
             outlined.draw(|gx, gy, c| {
-                let (x, y) = (bx + i64::from(gx), by + i64::from(gy));
-                if x >= 0 && y >= 0 && x < w && y < h {
-                    let k = (y * w + x) as usize;
-                    if ink == Ink::Black {
-                        let d = f32::from(data[k]);
-                        let v = d + (255.0 - d) * c.clamp(0.0, 1.0);
-                        data[k] = (v + 0.5) as u8;
-                    } else {
-                        let cov = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-                        data[k] = composite(data[k], cov, ink);
-                    }
+                let (x, y) = (gx as usize, gy as usize);
+                if x < w && y < h {
+                    cov[y * w + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
                 }
             });
-        }
+            HaloTile { x0, y0, w, h, cov }
+        });
+        self.halos.insert(key, tile);
     }
 }
 
