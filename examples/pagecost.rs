@@ -139,7 +139,15 @@ fn main() {
         let c0 = thread_cpu_seconds().unwrap_or(0.0);
         for (number, display) in &pages {
             let t = Instant::now();
-            buf.clear();
+            // Each page at its own size (portrait or landscape): the buffer is turned.
+            let (pw, ph) = display.size_px(opts.setup.dpi);
+            if (buf.width(), buf.height()) != (pw, ph) {
+                if !buf.reshape(pw, ph) {
+                    buf = RasterPage::new(pw, ph, opts.setup.dpi).expect("page");
+                }
+            } else {
+                buf.clear();
+            }
             ns[7] += t.elapsed().as_nanos() as f64;
             let mut timed = Timed {
                 page: &mut buf,
@@ -166,6 +174,17 @@ fn main() {
         totals.push(t0.elapsed().as_secs_f64() * 1e3 / n);
         cpu.push((thread_cpu_seconds().unwrap_or(0.0) - c0) * 1e3 / n);
         runs.push(ns);
+    }
+    if let Ok(k) = std::env::var("PAGE_DUMP") {
+        let k: u64 = k.parse().expect("PAGE_DUMP");
+        for (number, display) in &pages {
+            if *number == k {
+                for (i, item) in display.items.iter().enumerate() {
+                    let d = format!("{item:?}");
+                    println!("#{i:4} {}", &d[..d.len().min(110)]);
+                }
+            }
+        }
     }
     if let Ok(k) = std::env::var("PAGE_ITEMS") {
         let (_, display) = &pages[k.parse::<usize>().expect("PAGE_ITEMS")];

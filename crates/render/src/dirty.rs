@@ -61,42 +61,6 @@ impl Dirty {
         }
     }
 
-    /// Marks the pixels within `r` of the segment `a`–`b` (pixel coordinates), band by
-    /// band, so that a long slanted line marks a thin staircase, not its bounding box.
-    pub(crate) fn mark_segment(&mut self, a: [f32; 2], b: [f32; 2], r: f32) {
-        // Widen by a pixel: anti-aliasing touches every pixel the outline enters.
-        let r = r.max(0.0) + 1.0;
-        let (lo, hi) = (a[1].min(b[1]) - r, a[1].max(b[1]) + r);
-        if !(lo.is_finite() && hi.is_finite() && a[0].is_finite() && b[0].is_finite()) {
-            self.mark([a[0].min(b[0]) - r, lo, a[0].max(b[0]) + r, hi]);
-            return;
-        }
-        let cy = |v: f32| (v.max(0.0) as usize).min(self.height);
-        let (y0, y1) = (cy(lo.floor()), cy(hi.ceil()));
-        if y1 <= y0 {
-            return;
-        }
-        let dy = b[1] - a[1];
-        for k in y0 / BAND..=(y1 - 1) / BAND {
-            // The part of the segment within r of the band's rows.
-            let (band_lo, band_hi) = ((k * BAND) as f32 - r, ((k + 1) * BAND) as f32 + r);
-            let (t0, t1) = if dy.abs() < 1e-3 {
-                (0.0, 1.0)
-            } else {
-                let (ta, tb) = ((band_lo - a[1]) / dy, (band_hi - a[1]) / dy);
-                (ta.min(tb).max(0.0), ta.max(tb).min(1.0))
-            };
-            if t0 > t1 {
-                continue;
-            }
-            let xa = a[0] + t0 * (b[0] - a[0]);
-            let xb = a[0] + t1 * (b[0] - a[0]);
-            let cx = |v: f32| (v.max(0.0) as usize).min(self.width);
-            let (x0, x1) = (cx((xa.min(xb) - r).floor()), cx((xa.max(xb) + r).ceil()));
-            self.set_px(k, x0, x1);
-        }
-    }
-
     /// Marks the pixel box `[x0, x1) × [y0, y1)` (clamped to the buffer).
     pub(crate) fn mark_px(&mut self, x0: usize, y0: usize, x1: usize, y1: usize) {
         let (x1, y1) = (x1.min(self.width), y1.min(self.height));
@@ -105,13 +69,6 @@ impl Dirty {
         }
         for k in y0 / BAND..=(y1 - 1) / BAND {
             self.set_px(k, x0, x1);
-        }
-    }
-
-    /// Marks everything `other` marks (same size).
-    pub(crate) fn include(&mut self, other: &Dirty) {
-        for (a, b) in self.bits.iter_mut().zip(&other.bits) {
-            *a |= *b;
         }
     }
 
@@ -126,6 +83,7 @@ impl Dirty {
     }
 
     /// Whether anything is marked.
+    #[cfg(test)]
     pub(crate) fn any(&self) -> bool {
         self.bits.iter().any(|&b| b != 0)
     }
@@ -266,22 +224,6 @@ mod tests {
         assert_eq!(covered, 3300 * 5100);
         d.reset();
         assert!(d.rows().is_empty());
-    }
-
-    #[test]
-    fn a_slanted_segment_marks_a_staircase() {
-        let mut d = Dirty::new(3300, 5100);
-        d.mark_segment([0.0, 0.0], [3000.0, 3000.0], 2.0);
-        let covered: usize = d.rows().into_iter().map(|(_, a, b)| b - a).sum();
-        // Its bounding box is 9 M pixels; the staircase a few % of that.
-        assert!(covered < 250_000, "{covered}");
-        // Every pixel within 2 px of the line is marked.
-        for i in 0..3000 {
-            for dx in -3i32..=3 {
-                let (x, y) = ((i as i32 + dx).clamp(0, 3299) as usize, i);
-                assert!(d.row_pair_spans(y).any(|(a, b)| a <= x && x < b), "{x} {y}");
-            }
-        }
     }
 
     #[test]

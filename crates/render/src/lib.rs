@@ -12,8 +12,10 @@
 //! - [`SvgPage`]: the same display list as exact vector paths (text as glyph outlines, so
 //!   the page looks the same without the font installed).
 
+mod capsule;
 mod diff;
 mod dirty;
+mod layer;
 mod pdf;
 mod raster;
 mod svg;
