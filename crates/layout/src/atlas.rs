@@ -824,7 +824,7 @@ pub fn layout_page<M: Mechanism>(
     let bs = style::SMALL_SIZE - 1.0;
     let anchors: Vec<PagePoint> = marks.iter().map(|m| m.pts[m.pts.len() / 2]).collect();
     let texts: Vec<String> = marks.iter().map(|m| m.text.clone()).collect();
-    let boxes = place_marks(&anchors, &texts, bs, &occ, &mut taken, &dots, 5.0, frame);
+    let boxes = place_marks(&anchors, &texts, bs, &occ, &mut taken, &dots, frame);
     dl.ink(CONTEXT_INK);
     for ((p, text), r) in anchors.iter().zip(texts).zip(boxes) {
         let Some(r) = r else { continue };
