@@ -626,13 +626,29 @@ pub fn layout_page<M: Mechanism>(
     dl.rect(frame, style::FRAME);
 
     let mut occ = Occupancy::new(frame, 3.0);
+    let mut late_ink: Vec<(PagePoint, PagePoint)> = Vec::new();
     let mut taken: Vec<[f64; 4]> = Vec::new();
 
     // The linkage: in the frame, or small in the inset.
     let mut segments: Vec<(PagePoint, PagePoint)> = Vec::new();
     let mut grid_dots: Vec<PagePoint> = Vec::new();
     let pins = match &geometry.inset {
-        None => draw_linkage(&mut dl, page, &t, frame, &mut segments, &mut grid_dots),
+        None => {
+            let first = dl.items.len();
+            let pins = draw_linkage(&mut dl, page, &t, frame, &mut segments, &mut grid_dots);
+            // The linkage's context (crank circle, plate outline, grid): ink that
+            // feature labels keep clear of (curve labels weigh the links and grid dots).
+            for item in &dl.items[first..] {
+                match item {
+                    Primitive::Polyline { points, .. } => {
+                        late_ink.extend(points.windows(2).map(|w| (w[0], w[1])));
+                    }
+                    Primitive::Circle { center, .. } => late_ink.push((*center, *center)),
+                    _ => {}
+                }
+            }
+            pins
+        }
         Some(inset) => {
             let r = inset.rect;
             dl.ink(Ink::Paper);
@@ -711,19 +727,31 @@ pub fn layout_page<M: Mechanism>(
         }
     }
     if !marks.is_empty() {
+        // One path of bands and one of ticks: a renderer fills each set at once.
         dl.ink(MARK_BAND_INK);
-        for m in &marks {
-            dl.line(trim_ends(&m.pts, 0.5 * MARK_BAND_WIDTH), MARK_BAND_WIDTH);
-        }
+        dl.items.push(Primitive::Polylines {
+            lines: marks
+                .iter()
+                .map(|m| trim_ends(&m.pts, 0.5 * MARK_BAND_WIDTH))
+                .collect(),
+            width: MARK_BAND_WIDTH,
+        });
         dl.ink(Ink::Black);
-        for m in &marks {
-            for i in [0, m.pts.len() - 1] {
-                if let Some(tick) = end_tick(&m.pts, i) {
-                    occ.mark_segment(tick[0], tick[1], 1);
-                    dl.line(tick, MARK_TICK_WIDTH);
-                }
-            }
+        let ticks: Vec<Vec<PagePoint>> = marks
+            .iter()
+            .flat_map(|m| [end_tick(&m.pts, 0), end_tick(&m.pts, m.pts.len() - 1)])
+            .flatten()
+            .collect();
+        for tick in &ticks {
+            occ.mark_segment(tick[0], tick[1], 1);
         }
+        for m in &marks {
+            late_ink.extend(m.pts.windows(2).map(|w| (w[0], w[1])));
+        }
+        dl.items.push(Primitive::Polylines {
+            lines: ticks,
+            width: MARK_TICK_WIDTH,
+        });
     }
 
     // Curves: the pins' ghosts first, then the others, alternating styles.
@@ -806,6 +834,7 @@ pub fn layout_page<M: Mechanism>(
         // A label set off from its dot (to keep clear of other curves) gets a hairline
         // leader from just outside the dot to the box.
         if let Some((a, b)) = leader(dots[i], *r, LEADER_MIN_GAP, LEADER_START) {
+            late_ink.push((a, b));
             dl.line(vec![a, b], style::THIN);
         }
         dl.text_halo(
@@ -824,6 +853,12 @@ pub fn layout_page<M: Mechanism>(
     let bs = style::SMALL_SIZE - 1.0;
     let anchors: Vec<PagePoint> = marks.iter().map(|m| m.pts[m.pts.len() / 2]).collect();
     let texts: Vec<String> = marks.iter().map(|m| m.text.clone()).collect();
+    // Feature labels also keep clear of the context lines, the bands and the curve
+    // labels' leaders.
+    for (a, b) in &late_ink {
+        occ.mark_segment(*a, *b, 1);
+    }
+    occ.build();
     let boxes = place_marks(&anchors, &texts, bs, &occ, &mut taken, &dots, frame);
     dl.ink(CONTEXT_INK);
     for ((p, text), r) in anchors.iter().zip(texts).zip(boxes) {
@@ -831,13 +866,14 @@ pub fn layout_page<M: Mechanism>(
         if let Some((a, b)) = leader(*p, r, MARK_LEADER_MIN_GAP, MARK_LEADER_START) {
             dl.line(vec![a, b], style::THIN);
         }
-        dl.text_halo(
-            [r[0], r[1] + font::ascent(bs)],
-            bs,
-            Anchor::Start,
-            text,
-            1.0,
-        );
+        // A halo only where there is ink to clear (nearly every feature label finds
+        // a clear place, and a halo costs more to draw than its text).
+        let at = [r[0], r[1] + font::ascent(bs)];
+        if occ.cost(crate::labels::grow(r, 1.0)) == Some(0) {
+            dl.text(at, bs, Anchor::Start, text);
+        } else {
+            dl.text_halo(at, bs, Anchor::Start, text, 1.0);
+        }
     }
     dl.ink(Ink::Black);
 
