@@ -193,19 +193,27 @@ fn place_all(
         for (gi, c, r) in candidates(p, hw, hh, &LABEL_GAPS, frame) {
             let clash = placed.iter().any(|q| rects_overlap(*q, grow(r, 0.5)));
             // Prefer little ink, then a leader over little ink, then a small gap, then
-            // labels right of or above their dot (the way one reads).
-            let cost = CURVE_LABEL.cost(occ, p, r, LEADER_MIN_GAP, LEADER_START)
-                + gi as f64 * 3.0
-                + if c < -0.1 { 1.0 } else { 0.0 };
+            // labels right of or above their dot (the way one reads). The leader's
+            // cost is added only where the box could still win.
+            let base =
+                CURVE_LABEL.label(occ, r) + gi as f64 * 3.0 + if c < -0.1 { 1.0 } else { 0.0 };
             let rule = own_dot_is_nearest(r, i, dots);
+            let with_leader =
+                |base: f64| base + CURVE_LABEL.leader(occ, p, r, LEADER_MIN_GAP, LEADER_START);
             if rule && !clash {
-                if best.is_none_or(|b| cost < b.0) {
-                    best = Some((cost, r));
+                if best.is_none_or(|b| base < b.0) {
+                    let cost = with_leader(base);
+                    if best.is_none_or(|b| cost < b.0) {
+                        best = Some((cost, r));
+                    }
                 }
-            } else {
+            } else if best.is_none() {
                 let penalty = if rule { 0.0 } else { 1e6 } + if clash { 1e7 } else { 0.0 };
-                if fallback.is_none_or(|b| cost + penalty < b.0) {
-                    fallback = Some((cost + penalty, r));
+                if fallback.is_none_or(|b| base + penalty < b.0) {
+                    let cost = with_leader(base + penalty);
+                    if fallback.is_none_or(|b| cost < b.0) {
+                        fallback = Some((cost, r));
+                    }
                 }
             }
         }
@@ -292,21 +300,28 @@ const MARK_LABEL: Weights = Weights {
 };
 
 impl Weights {
-    /// Cost of a label box `r` for the point `p` (without the gap's step).
-    fn cost(&self, occ: &Occupancy, p: PagePoint, r: [f64; 4], leader_gap: f64, start: f64) -> f64 {
+    /// Cost of the ink under a label box `r`.
+    fn label(&self, occ: &Occupancy, r: [f64; 4]) -> f64 {
         let ink = occ.cost(r).unwrap_or(1_000_000) as f64;
-        let under = leader(p, r, leader_gap, start).map_or(0.0, |(a, b)| {
+        ink * self.ink + if ink > 0.0 { self.touch } else { 0.0 }
+    }
+
+    /// Cost of the leader from `p` to the box `r` (0 when it needs none). Never
+    /// negative, so a search may skip it for a box whose other costs already lose.
+    fn leader(&self, occ: &Occupancy, p: PagePoint, r: [f64; 4], gap: f64, start: f64) -> f64 {
+        leader(p, r, gap, start).map_or(0.0, |(a, b)| {
             // Skip the first 1.5 pt: the cell of the point itself.
             let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
             let k = (1.5 / len).min(1.0);
             let a = [a[0] + k * (b[0] - a[0]), a[1] + k * (b[1] - a[1])];
-            occ.segment_cost(a, b) as f64
-        });
-        let once = |x: f64, w: f64| if x > 0.0 { w } else { 0.0 };
-        ink * self.ink
-            + once(ink, self.touch)
-            + under * self.leader_ink
-            + once(under, self.leader_crossing)
+            let under = occ.segment_cost(a, b) as f64;
+            under * self.leader_ink
+                + if under > 0.0 {
+                    self.leader_crossing
+                } else {
+                    0.0
+                }
+        })
     }
 }
 
@@ -368,15 +383,14 @@ pub(crate) fn place_marks(
                 {
                     continue;
                 }
-                // The text's ink reaches a little past its box: count the ink 1 pt round
-                // (the leader still ends at the box).
-                let cost = MARK_LABEL.cost(
-                    occ,
-                    p,
-                    grow(r, 1.0),
-                    MARK_LEADER_MIN_GAP - 1.0,
-                    MARK_LEADER_START,
-                ) + gi as f64 * 3.0;
+                // The text's ink reaches a little past its box: count the ink 1 pt round.
+                let g = grow(r, 1.0);
+                let base = MARK_LABEL.label(occ, g) + gi as f64 * 3.0;
+                if best.is_some_and(|b| base >= b.0) {
+                    continue;
+                }
+                let cost = base
+                    + MARK_LABEL.leader(occ, p, g, MARK_LEADER_MIN_GAP - 1.0, MARK_LEADER_START);
                 if best.is_none_or(|b| cost < b.0) {
                     best = Some((cost, r));
                 }
