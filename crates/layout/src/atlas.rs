@@ -987,7 +987,7 @@ fn legend<M: Mechanism>(
         [x + 70.0, y2 + 2.5],
         ts,
         Anchor::Start,
-        "cusp, crunode;  band between ticks, S/A n°: the curve's longest straight segment / pseudo-arc (index tolerances), n° of crank;  gray: every other curve, and the pins' curves",
+        "cusp, crunode;  band between ticks: longest straight segment S / pseudo-arc A, n° of crank;  gray: every other curve, pins' curves",
     );
     let y3 = y2 + 13.0;
     dl.text(
