@@ -28,16 +28,13 @@ use coupler_kinematics::{
 };
 use nalgebra::Vector2;
 
-/// Inches per input unit offered for the page scale: the atlas's list (steps of 0.025 in
-/// up to 1 in, 0.05 in up to 3 in, 0.25 in up to 10 in), continued in steps of 0.5 in up
-/// to 25 in for the small linkages of this set (Chebyshev's spans 1.3 units): never more
-/// than 5 % below the exact fit above 0.5 in, where the old list (…, 8, 10, 12, 15, 20,
-/// 25 in) left up to a quarter of the scale unused.
-fn nice_inches_per_unit() -> Vec<f64> {
-    let mut v = crate::page::nice_inches_per_unit();
-    v.extend((21..=50).map(|k| f64::from(k) * 0.5));
-    v
-}
+/// Inches per input unit offered for the page scale: the atlas's list, continued for the
+/// small linkages of this set (Chebyshev's spans 1.3 units).
+const NICE_INCHES_PER_UNIT: [f64; 37] = [
+    0.1, 0.125, 0.15, 0.175, 0.2, 0.225, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.6, 0.7, 0.75, 0.8, 0.9,
+    1.0, 1.1, 1.2, 1.25, 1.4, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 15.0,
+    20.0, 25.0,
+];
 
 /// Index of the tolerance in [`STRAIGHTNESS_TOLERANCES`] whose run is
 /// bracketed on the page and at whose middle the linkage is drawn (0.1 %).
@@ -174,13 +171,12 @@ pub fn compute_classic(
     // Each orientation the page may take (both under `auto`): the largest scale wins,
     // portrait on a tie.
     let mut best: Option<(WorldToPage, Option<Inset>, [f64; 4], Orientation)> = None;
-    let nice = nice_inches_per_unit();
     for &o in setup.size.orientation.candidates() {
         let frame = frame_for(setup, o);
         let inner = crate::page::inset_rect(frame, style::FRAME_PAD);
         let all = union(world, curve_world);
-        let t_all = fit_into(all, inner, &nice);
-        let t_cur = fit_into(curve_world, inner, &nice);
+        let t_all = fit_into(all, inner, &NICE_INCHES_PER_UNIT);
+        let t_cur = fit_into(curve_world, inner, &NICE_INCHES_PER_UNIT);
         let (t, inset) = if t_all.scale >= 0.8 * t_cur.scale {
             (t_all, None)
         } else {
@@ -189,7 +185,7 @@ pub fn compute_classic(
                 all,
                 &samples,
                 inner,
-                &nice,
+                &NICE_INCHES_PER_UNIT,
                 "the linkage and its curve, input 1 = 0.000 in",
             )
         };
