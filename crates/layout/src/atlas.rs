@@ -12,7 +12,10 @@
 //! above everything, the markers (θ = 0 dot and arrowhead, cusps, crunodes).
 
 use crate::font;
-use crate::labels::{LABEL_PAD, place_labels};
+use crate::labels::{
+    LABEL_PAD, LEADER_MIN_GAP, LEADER_START, MARK_LEADER_MIN_GAP, MARK_LEADER_START, leader,
+    place_labels, place_marks,
+};
 use crate::page::{
     Anchor, CurveStyle, DisplayList, Ink, LayoutError, Occupancy, Orientation, PT_PER_INCH,
     PagePoint, PageSetup, Primitive, WorldToPage, clip_segment, draw_dashes, draw_links, fit_into,
@@ -28,9 +31,6 @@ use coupler_kinematics::{
 /// Crank angle (degrees) at which the linkage is drawn: θ = 0, so every coupler point of
 /// the page sits on the start (θ = 0 dot) of its own curve.
 pub const DRAWN_CRANK_ANGLE_DEG: f64 = 0.0;
-
-/// Labels farther than this from their dot (points) get a leader.
-const LEADER_MIN_GAP: f64 = 7.0;
 
 /// Transmission angle below which the header carries a warning, degrees.
 pub const MU_WARNING_DEG: f64 = 30.0;
@@ -517,47 +517,69 @@ fn draw_linkage<M: Mechanism>(
     draw_links(dl, t, &drawing, segments)
 }
 
-/// A bracket beside a stretch of a curve (`pts` on the page, in order), offset `off` pt
-/// to the side away from `centre`, with end ticks; returns where its text goes (the
-/// bracket's middle pushed further out) and the direction out.
-fn bracket_along(
-    dl: &mut DisplayList,
-    pts: &[PagePoint],
-    centre: PagePoint,
-    off: f64,
-) -> Option<(PagePoint, PagePoint)> {
-    if pts.len() < 2 {
-        return None;
+/// Ink of the feature marks' bands: a light gray, well under the curves' inks.
+const MARK_BAND_INK: Ink = Ink::Gray(48);
+
+/// Width of a feature mark's band, points: a highlighter stroke over the curve.
+const MARK_BAND_WIDTH: f64 = 5.0;
+
+/// Half length and width of the ticks across the curve at a feature mark's ends, points.
+const MARK_TICK_HALF: f64 = 4.2;
+const MARK_TICK_WIDTH: f64 = 0.6;
+
+/// A feature of one curve marked on the page: the stretch of the curve it covers (page
+/// points, in order) and its label.
+struct FeatureMark {
+    pts: Vec<PagePoint>,
+    text: String,
+}
+
+/// `pts` without `d` points of length at each end (a round-capped band of width 2·d
+/// then ends where the polyline did); `pts` itself when it is too short.
+fn trim_ends(pts: &[PagePoint], d: f64) -> Vec<PagePoint> {
+    fn cut(pts: &[PagePoint], d: f64) -> Option<Vec<PagePoint>> {
+        let mut left = d;
+        for (i, w) in pts.windows(2).enumerate() {
+            let l = libm::hypot(w[1][0] - w[0][0], w[1][1] - w[0][1]);
+            if l > left {
+                let t = left / l;
+                let mut out = vec![[
+                    w[0][0] + t * (w[1][0] - w[0][0]),
+                    w[0][1] + t * (w[1][1] - w[0][1]),
+                ]];
+                out.extend_from_slice(&pts[i + 1..]);
+                return Some(out);
+            }
+            left -= l;
+        }
+        None
     }
+    let length: f64 = pts
+        .windows(2)
+        .map(|w| libm::hypot(w[1][0] - w[0][0], w[1][1] - w[0][1]))
+        .sum();
+    if length <= 4.0 * d {
+        return pts.to_vec();
+    }
+    let mut front = cut(pts, d).unwrap_or_else(|| pts.to_vec());
+    front.reverse();
+    let mut both = cut(&front, d).unwrap_or(front);
+    both.reverse();
+    both
+}
+
+/// A tick across the curve at `pts[i]` (perpendicular to the polyline there).
+fn end_tick(pts: &[PagePoint], i: usize) -> Option<Vec<PagePoint>> {
     let n = pts.len();
-    let mut out = Vec::with_capacity(n);
-    let mut normals = Vec::with_capacity(n);
-    for i in 0..n {
-        let a = pts[i.saturating_sub(1)];
-        let b = pts[(i + 1).min(n - 1)];
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let len = libm::hypot(dx, dy);
-        if len < 1e-9 {
-            continue;
-        }
-        let mut nv = [-dy / len, dx / len];
-        if nv[0] * (centre[0] - pts[i][0]) + nv[1] * (centre[1] - pts[i][1]) > 0.0 {
-            nv = [-nv[0], -nv[1]];
-        }
-        normals.push(nv);
-        out.push([pts[i][0] + nv[0] * off, pts[i][1] + nv[1] * off]);
-    }
-    if out.len() < 2 {
-        return None;
-    }
-    let (n0, n1) = (normals[0], normals[normals.len() - 1]);
-    let (p0, p1) = (out[0], out[out.len() - 1]);
-    dl.line(vec![[p0[0] - n0[0] * 2.5, p0[1] - n0[1] * 2.5], p0], 0.5);
-    dl.line(vec![[p1[0] - n1[0] * 2.5, p1[1] - n1[1] * 2.5], p1], 0.5);
-    let mid = out[out.len() / 2];
-    let nm = normals[normals.len() / 2];
-    dl.line(out, 0.5);
-    Some((mid, nm))
+    let a = pts[i.saturating_sub(1)];
+    let b = pts[(i + 1).min(n - 1)];
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let len = libm::hypot(dx, dy);
+    (len > 1e-9).then(|| {
+        let nv = [-dy / len * MARK_TICK_HALF, dx / len * MARK_TICK_HALF];
+        let p = pts[i];
+        vec![[p[0] - nv[0], p[1] - nv[1]], [p[0] + nv[0], p[1] + nv[1]]]
+    })
 }
 
 /// The curve of `point` on the page from `start_deg` over `span_deg`, every 2°.
@@ -604,13 +626,29 @@ pub fn layout_page<M: Mechanism>(
     dl.rect(frame, style::FRAME);
 
     let mut occ = Occupancy::new(frame, 3.0);
+    let mut late_ink: Vec<(PagePoint, PagePoint)> = Vec::new();
     let mut taken: Vec<[f64; 4]> = Vec::new();
 
     // The linkage: in the frame, or small in the inset.
     let mut segments: Vec<(PagePoint, PagePoint)> = Vec::new();
     let mut grid_dots: Vec<PagePoint> = Vec::new();
     let pins = match &geometry.inset {
-        None => draw_linkage(&mut dl, page, &t, frame, &mut segments, &mut grid_dots),
+        None => {
+            let first = dl.items.len();
+            let pins = draw_linkage(&mut dl, page, &t, frame, &mut segments, &mut grid_dots);
+            // The linkage's context (crank circle, plate outline, grid): ink that
+            // feature labels keep clear of (curve labels weigh the links and grid dots).
+            for item in &dl.items[first..] {
+                match item {
+                    Primitive::Polyline { points, .. } => {
+                        late_ink.extend(points.windows(2).map(|w| (w[0], w[1])));
+                    }
+                    Primitive::Circle { center, .. } => late_ink.push((*center, *center)),
+                    _ => {}
+                }
+            }
+            pins
+        }
         Some(inset) => {
             let r = inset.rect;
             dl.ink(Ink::Paper);
@@ -652,12 +690,71 @@ pub fn layout_page<M: Mechanism>(
         }
     };
 
-    // Curves: the pins' ghosts first, then the others, alternating styles.
     let ghost: Vec<bool> = page
         .points
         .iter()
         .map(|p| is_pin_point(a_len, *p))
         .collect();
+
+    // Feature marks: each curve's longest straight segment and pseudo-arc, a light band
+    // over the curve (under its dashes) between two ticks across it at the window's ends.
+    let mut marks: Vec<FeatureMark> = Vec::new();
+    for (i, p) in page.points.iter().enumerate() {
+        let Some(Some(f)) = page.features.get(i) else {
+            continue;
+        };
+        if ghost[i] {
+            continue;
+        }
+        let longest_s = f
+            .straight_segments
+            .iter()
+            .max_by(|a, b| a.span_deg.total_cmp(&b.span_deg))
+            .map(|s| ('S', s.start_deg, s.span_deg));
+        let longest_a = f
+            .pseudo_arcs
+            .iter()
+            .max_by(|a, b| a.span_deg.total_cmp(&b.span_deg))
+            .map(|a| ('A', a.start_deg, a.span_deg));
+        for (kind, start, span) in longest_s.into_iter().chain(longest_a) {
+            let pts = stretch(page, &t, *p, start, span);
+            if pts.len() >= 2 {
+                marks.push(FeatureMark {
+                    pts,
+                    text: format!("{kind} {}°", fmt_num(span.round())),
+                });
+            }
+        }
+    }
+    if !marks.is_empty() {
+        // One path of bands and one of ticks: a renderer fills each set at once.
+        dl.ink(MARK_BAND_INK);
+        dl.items.push(Primitive::Polylines {
+            lines: marks
+                .iter()
+                .map(|m| trim_ends(&m.pts, 0.5 * MARK_BAND_WIDTH))
+                .collect(),
+            width: MARK_BAND_WIDTH,
+        });
+        dl.ink(Ink::Black);
+        let ticks: Vec<Vec<PagePoint>> = marks
+            .iter()
+            .flat_map(|m| [end_tick(&m.pts, 0), end_tick(&m.pts, m.pts.len() - 1)])
+            .flatten()
+            .collect();
+        for tick in &ticks {
+            occ.mark_segment(tick[0], tick[1], 1);
+        }
+        for m in &marks {
+            late_ink.extend(m.pts.windows(2).map(|w| (w[0], w[1])));
+        }
+        dl.items.push(Primitive::Polylines {
+            lines: ticks,
+            width: MARK_TICK_WIDTH,
+        });
+    }
+
+    // Curves: the pins' ghosts first, then the others, alternating styles.
     let mut placements = Vec::with_capacity(geometry.curves.len());
     let mut page_curves: Vec<Vec<Vec<PagePoint>>> = Vec::with_capacity(geometry.curves.len());
     for c in &geometry.curves {
@@ -692,51 +789,6 @@ pub fn layout_page<M: Mechanism>(
             bboxes[i] = draw_dashes(&mut dl, &t, &c.dashes, dashes, Some(0), &st, step, 0);
         }
     }
-
-    // Feature brackets: each curve's longest straight segment and pseudo-arc.
-    let mut bracket_texts: Vec<(PagePoint, PagePoint, String)> = Vec::new();
-    dl.ink(CONTEXT_INK);
-    for (i, p) in page.points.iter().enumerate() {
-        let Some(Some(f)) = page.features.get(i) else {
-            continue;
-        };
-        if ghost[i] {
-            continue;
-        }
-        let b = bboxes[i];
-        let centre = [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])];
-        let longest_s = f
-            .straight_segments
-            .iter()
-            .max_by(|a, b| a.span_deg.total_cmp(&b.span_deg));
-        if let Some(s) = longest_s {
-            let pts = stretch(page, &t, *p, s.start_deg, s.span_deg);
-            if let Some((mid, nv)) = bracket_along(&mut dl, &pts, centre, 4.0) {
-                bracket_texts.push((mid, nv, format!("S {}°", fmt_num(s.span_deg.round()))));
-                for q in &pts {
-                    occ.mark_point(*q, 1);
-                }
-            }
-        }
-        let longest_a = f
-            .pseudo_arcs
-            .iter()
-            .max_by(|a, b| a.span_deg.total_cmp(&b.span_deg));
-        if let Some(a) = longest_a {
-            let c = t.map(a.center[0], a.center[1]);
-            let pts = stretch(page, &t, *p, a.start_deg, a.span_deg);
-            // Outside the arc: away from its centre.
-            let away = {
-                let m = pts[pts.len() / 2];
-                [2.0 * m[0] - c[0], 2.0 * m[1] - c[1]]
-            };
-            let _ = away;
-            if let Some((mid, nv)) = bracket_along(&mut dl, &pts, c, 7.0) {
-                bracket_texts.push((mid, nv, format!("A {}°", fmt_num(a.span_deg.round()))));
-            }
-        }
-    }
-    dl.ink(Ink::Black);
 
     // Markers' places, for the label rule and costs.
     let dots: Vec<PagePoint> = geometry
@@ -781,16 +833,9 @@ pub fn layout_page<M: Mechanism>(
         });
         // A label set off from its dot (to keep clear of other curves) gets a hairline
         // leader from just outside the dot to the box.
-        let d = dots[i];
-        let near = [d[0].clamp(r[0], r[2]), d[1].clamp(r[1], r[3])];
-        let gap = libm::hypot(near[0] - d[0], near[1] - d[1]);
-        if gap > LEADER_MIN_GAP {
-            let u = [(near[0] - d[0]) / gap, (near[1] - d[1]) / gap];
-            let from = style::START_DOT_RADIUS + 1.0;
-            dl.line(
-                vec![[d[0] + u[0] * from, d[1] + u[1] * from], near],
-                style::THIN,
-            );
+        if let Some((a, b)) = leader(dots[i], *r, LEADER_MIN_GAP, LEADER_START) {
+            late_ink.push((a, b));
+            dl.line(vec![a, b], style::THIN);
         }
         dl.text_halo(
             [r[0] + LABEL_PAD, r[1] + LABEL_PAD + asc],
@@ -802,38 +847,35 @@ pub fn layout_page<M: Mechanism>(
         taken.push(*r);
     }
     dl.ink(Ink::Black);
-    // Bracket spans: where they fit without covering a label or a dot.
+    // Feature labels (`S n°`, `A n°`): placed like the curve labels, around the
+    // middle of their mark, clear of ink where the page allows, with a leader to the
+    // band when set off.
     let bs = style::SMALL_SIZE - 1.0;
-    for (mid, nv, text) in bracket_texts {
-        let tw = font::text_width(bs, &text);
-        let (ba, bd) = (font::ascent(bs), font::descent(bs));
-        let at = [mid[0] + nv[0] * 5.0, mid[1] + nv[1] * 5.0];
-        let x0 = if nv[0] > 0.3 {
-            at[0]
-        } else if nv[0] < -0.3 {
-            at[0] - tw
+    let anchors: Vec<PagePoint> = marks.iter().map(|m| m.pts[m.pts.len() / 2]).collect();
+    let texts: Vec<String> = marks.iter().map(|m| m.text.clone()).collect();
+    // Feature labels also keep clear of the context lines, the bands and the curve
+    // labels' leaders.
+    for (a, b) in &late_ink {
+        occ.mark_segment(*a, *b, 1);
+    }
+    occ.build();
+    let boxes = place_marks(&anchors, &texts, bs, &occ, &mut taken, &dots, frame);
+    dl.ink(CONTEXT_INK);
+    for ((p, text), r) in anchors.iter().zip(texts).zip(boxes) {
+        let Some(r) = r else { continue };
+        if let Some((a, b)) = leader(*p, r, MARK_LEADER_MIN_GAP, MARK_LEADER_START) {
+            dl.line(vec![a, b], style::THIN);
+        }
+        // A halo only where there is ink to clear (nearly every feature label finds
+        // a clear place, and a halo costs more to draw than its text).
+        let at = [r[0], r[1] + font::ascent(bs)];
+        if occ.cost(crate::labels::grow(r, 1.0)) == Some(0) {
+            dl.text(at, bs, Anchor::Start, text);
         } else {
-            at[0] - 0.5 * tw
-        };
-        let y0 = if nv[1] > 0.3 {
-            at[1]
-        } else if nv[1] < -0.3 {
-            at[1] - ba - bd
-        } else {
-            at[1] - 0.5 * (ba + bd)
-        };
-        let r = [x0, y0, x0 + tw, y0 + ba + bd];
-        let inside = r[0] >= frame[0] && r[1] >= frame[1] && r[2] <= frame[2] && r[3] <= frame[3];
-        let near_dot = dots
-            .iter()
-            .any(|d| crate::labels::rect_distance(r, *d) < 4.0);
-        if inside && !near_dot && !taken.iter().any(|q| crate::page::rects_overlap(*q, r)) {
-            dl.ink(CONTEXT_INK);
-            dl.text_halo([x0, y0 + ba], bs, Anchor::Start, text, 1.0);
-            dl.ink(Ink::Black);
-            taken.push(r);
+            dl.text_halo(at, bs, Anchor::Start, text, 1.0);
         }
     }
+    dl.ink(Ink::Black);
 
     // Markers, last: θ = 0 dots and arrowheads, cusps, crunodes.
     for (i, c) in geometry.curves.iter().enumerate() {
@@ -918,23 +960,34 @@ fn legend<M: Mechanism>(
     dl.line(vec![[x, y2 - r], [x + 2.0 * r, y2 + r]], 0.7);
     dl.line(vec![[x, y2 + r], [x + 2.0 * r, y2 - r]], 0.7);
     dl.circle([x + 14.0, y2], 3.0, Some(0.6));
+    // A feature mark: a band over a stretch of dashes, between ticks across it.
+    let (b0, b1) = (x + 24.0, x + 52.0);
+    let half = 0.5 * MARK_BAND_WIDTH;
+    dl.ink(MARK_BAND_INK);
+    dl.line(vec![[b0 + half, y2], [b1 - half, y2]], MARK_BAND_WIDTH);
+    dl.ink(Ink::Black);
+    for bx in [b0, b1] {
+        dl.line(
+            vec![[bx, y2 - MARK_TICK_HALF], [bx, y2 + MARK_TICK_HALF]],
+            MARK_TICK_WIDTH,
+        );
+    }
+    let mut d0 = b0 + 2.0;
+    while d0 < b1 - 2.0 {
+        dl.line(
+            vec![[d0, y2], [(d0 + 3.6).min(b1 - 2.0), y2]],
+            style::DASH_WIDTH,
+        );
+        d0 += 6.0;
+    }
     dl.ink(CONTEXT_INK);
-    dl.line(
-        vec![
-            [x + 22.0, y2 - 2.5],
-            [x + 22.0, y2],
-            [x + 34.0, y2],
-            [x + 34.0, y2 - 2.5],
-        ],
-        0.5,
-    );
-    dl.line(vec![[x + 40.0, y2 + 0.5], [x + 44.0, y2 - 2.5]], 1.25);
+    dl.line(vec![[x + 58.0, y2 + 0.5], [x + 62.0, y2 - 2.5]], 1.25);
     dl.ink(Ink::Black);
     dl.text(
-        [x + 52.0, y2 + 2.5],
+        [x + 70.0, y2 + 2.5],
         ts,
         Anchor::Start,
-        "cusp, crunode;  S/A n°: the curve's longest straight segment / pseudo-arc (index tolerances) over n° of crank;  gray: every other curve, and the pins' curves",
+        "cusp, crunode;  band between ticks: longest straight segment S / pseudo-arc A, n° of crank;  gray: every other curve, pins' curves",
     );
     let y3 = y2 + 13.0;
     dl.text(

@@ -724,6 +724,28 @@ impl Occupancy {
         }
     }
 
+    /// Ink along the segment `a`–`b`: the cells it passes through, each counted once
+    /// (sampled every half cell); cells off the grid count nothing.
+    pub(crate) fn segment_cost(&self, a: PagePoint, b: PagePoint) -> u64 {
+        let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
+        let n = (len / (0.5 * self.cell)).ceil().max(1.0) as usize;
+        let mut last = usize::MAX;
+        let mut sum = 0u64;
+        for s in 0..=n {
+            let t = s as f64 / n as f64;
+            let i = ((a[0] + t * (b[0] - a[0]) - self.x0) / self.cell).floor();
+            let j = ((a[1] + t * (b[1] - a[1]) - self.y0) / self.cell).floor();
+            if i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny {
+                let k = j as usize * self.nx + i as usize;
+                if k != last {
+                    sum += u64::from(self.cells[k]);
+                    last = k;
+                }
+            }
+        }
+        sum
+    }
+
     /// Ink in a rectangle (cells it touches); `None` if it leaves the grid.
     pub(crate) fn cost(&self, r: [f64; 4]) -> Option<u64> {
         let i0 = ((r[0] - self.x0) / self.cell).floor();
