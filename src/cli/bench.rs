@@ -45,7 +45,7 @@ enum Which {
         out: Option<std::path::PathBuf>,
     },
     /// Search: each query run in this process as `search` runs it (`--limit 10`, results
-    /// discarded), wall and CPU time (all threads), beside its I/O floor measured in the
+    /// discarded), wall and CPU time (all threads, to the nanosecond), beside its I/O floor measured in the
     /// same rounds: reading the whole `index.columns` a cached query maps (a query maps
     /// only the columns it tests, so the floor is an upper one and the ratio a lower one).
     /// With `--first`, also the first search of the index (hashed whole, as after
@@ -80,25 +80,39 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
 }
 
-/// CPU time (user + system) of every thread of this process, seconds, to the nanosecond
-/// (Linux: the sum of `/proc/self/task/*/schedstat`; threads that ended are not counted,
-/// so measure while the worker pools live); `None` elsewhere.
-fn process_cpu_seconds() -> Option<f64> {
+/// CPU time (user + system) of the threads of this process that are alive, seconds, to
+/// the nanosecond (Linux: the sum of `/proc/self/task/*/schedstat`); `None` elsewhere.
+/// Threads that ended are not counted: for work whose threads live on (the global worker
+/// pool `search` uses).
+fn live_threads_cpu_seconds() -> Option<f64> {
     let mut ns = 0u64;
     for task in std::fs::read_dir("/proc/self/task").ok()? {
-        let path = task.ok()?.path().join("schedstat");
-        let s = std::fs::read_to_string(path).ok()?;
+        // A thread that ends while the list is read has no file any more: skip it.
+        let Ok(s) = std::fs::read_to_string(task.ok()?.path().join("schedstat")) else {
+            continue;
+        };
         ns += s.split_whitespace().next()?.parse::<u64>().ok()?;
     }
     Some(ns as f64 * 1e-9)
 }
 
-/// Wall and CPU (all threads) seconds of `f`, and its value.
-fn timed<T>(f: impl FnOnce() -> T) -> (f64, f64, T) {
-    let (t, c) = (Instant::now(), process_cpu_seconds());
+/// CPU time (user + system) of this process since it started, threads that ended
+/// included, seconds, in the kernel's clock ticks (Linux: `/proc/self/stat`, 10 ms):
+/// for work that starts and ends its own threads (`generate`'s pool and writer).
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+/// Wall and CPU seconds of `f` (CPU by `clock`), and its value.
+fn timed<T>(clock: fn() -> Option<f64>, f: impl FnOnce() -> T) -> (f64, f64, T) {
+    let (t, c) = (Instant::now(), clock());
     let v = f();
     let wall = t.elapsed().as_secs_f64();
-    let cpu = match (c, process_cpu_seconds()) {
+    let cpu = match (c, clock()) {
         (Some(a), Some(b)) => b - a,
         _ => f64::NAN,
     };
@@ -187,12 +201,12 @@ fn search(
     let mut first_rows = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut bytes = (0u64, 0u64);
     for _ in 0..reps {
-        let (w, c, n) = timed(|| read_through(&columns));
+        let (w, c, n) = timed(live_threads_cpu_seconds, || read_through(&columns));
         bytes.0 = n?;
         floor.0.push(w);
         floor.1.push(c);
         for (q, row) in queries.iter().zip(rows.iter_mut()) {
-            let (w, c, found) = timed(|| run(q));
+            let (w, c, found) = timed(live_threads_cpu_seconds, || run(q));
             let found = found?;
             row.0.push(w);
             row.1.push(c);
@@ -206,11 +220,11 @@ fn search(
                 }
                 _ => {}
             }
-            let (w, c, found) = timed(|| run(&queries[queries.len() - 1]));
+            let (w, c, found) = timed(live_threads_cpu_seconds, || run(&queries[queries.len() - 1]));
             found?;
             first_rows.0.push(w);
             first_rows.1.push(c);
-            let (w, c, n) = timed(|| read_through(&json));
+            let (w, c, n) = timed(live_threads_cpu_seconds, || read_through(&json));
             bytes.1 = n?;
             first_rows.2.push(w);
             first_rows.3.push(c);
@@ -256,10 +270,7 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
     outln!(
         "## Kinematic core\n\nMachine: {}; load average {}\n",
         machine(),
-        std::fs::read_to_string("/proc/loadavg")
-            .ok()
-            .and_then(|l| l.split_whitespace().next().map(str::to_string))
-            .unwrap_or_else(|| "?".into())
+        load()
     )?;
     let linkage = FourBar::new(2.5, 3.0, 3.5)?;
     let table = CrankTable::new(0.5).expect("valid step");
@@ -339,31 +350,68 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
         pose / 50.0
     )?;
 
-    for jobs in [1usize, 2] {
-        let mut times = Vec::new();
-        for _ in 0..atlas_reps {
+    // `generate` index only, one and two threads, alternately (so load changes fall on
+    // both), beside its floor measured in the same rounds: the same curves and features
+    // computed in one thread with nothing formatted or written (`compute_group` over every
+    // group, what the workers call).
+    let job1 = generate::Job::new(spec.clone(), "built-in", "unused", 1);
+    let tables = coupler_atlas::AngleTables::new(spec.sampling.crank_step_deg).expect("valid step");
+    let features = spec
+        .features
+        .enabled
+        .then_some(&spec.features.tolerances);
+    let dash = spec.sampling.dash_pattern();
+    let mut runs: [(Vec<f64>, Vec<f64>); 3] = Default::default();
+    for _ in 0..atlas_reps {
+        let (w, c, n) = timed(process_cpu_seconds, || -> Result<usize> {
+            let mut n = 0;
+            for g in job1.groups() {
+                n += black_box(generate::compute_group(&tables, &g, features, &dash)?).len();
+            }
+            Ok(n)
+        });
+        n?;
+        runs[0].0.push(w);
+        runs[0].1.push(c);
+        for jobs in [1usize, 2] {
             let dir =
                 std::env::temp_dir().join(format!("coupler-atlas-bench-{}", std::process::id()));
-            let job = generate::Job::new(spec.clone(), "built-in", &dir, jobs);
-            let t = Instant::now();
-            let report = generate::run(
-                &job,
-                &generate::NoPages,
-                &|_| {},
-                &std::sync::atomic::AtomicBool::new(false),
-            )?;
-            times.push(t.elapsed().as_secs_f64());
-            black_box(report);
             let _ = std::fs::remove_dir_all(&dir);
+            let job = generate::Job::new(spec.clone(), "built-in", &dir, jobs);
+            let (w, c, report) = timed(process_cpu_seconds, || {
+                generate::run(
+                    &job,
+                    &generate::NoPages,
+                    &|_| {},
+                    &std::sync::atomic::AtomicBool::new(false),
+                )
+            });
+            black_box(report?);
+            let _ = std::fs::remove_dir_all(&dir);
+            runs[jobs].0.push(w);
+            runs[jobs].1.push(c);
         }
-        let job = generate::Job::new(spec.clone(), "built-in", "unused", jobs);
-        outln!(
-            "| `generate` default spec ({} curves), index only, {jobs} thread{} | {:.3} s | |",
-            job.curves(),
-            if jobs > 1 { "s" } else { "" },
-            median(times)
-        )?;
     }
+    let [(fw, fc), (w1, c1), (w2, c2)] = runs.map(|(w, c)| (median(w), median(c)));
+    outln!(
+        "\n`generate` on the default spec ({} curves), index only, {atlas_reps} alternating rounds, medians; the floor is the same curves and features computed in one thread with nothing formatted or written. CPU is the process's, all threads, in 10 ms ticks.\n",
+        job1.curves()
+    )?;
+    outln!("| run | wall | CPU | CPU / floor | target |\n|---|---|---|---|---|")?;
+    outln!("| floor: compute only, 1 thread | {fw:.3} s | {fc:.3} s | 1 | |")?;
+    outln!(
+        "| `generate --no-pages -j 1` | {w1:.3} s | {c1:.3} s | {:.2} | |",
+        c1 / fc
+    )?;
+    outln!(
+        "| `generate --no-pages -j 2` | {w2:.3} s | {c2:.3} s | {:.2} | |",
+        c2 / fc
+    )?;
+    outln!(
+        "| parallel efficiency, wall: (−j 1) / (2 × −j 2) | {:.0} % | | | ≥ 90 % (needs a quiet machine: compare the load above) |",
+        100.0 * w1 / (2.0 * w2)
+    )?;
+    outln!("\nLoad average after: {}", load())?;
     Ok(ExitCode::SUCCESS)
 }
 
