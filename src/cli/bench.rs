@@ -174,7 +174,10 @@ fn search(
     let dir = if index.is_dir() {
         index.to_path_buf()
     } else {
-        index.parent().map(std::path::Path::to_path_buf).unwrap_or_default()
+        index
+            .parent()
+            .map(std::path::Path::to_path_buf)
+            .unwrap_or_default()
     };
     let (json, columns) = (dir.join("index.json"), dir.join("index.columns"));
     let parse = |q: &str| -> Result<super::search::Args> {
@@ -220,7 +223,10 @@ fn search(
                 }
                 _ => {}
             }
-            let (w, c, found) = timed(live_threads_cpu_seconds, || run(&queries[queries.len() - 1]));
+            let (w, c, found) = timed(
+                live_threads_cpu_seconds,
+                || run(&queries[queries.len() - 1]),
+            );
             found?;
             first_rows.0.push(w);
             first_rows.1.push(c);
@@ -356,10 +362,7 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
     // group, what the workers call).
     let job1 = generate::Job::new(spec.clone(), "built-in", "unused", 1);
     let tables = coupler_atlas::AngleTables::new(spec.sampling.crank_step_deg).expect("valid step");
-    let features = spec
-        .features
-        .enabled
-        .then_some(&spec.features.tolerances);
+    let features = spec.features.enabled.then_some(&spec.features.tolerances);
     let dash = spec.sampling.dash_pattern();
     let mut runs: [(Vec<f64>, Vec<f64>); 3] = Default::default();
     for _ in 0..atlas_reps {

@@ -341,7 +341,12 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
                 });
             let (circle, sign, dev, turned) = match geometric {
                 Some(g) => g,
-                None => (k, k_sign, k_dev, turn(c, i, j, k.center, k_sign, f64::INFINITY)),
+                None => (
+                    k,
+                    k_sign,
+                    k_dev,
+                    turn(c, i, j, k.center, k_sign, f64::INFINITY),
+                ),
             };
             let span = (j - i) as f64 * tol.step_deg;
             Some(PseudoArc {

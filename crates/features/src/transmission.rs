@@ -64,8 +64,7 @@ impl TransmissionMemo {
         span_deg: f64,
         step_deg: f64,
     ) -> Option<[f64; 2]> {
-        if !(start_deg.is_finite() && span_deg.is_finite() && span_deg >= 0.0 && step_deg > 0.0)
-        {
+        if !(start_deg.is_finite() && span_deg.is_finite() && span_deg >= 0.0 && step_deg > 0.0) {
             return None;
         }
         let end = start_deg + span_deg;
@@ -100,7 +99,11 @@ impl TransmissionMemo {
             let key = (at[i - 1].to_bits(), at[i + 1].to_bits(), up);
             let peak = *self.peak.entry(key).or_insert_with(|| {
                 let sign = if up { 1.0 } else { -1.0 };
-                mu(golden(|t| sign * mu(t).unwrap_or(f64::NAN), at[i - 1], at[i + 1]))
+                mu(golden(
+                    |t| sign * mu(t).unwrap_or(f64::NAN),
+                    at[i - 1],
+                    at[i + 1],
+                ))
             });
             if let Some(y) = peak {
                 lo = lo.min(y);
