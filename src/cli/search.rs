@@ -339,6 +339,23 @@ impl LinkageColumns {
 }
 
 pub fn run(args: Args) -> Result<ExitCode> {
+    let stdout = std::io::stdout();
+    let mut w = std::io::BufWriter::new(stdout.lock());
+    run_to(args, &mut w, true)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// What a search found: the matching curves and the curves searched.
+pub struct Found {
+    /// Curves that match the query (all of them, not only the `--limit` shown).
+    pub total: usize,
+    /// Curves in the index searched.
+    pub curves: usize,
+}
+
+/// [`run`], writing the results to `w`, and the closing summary line to stderr only with
+/// `summary` (`bench search` runs queries without it).
+pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
     let class = match &args.class {
         None => None,
         Some(c) => Some(
@@ -446,14 +463,16 @@ pub fn run(args: Args) -> Result<ExitCode> {
         total = matched;
     }
     let t2 = Instant::now();
-    let stdout = std::io::stdout();
-    let mut w = std::io::BufWriter::new(stdout.lock());
+    let mut w = w;
     match args.format.as_str() {
         "json" => write_json(&mut w, table, &hits, total, curves)?,
         "csv" => write_csv(&mut w, table, &hits)?,
         _ => write_table(&mut w, table, &hits)?,
     }
     w.flush()?;
+    if !summary {
+        return Ok(Found { total, curves });
+    }
     eprintln!(
         "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s",
         hits.len(),
@@ -480,7 +499,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
             );
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(Found { total, curves })
 }
 
 /// One matching feature of a hit, as the table and CSV print it.

@@ -225,31 +225,24 @@ pub fn fit_circle(
         }
         (x1 - x0).max(y1 - y0)
     };
-    let cost = |c: &Circle| -> f64 {
-        xs.iter()
-            .zip(ys)
-            .map(|(&x, &y)| {
-                let r = dist(x - c.center[0], y - c.center[1]) - c.radius;
-                r * r
-            })
-            .sum()
-    };
-    let mut c = start;
-    let mut f = cost(&c);
-    let mut lambda = 1e-3;
-    for _ in 0..options.max_iterations {
-        let mut jtj = Matrix3::<f64>::zeros();
-        let mut jtr = Vector3::<f64>::zeros();
+    // The cost `Σ (‖p − c‖ − R)²` at `c`, and the normal equations' sums there
+    // (`JᵀJ`: a00 a01 a02 a11 a12 a22, `Jᵀr`: g0 g1 g2), in one pass: a trial circle's
+    // cost decides whether it is accepted, and its sums are the next iteration's, so each
+    // iteration reads the points once. Each sum adds the same terms in the same order as
+    // a pass of its own would.
+    let eval = |c: &Circle| -> (f64, [f64; 9]) {
+        let mut cost = 0.0;
         let (mut a00, mut a01, mut a02, mut a11, mut a12, mut a22) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         let (mut g0, mut g1, mut g2) = (0.0, 0.0, 0.0);
         for (&x, &y) in xs.iter().zip(ys) {
             let (dx, dy) = (x - c.center[0], y - c.center[1]);
             let d = dist(dx, dy);
+            let r = d - c.radius;
+            cost += r * r;
             if d == 0.0 {
                 continue;
             }
             let (j0, j1) = (-dx / d, -dy / d); // j2 = −1
-            let r = d - c.radius;
             a00 += j0 * j0;
             a01 += j0 * j1;
             a02 -= j0;
@@ -260,6 +253,15 @@ pub fn fit_circle(
             g1 += j1 * r;
             g2 -= r;
         }
+        (cost, [a00, a01, a02, a11, a12, a22, g0, g1, g2])
+    };
+    let mut c = start;
+    let (mut f, mut sums) = eval(&c);
+    let mut lambda = 1e-3;
+    for _ in 0..options.max_iterations {
+        let [a00, a01, a02, a11, a12, a22, g0, g1, g2] = sums;
+        let mut jtj = Matrix3::<f64>::zeros();
+        let mut jtr = Vector3::<f64>::zeros();
         jtj[(0, 0)] = a00;
         jtj[(0, 1)] = a01;
         jtj[(1, 0)] = a01;
@@ -286,13 +288,14 @@ pub fn fit_circle(
                 center: [c.center[0] + step[0], c.center[1] + step[1]],
                 radius: c.radius + step[2],
             };
-            let ft = cost(&trial);
+            let (ft, trial_sums) = eval(&trial);
             if trial.radius > 0.0 && ft.is_finite() && ft <= f {
                 // Converged: a tiny step, or no real decrease of the cost.
                 let done = step.norm() <= options.relative_step * trial.radius.max(spread)
                     || f - ft <= 1e-12 * f;
                 c = trial;
                 f = ft;
+                sums = trial_sums;
                 lambda = (lambda * 0.1).max(1e-12);
                 accepted = true;
                 if done {

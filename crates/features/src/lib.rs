@@ -297,6 +297,8 @@ pub struct FeatureExtractor<M: Mechanism> {
     dash: DashPattern,
     poses: PoseTable,
     curve: Curve,
+    /// μ at the input angles of the windows so far (the same for every coupler point).
+    transmission: transmission::TransmissionMemo,
 }
 
 impl<M: Mechanism> FeatureExtractor<M> {
@@ -333,6 +335,7 @@ impl<M: Mechanism> FeatureExtractor<M> {
             dash: *dash,
             poses,
             curve: Curve::default(),
+            transmission: transmission::TransmissionMemo::default(),
         })
     }
 
@@ -341,7 +344,8 @@ impl<M: Mechanism> FeatureExtractor<M> {
         self.poses.trace_into(point, &mut self.curve);
         let (l, c, t, curve) = (&self.linkage, self.circuit, &self.tolerances, &self.curve);
         let cogs = l.cognates(c, point);
-        let window = |start: f64, span: f64| window_transmission(l, c, start, span, t.step_deg);
+        let memo = &mut self.transmission;
+        let mut window = |start: f64, span: f64| memo.window(l, c, start, span, t.step_deg);
         let mut segments = straight_segments(curve, t, &self.dash);
         for s in &mut segments {
             s.transmission_deg = window(s.start_deg, s.span_deg);

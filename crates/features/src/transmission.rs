@@ -4,6 +4,7 @@
 //! stroke is used over its window only).
 
 use coupler_kinematics::{Circuit, CrankAngle, Mechanism};
+use std::collections::HashMap;
 
 /// `[min, max]` of the transmission angle μ (degrees) over the input window
 /// `[start_deg, start_deg + span_deg]` on `circuit`, or `None` where the mechanism does
@@ -36,42 +37,81 @@ pub fn window_transmission<M: Mechanism>(
     span_deg: f64,
     step_deg: f64,
 ) -> Option<[f64; 2]> {
-    if !(start_deg.is_finite() && span_deg.is_finite() && span_deg >= 0.0 && step_deg > 0.0) {
-        return None;
-    }
-    let end = start_deg + span_deg;
-    // The sample angles: the ends, the multiples of 180° inside, and every step between.
-    let mut at: Vec<f64> = vec![start_deg, end];
-    let mut k = (start_deg / 180.0).floor() + 1.0;
-    while k * 180.0 < end {
-        at.push(k * 180.0);
-        k += 1.0;
-    }
-    let n = (span_deg / step_deg).ceil() as usize;
-    at.extend((1..n).map(|i| start_deg + i as f64 * step_deg));
-    at.sort_by(f64::total_cmp);
-    at.dedup();
-    let mu = |deg: f64| mechanism.transmission(circuit, &CrankAngle::from_degrees(deg));
-    let values: Vec<f64> = at.iter().map(|&t| mu(t)).collect::<Option<_>>()?;
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for &v in &values {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    for i in 1..at.len().saturating_sub(1) {
-        let (a, v, b) = (values[i - 1], values[i], values[i + 1]);
-        let on_half_turn = (at[i] / 180.0).fract() == 0.0;
-        if on_half_turn || !((v > a && v > b) || (v < a && v < b)) {
-            continue;
+    TransmissionMemo::default().window(mechanism, circuit, start_deg, span_deg, step_deg)
+}
+
+/// μ of one mechanism and circuit at the input angles already asked for, and the refined
+/// extremes of the brackets already searched, so that the windows of every coupler point
+/// of a linkage (an [`crate::FeatureExtractor`]'s) evaluate each input angle once. μ
+/// depends on the input angle only, not on the coupler point, and is a pure function of
+/// it: a remembered value is the one recomputing would give, to the bit.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TransmissionMemo {
+    /// μ (radians) by the input angle's bits.
+    mu: HashMap<u64, Option<f64>>,
+    /// The refined extreme's μ by its bracket's bits and direction.
+    peak: HashMap<(u64, u64, bool), Option<f64>>,
+}
+
+impl TransmissionMemo {
+    /// [`window_transmission`], remembering μ for the next window of the same mechanism
+    /// and circuit (the caller keeps those fixed).
+    pub(crate) fn window<M: Mechanism>(
+        &mut self,
+        mechanism: &M,
+        circuit: Circuit,
+        start_deg: f64,
+        span_deg: f64,
+        step_deg: f64,
+    ) -> Option<[f64; 2]> {
+        if !(start_deg.is_finite() && span_deg.is_finite() && span_deg >= 0.0 && step_deg > 0.0) {
+            return None;
         }
-        let sign = if v > a { 1.0 } else { -1.0 };
-        let x = golden(|t| sign * mu(t).unwrap_or(f64::NAN), at[i - 1], at[i + 1]);
-        if let Some(y) = mu(x) {
-            lo = lo.min(y);
-            hi = hi.max(y);
+        let end = start_deg + span_deg;
+        // The sample angles: the ends, the multiples of 180° inside, and every step between.
+        let mut at: Vec<f64> = vec![start_deg, end];
+        let mut k = (start_deg / 180.0).floor() + 1.0;
+        while k * 180.0 < end {
+            at.push(k * 180.0);
+            k += 1.0;
         }
+        let n = (span_deg / step_deg).ceil() as usize;
+        at.extend((1..n).map(|i| start_deg + i as f64 * step_deg));
+        at.sort_by(f64::total_cmp);
+        at.dedup();
+        let mu = |deg: f64| mechanism.transmission(circuit, &CrankAngle::from_degrees(deg));
+        let values: Vec<f64> = at
+            .iter()
+            .map(|&t| *self.mu.entry(t.to_bits()).or_insert_with(|| mu(t)))
+            .collect::<Option<_>>()?;
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for &v in &values {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        for i in 1..at.len().saturating_sub(1) {
+            let (a, v, b) = (values[i - 1], values[i], values[i + 1]);
+            let on_half_turn = (at[i] / 180.0).fract() == 0.0;
+            if on_half_turn || !((v > a && v > b) || (v < a && v < b)) {
+                continue;
+            }
+            let up = v > a;
+            let key = (at[i - 1].to_bits(), at[i + 1].to_bits(), up);
+            let peak = *self.peak.entry(key).or_insert_with(|| {
+                let sign = if up { 1.0 } else { -1.0 };
+                mu(golden(
+                    |t| sign * mu(t).unwrap_or(f64::NAN),
+                    at[i - 1],
+                    at[i + 1],
+                ))
+            });
+            if let Some(y) = peak {
+                lo = lo.min(y);
+                hi = hi.max(y);
+            }
+        }
+        Some([lo.to_degrees(), hi.to_degrees()])
     }
-    Some([lo.to_degrees(), hi.to_degrees()])
 }
 
 /// The maximiser of a unimodal `f` on `[a, b]`, by golden-section search to 1e-10°.

@@ -1193,6 +1193,10 @@ struct Best {
     limit: usize,
     hits: Vec<Keyed>,
     seen: usize,
+    /// The worst of the `limit` best once that many were kept: a hit that sorts after it
+    /// can never be among the best (curve ids are unique, so no two hits tie), and is counted
+    /// only, not kept (a broad query then keeps few of its million hits).
+    cutoff: Option<Keyed>,
 }
 
 impl Best {
@@ -1201,11 +1205,18 @@ impl Best {
             limit,
             hits: Vec::new(),
             seen: 0,
+            cutoff: None,
         }
     }
 
     fn push(&mut self, h: Keyed) {
         self.seen += 1;
+        if self
+            .cutoff
+            .is_some_and(|c| order(&h, &c) == std::cmp::Ordering::Greater)
+        {
+            return;
+        }
         self.hits.push(h);
         if self.limit > 0 && self.hits.len() >= 2 * self.limit.max(512) {
             self.trim();
@@ -1216,6 +1227,8 @@ impl Best {
         if self.limit > 0 && self.hits.len() > self.limit {
             self.hits.select_nth_unstable_by(self.limit - 1, order);
             self.hits.truncate(self.limit);
+            // After the selection, element `limit − 1` is the worst kept.
+            self.cutoff = Some(self.hits[self.limit - 1]);
         }
     }
 
