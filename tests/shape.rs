@@ -244,10 +244,17 @@ fn open_targets_find_their_source() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(200);
-    let cases: Vec<(usize, Target)> = retrieval_cases(&curves, false, 77, count)
+    // OPEN_ONLY=3,17,…: only those cases (by index), to look at misses again.
+    let only: Option<Vec<usize>> = std::env::var("OPEN_ONLY")
+        .ok()
+        .map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect());
+    let cases: Vec<(usize, usize, Target)> = retrieval_cases(&curves, false, 77, count)
         .into_iter()
-        .map(|c| (c.source, c.target))
+        .enumerate()
+        .filter(|(i, _)| only.as_ref().is_none_or(|o| o.contains(i)))
+        .map(|(i, c)| (i, c.source, c.target))
         .collect();
+    let count = cases.len();
     // OPEN_CANDIDATES=N: candidates fitted exactly (the default's otherwise).
     let options = MatchOptions {
         open_candidates: std::env::var("OPEN_CANDIDATES")
@@ -257,26 +264,27 @@ fn open_targets_find_their_source() {
         ..MatchOptions::DEFAULT
     };
     let t0 = std::time::Instant::now();
-    let results: Vec<(bool, f64, f64)> = cases
+    let results: Vec<(bool, usize, f64, f64)> = cases
         .par_iter()
-        .map(|(src, t)| {
+        .map(|(i, src, t)| {
             let m = find_matches(t, &curves, &codes, &options).unwrap();
             let own = fit_curve(t, &curves[*src].curve, &FitOptions::DEFAULT).unwrap();
             (
                 found(&m, curves[*src].id, own.rms),
+                *i,
                 100.0 * own.rms / t.size(),
                 m[0].rms_pct,
             )
         })
         .collect();
     let hits = results.iter().filter(|r| r.0).count();
-    let misses: Vec<(f64, f64)> = results
+    let misses: Vec<(usize, f64, f64)> = results
         .iter()
         .filter(|r| !r.0)
-        .map(|r| (r.1, r.2))
+        .map(|r| (r.1, r.2, r.3))
         .collect();
     println!(
-        "open targets: {hits}/{count} found in {:.1} s ({} candidates); misses' (own rms %, best rms %): {misses:?}",
+        "open targets: {hits}/{count} found in {:.1} s ({} candidates); misses' (case, own rms %, best rms %): {misses:?}",
         t0.elapsed().as_secs_f64(),
         options.open_candidates
     );
