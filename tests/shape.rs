@@ -344,11 +344,12 @@ fn open_diagnosis() {
 
 /// The linkage screen on a large atlas (a measurement; ignored; needs an atlas made with
 /// `generate`, e.g. from `atlas-spec/dense.toml`):
-/// `SHAPE_ATLAS=DIR SCREEN_CASES=20 cargo test --release --test shape screen_on_a_large_atlas -- --ignored --nocapture`.
+/// `SHAPE_ATLAS=DIR SCREEN_CASES=16 cargo test --release --test shape screen_on_a_large_atlas -- --ignored --nocapture`.
 /// Open targets made from the atlas's own curves as in `open_targets_find_their_source`:
-/// the rank of the source's linkage by the screen's score (the search scans the best
-/// `MatchOptions::open_linkages`), and whether the search finds the source or a curve at
-/// least as close in the top 5.
+/// the rank of the source's linkage by the screen's score, and the recall (the source's
+/// linkage among the best N). With
+/// `SCREEN_SEARCH=N` also a search screened to N linkages, and whether it finds the
+/// source or a curve at least as close in the top 5.
 #[test]
 #[ignore]
 fn screen_on_a_large_atlas() {
@@ -359,48 +360,57 @@ fn screen_on_a_large_atlas() {
     };
     let bytes = std::fs::read(std::path::Path::new(&dir).join("shapes.bin")).unwrap();
     let atlas = decode_sidecar(&bytes).unwrap();
-    let count: usize = std::env::var("SCREEN_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(20);
+    let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<usize>().ok());
+    let count = env("SCREEN_CASES").unwrap_or(16);
+    let search = env("SCREEN_SEARCH");
     let curves = &atlas.curves;
     let groups = linkage_groups(curves);
     let cases = retrieval_cases(curves, false, 77, count);
-    let rows: Vec<(usize, bool, f64)> = cases
-        .par_iter()
-        .map(|c| {
-            let t = &c.target;
-            let screen = LinkageScreen::new(t, true).unwrap();
-            let scores: Vec<f64> = groups
-                .iter()
-                .map(|g| screen.score(&curves[g.clone()]))
-                .collect();
-            let own_group = groups.iter().position(|g| g.contains(&c.source)).unwrap();
-            let rank = scores
-                .iter()
-                .enumerate()
-                .filter(|&(i, s)| {
-                    s.total_cmp(&scores[own_group])
-                        .then(i.cmp(&own_group))
-                        .is_lt()
-                })
-                .count();
-            let t0 = std::time::Instant::now();
-            let m = find_matches(t, curves, &atlas.codes, &MatchOptions::DEFAULT).unwrap();
-            let secs = t0.elapsed().as_secs_f64();
+    let rank_by = |screen: &LinkageScreen, own: usize| -> (usize, f64) {
+        let t0 = std::time::Instant::now();
+        let scores: Vec<f64> = groups
+            .par_iter()
+            .map(|g| screen.score(&curves[g.clone()]))
+            .collect();
+        let rank = scores
+            .iter()
+            .enumerate()
+            .filter(|&(i, s)| s.total_cmp(&scores[own]).then(i.cmp(&own)).is_lt())
+            .count();
+        (rank, t0.elapsed().as_secs_f64())
+    };
+    let mut rows = Vec::new();
+    for c in &cases {
+        let t = &c.target;
+        let own_group = groups.iter().position(|g| g.contains(&c.source)).unwrap();
+        let (rank, secs) = rank_by(&LinkageScreen::new(t, true).unwrap(), own_group);
+        let found_by_search = search.map(|n| {
+            let options = MatchOptions {
+                open_linkages: n,
+                ..MatchOptions::DEFAULT
+            };
+            let m = find_matches(t, curves, &atlas.codes, &options).unwrap();
             let own = fit_curve(t, &curves[c.source].curve, &FitOptions::DEFAULT).unwrap();
-            (rank, found(&m, curves[c.source].id, own.rms), secs)
-        })
-        .collect();
-    let hits = rows.iter().filter(|r| r.1).count();
-    let mut ranks: Vec<usize> = rows.iter().map(|r| r.0).collect();
-    ranks.sort_unstable();
-    let mut secs: Vec<f64> = rows.iter().map(|r| r.2).collect();
-    secs.sort_by(f64::total_cmp);
-    println!(
-        "{} curves, {} linkages: found {hits}/{}; source linkage's screen rank (sorted): {ranks:?}; search seconds (one thread, sorted): {secs:?}",
-        curves.len(),
-        groups.len(),
-        rows.len()
-    );
+            found(&m, curves[c.source].id, own.rms)
+        });
+        println!(
+            "span {:5.1} n {:3}: source linkage rank {rank:6} (screen {secs:.2} s); search {found_by_search:?}",
+            c.span,
+            t.len()
+        );
+        rows.push((rank, found_by_search));
+    }
+    for k in [256, 1024, 4096] {
+        println!(
+            "recall of the source's linkage in the screen's best {k} of {}: {}/{} (chance {:.1} %)",
+            groups.len(),
+            rows.iter().filter(|r| r.0 < k).count(),
+            rows.len(),
+            100.0 * k as f64 / groups.len() as f64
+        );
+    }
+    if search.is_some() {
+        let hits = rows.iter().filter(|r| r.1 == Some(true)).count();
+        println!("search screened to {search:?} linkages: found {hits}/{}", rows.len());
+    }
 }
