@@ -411,6 +411,9 @@ fn screen_on_a_large_atlas() {
     }
     if search.is_some() {
         let hits = rows.iter().filter(|r| r.1 == Some(true)).count();
-        println!("search screened to {search:?} linkages: found {hits}/{}", rows.len());
+        println!(
+            "search screened to {search:?} linkages: found {hits}/{}",
+            rows.len()
+        );
     }
 }

@@ -238,10 +238,8 @@ fn coarse(
         );
     }
     let bar = if groups.len() >= PROGRESS_LINKAGES {
-        let bar = ProgressBar::with_draw_target(
-            Some(groups.len() as u64),
-            ProgressDrawTarget::stderr(),
-        );
+        let bar =
+            ProgressBar::with_draw_target(Some(groups.len() as u64), ProgressDrawTarget::stderr());
         bar.set_style(
             ProgressStyle::with_template(
                 "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} linkages scanned (eta {eta})",

@@ -180,7 +180,7 @@ const RANK_POINTS: usize = 40;
 const RANK_ITERATIONS: usize = 30;
 /// An open target's candidates (best by coarse distance) that also get the exact fit's
 /// own robust start.
-const ROBUST_OPEN: usize = 16;
+const ROBUST_OPEN: usize = 64;
 
 /// Ranked matches of `target` among `curves` (with their shape codes, in the same order;
 /// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
