@@ -231,6 +231,52 @@ fn classics_find_their_families() {
     }
 }
 
+/// By default an open target's scan covers every linkage of the atlas, however many (the
+/// linkage screen ranks the source's linkage no better than chance on the dense atlas, so
+/// it is opt-in); with `open_linkages` set, an atlas of more linkages is screened down to
+/// that many. 300 linkages, one curve each (more than the previous default of 256).
+#[test]
+fn open_scan_covers_every_linkage_by_default() {
+    use coupler_atlas::shape::open_linkages;
+    let curves: Vec<AtlasCurve> = (0..300)
+        .map(|k| AtlasCurve {
+            id: k,
+            curve: CouplerCurve::new(
+                FourBar::new(2.0 + 0.01 * k as f64, 3.0, 3.5).unwrap(),
+                Circuit::Open,
+                CouplerPoint::new(1.0, 0.5),
+            ),
+        })
+        .collect();
+    let mut rng = Rng(9);
+    let t = make_target(
+        &mut rng,
+        &curves[0].curve,
+        false,
+        10.0,
+        150.0,
+        30,
+        false,
+        0.0,
+    )
+    .unwrap();
+    let screened = std::sync::atomic::AtomicBool::new(false);
+    let score = |_: &coupler_atlas::shape::LinkageScreen, g: &[std::ops::Range<usize>]| {
+        screened.store(true, std::sync::atomic::Ordering::Relaxed);
+        (0..g.len()).map(|i| i as f64).collect()
+    };
+    let all = open_linkages(&t, &curves, &MatchOptions::DEFAULT, score);
+    assert_eq!(all.len(), 300);
+    assert!(!screened.load(std::sync::atomic::Ordering::Relaxed));
+    let options = MatchOptions {
+        open_linkages: 10,
+        ..MatchOptions::DEFAULT
+    };
+    let some = open_linkages(&t, &curves, &options, score);
+    assert_eq!(some, (0..10).map(|i| i..i + 1).collect::<Vec<_>>());
+    assert!(screened.load(std::sync::atomic::Ordering::Relaxed));
+}
+
 /// Open targets (windows of 90°–270° of crank) from atlas curves under random similarity
 /// transforms (half reflected), random start points and 1 % noise: the source (or a
 /// curve at least as close) is in the top 5 in at least 95 % of 200 seeded cases.
