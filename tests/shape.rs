@@ -231,6 +231,52 @@ fn classics_find_their_families() {
     }
 }
 
+/// By default an open target's scan covers every linkage of the atlas, however many (the
+/// linkage screen ranks the source's linkage no better than chance on the dense atlas, so
+/// it is opt-in); with `open_linkages` set, an atlas of more linkages is screened down to
+/// that many. 300 linkages, one curve each (more than the previous default of 256).
+#[test]
+fn open_scan_covers_every_linkage_by_default() {
+    use coupler_atlas::shape::open_linkages;
+    let curves: Vec<AtlasCurve> = (0..300)
+        .map(|k| AtlasCurve {
+            id: k,
+            curve: CouplerCurve::new(
+                FourBar::new(2.0 + 0.01 * k as f64, 3.0, 3.5).unwrap(),
+                Circuit::Open,
+                CouplerPoint::new(1.0, 0.5),
+            ),
+        })
+        .collect();
+    let mut rng = Rng(9);
+    let t = make_target(
+        &mut rng,
+        &curves[0].curve,
+        false,
+        10.0,
+        150.0,
+        30,
+        false,
+        0.0,
+    )
+    .unwrap();
+    let screened = std::sync::atomic::AtomicBool::new(false);
+    let score = |_: &coupler_atlas::shape::LinkageScreen, g: &[std::ops::Range<usize>]| {
+        screened.store(true, std::sync::atomic::Ordering::Relaxed);
+        (0..g.len()).map(|i| i as f64).collect()
+    };
+    let all = open_linkages(&t, &curves, &MatchOptions::DEFAULT, score);
+    assert_eq!(all.len(), 300);
+    assert!(!screened.load(std::sync::atomic::Ordering::Relaxed));
+    let options = MatchOptions {
+        open_linkages: 10,
+        ..MatchOptions::DEFAULT
+    };
+    let some = open_linkages(&t, &curves, &options, score);
+    assert_eq!(some, (0..10).map(|i| i..i + 1).collect::<Vec<_>>());
+    assert!(screened.load(std::sync::atomic::Ordering::Relaxed));
+}
+
 /// Open targets (windows of 90°–270° of crank) from atlas curves under random similarity
 /// transforms (half reflected), random start points and 1 % noise: the source (or a
 /// curve at least as close) is in the top 5 in at least 95 % of 200 seeded cases.
@@ -244,10 +290,17 @@ fn open_targets_find_their_source() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(200);
-    let cases: Vec<(usize, Target)> = retrieval_cases(&curves, false, 77, count)
+    // OPEN_ONLY=3,17,…: only those cases (by index), to look at misses again.
+    let only: Option<Vec<usize>> = std::env::var("OPEN_ONLY")
+        .ok()
+        .map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect());
+    let cases: Vec<(usize, usize, Target)> = retrieval_cases(&curves, false, 77, count)
         .into_iter()
-        .map(|c| (c.source, c.target))
+        .enumerate()
+        .filter(|(i, _)| only.as_ref().is_none_or(|o| o.contains(i)))
+        .map(|(i, c)| (i, c.source, c.target))
         .collect();
+    let count = cases.len();
     // OPEN_CANDIDATES=N: candidates fitted exactly (the default's otherwise).
     let options = MatchOptions {
         open_candidates: std::env::var("OPEN_CANDIDATES")
@@ -257,26 +310,27 @@ fn open_targets_find_their_source() {
         ..MatchOptions::DEFAULT
     };
     let t0 = std::time::Instant::now();
-    let results: Vec<(bool, f64, f64)> = cases
+    let results: Vec<(bool, usize, f64, f64)> = cases
         .par_iter()
-        .map(|(src, t)| {
+        .map(|(i, src, t)| {
             let m = find_matches(t, &curves, &codes, &options).unwrap();
             let own = fit_curve(t, &curves[*src].curve, &FitOptions::DEFAULT).unwrap();
             (
                 found(&m, curves[*src].id, own.rms),
+                *i,
                 100.0 * own.rms / t.size(),
                 m[0].rms_pct,
             )
         })
         .collect();
     let hits = results.iter().filter(|r| r.0).count();
-    let misses: Vec<(f64, f64)> = results
+    let misses: Vec<(usize, f64, f64)> = results
         .iter()
         .filter(|r| !r.0)
-        .map(|r| (r.1, r.2))
+        .map(|r| (r.1, r.2, r.3))
         .collect();
     println!(
-        "open targets: {hits}/{count} found in {:.1} s ({} candidates); misses' (own rms %, best rms %): {misses:?}",
+        "open targets: {hits}/{count} found in {:.1} s ({} candidates); misses' (case, own rms %, best rms %): {misses:?}",
         t0.elapsed().as_secs_f64(),
         options.open_candidates
     );
@@ -336,11 +390,12 @@ fn open_diagnosis() {
 
 /// The linkage screen on a large atlas (a measurement; ignored; needs an atlas made with
 /// `generate`, e.g. from `atlas-spec/dense.toml`):
-/// `SHAPE_ATLAS=DIR SCREEN_CASES=20 cargo test --release --test shape screen_on_a_large_atlas -- --ignored --nocapture`.
+/// `SHAPE_ATLAS=DIR SCREEN_CASES=16 cargo test --release --test shape screen_on_a_large_atlas -- --ignored --nocapture`.
 /// Open targets made from the atlas's own curves as in `open_targets_find_their_source`:
-/// the rank of the source's linkage by the screen's score (the search scans the best
-/// `MatchOptions::open_linkages`), and whether the search finds the source or a curve at
-/// least as close in the top 5.
+/// the rank of the source's linkage by the screen's score, and the recall (the source's
+/// linkage among the best N). With
+/// `SCREEN_SEARCH=N` also a search screened to N linkages, and whether it finds the
+/// source or a curve at least as close in the top 5.
 #[test]
 #[ignore]
 fn screen_on_a_large_atlas() {
@@ -351,48 +406,60 @@ fn screen_on_a_large_atlas() {
     };
     let bytes = std::fs::read(std::path::Path::new(&dir).join("shapes.bin")).unwrap();
     let atlas = decode_sidecar(&bytes).unwrap();
-    let count: usize = std::env::var("SCREEN_CASES")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(20);
+    let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<usize>().ok());
+    let count = env("SCREEN_CASES").unwrap_or(16);
+    let search = env("SCREEN_SEARCH");
     let curves = &atlas.curves;
     let groups = linkage_groups(curves);
     let cases = retrieval_cases(curves, false, 77, count);
-    let rows: Vec<(usize, bool, f64)> = cases
-        .par_iter()
-        .map(|c| {
-            let t = &c.target;
-            let screen = LinkageScreen::new(t, true).unwrap();
-            let scores: Vec<f64> = groups
-                .iter()
-                .map(|g| screen.score(&curves[g.clone()]))
-                .collect();
-            let own_group = groups.iter().position(|g| g.contains(&c.source)).unwrap();
-            let rank = scores
-                .iter()
-                .enumerate()
-                .filter(|&(i, s)| {
-                    s.total_cmp(&scores[own_group])
-                        .then(i.cmp(&own_group))
-                        .is_lt()
-                })
-                .count();
-            let t0 = std::time::Instant::now();
-            let m = find_matches(t, curves, &atlas.codes, &MatchOptions::DEFAULT).unwrap();
-            let secs = t0.elapsed().as_secs_f64();
+    let rank_by = |screen: &LinkageScreen, own: usize| -> (usize, f64) {
+        let t0 = std::time::Instant::now();
+        let scores: Vec<f64> = groups
+            .par_iter()
+            .map(|g| screen.score(&curves[g.clone()]))
+            .collect();
+        let rank = scores
+            .iter()
+            .enumerate()
+            .filter(|&(i, s)| s.total_cmp(&scores[own]).then(i.cmp(&own)).is_lt())
+            .count();
+        (rank, t0.elapsed().as_secs_f64())
+    };
+    let mut rows = Vec::new();
+    for c in &cases {
+        let t = &c.target;
+        let own_group = groups.iter().position(|g| g.contains(&c.source)).unwrap();
+        let (rank, secs) = rank_by(&LinkageScreen::new(t, true).unwrap(), own_group);
+        let found_by_search = search.map(|n| {
+            let options = MatchOptions {
+                open_linkages: n,
+                ..MatchOptions::DEFAULT
+            };
+            let m = find_matches(t, curves, &atlas.codes, &options).unwrap();
             let own = fit_curve(t, &curves[c.source].curve, &FitOptions::DEFAULT).unwrap();
-            (rank, found(&m, curves[c.source].id, own.rms), secs)
-        })
-        .collect();
-    let hits = rows.iter().filter(|r| r.1).count();
-    let mut ranks: Vec<usize> = rows.iter().map(|r| r.0).collect();
-    ranks.sort_unstable();
-    let mut secs: Vec<f64> = rows.iter().map(|r| r.2).collect();
-    secs.sort_by(f64::total_cmp);
-    println!(
-        "{} curves, {} linkages: found {hits}/{}; source linkage's screen rank (sorted): {ranks:?}; search seconds (one thread, sorted): {secs:?}",
-        curves.len(),
-        groups.len(),
-        rows.len()
-    );
+            found(&m, curves[c.source].id, own.rms)
+        });
+        println!(
+            "span {:5.1} n {:3}: source linkage rank {rank:6} (screen {secs:.2} s); search {found_by_search:?}",
+            c.span,
+            t.len()
+        );
+        rows.push((rank, found_by_search));
+    }
+    for k in [256, 1024, 4096] {
+        println!(
+            "recall of the source's linkage in the screen's best {k} of {}: {}/{} (chance {:.1} %)",
+            groups.len(),
+            rows.iter().filter(|r| r.0 < k).count(),
+            rows.len(),
+            100.0 * k as f64 / groups.len() as f64
+        );
+    }
+    if search.is_some() {
+        let hits = rows.iter().filter(|r| r.1 == Some(true)).count();
+        println!(
+            "search screened to {search:?} linkages: found {hits}/{}",
+            rows.len()
+        );
+    }
 }

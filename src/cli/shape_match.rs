@@ -13,6 +13,7 @@ use coupler_atlas::shape::{
     open_finish, open_linkages, open_scan, rank_candidates, refine,
 };
 use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile, minus_sign};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use serde_json::{Value, json};
 use std::io::BufRead as _;
@@ -51,12 +52,13 @@ pub struct Args {
     /// target, 1,024 for an open one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     candidates: Option<u32>,
-    /// Most linkages an open target's scan covers: an atlas of more is screened first
-    /// and only the best this many by a coarse score are scanned. The score is rough
-    /// (measured: it does not pick out the source's linkage on the dense atlas), so on a
-    /// large atlas the answer is a sample; raise N to search more (docs/shape-search.md).
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..))]
-    linkages: u32,
+    /// Screen an open target's linkages and scan only the best N by a coarse score
+    /// (default: scan every linkage, with progress on stderr for a large atlas). The
+    /// screen is an estimate: on the dense atlas the source's linkage is among its best
+    /// N only part of the time (docs/shape-search.md), so a screened answer is a sample
+    /// of the atlas, not a full search.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    linkages: Option<u32>,
     /// Refine each match off the atlas grid (Levenberg–Marquardt over the linkage's
     /// dimensions: a four-bar's A, B, C, a geared five-bar's L1, L3, L4, L5 and phase φ
     /// with its gear ratio held; the coupler point and the transform).
@@ -230,6 +232,10 @@ fn atlas_mechanism(dir: &Path) -> Option<String> {
     )
 }
 
+/// Linkages from which an open target's scan shows progress on stderr (the dense atlas
+/// has 31,018; the default one 175).
+const PROGRESS_LINKAGES: usize = 2_000;
+
 /// The coarse stage on the pool's threads: open targets' linkages screened (an atlas of
 /// many linkages) and scanned in shares, then finished on the whole (the same candidates
 /// however they are shared out); closed targets in one pass (the codes are cheap; the
@@ -252,12 +258,25 @@ fn coarse(
     let all = coupler_atlas::shape::linkage_groups(curves).len();
     if groups.len() < all {
         eprintln!(
-            "note: {} of the atlas's {all} linkages scanned, picked by a coarse screen: the answer is a sample of the atlas, not a full search (--linkages {all} scans them all, slowly)",
+            "note: {} of the atlas's {all} linkages scanned, picked by a coarse screen: the answer is a sample of the atlas, not a full search (without --linkages every linkage is scanned)",
             groups.len()
         );
     }
+    let bar = if groups.len() >= PROGRESS_LINKAGES {
+        let bar =
+            ProgressBar::with_draw_target(Some(groups.len() as u64), ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} linkages scanned (eta {eta})",
+            )
+            .expect("valid template"),
+        );
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
     // Shares of about equal curve counts, several per thread.
-    let parts = 8 * rayon::current_num_threads();
+    let parts = if bar.is_hidden() { 8 } else { 32 } * rayon::current_num_threads();
     let total: usize = groups.iter().map(|g| g.len()).sum();
     let want = total.div_ceil(parts).max(1);
     let mut shares: Vec<Vec<std::ops::Range<usize>>> = vec![Vec::new()];
@@ -272,8 +291,13 @@ fn coarse(
     }
     let scans: Vec<OpenScan> = shares
         .par_iter()
-        .map(|share| open_scan(target, curves, share, options))
+        .map(|share| {
+            let scan = open_scan(target, curves, share, options);
+            bar.inc(share.len() as u64);
+            scan
+        })
         .collect::<Result<_, _>>()?;
+    bar.finish_and_clear();
     open_finish(target, curves, scans, options)
 }
 
@@ -691,7 +715,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         open_candidates: args
             .candidates
             .map_or(MatchOptions::DEFAULT.open_candidates, |c| c as usize),
-        open_linkages: args.linkages as usize,
+        open_linkages: args
+            .linkages
+            .map_or(MatchOptions::DEFAULT.open_linkages, |n| n as usize),
         ..MatchOptions::DEFAULT
     };
     let size = target.size();

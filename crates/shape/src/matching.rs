@@ -27,22 +27,24 @@ pub struct MatchOptions {
     /// they start from the scan's crank angles).
     pub open_candidates: usize,
     /// Most linkages an open target's scan covers: an atlas of more linkages is first
-    /// screened ([`LinkageScreen`]) and only the most promising this many are scanned
-    /// (the default atlas has 175, so it is scanned whole).
+    /// screened ([`LinkageScreen`]) and only the most promising this many are scanned.
+    /// The default, `usize::MAX`, scans every linkage: the screen is an estimate that
+    /// misses the source's linkage part of the time (`docs/shape-search.md`), so it is
+    /// opt-in.
     pub open_linkages: usize,
     /// The exact fit's settings (its `allow_mirror` is overridden by this one's).
     pub fit: FitOptions,
 }
 
 impl MatchOptions {
-    /// Mirror allowed, top 5, 64 candidates fitted exactly (1,024 for an open target), at
-    /// most 256 linkages scanned for an open target.
+    /// Mirror allowed, top 5, 64 candidates fitted exactly (1,024 for an open target),
+    /// every linkage scanned for an open target (no screen).
     pub const DEFAULT: MatchOptions = MatchOptions {
         allow_mirror: true,
         top: 5,
         candidates: 64,
         open_candidates: 1024,
-        open_linkages: 256,
+        open_linkages: usize::MAX,
         fit: FitOptions::DEFAULT,
     };
 }
@@ -181,7 +183,7 @@ const RANK_POINTS: usize = 40;
 const RANK_ITERATIONS: usize = 30;
 /// An open target's candidates (best by coarse distance) that also get the exact fit's
 /// own robust start.
-const ROBUST_OPEN: usize = 16;
+const ROBUST_OPEN: usize = 64;
 
 /// Ranked matches of `target` among `curves` (with their shape codes, in the same order;
 /// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
@@ -315,15 +317,18 @@ pub fn rank_candidates(
     // An open target's best few candidates by coarse distance also get the exact fit's own
     // robust start (its window scan of the traced curve): the scan's start can sit in the
     // basin of a neighbouring window.
-    let robust: Vec<Option<CurveFit>> = candidates
+    let robust_fit = |c: &Candidate| -> Option<CurveFit> {
+        let traced = Traced::new(&c.curve.curve, fit_options.trace_samples)?;
+        fit_with(target, &c.curve.curve, &traced, &fit_options)
+    };
+    let mut robust: Vec<Option<CurveFit>> = candidates
         .iter()
         .enumerate()
         .map(|(i, c)| {
             if i >= ROBUST_OPEN || c.start.is_none() {
                 return None;
             }
-            let traced = Traced::new(&c.curve.curve, fit_options.trace_samples)?;
-            fit_with(target, &c.curve.curve, &traced, &fit_options)
+            robust_fit(c)
         })
         .collect();
     let mut quick: Vec<(f64, usize)> = candidates
@@ -352,6 +357,14 @@ pub fn rank_candidates(
             .then(candidates[a.1].curve.id.cmp(&candidates[b.1].curve.id))
     });
     quick.truncate((4 * options.top).max(options.top + 8));
+    // Every open candidate that reaches the final fits also gets the robust start, so a
+    // reported curve's fit is the better of the two basins (a curve's fit from the scan's
+    // start alone can stop in a neighbouring window's, a hair or more above its best).
+    for &(_, i) in &quick {
+        if robust[i].is_none() && candidates[i].start.is_some() {
+            robust[i] = robust_fit(&candidates[i]);
+        }
+    }
     let size = target.size();
     let mut matches: Vec<Match> = quick
         .iter()
