@@ -74,6 +74,12 @@ pub trait Mechanism: Clone + fmt::Debug + fmt::Display + Send + Sync {
     /// four-bar): pages draw the coupler plate over it.
     fn coupler_length(&self) -> f64;
 
+    /// That link's name as [`Mechanism::dimensions`] prints it ("A" for a four-bar, "L3"
+    /// for a geared five-bar): pages give grid rows in units of it.
+    fn coupler_name(&self) -> &'static str {
+        "A"
+    }
+
     /// Whether the pin at the far end of that link, the point `(coupler_length, 0)`,
     /// moves on a circle about a ground pivot (a four-bar's rocker pin: its curve is a
     /// trivial arc). A geared five-bar's dyad joint does not: the second crank's pin it
@@ -389,6 +395,13 @@ impl Mechanism for Linkage {
         match self {
             Linkage::FourBar(l) => l.coupler_length(),
             Linkage::GearedFiveBar(l) => l.coupler_length(),
+        }
+    }
+
+    fn coupler_name(&self) -> &'static str {
+        match self {
+            Linkage::FourBar(l) => l.coupler_name(),
+            Linkage::GearedFiveBar(l) => l.coupler_name(),
         }
     }
 

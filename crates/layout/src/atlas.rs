@@ -432,7 +432,12 @@ fn header_lines<M: Mechanism>(page: &LinkagePage<M>) -> (String, String) {
     let a = l.coupler_length();
     let row = match page.points.first() {
         Some(p0) if page.points.iter().all(|p| p.v == p0.v) => {
-            format!("   row v = {} ({} A)", fmt_sig(p0.v), fmt_sig(p0.v / a))
+            format!(
+                "   row v = {} ({} {})",
+                fmt_sig(p0.v),
+                fmt_sig(p0.v / a),
+                l.coupler_name()
+            )
         }
         _ => String::new(),
     };
@@ -1073,6 +1078,9 @@ mod tests {
         let (_, sub) = header_lines(&geared);
         assert_eq!(count(&sub), 1, "{sub}");
         assert!(sub.contains("Ting"), "{sub}");
+        // The row is given in units of the five-bar's coupler link L3, not a four-bar's A.
+        assert!(sub.contains("row v = 0.5 ("), "{sub}");
+        assert!(sub.contains(" L3)") && !sub.contains(" A)"), "{sub}");
     }
 
     #[test]

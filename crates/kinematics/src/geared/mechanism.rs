@@ -163,6 +163,10 @@ impl Mechanism for GearedFiveBar {
         self.l3
     }
 
+    fn coupler_name(&self) -> &'static str {
+        "L3"
+    }
+
     /// No: the dyad joint P hangs from the moving pin Pd.
     fn far_pin_on_ground_arc(&self) -> bool {
         false
