@@ -6,12 +6,12 @@
 //! and prints the median per-page time of each phase and primitive kind. A digest of all
 //! PNG bytes shows whether a change kept the pages byte-identical; with OUT, the pages are
 //! also written there (`page-NNNN.png`) for `cmp`.
+use coupler_atlas::Spec;
 use coupler_atlas::generate::{
-    Job, PageJob, PageOptions, PageTimings, compute_group, median, thread_cpu_seconds,
+    Job, PageOptions, PageSource, PageTimings, median, thread_cpu_seconds,
 };
 use coupler_atlas::layout::{Anchor, DisplayList, Ink, PagePoint};
 use coupler_atlas::render::{Canvas, PngCompression, RasterPage, draw};
-use coupler_atlas::{AngleTables, Spec};
 use std::time::Instant;
 
 const KINDS: [&str; 10] = [
@@ -80,38 +80,18 @@ fn main() {
     let spec = Spec::default_atlas();
     let opts = PageOptions::from_spec(&spec).expect("page options");
     let job = Job::new(spec, "default", "unused", 1);
-    let table = AngleTables::new(job.spec.sampling.crank_step_deg).expect("crank step");
-    let features = job
-        .spec
-        .features
-        .enabled
-        .then_some(&job.spec.features.tolerances);
-    let dash = job.spec.sampling.dash_pattern();
-    let per = opts.setup.curves_per_page.max(1);
-    let page_count = job.pages();
+    let source = PageSource::new(&job, opts.setup.curves_per_page).expect("page source");
     let timings = PageTimings::default();
     let t = Instant::now();
     let mut pages: Vec<(u64, DisplayList)> = Vec::new();
     for g in job.groups() {
-        let curves = compute_group(&table, &g, features, &dash).expect("curves");
-        let feats: Vec<_> = curves.into_iter().map(|c| c.features).collect();
-        for (k, (pts, fs)) in g.points.chunks(per).zip(feats.chunks(per)).enumerate() {
-            let number = g.first_page + k as u64;
-            if (number - 1) % every as u64 != 0 {
+        let feats = source.features(&g).expect("curves");
+        for pj in source.pages(&g, &feats) {
+            if (pj.number - 1) % every as u64 != 0 {
                 continue;
             }
-            let pj = PageJob {
-                linkage: g.linkage,
-                circuit: g.circuit,
-                points: pts,
-                grid: &g.points,
-                tables: None,
-                features: fs,
-                number,
-                page_count,
-            };
             let layout = pj.layout(&opts.setup, &timings).expect("layout");
-            pages.push((number, layout.display));
+            pages.push((pj.number, layout.display));
         }
     }
     let ([compute, layout, ..], _) = timings.seconds();

@@ -40,8 +40,8 @@ pub use job::{
 pub use lock::FolderLock;
 pub use measure::{machine, median, thread_cpu_seconds};
 pub use pages::{
-    BufferPool, PageError, PageJob, PageOptions, PageRenderer, PageTimings, RenderedPage,
-    render_classic, render_contents, render_page,
+    BufferPool, PageError, PageJob, PageOptions, PageRenderer, PageSource, PageTimings,
+    RenderedPage, render_classic, render_contents, render_page,
 };
 pub use plan::{DiskEstimate, Limits, MAX_CURVES, Plan, human_bytes};
 pub use run::{CHUNK_FORMAT, CHUNK_GROUPS, RunReport, merge, run, run_key};

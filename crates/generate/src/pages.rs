@@ -8,7 +8,7 @@
 use crate::{Artifact, Group, Job, PageFailure, Rendered, Renderer, compute_group};
 use coupler_features::CurveFeatures;
 use coupler_index::{IndexCurve, PageRef};
-use coupler_kinematics::{AngleTables, Circuit, CouplerPoint, Linkage};
+use coupler_kinematics::{AngleTables, Circuit, CouplerPoint, DashPattern, Linkage};
 use coupler_layout::{
     ContentsEntry, CurvePlacement, DisplayList, EXTENT_STEP_DEG, LayoutError, LinkagePage,
     Orientation, PageSetup, compute_page, compute_page_with_tables, layout_contents, layout_page,
@@ -350,6 +350,94 @@ impl PageJob<'_> {
     }
 }
 
+/// What laying a job's pages out again from scratch needs (the multi-page PDF, the
+/// page-cost example): the crank table, the feature tolerances and the dash pattern of the
+/// job's spec, the curves per page and the page count. The one place that sets up a page's
+/// curves and [`PageJob`] outside the streaming renderer.
+pub struct PageSource<'j> {
+    job: &'j Job,
+    table: AngleTables,
+    dash: DashPattern,
+    per: usize,
+    page_count: u64,
+}
+
+impl<'j> PageSource<'j> {
+    /// The source of `job`'s pages with `per` coupler points each.
+    pub fn new(job: &'j Job, per: usize) -> Result<PageSource<'j>, PageError> {
+        let table = AngleTables::new(job.spec.sampling.crank_step_deg)
+            .ok_or_else(|| PageError::Curves("bad crank step".into()))?;
+        Ok(PageSource {
+            job,
+            table,
+            dash: job.spec.sampling.dash_pattern(),
+            per: per.max(1),
+            page_count: job.pages(),
+        })
+    }
+
+    /// The features of `group`'s curves (in the order of its points; `None` everywhere
+    /// when the spec has features off).
+    pub fn features(&self, group: &Group) -> Result<Vec<Option<CurveFeatures>>, PageError> {
+        let tolerances = self
+            .job
+            .spec
+            .features
+            .enabled
+            .then_some(&self.job.spec.features.tolerances);
+        let curves = compute_group(&self.table, group, tolerances, &self.dash)
+            .map_err(|e| PageError::Curves(e.to_string()))?;
+        Ok(curves.into_iter().map(|c| c.features).collect())
+    }
+
+    /// `group`'s pages, with `features` from [`PageSource::features`].
+    pub fn pages<'a>(
+        &'a self,
+        group: &'a Group,
+        features: &'a [Option<CurveFeatures>],
+    ) -> impl Iterator<Item = PageJob<'a>> + 'a {
+        PageJob::of_group(
+            group,
+            self.per,
+            self.page_count,
+            Some(&self.table),
+            features,
+        )
+    }
+}
+
+impl<'a> PageJob<'a> {
+    /// The pages of `group`, `per` coupler points each, numbered from the group's first
+    /// page, with their curves' `features` (in the order of the group's points; may be
+    /// shorter: a page gets those there are).
+    pub fn of_group(
+        group: &'a Group,
+        per: usize,
+        page_count: u64,
+        tables: Option<&'a AngleTables>,
+        features: &'a [Option<CurveFeatures>],
+    ) -> impl Iterator<Item = PageJob<'a>> + 'a {
+        let per = per.max(1);
+        group
+            .points
+            .chunks(per)
+            .enumerate()
+            .map(move |(k, points)| {
+                let fs = features.get(k * per..).unwrap_or(&[]);
+                PageJob {
+                    linkage: group.linkage,
+                    circuit: group.circuit,
+                    points,
+                    grid: &group.points,
+                    tables,
+                    features: &fs[..fs.len().min(points.len())],
+                    number: group.first_page + k as u64,
+                    page_count,
+                }
+            })
+    }
+}
+
 /// Renders an atlas page in the page-by-page formats. Pure apart from the shared buffer
 /// pool and timing counters.
 pub fn render_page(
@@ -504,18 +592,9 @@ impl PageRenderer {
     /// threads, with their curves' features computed again (the index's are in the chunk
     /// records, but the PDF is one file made once the chunks are done).
     fn atlas_pdf(&self, job: &Job, entries: &[ContentsEntry]) -> Result<Vec<u8>, PageError> {
-        let per = self.opts.setup.curves_per_page.max(1);
-        let page_count = job.pages();
         // A paged atlas is bounded (docs/scale.md), so its groups fit in memory.
         let groups: Vec<Group> = job.groups().collect();
-        let table = AngleTables::new(job.spec.sampling.crank_step_deg)
-            .ok_or_else(|| PageError::Curves("bad crank step".into()))?;
-        let features = job
-            .spec
-            .features
-            .enabled
-            .then_some(&job.spec.features.tolerances);
-        let dash = job.spec.sampling.dash_pattern();
+        let source = PageSource::new(job, self.opts.setup.curves_per_page)?;
         let timings = PageTimings::default();
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(job.jobs)
@@ -525,27 +604,10 @@ impl PageRenderer {
             groups
                 .par_iter()
                 .map(|g| {
-                    let curves = compute_group(&table, g, features, &dash)
-                        .map_err(|e| PageError::Curves(e.to_string()))?;
-                    let feats: Vec<Option<CurveFeatures>> =
-                        curves.into_iter().map(|c| c.features).collect();
-                    g.points
-                        .chunks(per)
-                        .zip(feats.chunks(per))
-                        .enumerate()
-                        .map(|(k, (pts, fs))| {
-                            let pj = PageJob {
-                                linkage: g.linkage,
-                                circuit: g.circuit,
-                                points: pts,
-                                grid: &g.points,
-                                tables: Some(&table),
-                                features: fs,
-                                number: g.first_page + k as u64,
-                                page_count,
-                            };
-                            Ok(pdf_content(&pj.layout(&self.opts.setup, &timings)?.display))
-                        })
+                    let feats = source.features(g)?;
+                    source
+                        .pages(g, &feats)
+                        .map(|pj| Ok(pdf_content(&pj.layout(&self.opts.setup, &timings)?.display)))
                         .collect()
                 })
                 .collect()
@@ -634,19 +696,9 @@ impl Renderer for PageRenderer {
         let features: Vec<Option<CurveFeatures>> =
             curves.iter().map(|c| c.features.clone()).collect();
         let mut out = Vec::new();
-        for (k, chunk) in group.points.chunks(per).enumerate() {
-            let number = group.first_page + k as u64;
-            let fs = features.get(k * per..).unwrap_or(&[]);
-            let pj = PageJob {
-                linkage: group.linkage,
-                circuit: group.circuit,
-                points: chunk,
-                grid: &group.points,
-                tables: Some(&self.tables),
-                features: &fs[..fs.len().min(chunk.len())],
-                number,
-                page_count,
-            };
+        let pages = PageJob::of_group(group, per, page_count, Some(&self.tables), &features);
+        for (k, pj) in pages.enumerate() {
+            let number = pj.number;
             let page = match render_page(&self.opts, &self.pool, &self.timings, &pj) {
                 Ok(page) => page,
                 Err(e) => {
