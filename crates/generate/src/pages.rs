@@ -807,3 +807,37 @@ impl Renderer for PageRenderer {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A group's page jobs cover its points in order, `per` each, numbered from the
+    /// group's first page, each with the features of its own points (fewer when the
+    /// features run short).
+    #[test]
+    fn a_groups_page_jobs_split_points_and_features_alike() {
+        let job = Job::new(Spec::default_atlas(), "default", "unused", 1);
+        let per = job.spec.pages.curves_per_page as usize;
+        let source = PageSource::new(&job, per).expect("source");
+        let group = job.groups().nth(1).expect("a second group");
+        let feats = source.features(&group).expect("features");
+        assert_eq!(feats.len(), group.points.len());
+        let pages: Vec<PageJob<'_>> = source.pages(&group, &feats).collect();
+        assert_eq!(pages.len(), group.points.len().div_ceil(per));
+        assert!(pages.len() > 1, "the test needs a group of several pages");
+        for (k, pj) in pages.iter().enumerate() {
+            assert_eq!(pj.number, group.first_page + k as u64);
+            assert_eq!(pj.page_count, job.pages());
+            assert_eq!(pj.points, &group.points[k * per..][..pj.points.len()]);
+            assert_eq!(pj.features, &feats[k * per..][..pj.points.len()]);
+            assert!(pj.tables.is_some());
+        }
+        let short = &feats[..per + 1];
+        let lens: Vec<usize> = PageJob::of_group(&group, per, 9, None, short)
+            .map(|pj| pj.features.len())
+            .collect();
+        assert_eq!(lens[..2], [per, 1]);
+        assert!(lens[2..].iter().all(|&n| n == 0));
+    }
+}
