@@ -587,6 +587,184 @@ fn the_atlas_pdf_has_extractable_text_links_and_an_outline() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// The `/MediaBox [0 0 W H]` of a page object, points.
+fn media_box(page: &[u8]) -> [f64; 4] {
+    let at = find(page, b"/MediaBox [", 0).expect("every page has its own MediaBox") + 11;
+    let end = find(page, b"]", at).unwrap();
+    let v: Vec<f64> = std::str::from_utf8(&page[at..end])
+        .unwrap()
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    [v[0], v[1], v[2], v[3]]
+}
+
+/// Every `N 0 R` that a `/D [` or `/Dest [` array names first: the pages that links and
+/// outline entries go to, in file order.
+fn destinations(pdf: &[u8], key: &[u8]) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(at) = find(pdf, key, from) {
+        let rest = &pdf[at + key.len()..];
+        let n: String = rest
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .map(|&b| char::from(b))
+            .collect();
+        out.push(n.parse().unwrap());
+        from = at + key.len();
+    }
+    out
+}
+
+/// A tabloid atlas whose pages choose their orientation (`auto`): in the one PDF each
+/// page has the MediaBox of the orientation the index records for it (landscape pages
+/// 1224 × 792 pt, portrait 792 × 1224, the contents portrait), its header names its page
+/// number, the contents link to every atlas page and only to atlas pages, and the
+/// outline has the contents and one entry per linkage, each going to its first page.
+#[test]
+fn the_atlas_pdf_turns_each_page_as_the_index_says_and_links_every_page() {
+    let dir = std::env::temp_dir().join(format!("coupler-atlas-pdfo-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // Two linkages whose families are long and flat (landscape) or tall (portrait).
+    let spec = dir.join("mixed.toml");
+    std::fs::write(
+        &spec,
+        "[atlas]\nname = \"mixed\"\n\n[linkages]\n\
+         coupler = { start = 2.0, end = 2.5, step = 0.5 }\n\
+         rocker = { start = 1.5, end = 2.0, step = 0.5 }\n\
+         ground = { start = 2.0, end = 3.0, step = 1.0 }\ncircuits = [\"open\"]\n\n\
+         [points]\nu = { start = -0.25, end = 2.0, step = 0.25, relative = true }\n\
+         v = { start = -1.0, end = 1.0, step = 0.5, relative = true }\n\n\
+         [sampling]\ncrank_step_deg = 2.0\ndash_deg = 10.0\n\n\
+         [pages]\nsize = \"tabloid\"\norientation = \"auto\"\ndpi = 72\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+        .arg("generate")
+        .arg(&spec)
+        .arg("--out")
+        .arg(&out)
+        .args(["--format", "pdf", "--quiet"])
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let pdf = std::fs::read(out.join("pages/mixed.pdf")).unwrap();
+    let index: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("index.json")).unwrap()).unwrap();
+    // Each page's orientation and linkage, from the index.
+    let mut pages = std::collections::BTreeMap::new();
+    for c in index["curves"].as_array().unwrap() {
+        let n = c["page"]["number"].as_u64().unwrap() as usize;
+        let o = c["page"]["orientation"].as_str().unwrap().to_string();
+        let l = c["linkage"].to_string();
+        let prev = pages.insert(n, (o.clone(), l.clone()));
+        assert!(
+            prev.is_none_or(|p| p == (o, l)),
+            "page {n}: one orientation, one linkage"
+        );
+    }
+    let n_pages = pages.len();
+    let kids = kids(&pdf);
+    let contents = kids.len() - n_pages;
+    assert!(
+        contents >= 1,
+        "{} PDF pages for {n_pages} atlas pages",
+        kids.len()
+    );
+    let landscape = pages.values().filter(|p| p.0 == "landscape").count();
+    assert!(
+        landscape > 0 && landscape < n_pages,
+        "the test needs both orientations: {landscape} of {n_pages} landscape"
+    );
+    for (i, &kid) in kids.iter().enumerate() {
+        let b = media_box(object(&pdf, kid));
+        let (w, h) = (b[2] - b[0], b[3] - b[1]);
+        if i < contents {
+            assert_eq!(
+                (w, h),
+                (792.0, 1224.0),
+                "contents page {} is portrait",
+                i + 1
+            );
+            continue;
+        }
+        let n = i - contents + 1;
+        let want = if pages[&n].0 == "landscape" {
+            (1224.0, 792.0)
+        } else {
+            (792.0, 1224.0)
+        };
+        assert_eq!(
+            (w, h),
+            want,
+            "atlas page {n} is {} in the index",
+            pages[&n].0
+        );
+        let text = page_text(&pdf, i);
+        assert!(
+            text.contains(&format!("page {n} of {n_pages}")),
+            "PDF page {} is atlas page {n}: {text}",
+            i + 1
+        );
+    }
+    // The contents' links go to atlas pages, and every atlas page has one.
+    let links = destinations(&pdf, b"/D [");
+    let atlas: std::collections::BTreeSet<u32> = kids[contents..].iter().copied().collect();
+    assert!(links.iter().all(|d| atlas.contains(d)), "links: {links:?}");
+    let linked: std::collections::BTreeSet<u32> = links.iter().copied().collect();
+    assert_eq!(
+        linked, atlas,
+        "every atlas page is linked from the contents"
+    );
+    // The outline: the contents, then one entry per linkage at its first page, holding
+    // an entry per page of that linkage, in order.
+    let catalog_at = find(&pdf, b"/Type /Catalog", 0).unwrap();
+    let root_entry = object(&pdf, reference(&pdf[catalog_at..], "/Outlines"));
+    let dest = |id: u32| reference(object(&pdf, id), "/Dest [");
+    let title = |id: u32| {
+        let o = object(&pdf, id);
+        let at = find(o, b"/Title (", 0).unwrap() + 8;
+        String::from_utf8_lossy(&o[at..find(o, b")", at).unwrap()]).to_string()
+    };
+    let chain = |parent: &[u8]| {
+        let mut ids = Vec::new();
+        let mut next = find(parent, b"/First", 0).map(|_| reference(parent, "/First"));
+        while let Some(id) = next {
+            ids.push(id);
+            let o = object(&pdf, id);
+            next = find(o, b"/Next", 0).map(|_| reference(o, "/Next"));
+        }
+        ids
+    };
+    let top = chain(root_entry);
+    assert_eq!(title(top[0]), "Contents");
+    assert_eq!(dest(top[0]), kids[0]);
+    let mut by_linkage: Vec<(String, Vec<usize>)> = Vec::new();
+    for (&n, (_, l)) in &pages {
+        match by_linkage.last_mut() {
+            Some((last, ns)) if last == l => ns.push(n),
+            _ => by_linkage.push((l.clone(), vec![n])),
+        }
+    }
+    assert_eq!(
+        top.len(),
+        1 + by_linkage.len(),
+        "one outline entry per linkage"
+    );
+    for (&entry, (_, ns)) in top[1..].iter().zip(&by_linkage) {
+        assert!(title(entry).starts_with("A = "), "{}", title(entry));
+        assert_eq!(dest(entry), kids[contents + ns[0] - 1], "{}", title(entry));
+        let children: Vec<u32> = chain(object(&pdf, entry)).into_iter().map(dest).collect();
+        let want: Vec<u32> = ns.iter().map(|n| kids[contents + n - 1]).collect();
+        assert_eq!(children, want, "the pages under {}", title(entry));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 // ---- feature marks on atlas pages ------------------------------------------------------
 
 /// Whether segments `a`–`b` and `c`–`d` cross (or touch).
