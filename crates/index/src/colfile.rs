@@ -755,32 +755,44 @@ impl<'a> Scan<'a> {
         Scan { view, vals }
     }
 
-    /// Segment `k` (global) in the group.
+    /// Element `k` (a global segment or arc index, by the kind of column `c`) as an
+    /// index into the group's chunk of column `c`.
     #[inline]
-    fn seg(&self, k: usize) -> usize {
-        k.wrapping_sub(self.view.group.segs.start as usize)
+    fn local(&self, c: usize, k: usize) -> usize {
+        let start = match kind(c) {
+            Kind::Seg => self.view.group.segs.start,
+            _ => self.view.group.arcs.start,
+        };
+        k.wrapping_sub(start as usize)
     }
 
-    /// Arc `k` (global) in the group.
-    #[inline]
-    fn arc_ix(&self, k: usize) -> usize {
-        k.wrapping_sub(self.view.group.arcs.start as usize)
-    }
-
-    /// Value `j` of `width` of element `k` of column `c` (NaN where not read or outside).
+    /// Value `j` of `width` of element `k` (global) of column `c` (NaN where not read
+    /// or outside).
     #[inline]
     fn val(&self, c: usize, k: usize, width: usize, j: usize) -> f64 {
-        k.checked_mul(width)
+        self.local(c, k)
+            .checked_mul(width)
             .and_then(|x| self.vals[c].get(x + j))
             .copied()
             .unwrap_or(f64::NAN)
+    }
+
+    /// The one value of element `k` (global) of column `c`.
+    #[inline]
+    fn one(&self, c: usize, k: usize) -> f64 {
+        self.val(c, k, 1, 0)
+    }
+
+    /// The two values of element `k` (global) of the two-wide column `c`.
+    #[inline]
+    fn two(&self, c: usize, k: usize) -> [f64; 2] {
+        [self.val(c, k, 2, 0), self.val(c, k, 2, 1)]
     }
 }
 
 impl Features for Scan<'_> {
     fn segment(&self, k: usize) -> SegmentRow {
-        let k = self.seg(k);
-        let v = |c: usize| self.val(c, k, 1, 0);
+        let v = |c: usize| self.one(c, k);
         SegmentRow {
             start_deg: v(SEG_START),
             span_deg: v(SEG_SPAN),
@@ -788,62 +800,55 @@ impl Features for Scan<'_> {
             velocity_variation_pct: v(SEG_EV),
             length: v(SEG_LEN),
             direction_deg: v(SEG_DIR),
-            transmission_deg: [self.val(SEG_TR, k, 2, 0), self.val(SEG_TR, k, 2, 1)],
+            transmission_deg: self.two(SEG_TR, k),
         }
     }
     fn arc(&self, k: usize) -> ArcRow {
-        let k = self.arc_ix(k);
-        let v = |c: usize| self.val(c, k, 1, 0);
+        let v = |c: usize| self.one(c, k);
         ArcRow {
             start_deg: v(ARC_START),
             span_deg: v(ARC_SPAN),
             radius: v(ARC_R),
             deviation_pct: v(ARC_DEV),
-            center: [self.val(ARC_CTR, k, 2, 0), self.val(ARC_CTR, k, 2, 1)],
-            concave: if self.view.cols[SIDE].get(k) == Some(&1) {
-                Side::Right
-            } else {
-                Side::Left
-            },
+            center: self.two(ARC_CTR, k),
+            concave: self.arc_concave(k),
             turn_deg: v(ARC_TURN),
-            transmission_deg: [self.val(ARC_TR, k, 2, 0), self.val(ARC_TR, k, 2, 1)],
+            transmission_deg: self.two(ARC_TR, k),
         }
     }
     fn seg_span(&self, k: usize) -> f64 {
-        self.val(SEG_SPAN, self.seg(k), 1, 0)
+        self.one(SEG_SPAN, k)
     }
     fn seg_straightness(&self, k: usize) -> f64 {
-        self.val(SEG_ES, self.seg(k), 1, 0)
+        self.one(SEG_ES, k)
     }
     fn seg_velocity(&self, k: usize) -> f64 {
-        self.val(SEG_EV, self.seg(k), 1, 0)
+        self.one(SEG_EV, k)
     }
     fn seg_transmission(&self, k: usize) -> [f64; 2] {
-        let k = self.seg(k);
-        [self.val(SEG_TR, k, 2, 0), self.val(SEG_TR, k, 2, 1)]
+        self.two(SEG_TR, k)
     }
     fn arc_span(&self, k: usize) -> f64 {
-        self.val(ARC_SPAN, self.arc_ix(k), 1, 0)
+        self.one(ARC_SPAN, k)
     }
     fn arc_deviation(&self, k: usize) -> f64 {
-        self.val(ARC_DEV, self.arc_ix(k), 1, 0)
+        self.one(ARC_DEV, k)
     }
     fn arc_radius(&self, k: usize) -> f64 {
-        self.val(ARC_R, self.arc_ix(k), 1, 0)
+        self.one(ARC_R, k)
     }
     fn arc_turn(&self, k: usize) -> f64 {
-        self.val(ARC_TURN, self.arc_ix(k), 1, 0)
+        self.one(ARC_TURN, k)
     }
     fn arc_concave(&self, k: usize) -> Side {
-        if self.view.cols[SIDE].get(self.arc_ix(k)) == Some(&1) {
+        if self.view.cols[SIDE].get(self.local(SIDE, k)) == Some(&1) {
             Side::Right
         } else {
             Side::Left
         }
     }
     fn arc_transmission(&self, k: usize) -> [f64; 2] {
-        let k = self.arc_ix(k);
-        [self.val(ARC_TR, k, 2, 0), self.val(ARC_TR, k, 2, 1)]
+        self.two(ARC_TR, k)
     }
 }
 
