@@ -3,6 +3,7 @@
 //! bound), the full trace across toggles, the exact straight line, and clear errors.
 
 use coupler_atlas::{Circuit, CouplerPoint, GearRatio, GearedFiveBar};
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn run(args: &[&str]) -> Output {
@@ -13,12 +14,44 @@ fn run(args: &[&str]) -> Output {
 }
 
 fn json(out: &Output) -> serde_json::Value {
+    assert_ok(out);
+    serde_json::from_slice(&out.stdout).expect("valid JSON")
+}
+
+/// Asserts the run succeeded, its stderr in the message.
+fn assert_ok(out: &Output) {
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&out.stdout).expect("valid JSON")
+}
+
+/// The repository's atlas spec `name` (e.g. `geared-quick.toml`).
+fn spec(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("atlas-spec")
+        .join(name)
+}
+
+/// A fresh (emptied) temporary folder for this test process.
+fn fresh_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// `generate SPEC --out OUT --quiet EXTRA…`, which must succeed.
+fn generate(spec: &Path, out: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    assert_ok(&run(&args));
 }
 
 fn geared(lengths: [&str; 4], ratio: &str, phase: &str, rest: &[&str]) -> Output {
@@ -228,28 +261,13 @@ fn bad_geared_input_is_refused_clearly() {
 
 #[test]
 fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let spec = root.join("atlas-spec/geared-quick.toml");
+    let spec = spec("geared-quick.toml");
     let dirs: Vec<_> = ["j1", "j2"]
         .iter()
-        .map(|j| std::env::temp_dir().join(format!("geared-atlas-{}-{j}", std::process::id())))
+        .map(|j| fresh_dir(&format!("geared-atlas-{j}")))
         .collect();
     for (dir, jobs) in dirs.iter().zip(["1", "2"]) {
-        let _ = std::fs::remove_dir_all(dir);
-        let out = run(&[
-            "generate",
-            spec.to_str().unwrap(),
-            "--out",
-            dir.to_str().unwrap(),
-            "--jobs",
-            jobs,
-            "--quiet",
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        generate(&spec, dir, &["--jobs", jobs]);
     }
     let bytes = std::fs::read(dirs[0].join("index.json")).unwrap();
     assert!(
@@ -332,11 +350,7 @@ fn geared_atlas_generates_pages_and_an_index_that_search_reads() {
         "--format",
         "csv",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let csv = String::from_utf8(out.stdout).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert!(
@@ -448,24 +462,8 @@ fn cognates_geared_fivebar_gives_the_librarys_equivalent() {
 
 #[test]
 fn straight_line_page_set_measures_its_line_at_rounding_level() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let spec = root.join("atlas-spec/geared-straight-line.toml");
-    let dir = std::env::temp_dir().join(format!("geared-straight-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = run(&[
-        "generate",
-        spec.to_str().unwrap(),
-        "--out",
-        dir.to_str().unwrap(),
-        "--dpi",
-        "72",
-        "--quiet",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = fresh_dir("geared-straight");
+    generate(&spec("geared-straight-line.toml"), &dir, &["--dpi", "72"]);
     assert!(dir.join("pages/geared-straight-line-0001.png").exists());
     let index: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("index.json")).unwrap()).unwrap();
@@ -511,36 +509,23 @@ fn straight_line_page_set_measures_its_line_at_rounding_level() {
 /// tighter tolerance: `geared-quick.toml` at the default 0.5 % against a copy at 0.2 %.
 #[test]
 fn geared_tighter_tolerance_equals_regenerating() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = std::env::temp_dir().join(format!("geared-refine-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = fresh_dir("geared-refine");
     std::fs::create_dir_all(&dir).unwrap();
-    let quick = std::fs::read_to_string(root.join("atlas-spec/geared-quick.toml")).unwrap();
+    let quick_spec = spec("geared-quick.toml");
+    let quick = std::fs::read_to_string(&quick_spec).unwrap();
     let tight = dir.join("tight.toml");
     std::fs::write(
         &tight,
         format!("{quick}\n[features]\nstraight_pct = 0.2\narc_pct = 0.2\n"),
     )
     .unwrap();
-    let generate = |spec: &std::path::Path, out: &str| {
+    let index_only = |spec: &Path, out: &str| {
         let out = dir.join(out);
-        let st = run(&[
-            "generate",
-            spec.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--no-pages",
-            "-q",
-        ]);
-        assert!(
-            st.status.success(),
-            "{}",
-            String::from_utf8_lossy(&st.stderr)
-        );
+        generate(spec, &out, &["--no-pages"]);
         out
     };
-    let loose = generate(&root.join("atlas-spec/geared-quick.toml"), "loose");
-    let tight = generate(&tight, "tight");
+    let loose = index_only(&quick_spec, "loose");
+    let tight = index_only(&tight, "tight");
     let search = |atlas: &std::path::Path, q: &[&str]| -> (serde_json::Value, String) {
         let mut args = vec!["search", atlas.to_str().unwrap()];
         args.extend_from_slice(q);
@@ -654,11 +639,7 @@ fn window_measures_are_the_librarys_for_the_geared_five_bar() {
         "180",
         &["--point", "3,0", "--window", "20:80", "--format", "table"],
     );
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     let line = text.lines().find(|l| l.starts_with("# window ")).unwrap();
     let eps: f64 = line
@@ -712,23 +693,8 @@ fn user_points(
 /// linkage. Before this, match refused a five-bar atlas.
 #[test]
 fn match_finds_a_geared_curve_and_places_it() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = std::env::temp_dir().join(format!("geared-match-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let spec = root.join("atlas-spec/geared-quick.toml");
-    let out = run(&[
-        "generate",
-        spec.to_str().unwrap(),
-        "--out",
-        dir.to_str().unwrap(),
-        "--no-pages",
-        "--quiet",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = fresh_dir("geared-match");
+    generate(&spec("geared-quick.toml"), &dir, &["--no-pages"]);
     let atlas = dir.to_str().unwrap();
     let half = GearRatio::new(-1, 2).unwrap();
     let src = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, half, 90.0).unwrap();
@@ -845,23 +811,8 @@ fn match_finds_a_geared_curve_and_places_it() {
 /// period. Before, any closed target timed over 360° or more was refused.
 #[test]
 fn match_timed_closed_target_spans_the_geared_period() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = std::env::temp_dir().join(format!("geared-timed-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let spec = root.join("atlas-spec/geared-quick.toml");
-    let out = run(&[
-        "generate",
-        spec.to_str().unwrap(),
-        "--out",
-        dir.to_str().unwrap(),
-        "--no-pages",
-        "--quiet",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = fresh_dir("geared-timed");
+    generate(&spec("geared-quick.toml"), &dir, &["--no-pages"]);
     let atlas = dir.to_str().unwrap();
     let half = GearRatio::new(-1, 2).unwrap();
     let src = GearedFiveBar::new(3.0, 3.0, 3.0, 1.0, half, 90.0).unwrap();
@@ -948,30 +899,15 @@ fn match_timed_closed_target_spans_the_geared_period() {
 #[test]
 fn geared_curve_page_set_traces_and_measures_each_entry() {
     use coupler_atlas::{ClassicCurve, CurveList, InputRange, Linkage};
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let spec = root.join("atlas-spec/geared-classics.toml");
+    let spec = spec("geared-classics.toml");
     let list = CurveList::parse(&std::fs::read_to_string(&spec).unwrap(), "g").unwrap();
     assert!(
         list.curves
             .iter()
             .all(|c| matches!(c.linkage, Linkage::GearedFiveBar(_)))
     );
-    let dir = std::env::temp_dir().join(format!("geared-classics-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = run(&[
-        "generate",
-        spec.to_str().unwrap(),
-        "--out",
-        dir.to_str().unwrap(),
-        "--dpi",
-        "72",
-        "--quiet",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let dir = fresh_dir("geared-classics");
+    generate(&spec, &dir, &["--dpi", "72"]);
     for k in 1..=3 {
         assert!(
             dir.join(format!("pages/geared-classics-{k:04}.png"))

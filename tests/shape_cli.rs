@@ -209,6 +209,30 @@ fn match_finds_the_source_and_places_it() {
             || plain["placement"]["mirrored"] == false,
         "{plain}"
     );
+    // The table prints negative numbers with a real minus sign (U+2212), as `search`
+    // does: the mirror's coupler point in the user's frame has v = -7.5.
+    let out = run(&[
+        "match",
+        file.to_str().unwrap(),
+        "--atlas",
+        atlas,
+        "--closed",
+        "--mirror",
+        "--top",
+        "1",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let table = text(&out.stdout);
+    assert!(table.contains("(u, v) = (7.5, \u{2212}7.5)"), "{table}");
+    assert!(table.contains("rotation \u{2212}53.1301°"), "{table}");
+    for hyphen in [
+        "(-", " -0", " -1", " -2", " -3", " -4", " -5", " -6", " -7", " -8", " -9",
+    ] {
+        assert!(
+            !table.contains(hyphen),
+            "hyphen for minus `{hyphen}`: {table}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

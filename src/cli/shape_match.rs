@@ -1,5 +1,6 @@
 //! `coupler-atlas match TARGET [--atlas DIR] [--open|--closed] [--timed] [--mirror]
-//! [--top K] [--refine] [--png FILE] [--svg FILE] [--format table|json] [--jobs N]`:
+//! [--top K] [--candidates N] [--linkages N] [--refine] [--png FILE] [--svg FILE]
+//! [--format table|json] [--jobs N]`:
 //! which atlas curves look like the target path, each with its fit, placement and error
 //! (`docs/shape-search.md`).
 
@@ -8,9 +9,10 @@ use anyhow::{Context, Result};
 use coupler_atlas::generate::FileEntry;
 use coupler_atlas::render::{RasterPage, SvgPage, draw};
 use coupler_atlas::shape::{
-    Candidate, CouplerCurve, CurveFit, Match, MatchOptions, OVERLAY_SIZE_PT, OpenScan, OverlayText,
-    Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing, coarse_candidates, decode_sidecar,
-    open_finish, open_linkages, open_scan, rank_candidates, refine,
+    Candidate, CouplerCurve, CurveFit, MAX_PROPORTION, Match, MatchOptions, OVERLAY_SIZE_PT,
+    OpenScan, OverlayText, Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing,
+    coarse_candidates, decode_sidecar, open_finish, open_linkages, open_scan, rank_candidates,
+    refine,
 };
 use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile, minus_sign};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -458,7 +460,7 @@ fn circuit_name(c: Circuit) -> &'static str {
 }
 
 fn g(x: f64) -> String {
-    // Six significant digits, no trailing zeros.
+    // Six significant digits, no trailing zeros, a real minus sign (U+2212: table text).
     if x == 0.0 || !x.is_finite() {
         return format!("{x}");
     }
@@ -472,7 +474,7 @@ fn g(x: f64) -> String {
     } else {
         s
     };
-    if s == "-0" { "0".into() } else { s }
+    if s == "-0" { "0".into() } else { minus_sign(s) }
 }
 
 /// Five significant digits; scientific below 1e-3 (for the picture's heading).
@@ -666,22 +668,36 @@ fn placement_lines(p: &Placement, closed: bool, timed_rate: Option<f64>) -> Vec<
     v
 }
 
-fn warnings(r: &Refined) -> Vec<&'static str> {
-    let mut w = Vec::new();
+fn warnings(r: &Refined) -> Vec<String> {
+    let mut w: Vec<String> = Vec::new();
     let geared = matches!(r.curve.linkage, Linkage::GearedFiveBar(_));
     if r.input_does_not_turn {
-        w.push(if geared {
-            "the input no longer turns fully: the dyad does not close all round"
-        } else {
-            "no longer a crank-rocker: the crank does not turn fully"
-        });
+        w.push(
+            if geared {
+                "the input no longer turns fully: the dyad does not close all round"
+            } else {
+                "no longer a crank-rocker: the crank does not turn fully"
+            }
+            .into(),
+        );
     }
     if r.crossed_change_point {
-        w.push(if geared {
-            "crossed a change point (Ting class changed, or Class III)"
-        } else {
-            "crossed a change point (Grashof type changed)"
-        });
+        w.push(
+            if geared {
+                "crossed a change point (Ting class changed, or Class III)"
+            } else {
+                "crossed a change point (Grashof type changed)"
+            }
+            .into(),
+        );
+    }
+    if r.proportion > MAX_PROPORTION {
+        w.push(format!(
+            "ran off the atlas's proportions: longest length {}× the shortest link \
+             (above {}×): a degenerate limit, not a buildable fit",
+            g(r.proportion),
+            g(MAX_PROPORTION)
+        ));
     }
     w
 }
@@ -799,6 +815,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
                         "placement": placement_json(&r.placement),
                         "error": error_json(&r.fit, size),
                         "warnings": warnings(r),
+                        "proportion": r.proportion,
                         "iterations": r.iterations,
                     });
                 }

@@ -39,7 +39,7 @@ pub use matching::{
 pub use open::{LinkageScreen, linkage_groups};
 pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;
-pub use refine::{Refined, refine};
+pub use refine::{MAX_PROPORTION, Refined, proportion, refine};
 pub use sidecar::{
     GEARED_RECORD_BYTES, HEADER_BYTES, RECORD_BYTES, RecordKind, SHAPES_FILE, SIDECAR_VERSION,
     ShapeAtlas, SidecarError, decode_sidecar, encode_record, encode_sidecar, sidecar_header,

@@ -41,8 +41,31 @@ pub struct Refined {
     /// five-bar's Ting class changed between I and II (through Class III) or the result
     /// is Class III.
     pub crossed_change_point: bool,
+    /// The refined linkage's proportions: its longest length (a link, or the coupler
+    /// point's distance from the crank pin) over its shortest link. The atlas grids stay
+    /// below about 10; above [`MAX_PROPORTION`] the refinement has run off toward a
+    /// degenerate limit (e.g. links a million times the crank, whose coupler point moves
+    /// on a near-circle): a fit, but not a mechanism one would build.
+    pub proportion: f64,
     /// LM iterations used.
     pub iterations: usize,
+}
+
+/// Proportion (longest length over shortest link, see [`Refined::proportion`]) above
+/// which a refined linkage is flagged as run off.
+pub const MAX_PROPORTION: f64 = 100.0;
+
+/// A curve's proportion: its longest length (link, or the coupler point's distance from
+/// the crank pin, the point in crank units) over its shortest link.
+pub fn proportion(curve: &CouplerCurve) -> f64 {
+    let lengths: Vec<f64> = match &curve.linkage {
+        Linkage::FourBar(l) => vec![1.0, l.coupler, l.rocker, l.ground],
+        Linkage::GearedFiveBar(l) => l.lengths().to_vec(),
+    };
+    let point = curve.point.u.hypot(curve.point.v);
+    let longest = lengths.iter().copied().fold(point, f64::max);
+    let shortest = lengths.iter().copied().fold(f64::INFINITY, f64::min);
+    longest / shortest
 }
 
 /// Refines `start` (a match of `target`) by Levenberg–Marquardt; `None` if the start
@@ -179,6 +202,7 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
         input_does_not_turn,
         crossed_change_point,
         class,
+        proportion: proportion(&curve),
         curve,
         fit,
         iterations: res.iterations,
@@ -188,3 +212,29 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
 /// Iteration cap of the refinement (an open window constrains the linkage less than a
 /// whole curve, and its valley is long: hundreds of steps are common).
 pub const REFINE_ITERATIONS: usize = 5000;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+
+    fn four_bar(a: f64, b: f64, c: f64, u: f64, v: f64) -> CouplerCurve {
+        CouplerCurve::new(
+            FourBar::new(a, b, c).unwrap(),
+            Circuit::Open,
+            CouplerPoint::new(u, v),
+        )
+    }
+
+    #[test]
+    fn proportion_flags_run_off_linkages() {
+        // An atlas-like crank-rocker is well inside the bound.
+        let p = proportion(&four_bar(3.0, 3.5, 4.0, 1.5, 0.5));
+        assert!((p - 4.0).abs() < 1e-12, "{p}");
+        assert!(p < MAX_PROPORTION);
+        // Links a million times the crank: flagged.
+        assert!(proportion(&four_bar(1e6, 1e6, 1e6, 0.0, 1.0)) > MAX_PROPORTION);
+        // A coupler point far off the coupler: flagged too.
+        assert!(proportion(&four_bar(3.0, 3.5, 4.0, 500.0, 0.0)) > MAX_PROPORTION);
+    }
+}
