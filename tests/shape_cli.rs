@@ -294,3 +294,64 @@ fn match_refuses_bad_input_clearly() {
     fails(&["match", t, "--atlas", atlas], "has no shape codes");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `match` reads the sidecar mapped and in place, its content key remembered in a stamp
+/// beside it (`shapes.bin.stamp`) once the file has settled, as the search columns'
+/// index key is: the same hits with and without the stamp, and a sidecar changed after
+/// the stamp was written (same size, one code byte) is still refused.
+#[test]
+fn sidecar_stamp_keeps_the_check() {
+    let dir = tmp("stamp");
+    quick_atlas(&dir, false);
+    let atlas = dir.to_str().unwrap();
+    let src = CouplerCurve::new(
+        FourBar::new(3.0, 2.5, 3.0).unwrap(),
+        Circuit::Open,
+        CouplerPoint::new(1.5, 1.5),
+    );
+    let angles: Vec<f64> = (0..36).map(|k| 5.0 + 10.0 * k as f64).collect();
+    let target = dir.join("t.csv");
+    write_csv(
+        &target,
+        &user_points(&src, &angles, C64::new(0.0, 2.0), C64::new(5.0, 5.0)),
+    );
+    let t = target.to_str().unwrap();
+    let hits = || {
+        let out = run(&["match", t, "--atlas", atlas, "--closed", "--top", "4"]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        text(&out.stdout)
+    };
+    let side = dir.join(SHAPES_FILE);
+    let stamp = dir.join(format!("{SHAPES_FILE}.stamp"));
+    // A stamp is written only for a file unchanged for 2 s (`coupler_index::SETTLED`).
+    let age = std::fs::metadata(&side).unwrap().modified().unwrap();
+    let wait = coupler_atlas::SETTLED + std::time::Duration::from_millis(200);
+    if let Some(left) = wait.checked_sub(age.elapsed().unwrap_or_default()) {
+        std::thread::sleep(left);
+    }
+    let hashed = hits();
+    assert!(
+        stamp.is_file(),
+        "the stamp is written once the file is accepted"
+    );
+    let stamp_bytes = std::fs::read(&stamp).unwrap();
+    assert_eq!(hits(), hashed, "the same hits with the key from the stamp");
+    assert_eq!(
+        std::fs::read(&stamp).unwrap(),
+        stamp_bytes,
+        "the stamp is reused"
+    );
+    // One byte of the first record's code changed in place, size unchanged.
+    let mut bytes = std::fs::read(&side).unwrap();
+    let at = coupler_atlas::shape::HEADER_BYTES + 50;
+    bytes[at] ^= 0x10;
+    std::fs::write(&side, &bytes).unwrap();
+    let out = run(&["match", t, "--atlas", atlas, "--closed"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("does not match the manifest"),
+        "{}",
+        text(&out.stderr)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -9,10 +9,10 @@ use anyhow::{Context, Result};
 use coupler_atlas::generate::FileEntry;
 use coupler_atlas::render::{RasterPage, SvgPage, draw};
 use coupler_atlas::shape::{
-    Candidate, CouplerCurve, CurveFit, MAX_PROPORTION, Match, MatchOptions, OVERLAY_SIZE_PT,
-    OpenScan, OverlayText, Placement, Refined, SHAPES_FILE, ShapeAtlas, Target, Timing,
-    coarse_candidates, decode_sidecar, open_finish, open_linkages, open_scan, rank_candidates,
-    refine,
+    AtlasCurve, Candidate, ClosedQuery, CouplerCurve, CurveFit, MAX_PROPORTION, Match, MatchError,
+    MatchOptions, OVERLAY_SIZE_PT, OpenScan, OverlayText, Placement, Refined, SHAPES_FILE,
+    SidecarView, Target, Timing, closed_candidates_in, open_finish, open_linkages, open_scan,
+    rank_candidates, refine,
 };
 use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile, minus_sign};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -127,27 +127,68 @@ fn read_target(args: &Args) -> Result<Target> {
 /// The period is 360° on a four-bar atlas and `360°·q` for a geared five-bar of gear
 /// ratio p/q (720° for λ = −1/2), so a closed loop timed over two input turns is matched
 /// on the curves that close after two turns.
-fn check_timing(target: &Target, atlas: &ShapeAtlas, name: &str, dir: &Path) -> Result<()> {
+fn check_timing(target: &Target, atlas: &Shapes, name: &str, dir: &Path) -> Result<()> {
+    let Some(span) = target.angle_span() else {
+        return Ok(());
+    };
+    let view = atlas.view();
+    if view.is_empty() {
+        return Ok(());
+    }
+    // Only a target timed by angles needs the periods (every record decoded).
     let longest = atlas
-        .curves
+        .curves(&view)?
         .iter()
         .map(|c| c.curve.period_deg())
         .fold(0.0, f64::max);
-    match target.angle_span() {
-        Some(span) if !atlas.curves.is_empty() && !target.fits_period(longest) => {
-            let e = coupler_atlas::shape::TargetError::AngleSpan {
-                span,
-                period: longest,
-                closed: target.is_closed(),
-            };
-            Err(UsageError(format!("target {name} on atlas {}: {e}", dir.display())).into())
-        }
-        _ => Ok(()),
+    if target.fits_period(longest) {
+        return Ok(());
+    }
+    let e = coupler_atlas::shape::TargetError::AngleSpan {
+        span,
+        period: longest,
+        closed: target.is_closed(),
+    };
+    Err(UsageError(format!("target {name} on atlas {}: {e}", dir.display())).into())
+}
+
+/// An atlas's shape sidecar, verified against the manifest and mapped read-only: its
+/// records are read in place ([`SidecarView`]), decoded only where the search needs them.
+pub(super) struct Shapes {
+    bytes: coupler_mapped::Mapped,
+    path: PathBuf,
+}
+
+impl Shapes {
+    /// The records (the header was checked when the file was loaded).
+    pub(super) fn view(&self) -> SidecarView<'_> {
+        SidecarView::new(&self.bytes).expect("checked by load_shapes")
+    }
+
+    /// Every curve decoded (in parallel parts), for an open target's scan.
+    fn curves(&self, view: &SidecarView<'_>) -> Result<Vec<AtlasCurve>> {
+        const PART: usize = 1 << 16;
+        let parts: Vec<Vec<AtlasCurve>> = (0..view.len().div_ceil(PART))
+            .into_par_iter()
+            .map(|k| view.curves(k * PART..((k + 1) * PART).min(view.len())))
+            .collect::<Result<_, _>>()
+            .map_err(|e| self.bad(e))?;
+        Ok(parts.concat())
+    }
+
+    fn bad(&self, e: impl std::fmt::Display) -> anyhow::Error {
+        UsageError(format!("{}: {e}", self.path.display())).into()
     }
 }
 
-/// Reads the atlas's shape sidecar, checked against the manifest.
-pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
+/// Reads the atlas's shape sidecar, checked against the manifest: its size and XXH3-128
+/// must be the manifest's. The content key comes from the sidecar's stamp
+/// (`shapes.bin.stamp`) when the file is the one last hashed (same device, inode, size,
+/// modification and change times), as the search columns' index key does
+/// (`coupler_index::index_key`); else the file is hashed whole, and the stamp written once
+/// the file is accepted. The file is then mapped, not read: a query reads the records in
+/// place.
+pub(super) fn load_shapes(dir: &Path) -> Result<Shapes> {
     let manifest_path = dir.join("manifest.json");
     let text = std::fs::read_to_string(&manifest_path).map_err(|e| {
         UsageError(format!(
@@ -175,15 +216,38 @@ pub(super) fn load_shapes(dir: &Path) -> Result<ShapeAtlas> {
         ))
         .into());
     }
-    if !entry.verify(dir) {
-        return Err(UsageError(format!(
+    let changed = || -> anyhow::Error {
+        UsageError(format!(
             "{} does not match the manifest (size or hash differs): the atlas was changed after it was written; run `coupler-atlas generate` again for it",
             path.display()
         ))
-        .into());
+        .into()
+    };
+    let read_err = |e: std::io::Error| -> anyhow::Error {
+        UsageError(format!("{}: {e}", path.display())).into()
+    };
+    // A regular file only (not a link), checked on what was opened.
+    if !std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
+        return Err(changed());
     }
-    let bytes = std::fs::read(&path).map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
-    decode_sidecar(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())).into())
+    let file = std::fs::File::open(&path).map_err(read_err)?;
+    if !file.metadata().map_err(read_err)?.is_file() {
+        return Err(changed());
+    }
+    let (key, pending) = coupler_atlas::index_key(&file, &path).map_err(read_err)?;
+    if key.bytes != entry.bytes || format!("{:032x}", key.hash) != entry.xxh3 {
+        return Err(changed());
+    }
+    let bytes = coupler_mapped::Mapped::of_file(&file).map_err(read_err)?;
+    if bytes.len() as u64 != key.bytes {
+        return Err(changed());
+    }
+    SidecarView::new(&bytes).map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
+    // The file is the manifest's sidecar: remember its key.
+    if let Some(p) = pending {
+        p.write(&file);
+    }
+    Ok(Shapes { bytes, path })
 }
 
 /// Why an atlas whose manifest lists no shape sidecar cannot be searched, and what to do
@@ -242,15 +306,23 @@ const PROGRESS_LINKAGES: usize = 2_000;
 /// many linkages) and scanned in shares, then finished on the whole (the same candidates
 /// however they are shared out); closed targets in one pass (the codes are cheap; the
 /// query's description is the cost).
-fn coarse(
-    target: &Target,
-    atlas: &ShapeAtlas,
-    options: &MatchOptions,
-) -> Result<Vec<Candidate>, coupler_atlas::shape::MatchError> {
+fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec<Candidate>> {
+    let view = atlas.view();
     if target.is_closed() {
-        return coarse_candidates(target, &atlas.curves, &atlas.codes, options);
+        let q = ClosedQuery::new(&target.complex_points(), options.allow_mirror)
+            .ok_or(MatchError::Undescribable)?;
+        // Parts of the atlas in parallel; their candidates together hold the best of all.
+        const PART: usize = 1 << 15;
+        let parts: Vec<Vec<Candidate>> = (0..view.len().div_ceil(PART))
+            .into_par_iter()
+            .map(|k| {
+                let ids = k * PART..((k + 1) * PART).min(view.len());
+                closed_candidates_in(&q, target, &view, ids, options)
+            })
+            .collect::<Result<_, _>>()?;
+        return Ok(parts.concat());
     }
-    let curves = &atlas.curves;
+    let curves = &atlas.curves(&view)?;
     let groups = open_linkages(target, curves, options, |screen, groups| {
         groups
             .par_iter()
@@ -300,7 +372,7 @@ fn coarse(
         })
         .collect::<Result<_, _>>()?;
     bar.finish_and_clear();
-    open_finish(target, curves, scans, options)
+    Ok(open_finish(target, curves, scans, options)?)
 }
 
 /// Where each hit is drawn (page file and box), from the index, without reading it
@@ -737,20 +809,22 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ..MatchOptions::DEFAULT
     };
     let size = target.size();
-    let (matches, refined): (Vec<Match>, Vec<Option<Refined>>) = pool
-        .install(|| {
-            let c = coarse(&target, &atlas, &options)?;
-            let m = rank_candidates(&target, c, &options);
-            let r = if args.refine {
-                m.par_iter()
-                    .map(|m| refine(&target, m, &options.fit))
-                    .collect()
-            } else {
-                vec![None; m.len()]
-            };
-            Ok::<_, coupler_atlas::shape::MatchError>((m, r))
-        })
-        .map_err(|e| UsageError(format!("target {}: {e}", args.target.display())))?;
+    let (matches, refined): (Vec<Match>, Vec<Option<Refined>>) = pool.install(|| {
+        let c = coarse(&target, &atlas, &options).map_err(|e| match e.downcast() {
+            Ok(MatchError::Sidecar(e)) => atlas.bad(e),
+            Ok(e) => UsageError(format!("target {}: {e}", args.target.display())).into(),
+            Err(e) => e,
+        })?;
+        let m = rank_candidates(&target, c, &options);
+        let r = if args.refine {
+            m.par_iter()
+                .map(|m| refine(&target, m, &options.fit))
+                .collect()
+        } else {
+            vec![None; m.len()]
+        };
+        Ok::<_, anyhow::Error>((m, r))
+    })?;
     let t_search = t0.elapsed();
     let ids: Vec<u64> = matches.iter().map(|m| m.id).collect();
     let pages = page_refs(&args.atlas, &ids)?;
@@ -825,7 +899,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         let out = json!({
             "target": {"file": args.target.display().to_string(), "points": target.len(),
                 "closed": target.is_closed(), "timed": target.timing().is_timed(), "size": size},
-            "atlas": {"dir": args.atlas.display().to_string(), "curves": atlas.curves.len()},
+            "atlas": {"dir": args.atlas.display().to_string(), "curves": atlas.view().len()},
             "matches": hits,
             "seconds": {"load": t_load.as_secs_f64(), "search": (t_search - t_load).as_secs_f64(), "total": elapsed.as_secs_f64()},
         });
@@ -845,7 +919,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         target.len(),
         g(size),
         args.atlas.display(),
-        atlas.curves.len()
+        atlas.view().len()
     )?;
     for (k, ((m, r), page)) in matches.iter().zip(&refined).zip(&pages).enumerate() {
         let c = &m.curve;
@@ -902,7 +976,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
     }
     eprintln!(
         "searched {} curves in {:.3} s (load {:.3} s, search {:.3} s)",
-        atlas.curves.len(),
+        atlas.view().len(),
         elapsed.as_secs_f64(),
         t_load.as_secs_f64(),
         (t_search - t_load).as_secs_f64()

@@ -38,4 +38,4 @@ pub use search::{
     ArcRow, CurveRow, DEFAULT_RADIUS_TOL_PCT, Hit, Query, SearchError, SearchTable, SegmentRow,
     SortKey, SpanFilter, transmission_margin,
 };
-pub use stamp::{SETTLED, stamp_path};
+pub use stamp::{PendingStamp, SETTLED, index_key, stamp_path};

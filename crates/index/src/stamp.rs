@@ -142,7 +142,9 @@ impl PendingStamp {
 
 /// The content key of the open index `file` (at `index`): from its stamp if the stamp is
 /// this file's, else by hashing the file whole, with the stamp to write
-/// ([`PendingStamp::write`]) once the caller has accepted the file as an index.
+/// ([`PendingStamp::write`]) once the caller has accepted the file as an index. Any file
+/// an atlas's manifest lists by size and XXH3-128 can be keyed the same way (`match`
+/// verifies `shapes.bin` with it, its stamp `shapes.bin.stamp`).
 pub fn index_key(
     file: &std::fs::File,
     index: &Path,

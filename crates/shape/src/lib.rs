@@ -33,8 +33,8 @@ pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
 pub use kin::{AtlasCurve, CouplerCurve, CurveGaps, PointAt, PointSensitivity};
 pub use matching::{
-    Candidate, Match, MatchError, MatchOptions, OpenScan, coarse_candidates, find_matches,
-    open_finish, open_linkages, open_scan, rank_candidates,
+    Candidate, Match, MatchError, MatchOptions, OpenScan, closed_candidates_in, coarse_candidates,
+    find_matches, open_finish, open_linkages, open_scan, rank_candidates,
 };
 pub use open::{LinkageScreen, linkage_groups};
 pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
@@ -42,8 +42,8 @@ pub use placement::Placement;
 pub use refine::{MAX_PROPORTION, Refined, proportion, refine};
 pub use sidecar::{
     GEARED_RECORD_BYTES, HEADER_BYTES, RECORD_BYTES, RecordKind, SHAPES_FILE, SIDECAR_VERSION,
-    ShapeAtlas, SidecarError, decode_sidecar, encode_record, encode_sidecar, sidecar_header,
-    sidecar_header_for,
+    ShapeAtlas, SidecarError, SidecarView, decode_sidecar, encode_record, encode_sidecar,
+    sidecar_header, sidecar_header_for,
 };
 pub use smooth::{default_terms, smooth_resample};
 pub use target::{Target, TargetError, Timing};

@@ -8,6 +8,7 @@ use crate::open::{
     LinkageScreen, OpenQuery, Stage1, linkage_groups, open_candidates, open_stage1, open_stage2,
 };
 use crate::placement::Placement;
+use crate::sidecar::{SidecarError, SidecarView};
 use crate::target::Target;
 use crate::traced::Traced;
 use std::ops::Range;
@@ -89,6 +90,9 @@ pub enum MatchError {
     /// its own reversal).
     #[error("the target's shape cannot be described")]
     Undescribable,
+    /// A record of the shape sidecar read during the search does not decode.
+    #[error(transparent)]
+    Sidecar(#[from] SidecarError),
 }
 
 /// A curve the coarse stage proposes for the exact fit: the curve, its coarse distance
@@ -175,6 +179,56 @@ pub fn coarse_candidates(
             })
             .collect())
     }
+}
+
+/// The coarse stage of a **closed** target over the curves `ids` of a sidecar read in
+/// place ([`SidecarView`]): the same candidates as [`coarse_candidates`] gives on those
+/// curves decoded ([`crate::decode_sidecar`]), without decoding them: every code is read
+/// where it lies, and only the best `options.candidates` records (by distance, ties by
+/// id) are decoded. `query` is the target's description
+/// (`ClosedQuery::new(&target.complex_points(), options.allow_mirror)`), made once for
+/// all parts: to use several threads, call this on parts of `0..view.len()` in parallel
+/// and hand all the candidates to [`rank_candidates`]. An error if a record read does not
+/// decode.
+pub fn closed_candidates_in(
+    query: &ClosedQuery,
+    target: &Target,
+    view: &SidecarView<'_>,
+    ids: Range<usize>,
+    options: &MatchOptions,
+) -> Result<Vec<Candidate>, MatchError> {
+    let keep = options.kept(target);
+    let ids = ids.start.min(view.len())..ids.end.min(view.len());
+    // A timed target also needs each curve's period (its linkage: the record decoded).
+    let timed = target.angle_span().is_some();
+    let mut scored: Vec<(f64, usize)> = Vec::new();
+    for i in ids {
+        let d = query.distance(&view.code(i)?.unwrap_or(ShapeCode::ABSENT));
+        if !d.is_finite() {
+            continue;
+        }
+        if timed && !target.fits_period(view.curve(i)?.curve.period_deg()) {
+            continue;
+        }
+        scored.push((d, i));
+    }
+    // Ids are record positions, so (distance, position) orders as (distance, id).
+    let by = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    if scored.len() > keep {
+        scored.select_nth_unstable_by(keep, by);
+        scored.truncate(keep);
+    }
+    scored.sort_by(by);
+    scored
+        .into_iter()
+        .map(|(d, i)| {
+            Ok(Candidate {
+                curve: view.curve(i)?,
+                coarse: d,
+                start: None,
+            })
+        })
+        .collect()
 }
 
 /// Points of the target used to rank the candidates (the final fits use them all).
@@ -417,4 +471,122 @@ pub fn rank_candidates(
     });
     matches.truncate(options.top);
     matches
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cases::{SplitMix64, make_target};
+    use crate::sidecar::{HEADER_BYTES, RECORD_BYTES, decode_sidecar, encode_sidecar};
+    use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+
+    /// A small atlas: four linkages, twelve points each, one curve without a code.
+    fn sidecar() -> Vec<u8> {
+        let mut curves = Vec::new();
+        for (a, b, c) in [
+            (2.0, 2.5, 3.0),
+            (2.5, 3.0, 3.5),
+            (3.0, 3.5, 3.0),
+            (2.5, 2.5, 2.0),
+        ] {
+            let l = FourBar::new(a, b, c).unwrap();
+            for k in 0..12 {
+                let p = CouplerPoint::new(0.5 * (k % 4) as f64, -1.0 + 0.75 * (k / 4) as f64);
+                let curve = CouplerCurve::new(l, Circuit::Open, p);
+                let code = (curves.len() != 17).then(|| ShapeCode::of_curve(&curve).unwrap());
+                curves.push((curve, code));
+            }
+        }
+        encode_sidecar(&curves)
+    }
+
+    /// The closed coarse stage read in place, in uneven parts, proposes exactly the
+    /// candidates of the stage over the decoded atlas, and the ranked matches are the
+    /// same, bit for bit; a damaged record is an error when the search reads it, as the
+    /// whole decode's.
+    #[test]
+    fn in_place_closed_stage_equals_decoded() {
+        let bytes = sidecar();
+        let atlas = decode_sidecar(&bytes).unwrap();
+        let view = SidecarView::new(&bytes).unwrap();
+        assert_eq!(view.len(), 48);
+        for i in [0, 17, 47] {
+            assert_eq!(view.curve(i).unwrap(), atlas.curves[i]);
+            assert_eq!(view.code(i).unwrap().is_some(), atlas.has_code[i]);
+        }
+        let options = MatchOptions {
+            candidates: 6,
+            top: 3,
+            ..MatchOptions::DEFAULT
+        };
+        let key = |c: &[Candidate]| -> Vec<(u64, f64)> {
+            let mut v: Vec<(u64, f64)> = c.iter().map(|c| (c.curve.id, c.coarse)).collect();
+            v.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            v.truncate(options.candidates);
+            v
+        };
+        let mut rng = SplitMix64(5);
+        for source in [3, 20, 41] {
+            let t = make_target(
+                &mut rng,
+                &atlas.curves[source].curve,
+                true,
+                40.0,
+                360.0,
+                48,
+                source == 20,
+                0.005,
+            )
+            .unwrap();
+            let whole = coarse_candidates(&t, &atlas.curves, &atlas.codes, &options).unwrap();
+            let q = ClosedQuery::new(&t.complex_points(), options.allow_mirror).unwrap();
+            let parts: Vec<Candidate> = [0..7, 7..30, 30..48]
+                .into_iter()
+                .flat_map(|ids| closed_candidates_in(&q, &t, &view, ids, &options).unwrap())
+                .collect();
+            assert_eq!(key(&parts), key(&whole), "source {source}");
+            assert!(
+                parts.iter().all(|c| c.curve.id != 17),
+                "no code: never proposed"
+            );
+            assert_eq!(
+                rank_candidates(&t, parts, &options),
+                rank_candidates(&t, whole, &options),
+                "source {source}"
+            );
+        }
+        // A damaged code flag is found by the scan (every code is read) ...
+        let t = make_target(
+            &mut rng,
+            &atlas.curves[9].curve,
+            true,
+            0.0,
+            360.0,
+            40,
+            false,
+            0.0,
+        )
+        .unwrap();
+        let q = ClosedQuery::new(&t.complex_points(), true).unwrap();
+        let mut bad = bytes.clone();
+        bad[HEADER_BYTES + 30 * RECORD_BYTES + 41] = 2;
+        let view = SidecarView::new(&bad).unwrap();
+        assert!(decode_sidecar(&bad).is_err());
+        assert!(matches!(
+            closed_candidates_in(&q, &t, &view, 0..48, &options),
+            Err(MatchError::Sidecar(SidecarError::Record { id: 30, .. }))
+        ));
+        // ... and a damaged linkage when its record is proposed (the source's own, here).
+        let best = closed_candidates_in(&q, &t, &SidecarView::new(&bytes).unwrap(), 0..48, &options)
+            .unwrap()[0]
+            .curve
+            .id as usize;
+        let mut bad = bytes.clone();
+        bad[HEADER_BYTES + best * RECORD_BYTES..][..8].copy_from_slice(&(-1.0f64).to_le_bytes());
+        assert!(decode_sidecar(&bad).is_err());
+        assert!(matches!(
+            closed_candidates_in(&q, &t, &SidecarView::new(&bad).unwrap(), 0..48, &options),
+            Err(MatchError::Sidecar(SidecarError::Record { id, .. })) if id == best as u64
+        ));
+    }
 }

@@ -181,46 +181,134 @@ pub struct ShapeAtlas {
     pub has_code: Vec<bool>,
 }
 
-/// Reads [`encode_sidecar`]'s bytes.
+/// Reads [`encode_sidecar`]'s bytes whole: every record decoded and checked
+/// ([`SidecarView::decode_all`]).
 pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
-    let bad = |m: &str| SidecarError::Malformed(m.to_string());
-    if bytes.len() < HEADER_BYTES || &bytes[..8] != MAGIC {
-        return Err(bad("no CASHAPE header"));
+    SidecarView::new(bytes)?.decode_all()
+}
+
+/// A sidecar's bytes read in place: the header is checked when the view is made, each
+/// record when it is read ([`SidecarView::curve`], [`SidecarView::code`]), by the same
+/// decoder [`decode_sidecar`] runs on every record. A search reads the codes of every
+/// curve (48 bytes a record, no allocation) and decodes only the records it proposes,
+/// so a query on a mapped file costs neither a copy of it nor a decoded atlas in memory.
+/// The file's integrity is the caller's check (the manifest's hash, `match`'s loader);
+/// a record that does not decode is an error when it is read, never a wrong value.
+#[derive(Clone, Copy, Debug)]
+pub struct SidecarView<'a> {
+    body: &'a [u8],
+    kind: RecordKind,
+    record: usize,
+    n: usize,
+}
+
+impl<'a> SidecarView<'a> {
+    /// The view of a sidecar's bytes: magic, version, harmonics, record size and count
+    /// checked against the length.
+    pub fn new(bytes: &'a [u8]) -> Result<SidecarView<'a>, SidecarError> {
+        let bad = |m: &str| SidecarError::Malformed(m.to_string());
+        if bytes.len() < HEADER_BYTES || &bytes[..8] != MAGIC {
+            return Err(bad("no CASHAPE header"));
+        }
+        let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().expect("4 bytes"));
+        let (version, harmonics, record) = (u32_at(8), u32_at(12), u32_at(16) as usize);
+        let kind = match u32_at(20) {
+            0 => RecordKind::FourBar,
+            1 => RecordKind::GearedFiveBar,
+            _ => return Err(SidecarError::Version { version, harmonics }),
+        };
+        if version != SIDECAR_VERSION
+            || harmonics as usize != HARMONICS
+            || record != kind.record_bytes()
+        {
+            return Err(SidecarError::Version { version, harmonics });
+        }
+        let n = u64::from_le_bytes(bytes[24..32].try_into().expect("8 bytes"));
+        let body = &bytes[HEADER_BYTES..];
+        if (body.len() as u64) != n.saturating_mul(record as u64) {
+            return Err(bad(&format!(
+                "{} bytes of records for {n} curves of {record} bytes",
+                body.len()
+            )));
+        }
+        Ok(SidecarView {
+            body,
+            kind,
+            record,
+            n: n as usize,
+        })
     }
-    let u32_at = |k: usize| u32::from_le_bytes(bytes[k..k + 4].try_into().expect("4 bytes"));
-    let (version, harmonics, record) = (u32_at(8), u32_at(12), u32_at(16) as usize);
-    let kind = match u32_at(20) {
-        0 => RecordKind::FourBar,
-        1 => RecordKind::GearedFiveBar,
-        _ => return Err(SidecarError::Version { version, harmonics }),
-    };
-    if version != SIDECAR_VERSION
-        || harmonics as usize != HARMONICS
-        || record != kind.record_bytes()
-    {
-        return Err(SidecarError::Version { version, harmonics });
+
+    /// Curves in the sidecar.
+    pub fn len(&self) -> usize {
+        self.n
     }
-    let n = u64::from_le_bytes(bytes[24..32].try_into().expect("8 bytes"));
-    let body = &bytes[HEADER_BYTES..];
-    if (body.len() as u64) != n.saturating_mul(record as u64) {
-        return Err(bad(&format!(
-            "{} bytes of records for {n} curves of {record} bytes",
-            body.len()
-        )));
+
+    /// Whether it holds no curve.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
     }
-    let mut out = ShapeAtlas {
-        curves: Vec::with_capacity(n as usize),
-        codes: Vec::with_capacity(n as usize),
-        has_code: Vec::with_capacity(n as usize),
-    };
-    for (id, r) in body.chunks_exact(record).enumerate() {
+
+    /// The mechanism of its records.
+    pub fn kind(&self) -> RecordKind {
+        self.kind
+    }
+
+    /// The bytes of record `id` (`id < len()`).
+    fn bytes_of(&self, id: usize) -> &'a [u8] {
+        &self.body[id * self.record..(id + 1) * self.record]
+    }
+
+    /// Where the circuit byte is in a record (the code flag follows, then the code).
+    fn tail(&self) -> usize {
+        match self.kind {
+            RecordKind::FourBar => 40,
+            RecordKind::GearedFiveBar => 72,
+        }
+    }
+
+    /// Curve `id`'s shape code, `None` if it has none (its flag byte 0); an error for a
+    /// flag byte other than 0 or 1, or an id past the end.
+    pub fn code(&self, id: usize) -> Result<Option<ShapeCode>, SidecarError> {
+        let r = self.record_at(id)?;
+        let tail = self.tail();
+        match r[tail + 1] {
+            0 => Ok(None),
+            1 => Ok(Some(
+                ShapeCode::from_bytes(&r[tail + 2..]).expect("CODE_BYTES"),
+            )),
+            x => Err(SidecarError::Record {
+                id: id as u64,
+                message: format!("code flag byte {x}"),
+            }),
+        }
+    }
+
+    /// Curve `id`, its record decoded and checked (linkage, coupler point, circuit and
+    /// code flag).
+    pub fn curve(&self, id: usize) -> Result<AtlasCurve, SidecarError> {
+        Ok(self.decode(id)?.0)
+    }
+
+    fn record_at(&self, id: usize) -> Result<&'a [u8], SidecarError> {
+        if id >= self.n {
+            return Err(SidecarError::Record {
+                id: id as u64,
+                message: format!("no such record (the file holds {})", self.n),
+            });
+        }
+        Ok(self.bytes_of(id))
+    }
+
+    /// Record `id` decoded: the curve, its code ([`ShapeCode::ABSENT`] if none) and
+    /// whether it has one.
+    fn decode(&self, id: usize) -> Result<(AtlasCurve, ShapeCode, bool), SidecarError> {
+        let r = self.record_at(id)?;
         let id = id as u64;
         let f = |k: usize| f64::from_le_bytes(r[8 * k..8 * k + 8].try_into().expect("8 bytes"));
         let at = |message: String| SidecarError::Record { id, message };
-        // Where the circuit byte is, and the linkage.
-        let (tail, linkage, (u, v)): (usize, Linkage, _) = match kind {
+        let (linkage, (u, v)): (Linkage, _) = match self.kind {
             RecordKind::FourBar => (
-                40,
                 FourBar::new(f(0), f(1), f(2))
                     .map_err(|e| at(e.to_string()))?
                     .into(),
@@ -230,7 +318,6 @@ pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
                 let i = |k: usize| i64::from_le_bytes(r[8 * k..8 * k + 8].try_into().expect("8"));
                 let ratio = GearRatio::new(i(7), i(8)).map_err(|e| at(e.to_string()))?;
                 (
-                    72,
                     GearedFiveBar::new(f(0), f(1), f(2), f(3), ratio, f(4))
                         .map_err(|e| at(e.to_string()))?
                         .into(),
@@ -239,47 +326,51 @@ pub fn decode_sidecar(bytes: &[u8]) -> Result<ShapeAtlas, SidecarError> {
             }
         };
         if !u.is_finite() || !v.is_finite() {
-            return Err(SidecarError::Record {
-                id,
-                message: "coupler point is not finite".into(),
-            });
+            return Err(at("coupler point is not finite".into()));
         }
+        let tail = self.tail();
         let circuit = match r[tail] {
             0 => Circuit::Open,
             1 => Circuit::Crossed,
-            x => {
-                return Err(SidecarError::Record {
-                    id,
-                    message: format!("circuit byte {x}"),
-                });
-            }
+            x => return Err(at(format!("circuit byte {x}"))),
         };
-        let has = match r[tail + 1] {
-            0 => false,
-            1 => true,
-            x => {
-                return Err(SidecarError::Record {
-                    id,
-                    message: format!("code flag byte {x}"),
-                });
-            }
-        };
-        out.curves.push(AtlasCurve {
-            id,
-            curve: CouplerCurve {
-                linkage,
-                circuit,
-                point: CouplerPoint::new(u, v),
+        let code = self.code(id as usize)?;
+        Ok((
+            AtlasCurve {
+                id,
+                curve: CouplerCurve {
+                    linkage,
+                    circuit,
+                    point: CouplerPoint::new(u, v),
+                },
             },
-        });
-        out.codes.push(if has {
-            ShapeCode::from_bytes(&r[tail + 2..]).expect("CODE_BYTES")
-        } else {
-            ShapeCode::ABSENT
-        });
-        out.has_code.push(has);
+            code.unwrap_or(ShapeCode::ABSENT),
+            code.is_some(),
+        ))
     }
-    Ok(out)
+
+    /// The curves `ids` (a range of ids), each record decoded and checked, without their
+    /// codes (an open target's scan needs none): to decode a large atlas in parallel
+    /// parts.
+    pub fn curves(&self, ids: std::ops::Range<usize>) -> Result<Vec<AtlasCurve>, SidecarError> {
+        ids.map(|id| self.curve(id)).collect()
+    }
+
+    /// Every record decoded and checked, as [`decode_sidecar`] returns them.
+    pub fn decode_all(&self) -> Result<ShapeAtlas, SidecarError> {
+        let mut out = ShapeAtlas {
+            curves: Vec::with_capacity(self.n),
+            codes: Vec::with_capacity(self.n),
+            has_code: Vec::with_capacity(self.n),
+        };
+        for id in 0..self.n {
+            let (curve, code, has) = self.decode(id)?;
+            out.curves.push(curve);
+            out.codes.push(code);
+            out.has_code.push(has);
+        }
+        Ok(out)
+    }
 }
 
 #[cfg(test)]
