@@ -70,7 +70,7 @@ impl Table {
     }
 
     /// `(Pa, e)` at `deg` by linear interpolation.
-    #[inline]
+    #[inline(always)]
     fn at(&self, deg: f64) -> (C64, C64) {
         let (k, t) = cell(deg, self.pa.len() - 1);
         (
@@ -92,7 +92,7 @@ impl Table {
 /// modulo the table's `period` (whole degrees: 360 for a four-bar, `360·q` for a geared
 /// five-bar) split into whole and fractional degrees, without a floating-point remainder
 /// (the hot loops call it for every point of every hypothesis).
-#[inline]
+#[inline(always)]
 fn cell(deg: f64, period: usize) -> (usize, f64) {
     if deg.is_nan() || deg.abs() >= 1e15 {
         // Not reached by the scan's angles; the general form for completeness.
@@ -104,7 +104,19 @@ fn cell(deg: f64, period: usize) -> (usize, f64) {
     if whole as f64 > deg {
         whole -= 1;
     }
-    (whole.rem_euclid(period as i64) as usize, deg - whole as f64)
+    // The scan's angles lie within a period or two of [0, period): a subtraction or an
+    // addition instead of an integer division (the same cell as `rem_euclid`).
+    let p = period as i64;
+    let k = if (0..p).contains(&whole) {
+        whole
+    } else if (p..2 * p).contains(&whole) {
+        whole - p
+    } else if (-p..0).contains(&whole) {
+        whole + p
+    } else {
+        whole.rem_euclid(p)
+    };
+    (k as usize, deg - whole as f64)
 }
 
 /// The sums of one hypothesis: `S_P = Σ Pa`, `S_e = Σ e`, `S_Pe = Σ conj(Pa)·e`,
@@ -916,6 +928,35 @@ pub(crate) fn open_stage2(
     });
     out.truncate(keep);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cell;
+
+    /// The cell of an angle is the one of the floating remainder's whole part, with the
+    /// same fraction, inside the scan's range and far outside it.
+    #[test]
+    fn cell_is_the_euclidean_remainder() {
+        for period in [360usize, 720, 1080] {
+            let p = period as f64;
+            let mut deg = -3.5 * p;
+            while deg < 4.5 * p {
+                let whole = deg.floor();
+                let (k, t) = cell(deg, period);
+                assert_eq!(
+                    k,
+                    (whole as i64).rem_euclid(period as i64) as usize,
+                    "{deg}"
+                );
+                assert_eq!(t, deg - whole, "{deg}");
+                deg += 0.37;
+            }
+            assert_eq!(cell(-0.0, period), (0, 0.0));
+            assert_eq!(cell(p, period), (0, 0.0));
+            assert_eq!(cell(-1e-12, period).0, period - 1);
+        }
+    }
 }
 
 #[cfg(test)]
