@@ -165,15 +165,23 @@ impl Shapes {
         SidecarView::new(&self.bytes).expect("checked by load_shapes")
     }
 
-    /// Every curve decoded (in parallel parts), for an open target's scan.
+    /// Every curve decoded (in parallel parts, in place), for an open target's scan.
     fn curves(&self, view: &SidecarView<'_>) -> Result<Vec<AtlasCurve>> {
-        const PART: usize = 1 << 16;
-        let parts: Vec<Vec<AtlasCurve>> = (0..view.len().div_ceil(PART))
-            .into_par_iter()
-            .map(|k| view.curves(k * PART..((k + 1) * PART).min(view.len())))
-            .collect::<Result<_, _>>()
-            .map_err(|e| self.bad(e))?;
-        Ok(parts.concat())
+        const PART: usize = 1 << 14;
+        if view.is_empty() {
+            return Ok(Vec::new());
+        }
+        let first = view.curve(0).map_err(|e| self.bad(e))?;
+        let mut out = vec![first; view.len()];
+        out.par_chunks_mut(PART)
+            .enumerate()
+            .try_for_each(|(k, part)| {
+                let decoded = view.curves(k * PART..k * PART + part.len())?;
+                part.copy_from_slice(&decoded);
+                Ok(())
+            })
+            .map_err(|e: coupler_atlas::shape::SidecarError| self.bad(e))?;
+        Ok(out)
     }
 
     fn bad(&self, e: impl std::fmt::Display) -> anyhow::Error {
