@@ -42,6 +42,16 @@ fn quick_atlas(dir: &Path, pages: bool) {
     assert!(out.status.success(), "{}", text(&out.stderr));
 }
 
+/// A curve of the quick atlas: A = 3, B = 2.5, C = 3, point (1.5, 1.5) (u = 0.5 A,
+/// v = 0.5 A), open circuit.
+fn quick_curve() -> CouplerCurve {
+    CouplerCurve::new(
+        FourBar::new(3.0, 2.5, 3.0).unwrap(),
+        Circuit::Open,
+        CouplerPoint::new(1.5, 1.5),
+    )
+}
+
 /// Points of `c` at `angles` (degrees), moved into a user frame by `p = a·M + b`.
 fn user_points(c: &CouplerCurve, angles: &[f64], a: C64, b: C64) -> Vec<[f64; 2]> {
     angles
@@ -110,12 +120,7 @@ fn match_finds_the_source_and_places_it() {
     let dir = tmp("find");
     quick_atlas(&dir, true);
     let atlas = dir.to_str().unwrap();
-    // Curve: A = 3, B = 2.5, C = 3, point (1.5, 1.5) (u = 0.5 A, v = 0.5 A), open circuit.
-    let src = CouplerCurve::new(
-        FourBar::new(3.0, 2.5, 3.0).unwrap(),
-        Circuit::Open,
-        CouplerPoint::new(1.5, 1.5),
-    );
+    let src = quick_curve();
     let (a, b) = (C64::new(3.0, 4.0), C64::new(100.0, -20.0)); // scale 5, rotation 53.13°
     let closed: Vec<f64> = (0..60).map(|k| 7.0 + 6.0 * k as f64).collect();
     let open: Vec<f64> = (0..40).map(|k| 30.0 + 4.0 * k as f64).collect();
@@ -304,11 +309,7 @@ fn sidecar_stamp_keeps_the_check() {
     let dir = tmp("stamp");
     quick_atlas(&dir, false);
     let atlas = dir.to_str().unwrap();
-    let src = CouplerCurve::new(
-        FourBar::new(3.0, 2.5, 3.0).unwrap(),
-        Circuit::Open,
-        CouplerPoint::new(1.5, 1.5),
-    );
+    let src = quick_curve();
     let angles: Vec<f64> = (0..36).map(|k| 5.0 + 10.0 * k as f64).collect();
     let target = dir.join("t.csv");
     write_csv(
