@@ -623,6 +623,10 @@ impl RasterPage {
         let (glyphs, advance) = font::shape_line(&self.font, size, text);
         let x = anchored_x(pos[0], advance, anchor);
         let (em, r) = ((size * k) as f32, (halo * k) as f32);
+        if r.is_nan() || r <= 0.0 {
+            // No halo (and `r == 0` keys are the glyphs' own coverage).
+            return;
+        }
         // The glyphs' tiles: (page x, page y, key).
         let mut placed = std::mem::take(&mut self.halo_scratch.placed);
         placed.clear();
@@ -640,8 +644,10 @@ impl RasterPage {
                 r: r.to_bits(),
                 sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
             };
-            let tile = self.halo_tile(key);
-            let Some(tile) = tile else { continue };
+            self.ensure_halo_tile(key);
+            let Some(Some(tile)) = self.halos.get(&key) else {
+                continue;
+            };
             let (tx, ty) = (ix as i64 + tile.x0, iy as i64 + tile.y0);
             bx0 = bx0.min(tx);
             by0 = by0.min(ty);
@@ -688,31 +694,35 @@ impl RasterPage {
         self.halo_scratch.placed = placed;
     }
 
-    /// The halo of one glyph at its size and quarter-pixel position, made on first use.
-    fn halo_tile(&mut self, key: HaloKey) -> Option<&HaloTile> {
-        if !self.halos.contains_key(&key) {
-            if self.halos.len() >= MAX_HALO_TILES {
-                self.halos.clear();
-            }
-            let font = &self.font;
-            let outline = self
-                .outlines
-                .entry(key.glyph)
-                .or_insert_with(|| font.outline(GlyphId(key.glyph)))
-                .clone();
-            let upem = self.font.units_per_em().unwrap_or(2048.0);
-            let tile = outline.map(|o| {
-                HaloTile::make(
-                    &o,
-                    f32::from_bits(key.em) / upem,
-                    f32::from_bits(key.r),
-                    [f32::from(key.sub[0]) / 4.0, f32::from(key.sub[1]) / 4.0],
-                    &mut self.capsules,
-                )
-            });
-            self.halos.insert(key, tile);
+    /// Makes the tile of `key` if it is not cached yet: the coverage of a glyph when
+    /// `key.r == 0`, else the glyph's halo `key.r` pixels wide on each side (see
+    /// [`HaloKey`]). A glyph without outline is cached as `None`. The one place that
+    /// fills the cache: it is emptied first when full.
+    fn ensure_halo_tile(&mut self, key: HaloKey) {
+        if self.halos.contains_key(&key) {
+            return;
         }
-        self.halos.get(&key).and_then(Option::as_ref)
+        if self.halos.len() >= MAX_HALO_TILES {
+            self.halos.clear();
+        }
+        let font = &self.font;
+        let outline = self
+            .outlines
+            .entry(key.glyph)
+            .or_insert_with(|| font.outline(GlyphId(key.glyph)))
+            .clone();
+        let em = f32::from_bits(key.em);
+        let sub = [f32::from(key.sub[0]) / 4.0, f32::from(key.sub[1]) / 4.0];
+        let tile = outline.map(|outline| {
+            if key.r == 0 {
+                HaloTile::glyph(font, GlyphId(key.glyph), em, sub, outline)
+            } else {
+                let upem = font.units_per_em().unwrap_or(2048.0);
+                let r = f32::from_bits(key.r);
+                HaloTile::make(&outline, em / upem, r, sub, &mut self.capsules)
+            }
+        });
+        self.halos.insert(key, tile);
     }
 }
 
@@ -816,6 +826,36 @@ impl HaloTile {
             h,
             cov,
         }
+    }
+
+    /// The coverage of glyph `id` at em size `em` pixels, its origin at `sub` in the
+    /// first pixel's frame, as ab_glyph draws it.
+    fn glyph(
+        font: &FontRef<'static>,
+        id: GlyphId,
+        em: f32,
+        sub: [f32; 2],
+        outline: Outline,
+    ) -> HaloTile {
+        let glyph = Glyph {
+            id,
+            scale: font::px_scale(font, em),
+            position: point(sub[0], sub[1]),
+        };
+        let scale_factor = font.as_scaled(glyph.scale).scale_factor();
+        let outlined = OutlinedGlyph::new(glyph, outline, scale_factor);
+        let b = outlined.px_bounds();
+        let (x0, y0) = (b.min.x as i64, b.min.y as i64);
+        let w = (b.max.x as i64 - x0).max(0) as usize;
+        let h = (b.max.y as i64 - y0).max(0) as usize;
+        let mut cov = vec![0u8; w * h];
+        outlined.draw(|gx, gy, c| {
+            let (x, y) = (gx as usize, gy as usize);
+            if x < w && y < h {
+                cov[y * w + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+            }
+        });
+        HaloTile { x0, y0, w, h, cov }
     }
 }
 
@@ -990,7 +1030,7 @@ impl Canvas for RasterPage {
                 r: 0,
                 sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
             };
-            self.glyph_tile(key);
+            self.ensure_halo_tile(key);
             let Some(Some(tile)) = self.halos.get(&key) else {
                 continue;
             };
@@ -1014,48 +1054,6 @@ impl Canvas for RasterPage {
                 }
             }
         }
-    }
-}
-
-impl RasterPage {
-    /// Makes the coverage of a glyph (`key.r == 0`) at its em size and quarter-pixel
-    /// position, if not made yet.
-    fn glyph_tile(&mut self, key: HaloKey) {
-        if self.halos.contains_key(&key) {
-            return;
-        }
-        if self.halos.len() >= MAX_HALO_TILES {
-            self.halos.clear();
-        }
-        let font = &self.font;
-        let outline = self
-            .outlines
-            .entry(key.glyph)
-            .or_insert_with(|| font.outline(GlyphId(key.glyph)))
-            .clone();
-        let em = f32::from_bits(key.em);
-        let tile = outline.map(|outline| {
-            let glyph = Glyph {
-                id: GlyphId(key.glyph),
-                scale: font::px_scale(&self.font, em),
-                position: point(f32::from(key.sub[0]) / 4.0, f32::from(key.sub[1]) / 4.0),
-            };
-            let scale_factor = self.font.as_scaled(glyph.scale).scale_factor();
-            let outlined = OutlinedGlyph::new(glyph, outline, scale_factor);
-            let b = outlined.px_bounds();
-            let (x0, y0) = (b.min.x as i64, b.min.y as i64);
-            let w = (b.max.x as i64 - x0).max(0) as usize;
-            let h = (b.max.y as i64 - y0).max(0) as usize;
-            let mut cov = vec![0u8; w * h];
-            outlined.draw(|gx, gy, c| {
-                let (x, y) = (gx as usize, gy as usize);
-                if x < w && y < h {
-                    cov[y * w + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-                }
-            });
-            HaloTile { x0, y0, w, h, cov }
-        });
-        self.halos.insert(key, tile);
     }
 }
 
