@@ -5,6 +5,7 @@ use super::{Canvas, anchored_x};
 use crate::capsule::{Capsules, Target};
 use crate::dirty::Dirty;
 use crate::layer::GrayLayer;
+use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
 };
@@ -484,9 +485,12 @@ fn ppm(dpi: f64) -> u32 {
 /// filter and fdeflate's PNG-tuned fast mode, the inversion folded into the filter:
 /// filtered = gray(row) − gray(row above) = ink(row above) − ink(row). Outside the blocks
 /// `dirty` marks (in this row or the one above) both rows are paper and the filtered bytes
-/// are 0, so only marked spans are computed; deflate sees runs of zeros there. With
-/// `clear`, each row's marked spans are zeroed once the row below has been filtered (the
-/// buffer ends blank). The file is built in one buffer of `capacity` bytes to start with.
+/// are 0, so only marked spans are computed, and [`RowDeflate`] reads only those: a row
+/// with no marked span is a blank row, written as a precomputed bit string (runs of them
+/// one after the other), and the zeros between an inked row's spans only lengthen a run.
+/// The bytes are those of `fdeflate` on the whole filtered rows. With `clear`, each row's
+/// marked spans are zeroed once the row below has been filtered (the buffer ends blank).
+/// The file is built in one buffer of `capacity` bytes to start with.
 fn write_png_fast(
     ink: &mut [u8],
     width: u32,
@@ -514,7 +518,7 @@ fn write_png_fast(
     let idat = out.len();
     out.extend_from_slice(&[0, 0, 0, 0]);
     out.extend_from_slice(b"IDAT");
-    let mut z = fdeflate::Compressor::new(out)?;
+    let mut z = RowDeflate::new(out);
     let mut row = vec![0u8; w + 1];
     row[0] = 2; // Up
     if h > 0 {
@@ -522,12 +526,24 @@ fn write_png_fast(
         for (o, i) in row[1..].iter_mut().zip(&ink[..w]) {
             *o = !*i;
         }
-        z.write_data(&row)?;
+        z.row(&row, std::iter::once((0, w + 1)));
         row[1..].fill(0);
     }
+    // Blank rows (no marked block in the row or the one above: filtered bytes all 0)
+    // waiting to be written as one run.
+    let mut blank = 0;
+    let mut spans: Vec<(usize, usize)> = Vec::new();
     for j in 1..h {
+        spans.clear();
+        spans.extend(dirty.row_pair_spans(j));
+        if spans.is_empty() {
+            blank += 1;
+            continue;
+        }
+        z.blank_rows(w + 1, 2, blank);
+        blank = 0;
         let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
-        for (x0, x1) in dirty.row_pair_spans(j) {
+        for &(x0, x1) in &spans {
             for ((o, a), b) in row[1 + x0..1 + x1]
                 .iter_mut()
                 .zip(&above[x0..x1])
@@ -539,18 +555,19 @@ fn write_png_fast(
                 above[x0..x1].fill(0);
             }
         }
-        z.write_data(&row)?;
-        for (x0, x1) in dirty.row_pair_spans(j) {
+        z.row(&row, spans.iter().map(|&(x0, x1)| (1 + x0, 1 + x1)));
+        for &(x0, x1) in &spans {
             row[1 + x0..1 + x1].fill(0);
         }
     }
+    z.blank_rows(w + 1, 2, blank);
     if clear && h > 0 {
         let last = &mut ink[(h - 1) * w..];
         for (x0, x1) in dirty.row_pair_spans(h - 1) {
             last[x0..x1].fill(0);
         }
     }
-    let mut out = z.finish()?;
+    let mut out = z.finish();
     let len = u32::try_from(out.len() - idat - 8).map_err(std::io::Error::other)?;
     out[idat..idat + 4].copy_from_slice(&len.to_be_bytes());
     let crc = crc32fast::hash(&out[idat + 4..]);
@@ -1162,6 +1179,60 @@ mod tests {
             draw(&dl, &mut fresh);
             draw(&dl, &mut page);
             assert_eq!(fresh.ink(), page.ink());
+        }
+    }
+
+    /// The image data of a PNG: its IDAT chunks' bytes, in order.
+    fn idat(png: &[u8]) -> Vec<u8> {
+        let (mut at, mut data) = (8, Vec::new());
+        while at + 8 <= png.len() {
+            let len = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+            if &png[at + 4..at + 8] == b"IDAT" {
+                data.extend_from_slice(&png[at + 8..at + 8 + len]);
+            }
+            at += 12 + len;
+        }
+        data
+    }
+
+    /// The fast PNG is the one written before blank rows became precomputed runs: its
+    /// image data is `fdeflate`'s stream of the whole Up-filtered rows, byte for byte (so
+    /// pages kept as regression images do not change), and it decodes to the drawn pixels.
+    /// Pages: the sample (blank rows above, between and below ink), the same with one
+    /// dot in the last row, and a blank page.
+    #[test]
+    fn the_fast_png_is_fdeflates_stream_of_the_up_filtered_rows() {
+        for (dpi, kind) in [(72.0, 0), (300.0, 0), (150.0, 1), (72.0, 2)] {
+            let k = dpi / 72.0;
+            let (w, h) = ((300.0 * k) as u32, (200.0 * k) as u32);
+            let mut page = RasterPage::new(w, h, dpi).unwrap();
+            if kind < 2 {
+                draw(&sample(), &mut page);
+            }
+            if kind == 1 {
+                page.fill_rect_px(
+                    f64::from(w) - 3.0,
+                    f64::from(h) - 1.0,
+                    f64::from(w),
+                    f64::from(h),
+                );
+            }
+            let gray = page.to_gray();
+            let png = page.take_png(PngCompression::Fast).unwrap();
+            let (w, h) = (w as usize, h as usize);
+            let mut z = fdeflate::Compressor::new(Vec::new()).unwrap();
+            let mut row = vec![2u8; w + 1];
+            for j in 0..h {
+                for x in 0..w {
+                    let above = if j == 0 { 0 } else { gray[(j - 1) * w + x] };
+                    row[1 + x] = gray[j * w + x].wrapping_sub(above);
+                }
+                z.write_data(&row).unwrap();
+            }
+            let want = z.finish().unwrap();
+            assert!(idat(&png) == want, "dpi {dpi}, page {kind}: streams differ");
+            assert_eq!(decode(&png), gray, "dpi {dpi}, page {kind}");
+            assert!(page.ink().iter().all(|&x| x == 0), "left blank");
         }
     }
 
