@@ -5,8 +5,8 @@
 
 use coupler_atlas::generate::{Job, PageOptions, PageSource};
 use coupler_atlas::layout::{
-    ClassicGeometry, ClassicPage, LinkagePage, PageGeometry, PageLayout, PageSetup,
-    compute_classic, layout_page, rect_distance,
+    Anchor, ClassicGeometry, ClassicPage, LinkagePage, PageGeometry, PageLayout, PageSetup, ascent,
+    compute_classic, descent, layout_page, rect_distance, text_width,
 };
 use coupler_atlas::spec::{DEFAULT_SPEC_TEXT, Spec};
 use coupler_atlas::{ClassicCurve, CrankAngle, CurveList, Mechanism};
@@ -119,6 +119,17 @@ fn generate_pdf(spec: &Path, out: &Path, name: &str, extra: &[&str]) -> Vec<u8> 
     let pdf = std::fs::read(out.join(format!("pages/{name}.pdf"))).unwrap();
     assert!(pdf.starts_with(b"%PDF-"));
     pdf
+}
+
+/// The box `[x0, y0, x1, y1]` (points) of a line of text at `pos` (its baseline).
+fn text_box(pos: [f64; 2], size: f64, anchor: Anchor, text: &str) -> [f64; 4] {
+    let w = text_width(size, text);
+    let x0 = match anchor {
+        Anchor::Start => pos[0],
+        Anchor::Middle => pos[0] - 0.5 * w,
+        Anchor::End => pos[0] - w,
+    };
+    [x0, pos[1] - ascent(size), x0 + w, pos[1] + descent(size)]
 }
 
 fn overlap(a: [f64; 4], b: [f64; 4]) -> bool {
@@ -362,9 +373,7 @@ fn rect_segment_distance(r: [f64; 4], a: [f64; 2], b: [f64; 2]) -> f64 {
 /// other text.
 #[test]
 fn classic_bracket_labels_touch_no_ink() {
-    use coupler_atlas::layout::{
-        Anchor, Ink, Primitive, ascent, descent, layout_classic, text_width,
-    };
+    use coupler_atlas::layout::{Ink, Primitive, layout_classic};
     let (pages, opts) = classic_pages();
     let mut bad = Vec::new();
     let mut labels = 0;
@@ -417,13 +426,7 @@ fn classic_bracket_labels_touch_no_ink() {
                     text,
                     halo,
                 } => {
-                    let w = text_width(*size, text);
-                    let x0 = match anchor {
-                        Anchor::Start => pos[0],
-                        Anchor::Middle => pos[0] - 0.5 * w,
-                        Anchor::End => pos[0] - w,
-                    };
-                    let r = [x0, pos[1] - ascent(*size), x0 + w, pos[1] + descent(*size)];
+                    let r = text_box(*pos, *size, *anchor, text);
                     let bracket =
                         *halo > 0.0 && text.starts_with("εₛ ≤") && text.contains("dashes");
                     texts.push((r, text.clone(), bracket));
@@ -835,7 +838,7 @@ fn is_feature_label(text: &str) -> bool {
 /// curve's dashes (27 % before the leaders' ink was weighed).
 #[test]
 fn atlas_feature_labels_keep_clear_of_the_curves() {
-    use coupler_atlas::layout::{Anchor, Primitive, ascent, descent, text_width};
+    use coupler_atlas::layout::Primitive;
     // (features, feature labels, labels on dashes, leaders, leaders crossing)
     let results: Vec<[usize; 5]> = default_atlas()
         .pages
@@ -879,13 +882,7 @@ fn atlas_feature_labels_keep_clear_of_the_curves() {
                     continue;
                 }
                 n[1] += 1;
-                let w = text_width(*size, text);
-                let x0 = match anchor {
-                    Anchor::Start => pos[0],
-                    Anchor::Middle => pos[0] - 0.5 * w,
-                    Anchor::End => pos[0] - w,
-                };
-                let r = [x0, pos[1] - ascent(*size), x0 + w, pos[1] + descent(*size)];
+                let r = text_box(*pos, *size, *anchor, text);
                 let on = dashes.iter().flatten().any(|(a, b)| {
                     let (a, b) = (*a, *b);
                     a[0].min(b[0]) <= r[2] + 1.0
