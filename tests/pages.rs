@@ -3,18 +3,133 @@
 //! it than to any other dot) without overlapping another label; classic branches start
 //! their dash pattern where they start; the atlas PDF carries real, extractable text.
 
-use coupler_atlas::generate::{Job, PageOptions, compute_group};
+use coupler_atlas::generate::{Job, PageOptions, PageSource};
 use coupler_atlas::layout::{
-    ClassicPage, LinkagePage, compute_classic, compute_page, layout_page, rect_distance,
+    Anchor, ClassicGeometry, ClassicPage, LinkagePage, PageGeometry, PageLayout, PageSetup, ascent,
+    compute_classic, descent, layout_page, rect_distance, text_width,
 };
 use coupler_atlas::spec::{DEFAULT_SPEC_TEXT, Spec};
-use coupler_atlas::{AngleTables, ClassicCurve, CrankAngle, CurveList, Mechanism};
+use coupler_atlas::{ClassicCurve, CrankAngle, CurveList, Mechanism};
 use rayon::prelude::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::OnceLock;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// One page of the default atlas, laid out as `generate` lays it out: the page jobs of
+/// [`PageSource`] (the run's curves, features, shared angle tables and page numbers).
+struct AtlasPage {
+    page: LinkagePage,
+    geo: PageGeometry,
+    lay: PageLayout,
+}
+
+/// The default atlas, every page laid out once and shared by the tests that read it.
+struct DefaultAtlas {
+    spec: Spec,
+    setup: PageSetup,
+    /// Pages the job plans.
+    planned: u64,
+    /// In page order.
+    pages: Vec<AtlasPage>,
+}
+
+fn default_atlas() -> &'static DefaultAtlas {
+    static ATLAS: OnceLock<DefaultAtlas> = OnceLock::new();
+    ATLAS.get_or_init(|| {
+        let spec = Spec::parse(DEFAULT_SPEC_TEXT, "default").unwrap();
+        let setup = PageOptions::from_spec(&spec).unwrap().setup;
+        let job = Job::new(spec.clone(), "default", "unused", 2);
+        let source = PageSource::new(&job, setup.curves_per_page).unwrap();
+        let groups: Vec<_> = job.groups().collect();
+        let pages = groups
+            .par_iter()
+            .flat_map_iter(|g| {
+                let features = source.features(g).unwrap();
+                source
+                    .pages(g, &features)
+                    .map(|pj| {
+                        let page = pj.page();
+                        let geo = pj.geometry(&page, &setup).unwrap();
+                        let lay = layout_page(&page, &geo, &setup);
+                        AtlasPage { page, geo, lay }
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        DefaultAtlas {
+            planned: job.pages(),
+            spec,
+            setup,
+            pages,
+        }
+    })
+}
+
+/// The pages of `atlas-spec/classics.toml` with their geometry, and the page options.
+fn classic_pages() -> (Vec<(ClassicPage, ClassicGeometry)>, PageOptions) {
+    let text = std::fs::read_to_string(root().join("atlas-spec/classics.toml")).unwrap();
+    let list = CurveList::parse(&text, "classics.toml").unwrap();
+    let opts = PageOptions::from_settings(&list.name, &list.sampling, &list.pages).unwrap();
+    let n = list.curves.len();
+    let pages = list
+        .curves
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let page = ClassicPage {
+                curve: c.clone(),
+                measured: ClassicCurve::compute(c, list.sampling.crank_step_deg),
+                page_number: i + 1,
+                page_count: n,
+                step_deg: list.sampling.crank_step_deg,
+            };
+            let geo = compute_classic(&page, &opts.setup).unwrap();
+            (page, geo)
+        })
+        .collect();
+    (pages, opts)
+}
+
+/// A fresh, empty folder for this test process under the system's temp folder.
+fn fresh_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("coupler-atlas-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `generate SPEC --out OUT --format pdf --quiet EXTRA…` run from the repository's root;
+/// the atlas PDF it wrote, `OUT/pages/NAME.pdf`.
+fn generate_pdf(spec: &Path, out: &Path, name: &str, extra: &[&str]) -> Vec<u8> {
+    let o = Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
+        .arg("generate")
+        .arg(spec)
+        .arg("--out")
+        .arg(out)
+        .args(["--format", "pdf", "--quiet"])
+        .args(extra)
+        .current_dir(root())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let pdf = std::fs::read(out.join(format!("pages/{name}.pdf"))).unwrap();
+    assert!(pdf.starts_with(b"%PDF-"));
+    pdf
+}
+
+/// The box `[x0, y0, x1, y1]` (points) of a line of text at `pos` (its baseline).
+fn text_box(pos: [f64; 2], size: f64, anchor: Anchor, text: &str) -> [f64; 4] {
+    let w = text_width(size, text);
+    let x0 = match anchor {
+        Anchor::Start => pos[0],
+        Anchor::Middle => pos[0] - 0.5 * w,
+        Anchor::End => pos[0] - w,
+    };
+    [x0, pos[1] - ascent(size), x0 + w, pos[1] + descent(size)]
 }
 
 fn overlap(a: [f64; 4], b: [f64; 4]) -> bool {
@@ -41,113 +156,106 @@ fn segment_enters(r: [f64; 4], p: [f64; 2], q: [f64; 2]) -> bool {
 /// dash of another curve (2.5 % at this commit; those sit on a white halo).
 #[test]
 fn every_default_page_is_one_family_with_labels_at_their_own_dots() {
-    let spec = Spec::parse(DEFAULT_SPEC_TEXT, "default").unwrap();
-    let opts = PageOptions::from_spec(&spec).unwrap();
-    let setup = &opts.setup;
-    let job = Job::new(spec.clone(), "default", "unused", 2);
-    let table = AngleTables::new(spec.sampling.crank_step_deg).unwrap();
-    let dash = spec.sampling.dash_pattern();
-    let row_len = spec.points.u.len() as usize;
-    let groups: Vec<_> = job.groups().collect();
-    let per = setup.curves_per_page;
-    assert_eq!(per, row_len, "curves per page follows the row");
-    // (pages, labels, labels on another curve's dashes, problems)
-    let results: Vec<(usize, usize, usize, Vec<String>)> = groups
+    let atlas = default_atlas();
+    let row_len = atlas.spec.points.u.len() as usize;
+    assert_eq!(
+        atlas.setup.curves_per_page, row_len,
+        "curves per page follows the row"
+    );
+    // (labels, labels on another curve's dashes, problems)
+    let results: Vec<(usize, usize, Vec<String>)> = atlas
+        .pages
         .par_iter()
-        .map(|g| {
-            let curves =
-                compute_group(&table, g, Some(&spec.features.tolerances), &dash).unwrap();
-            let feats: Vec<_> = curves.into_iter().map(|c| c.features).collect();
+        .map(|AtlasPage { page, geo, lay }| {
             let mut bad = Vec::new();
-            let (mut pages, mut labels, mut on_ink) = (0, 0, 0);
-            let f0 = g.linkage.drawing(g.circuit, &CrankAngle::from_degrees(0.0));
+            let (mut labels, mut on_ink) = (0, 0);
+            let f0 = page
+                .linkage
+                .drawing(page.circuit, &CrankAngle::from_degrees(0.0));
             let frame0 = f0.coupler.expect("a four-bar has a coupler");
-            for (k, (pts, fs)) in g.points.chunks(per).zip(feats.chunks(per)).enumerate() {
-                let number = g.first_page + k as u64;
-                pages += 1;
-                let v0 = pts[0].v;
-                if pts.len() != row_len || pts.iter().any(|p| p.v != v0) {
-                    bad.push(format!("page {number}: not one full grid row"));
-                }
-                let page = LinkagePage {
-                    linkage: g.linkage,
-                    circuit: g.circuit,
-                    points: pts.to_vec(),
-                    grid: g.points.clone(),
-                    page_number: number as usize,
-                    page_count: job.pages() as usize,
-                    features: fs.to_vec(),
-                };
-                let geo = compute_page(&page, setup).unwrap();
-                let lay = layout_page(&page, &geo, setup);
-                // The page's own frame (portrait or landscape, as it chose).
-                let frame = geo.frame;
-                if lay.label_failures > 0 {
+            let number = page.page_number;
+            let pts = &page.points;
+            let v0 = pts[0].v;
+            if pts.len() != row_len || pts.iter().any(|p| p.v != v0) {
+                bad.push(format!("page {number}: not one full grid row"));
+            }
+            // The page's own frame (portrait or landscape, as it chose).
+            let frame = geo.frame;
+            if lay.label_failures > 0 {
+                bad.push(format!(
+                    "page {number}: {} labels off the rule",
+                    lay.label_failures
+                ));
+            }
+            let s = lay.scale_pt_per_unit;
+            let m0 = frame0.point(lay.curves[0].point);
+            for (i, c) in lay.curves.iter().enumerate() {
+                labels += 1;
+                let own = rect_distance(c.label_pt, c.dot_pt);
+                // The dot is the coupler point at θ = 0 (relative to curve 0's dot).
+                let m = frame0.point(c.point);
+                let want = [
+                    lay.curves[0].dot_pt[0] + s * (m.x - m0.x),
+                    lay.curves[0].dot_pt[1] - s * (m.y - m0.y),
+                ];
+                if (want[0] - c.dot_pt[0]).hypot(want[1] - c.dot_pt[1]) > 1e-6 {
                     bad.push(format!(
-                        "page {number}: {} labels off the rule",
-                        lay.label_failures
+                        "page {number}: dot of {} not at its point",
+                        c.label
                     ));
                 }
-                let s = lay.scale_pt_per_unit;
-                let m0 = frame0.point(lay.curves[0].point);
-                for (i, c) in lay.curves.iter().enumerate() {
-                    labels += 1;
-                    let own = rect_distance(c.label_pt, c.dot_pt);
-                    // The dot is the coupler point at θ = 0 (relative to curve 0's dot).
-                    let m = frame0.point(c.point);
-                    let want = [
-                        lay.curves[0].dot_pt[0] + s * (m.x - m0.x),
-                        lay.curves[0].dot_pt[1] - s * (m.y - m0.y),
-                    ];
-                    if (want[0] - c.dot_pt[0]).hypot(want[1] - c.dot_pt[1]) > 1e-6 {
-                        bad.push(format!("page {number}: dot of {} not at its point", c.label));
+                let mut touches = false;
+                for (j, o) in lay.curves.iter().enumerate() {
+                    if j == i {
+                        continue;
                     }
-                    let mut touches = false;
-                    for (j, o) in lay.curves.iter().enumerate() {
-                        if j == i {
-                            continue;
-                        }
-                        if rect_distance(c.label_pt, o.dot_pt) <= own {
-                            bad.push(format!(
-                                "page {number}: label {} is as near to the dot of {:?} as to its own",
-                                c.label, o.point
-                            ));
-                        }
-                        if j > i && overlap(c.label_pt, o.label_pt) {
-                            bad.push(format!(
-                                "page {number}: labels {} and {} overlap",
-                                c.label, o.label
-                            ));
-                        }
-                        if !o.ghost && overlap(c.label_pt, o.bbox_pt) {
-                            let t = &geo.transform;
-                            touches |= geo.curves[j].dashes.iter().any(|d| {
-                                d.points.windows(2).any(|w| {
-                                    segment_enters(
-                                        c.label_pt,
-                                        t.map(w[0].x, w[0].y),
-                                        t.map(w[1].x, w[1].y),
-                                    )
-                                })
-                            });
-                        }
+                    if rect_distance(c.label_pt, o.dot_pt) <= own {
+                        bad.push(format!(
+                            "page {number}: label {} is as near to the dot of {:?} as to its own",
+                            c.label, o.point
+                        ));
                     }
-                    on_ink += usize::from(touches);
-                    let r = c.label_pt;
-                    if !(r[0] >= frame[0] && r[1] >= frame[1] && r[2] <= frame[2] && r[3] <= frame[3])
-                    {
-                        bad.push(format!("page {number}: label {} outside the frame", c.label));
+                    if j > i && overlap(c.label_pt, o.label_pt) {
+                        bad.push(format!(
+                            "page {number}: labels {} and {} overlap",
+                            c.label, o.label
+                        ));
+                    }
+                    if !o.ghost && overlap(c.label_pt, o.bbox_pt) {
+                        let t = &geo.transform;
+                        touches |= geo.curves[j].dashes.iter().any(|d| {
+                            d.points.windows(2).any(|w| {
+                                segment_enters(
+                                    c.label_pt,
+                                    t.map(w[0].x, w[0].y),
+                                    t.map(w[1].x, w[1].y),
+                                )
+                            })
+                        });
                     }
                 }
+                on_ink += usize::from(touches);
+                let r = c.label_pt;
+                if !(r[0] >= frame[0] && r[1] >= frame[1] && r[2] <= frame[2] && r[3] <= frame[3]) {
+                    bad.push(format!(
+                        "page {number}: label {} outside the frame",
+                        c.label
+                    ));
+                }
             }
-            (pages, labels, on_ink, bad)
+            (labels, on_ink, bad)
         })
         .collect();
-    let pages: usize = results.iter().map(|r| r.0).sum();
-    let labels: usize = results.iter().map(|r| r.1).sum();
-    let on_ink: usize = results.iter().map(|r| r.2).sum();
-    let bad: Vec<&String> = results.iter().flat_map(|r| &r.3).collect();
-    assert_eq!(pages as u64, job.pages());
+    let pages = atlas.pages.len();
+    let labels: usize = results.iter().map(|r| r.0).sum();
+    let on_ink: usize = results.iter().map(|r| r.1).sum();
+    let bad: Vec<&String> = results.iter().flat_map(|r| &r.2).collect();
+    assert_eq!(pages as u64, atlas.planned);
+    let numbers: Vec<usize> = atlas.pages.iter().map(|p| p.page.page_number).collect();
+    assert!(
+        numbers.iter().enumerate().all(|(i, &n)| n == i + 1),
+        "pages numbered 1, 2, … in order"
+    );
     assert!(
         pages >= 700 && labels >= 7000,
         "{pages} pages, {labels} labels"
@@ -193,20 +301,10 @@ fn default_atlas_has_the_1951_scale_and_hoekens_point() {
 /// sample, so the start dot sits on a dash.
 #[test]
 fn classic_branches_start_their_dashes_at_the_branch_start() {
-    let text = std::fs::read_to_string(root().join("atlas-spec/classics.toml")).unwrap();
-    let list = CurveList::parse(&text, "classics.toml").unwrap();
-    let opts = PageOptions::from_settings(&list.name, &list.sampling, &list.pages).unwrap();
-    let n = list.curves.len();
-    for (i, c) in list.curves.iter().enumerate() {
-        let measured = ClassicCurve::compute(c, list.sampling.crank_step_deg);
-        let page = ClassicPage {
-            curve: c.clone(),
-            measured,
-            page_number: i + 1,
-            page_count: n,
-            step_deg: list.sampling.crank_step_deg,
-        };
-        let geo = compute_classic(&page, &opts.setup).unwrap();
+    let (pages, _) = classic_pages();
+    assert!(!pages.is_empty());
+    for (page, geo) in &pages {
+        let c = &page.curve;
         let mut seen = Vec::new();
         for leg in &geo.legs {
             if seen.contains(&leg.branch) {
@@ -275,26 +373,13 @@ fn rect_segment_distance(r: [f64; 4], a: [f64; 2], b: [f64; 2]) -> f64 {
 /// other text.
 #[test]
 fn classic_bracket_labels_touch_no_ink() {
-    use coupler_atlas::layout::{
-        Anchor, Ink, Primitive, ascent, descent, layout_classic, text_width,
-    };
-    let text = std::fs::read_to_string(root().join("atlas-spec/classics.toml")).unwrap();
-    let list = CurveList::parse(&text, "classics.toml").unwrap();
-    let opts = PageOptions::from_settings(&list.name, &list.sampling, &list.pages).unwrap();
-    let n = list.curves.len();
+    use coupler_atlas::layout::{Ink, Primitive, layout_classic};
+    let (pages, opts) = classic_pages();
     let mut bad = Vec::new();
     let mut labels = 0;
-    for (i, c) in list.curves.iter().enumerate() {
-        let measured = ClassicCurve::compute(c, list.sampling.crank_step_deg);
-        let page = ClassicPage {
-            curve: c.clone(),
-            measured,
-            page_number: i + 1,
-            page_count: n,
-            step_deg: list.sampling.crank_step_deg,
-        };
-        let geo = compute_classic(&page, &opts.setup).unwrap();
-        let lay = layout_classic(&page, &geo, &opts.setup);
+    for (page, geo) in &pages {
+        let c = &page.curve;
+        let lay = layout_classic(page, geo, &opts.setup);
         // Ink as segments with their half widths; text as boxes.
         let mut ink: Vec<([f64; 2], [f64; 2], f64)> = Vec::new();
         let mut texts: Vec<([f64; 4], String, bool)> = Vec::new();
@@ -341,13 +426,7 @@ fn classic_bracket_labels_touch_no_ink() {
                     text,
                     halo,
                 } => {
-                    let w = text_width(*size, text);
-                    let x0 = match anchor {
-                        Anchor::Start => pos[0],
-                        Anchor::Middle => pos[0] - 0.5 * w,
-                        Anchor::End => pos[0] - w,
-                    };
-                    let r = [x0, pos[1] - ascent(*size), x0 + w, pos[1] + descent(*size)];
+                    let r = text_box(*pos, *size, *anchor, text);
                     let bracket =
                         *halo > 0.0 && text.starts_with("εₛ ≤") && text.contains("dashes");
                     texts.push((r, text.clone(), bracket));
@@ -521,40 +600,14 @@ fn page_text(pdf: &[u8], page_index: usize) -> String {
 /// has an entry per linkage.
 #[test]
 fn the_atlas_pdf_has_extractable_text_links_and_an_outline() {
-    let out = std::env::temp_dir().join(format!("coupler-atlas-pdf-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let o = Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
-        .args([
-            "generate",
-            "atlas-spec/quick.toml",
-            "--out",
-            out.to_str().unwrap(),
-            "--format",
-            "pdf",
-            "--quiet",
-        ])
-        .current_dir(root())
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let pdf = std::fs::read(out.join("pages/quick.pdf")).unwrap();
-    assert!(pdf.starts_with(b"%PDF-"));
+    let dir = fresh_dir("pdf");
+    let quick = Path::new("atlas-spec/quick.toml");
+    let pdf = generate_pdf(quick, &dir.join("all"), "quick", &[]);
     // Byte-deterministic for any --jobs.
-    let one = std::env::temp_dir().join(format!("coupler-atlas-pdf1-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&one);
-    let o = Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
-        .args(["generate", "atlas-spec/quick.toml", "--out"])
-        .arg(&one)
-        .args(["--format", "pdf", "--quiet", "--jobs", "1"])
-        .current_dir(root())
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
-        std::fs::read(one.join("pages/quick.pdf")).unwrap() == pdf,
+        generate_pdf(quick, &dir.join("one"), "quick", &["--jobs", "1"]) == pdf,
         "the PDF differs between --jobs 1 and all cores"
     );
-    let _ = std::fs::remove_dir_all(&one);
     // quick.toml: 6 linkages × 2 circuits, one page each, after the contents pages.
     let count = page_count(&pdf);
     let contents = (0..count)
@@ -581,10 +634,10 @@ fn the_atlas_pdf_has_extractable_text_links_and_an_outline() {
     assert!(find(&pdf, b"/Outlines", 0).is_some());
     assert!(find(&pdf, b"/PageLabels", 0).is_some());
     // The index points at the PDF and at each curve's page.
-    let index = std::fs::read_to_string(out.join("index.json")).unwrap();
+    let index = std::fs::read_to_string(dir.join("all/index.json")).unwrap();
     assert!(index.contains("\"file\":\"pages/quick.pdf\""));
     assert!(index.contains("\"dot_px\":"));
-    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The `/MediaBox [0 0 W H]` of a page object, points.
@@ -624,9 +677,7 @@ fn destinations(pdf: &[u8], key: &[u8]) -> Vec<u32> {
 /// outline has the contents and one entry per linkage, each going to its first page.
 #[test]
 fn the_atlas_pdf_turns_each_page_as_the_index_says_and_links_every_page() {
-    let dir = std::env::temp_dir().join(format!("coupler-atlas-pdfo-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = fresh_dir("pdfo");
     // Two linkages whose families are long and flat (landscape) or tall (portrait).
     let spec = dir.join("mixed.toml");
     std::fs::write(
@@ -642,17 +693,7 @@ fn the_atlas_pdf_turns_each_page_as_the_index_says_and_links_every_page() {
     )
     .unwrap();
     let out = dir.join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_coupler-atlas"))
-        .arg("generate")
-        .arg(&spec)
-        .arg("--out")
-        .arg(&out)
-        .args(["--format", "pdf", "--quiet"])
-        .current_dir(root())
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let pdf = std::fs::read(out.join("pages/mixed.pdf")).unwrap();
+    let pdf = generate_pdf(&spec, &out, "mixed", &[]);
     let index: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("index.json")).unwrap()).unwrap();
     // Each page's orientation and linkage, from the index.
@@ -797,100 +838,73 @@ fn is_feature_label(text: &str) -> bool {
 /// curve's dashes (27 % before the leaders' ink was weighed).
 #[test]
 fn atlas_feature_labels_keep_clear_of_the_curves() {
-    use coupler_atlas::layout::{Anchor, Primitive, ascent, descent, text_width};
-    let spec = Spec::parse(DEFAULT_SPEC_TEXT, "default").unwrap();
-    let opts = PageOptions::from_spec(&spec).unwrap();
-    let setup = &opts.setup;
-    let job = Job::new(spec.clone(), "default", "unused", 2);
-    let table = AngleTables::new(spec.sampling.crank_step_deg).unwrap();
-    let dash = spec.sampling.dash_pattern();
-    let per = setup.curves_per_page;
-    let groups: Vec<_> = job.groups().collect();
-    // (features, feature labels, labels on dashes, leaders, leaders crossing, examples)
-    let results: Vec<[usize; 5]> = groups
+    use coupler_atlas::layout::Primitive;
+    // (features, feature labels, labels on dashes, leaders, leaders crossing)
+    let results: Vec<[usize; 5]> = default_atlas()
+        .pages
         .par_iter()
-        .map(|g| {
-            let curves = compute_group(&table, g, Some(&spec.features.tolerances), &dash).unwrap();
-            let feats: Vec<_> = curves.into_iter().map(|c| c.features).collect();
+        .map(|AtlasPage { page, geo, lay }| {
+            let fs = &page.features;
             let mut n = [0usize; 5];
-            for (k, (pts, fs)) in g.points.chunks(per).zip(feats.chunks(per)).enumerate() {
-                let page = LinkagePage {
-                    linkage: g.linkage,
-                    circuit: g.circuit,
-                    points: pts.to_vec(),
-                    grid: g.points.clone(),
-                    page_number: g.first_page as usize + k,
-                    page_count: job.pages() as usize,
-                    features: fs.to_vec(),
+            let t = &geo.transform;
+            let dashes: Vec<Vec<([f64; 2], [f64; 2])>> = geo
+                .curves
+                .iter()
+                .map(|c| {
+                    c.dashes
+                        .iter()
+                        .flat_map(|d| {
+                            d.points
+                                .windows(2)
+                                .map(|w| (t.map(w[0].x, w[0].y), t.map(w[1].x, w[1].y)))
+                        })
+                        .collect()
+                })
+                .collect();
+            for (c, f) in lay.curves.iter().zip(fs) {
+                if let (false, Some(f)) = (c.ghost, f) {
+                    n[0] += usize::from(!f.straight_segments.is_empty());
+                    n[0] += usize::from(!f.pseudo_arcs.is_empty());
+                }
+            }
+            for item in &lay.display.items {
+                let Primitive::Text {
+                    pos,
+                    size,
+                    anchor,
+                    text,
+                    ..
+                } = item
+                else {
+                    continue;
                 };
-                let geo = compute_page(&page, setup).unwrap();
-                let lay = layout_page(&page, &geo, setup);
-                let t = &geo.transform;
-                let dashes: Vec<Vec<([f64; 2], [f64; 2])>> = geo
-                    .curves
-                    .iter()
-                    .map(|c| {
-                        c.dashes
-                            .iter()
-                            .flat_map(|d| {
-                                d.points
-                                    .windows(2)
-                                    .map(|w| (t.map(w[0].x, w[0].y), t.map(w[1].x, w[1].y)))
-                            })
-                            .collect()
-                    })
-                    .collect();
-                for (c, f) in lay.curves.iter().zip(fs) {
-                    if let (false, Some(f)) = (c.ghost, f) {
-                        n[0] += usize::from(!f.straight_segments.is_empty());
-                        n[0] += usize::from(!f.pseudo_arcs.is_empty());
-                    }
+                if !is_feature_label(text) {
+                    continue;
                 }
-                for item in &lay.display.items {
-                    let Primitive::Text {
-                        pos,
-                        size,
-                        anchor,
-                        text,
-                        ..
-                    } = item
-                    else {
-                        continue;
-                    };
-                    if !is_feature_label(text) {
-                        continue;
-                    }
-                    n[1] += 1;
-                    let w = text_width(*size, text);
-                    let x0 = match anchor {
-                        Anchor::Start => pos[0],
-                        Anchor::Middle => pos[0] - 0.5 * w,
-                        Anchor::End => pos[0] - w,
-                    };
-                    let r = [x0, pos[1] - ascent(*size), x0 + w, pos[1] + descent(*size)];
-                    let on = dashes.iter().flatten().any(|(a, b)| {
-                        let (a, b) = (*a, *b);
-                        a[0].min(b[0]) <= r[2] + 1.0
-                            && a[0].max(b[0]) >= r[0] - 1.0
-                            && a[1].min(b[1]) <= r[3] + 1.0
-                            && a[1].max(b[1]) >= r[1] - 1.0
-                            && rect_segment_distance(r, a, b) < 0.7
-                    });
-                    n[2] += usize::from(on);
+                n[1] += 1;
+                let r = text_box(*pos, *size, *anchor, text);
+                let on = dashes.iter().flatten().any(|(a, b)| {
+                    let (a, b) = (*a, *b);
+                    a[0].min(b[0]) <= r[2] + 1.0
+                        && a[0].max(b[0]) >= r[0] - 1.0
+                        && a[1].min(b[1]) <= r[3] + 1.0
+                        && a[1].max(b[1]) >= r[1] - 1.0
+                        && rect_segment_distance(r, a, b) < 0.7
+                });
+                n[2] += usize::from(on);
+            }
+            for (i, c) in lay.curves.iter().enumerate() {
+                let r = c.label_pt;
+                let d = c.dot_pt;
+                let near = [d[0].clamp(r[0], r[2]), d[1].clamp(r[1], r[3])];
+                if (near[0] - d[0]).hypot(near[1] - d[1]) <= 7.0 {
+                    continue;
                 }
-                for (i, c) in lay.curves.iter().enumerate() {
-                    let r = c.label_pt;
-                    let d = c.dot_pt;
-                    let near = [d[0].clamp(r[0], r[2]), d[1].clamp(r[1], r[3])];
-                    if (near[0] - d[0]).hypot(near[1] - d[1]) <= 7.0 {
-                        continue;
-                    }
-                    n[3] += 1;
-                    let crosses = dashes.iter().enumerate().any(|(j, segs)| {
-                        j != i && segs.iter().any(|(a, b)| segments_cross(d, near, *a, *b))
-                    });
-                    n[4] += usize::from(crosses);
-                }
+                n[3] += 1;
+                let crosses = dashes.iter().enumerate().any(|(j, segs)| {
+                    j != i && segs.iter().any(|(a, b)| segments_cross(d, near, *a, *b))
+                });
+                n[4] += usize::from(crosses);
             }
             n
         })

@@ -11,7 +11,8 @@ use coupler_index::{IndexCurve, PageRef};
 use coupler_kinematics::{AngleTables, Circuit, CouplerPoint, DashPattern, Linkage};
 use coupler_layout::{
     ContentsEntry, CurvePlacement, DisplayList, EXTENT_STEP_DEG, LayoutError, LinkagePage,
-    Orientation, PageSetup, compute_page, compute_page_with_tables, layout_contents, layout_page,
+    Orientation, PageGeometry, PageSetup, compute_page, compute_page_with_tables, layout_contents,
+    layout_page,
 };
 use coupler_render::{
     Bookmark, PageFormat, PageLabelRange, PdfPage, PdfPageContent, PngCompression, RasterPage,
@@ -326,7 +327,17 @@ impl PageJob<'_> {
         timings: &PageTimings,
     ) -> Result<coupler_layout::PageLayout, PageError> {
         let t0 = Instant::now();
-        let page = LinkagePage {
+        let page = self.page();
+        let geometry = self.geometry(&page, setup)?;
+        let t = PageTimings::add(&timings.compute, t0);
+        let layout = layout_page(&page, &geometry, setup);
+        PageTimings::add(&timings.layout, t);
+        Ok(layout)
+    }
+
+    /// The page to lay out: its mechanism, points, grid, features and number.
+    pub fn page(&self) -> LinkagePage {
+        LinkagePage {
             linkage: self.linkage,
             circuit: self.circuit,
             points: self.points.to_vec(),
@@ -334,19 +345,24 @@ impl PageJob<'_> {
             page_number: self.number as usize,
             page_count: self.page_count as usize,
             features: self.features.to_vec(),
-        };
-        let geometry = match self.tables {
-            Some(tables) => compute_page_with_tables(&page, setup, tables),
-            None => compute_page(&page, setup),
+        }
+    }
+
+    /// The geometry of `page` (this job's [`PageJob::page`]) that [`PageJob::layout`]
+    /// lays out: with the run's shared tables when the job has them.
+    pub fn geometry(
+        &self,
+        page: &LinkagePage,
+        setup: &PageSetup,
+    ) -> Result<PageGeometry, PageError> {
+        match self.tables {
+            Some(tables) => compute_page_with_tables(page, setup, tables),
+            None => compute_page(page, setup),
         }
         .map_err(|source| PageError::Layout {
             page: self.number,
             source,
-        })?;
-        let t = PageTimings::add(&timings.compute, t0);
-        let layout = layout_page(&page, &geometry, setup);
-        PageTimings::add(&timings.layout, t);
-        Ok(layout)
+        })
     }
 }
 

@@ -18,6 +18,7 @@ mod dirty;
 mod layer;
 mod pdf;
 mod raster;
+mod rowdeflate;
 mod svg;
 mod svg_font;
 

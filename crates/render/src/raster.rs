@@ -5,6 +5,7 @@ use super::{Canvas, anchored_x};
 use crate::capsule::{Capsules, Target};
 use crate::dirty::Dirty;
 use crate::layer::GrayLayer;
+use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
 };
@@ -484,9 +485,12 @@ fn ppm(dpi: f64) -> u32 {
 /// filter and fdeflate's PNG-tuned fast mode, the inversion folded into the filter:
 /// filtered = gray(row) − gray(row above) = ink(row above) − ink(row). Outside the blocks
 /// `dirty` marks (in this row or the one above) both rows are paper and the filtered bytes
-/// are 0, so only marked spans are computed; deflate sees runs of zeros there. With
-/// `clear`, each row's marked spans are zeroed once the row below has been filtered (the
-/// buffer ends blank). The file is built in one buffer of `capacity` bytes to start with.
+/// are 0, so only marked spans are computed, and [`RowDeflate`] reads only those: a row
+/// with no marked span is a blank row, written as a precomputed bit string (runs of them
+/// one after the other), and the zeros between an inked row's spans only lengthen a run.
+/// The bytes are those of `fdeflate` on the whole filtered rows. With `clear`, each row's
+/// marked spans are zeroed once the row below has been filtered (the buffer ends blank).
+/// The file is built in one buffer of `capacity` bytes to start with.
 fn write_png_fast(
     ink: &mut [u8],
     width: u32,
@@ -514,7 +518,7 @@ fn write_png_fast(
     let idat = out.len();
     out.extend_from_slice(&[0, 0, 0, 0]);
     out.extend_from_slice(b"IDAT");
-    let mut z = fdeflate::Compressor::new(out)?;
+    let mut z = RowDeflate::new(out);
     let mut row = vec![0u8; w + 1];
     row[0] = 2; // Up
     if h > 0 {
@@ -522,12 +526,24 @@ fn write_png_fast(
         for (o, i) in row[1..].iter_mut().zip(&ink[..w]) {
             *o = !*i;
         }
-        z.write_data(&row)?;
+        z.row(&row, std::iter::once((0, w + 1)));
         row[1..].fill(0);
     }
+    // Blank rows (no marked block in the row or the one above: filtered bytes all 0)
+    // waiting to be written as one run.
+    let mut blank = 0;
+    let mut spans: Vec<(usize, usize)> = Vec::new();
     for j in 1..h {
+        spans.clear();
+        spans.extend(dirty.row_pair_spans(j));
+        if spans.is_empty() {
+            blank += 1;
+            continue;
+        }
+        z.blank_rows(w + 1, 2, blank);
+        blank = 0;
         let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
-        for (x0, x1) in dirty.row_pair_spans(j) {
+        for &(x0, x1) in &spans {
             for ((o, a), b) in row[1 + x0..1 + x1]
                 .iter_mut()
                 .zip(&above[x0..x1])
@@ -539,18 +555,19 @@ fn write_png_fast(
                 above[x0..x1].fill(0);
             }
         }
-        z.write_data(&row)?;
-        for (x0, x1) in dirty.row_pair_spans(j) {
+        z.row(&row, spans.iter().map(|&(x0, x1)| (1 + x0, 1 + x1)));
+        for &(x0, x1) in &spans {
             row[1 + x0..1 + x1].fill(0);
         }
     }
+    z.blank_rows(w + 1, 2, blank);
     if clear && h > 0 {
         let last = &mut ink[(h - 1) * w..];
         for (x0, x1) in dirty.row_pair_spans(h - 1) {
             last[x0..x1].fill(0);
         }
     }
-    let mut out = z.finish()?;
+    let mut out = z.finish();
     let len = u32::try_from(out.len() - idat - 8).map_err(std::io::Error::other)?;
     out[idat..idat + 4].copy_from_slice(&len.to_be_bytes());
     let crc = crc32fast::hash(&out[idat + 4..]);
@@ -623,6 +640,10 @@ impl RasterPage {
         let (glyphs, advance) = font::shape_line(&self.font, size, text);
         let x = anchored_x(pos[0], advance, anchor);
         let (em, r) = ((size * k) as f32, (halo * k) as f32);
+        if r.is_nan() || r <= 0.0 {
+            // No halo (and `r == 0` keys are the glyphs' own coverage).
+            return;
+        }
         // The glyphs' tiles: (page x, page y, key).
         let mut placed = std::mem::take(&mut self.halo_scratch.placed);
         placed.clear();
@@ -640,8 +661,10 @@ impl RasterPage {
                 r: r.to_bits(),
                 sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
             };
-            let tile = self.halo_tile(key);
-            let Some(tile) = tile else { continue };
+            self.ensure_halo_tile(key);
+            let Some(Some(tile)) = self.halos.get(&key) else {
+                continue;
+            };
             let (tx, ty) = (ix as i64 + tile.x0, iy as i64 + tile.y0);
             bx0 = bx0.min(tx);
             by0 = by0.min(ty);
@@ -688,31 +711,35 @@ impl RasterPage {
         self.halo_scratch.placed = placed;
     }
 
-    /// The halo of one glyph at its size and quarter-pixel position, made on first use.
-    fn halo_tile(&mut self, key: HaloKey) -> Option<&HaloTile> {
-        if !self.halos.contains_key(&key) {
-            if self.halos.len() >= MAX_HALO_TILES {
-                self.halos.clear();
-            }
-            let font = &self.font;
-            let outline = self
-                .outlines
-                .entry(key.glyph)
-                .or_insert_with(|| font.outline(GlyphId(key.glyph)))
-                .clone();
-            let upem = self.font.units_per_em().unwrap_or(2048.0);
-            let tile = outline.map(|o| {
-                HaloTile::make(
-                    &o,
-                    f32::from_bits(key.em) / upem,
-                    f32::from_bits(key.r),
-                    [f32::from(key.sub[0]) / 4.0, f32::from(key.sub[1]) / 4.0],
-                    &mut self.capsules,
-                )
-            });
-            self.halos.insert(key, tile);
+    /// Makes the tile of `key` if it is not cached yet: the coverage of a glyph when
+    /// `key.r == 0`, else the glyph's halo `key.r` pixels wide on each side (see
+    /// [`HaloKey`]). A glyph without outline is cached as `None`. The one place that
+    /// fills the cache: it is emptied first when full.
+    fn ensure_halo_tile(&mut self, key: HaloKey) {
+        if self.halos.contains_key(&key) {
+            return;
         }
-        self.halos.get(&key).and_then(Option::as_ref)
+        if self.halos.len() >= MAX_HALO_TILES {
+            self.halos.clear();
+        }
+        let font = &self.font;
+        let outline = self
+            .outlines
+            .entry(key.glyph)
+            .or_insert_with(|| font.outline(GlyphId(key.glyph)))
+            .clone();
+        let em = f32::from_bits(key.em);
+        let sub = [f32::from(key.sub[0]) / 4.0, f32::from(key.sub[1]) / 4.0];
+        let tile = outline.map(|outline| {
+            if key.r == 0 {
+                HaloTile::glyph(font, GlyphId(key.glyph), em, sub, outline)
+            } else {
+                let upem = font.units_per_em().unwrap_or(2048.0);
+                let r = f32::from_bits(key.r);
+                HaloTile::make(&outline, em / upem, r, sub, &mut self.capsules)
+            }
+        });
+        self.halos.insert(key, tile);
     }
 }
 
@@ -816,6 +843,36 @@ impl HaloTile {
             h,
             cov,
         }
+    }
+
+    /// The coverage of glyph `id` at em size `em` pixels, its origin at `sub` in the
+    /// first pixel's frame, as ab_glyph draws it.
+    fn glyph(
+        font: &FontRef<'static>,
+        id: GlyphId,
+        em: f32,
+        sub: [f32; 2],
+        outline: Outline,
+    ) -> HaloTile {
+        let glyph = Glyph {
+            id,
+            scale: font::px_scale(font, em),
+            position: point(sub[0], sub[1]),
+        };
+        let scale_factor = font.as_scaled(glyph.scale).scale_factor();
+        let outlined = OutlinedGlyph::new(glyph, outline, scale_factor);
+        let b = outlined.px_bounds();
+        let (x0, y0) = (b.min.x as i64, b.min.y as i64);
+        let w = (b.max.x as i64 - x0).max(0) as usize;
+        let h = (b.max.y as i64 - y0).max(0) as usize;
+        let mut cov = vec![0u8; w * h];
+        outlined.draw(|gx, gy, c| {
+            let (x, y) = (gx as usize, gy as usize);
+            if x < w && y < h {
+                cov[y * w + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+            }
+        });
+        HaloTile { x0, y0, w, h, cov }
     }
 }
 
@@ -990,7 +1047,7 @@ impl Canvas for RasterPage {
                 r: 0,
                 sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
             };
-            self.glyph_tile(key);
+            self.ensure_halo_tile(key);
             let Some(Some(tile)) = self.halos.get(&key) else {
                 continue;
             };
@@ -1014,48 +1071,6 @@ impl Canvas for RasterPage {
                 }
             }
         }
-    }
-}
-
-impl RasterPage {
-    /// Makes the coverage of a glyph (`key.r == 0`) at its em size and quarter-pixel
-    /// position, if not made yet.
-    fn glyph_tile(&mut self, key: HaloKey) {
-        if self.halos.contains_key(&key) {
-            return;
-        }
-        if self.halos.len() >= MAX_HALO_TILES {
-            self.halos.clear();
-        }
-        let font = &self.font;
-        let outline = self
-            .outlines
-            .entry(key.glyph)
-            .or_insert_with(|| font.outline(GlyphId(key.glyph)))
-            .clone();
-        let em = f32::from_bits(key.em);
-        let tile = outline.map(|outline| {
-            let glyph = Glyph {
-                id: GlyphId(key.glyph),
-                scale: font::px_scale(&self.font, em),
-                position: point(f32::from(key.sub[0]) / 4.0, f32::from(key.sub[1]) / 4.0),
-            };
-            let scale_factor = self.font.as_scaled(glyph.scale).scale_factor();
-            let outlined = OutlinedGlyph::new(glyph, outline, scale_factor);
-            let b = outlined.px_bounds();
-            let (x0, y0) = (b.min.x as i64, b.min.y as i64);
-            let w = (b.max.x as i64 - x0).max(0) as usize;
-            let h = (b.max.y as i64 - y0).max(0) as usize;
-            let mut cov = vec![0u8; w * h];
-            outlined.draw(|gx, gy, c| {
-                let (x, y) = (gx as usize, gy as usize);
-                if x < w && y < h {
-                    cov[y * w + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
-                }
-            });
-            HaloTile { x0, y0, w, h, cov }
-        });
-        self.halos.insert(key, tile);
     }
 }
 
@@ -1164,6 +1179,60 @@ mod tests {
             draw(&dl, &mut fresh);
             draw(&dl, &mut page);
             assert_eq!(fresh.ink(), page.ink());
+        }
+    }
+
+    /// The image data of a PNG: its IDAT chunks' bytes, in order.
+    fn idat(png: &[u8]) -> Vec<u8> {
+        let (mut at, mut data) = (8, Vec::new());
+        while at + 8 <= png.len() {
+            let len = u32::from_be_bytes(png[at..at + 4].try_into().unwrap()) as usize;
+            if &png[at + 4..at + 8] == b"IDAT" {
+                data.extend_from_slice(&png[at + 8..at + 8 + len]);
+            }
+            at += 12 + len;
+        }
+        data
+    }
+
+    /// The fast PNG is the one written before blank rows became precomputed runs: its
+    /// image data is `fdeflate`'s stream of the whole Up-filtered rows, byte for byte (so
+    /// pages kept as regression images do not change), and it decodes to the drawn pixels.
+    /// Pages: the sample (blank rows above, between and below ink), the same with one
+    /// dot in the last row, and a blank page.
+    #[test]
+    fn the_fast_png_is_fdeflates_stream_of_the_up_filtered_rows() {
+        for (dpi, kind) in [(72.0, 0), (300.0, 0), (150.0, 1), (72.0, 2)] {
+            let k = dpi / 72.0;
+            let (w, h) = ((300.0 * k) as u32, (200.0 * k) as u32);
+            let mut page = RasterPage::new(w, h, dpi).unwrap();
+            if kind < 2 {
+                draw(&sample(), &mut page);
+            }
+            if kind == 1 {
+                page.fill_rect_px(
+                    f64::from(w) - 3.0,
+                    f64::from(h) - 1.0,
+                    f64::from(w),
+                    f64::from(h),
+                );
+            }
+            let gray = page.to_gray();
+            let png = page.take_png(PngCompression::Fast).unwrap();
+            let (w, h) = (w as usize, h as usize);
+            let mut z = fdeflate::Compressor::new(Vec::new()).unwrap();
+            let mut row = vec![2u8; w + 1];
+            for j in 0..h {
+                for x in 0..w {
+                    let above = if j == 0 { 0 } else { gray[(j - 1) * w + x] };
+                    row[1 + x] = gray[j * w + x].wrapping_sub(above);
+                }
+                z.write_data(&row).unwrap();
+            }
+            let want = z.finish().unwrap();
+            assert!(idat(&png) == want, "dpi {dpi}, page {kind}: streams differ");
+            assert_eq!(decode(&png), gray, "dpi {dpi}, page {kind}");
+            assert!(page.ink().iter().all(|&x| x == 0), "left blank");
         }
     }
 
