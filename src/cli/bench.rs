@@ -433,6 +433,7 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
     // run wrote (each page read back and decoded untimed, its floor timed alone); so a
     // change in the machine's load falls on both alike.
     let (mut runs, mut floors) = ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
+    let mut dense = (Vec::new(), Vec::new());
     let mut last = None;
     let mut written = PagesWritten::default();
     for round in 0..reps {
@@ -456,6 +457,8 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
         }
         floors.0.push(written.wall);
         floors.1.push(written.cpu);
+        dense.0.push(written.wall + written.dense_wall);
+        dense.1.push(written.cpu + written.dense_cpu);
         last = Some((renderer.timings.seconds(), job.curves(), wall));
         if !keep || round + 1 < reps {
             let _ = std::fs::remove_dir_all(&dir);
@@ -464,6 +467,7 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
     let ((mut secs, pages), curves, wall) = last.expect("at least one run");
     let (rw, rc) = (median(runs.0), median(runs.1));
     let (fw, fc) = (median(floors.0), median(floors.1));
+    let (dw, dc) = (median(dense.0), median(dense.1));
     let n = pages.max(1) as f64;
     let per = |s: f64| s / n * 1e3;
     outln!(
@@ -472,7 +476,7 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
         load()
     )?;
     outln!(
-        "Floor per page: what any renderer writing the same PNG files must do with drawing and compression free: write the page's ink once (its {:.0} non-paper coverage bytes per page on average, packed, one copy), write the file's bytes once ({:.0} KB per page on average, one copy) and compute the CRC-32 the PNG format stores for every chunk (checked against the file's). One thread, CPU to the nanosecond; each page's floor is run {FLOOR_REPS} times and averaged. The `generate` CPU is the whole process's (all threads, the index too), in 10 ms ticks.\n",
+        "Floor per page: what any renderer writing the same PNG files must do with drawing and compression free: write the page's ink once (its {:.0} non-paper coverage bytes per page on average, packed, one copy), write the file's bytes once ({:.0} KB per page on average, one copy) and compute the CRC-32 the PNG format stores for every chunk (checked against the file's). One thread, CPU to the nanosecond; each page's floor is run {FLOOR_REPS} times and averaged. It leaves out the deflate, the filter, the Adler-32, drawing and layout, so it is a lower bound and the ratio an upper one; clearing is not in it because this renderer clears and encodes only the blocks it drew (the dense row below adds the issue's clear + one pass over every pixel). The `generate` CPU is the whole process's (all threads, the index too), in 10 ms ticks.\n",
         written.ink as f64 / n,
         written.bytes as f64 / n / 1e3
     )?;
@@ -494,6 +498,12 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
         per(rw * jobs as f64),
         per(rc),
         rc / fc
+    )?;
+    outln!(
+        "| per page: the issue's dense floor (the floor + clearing the whole raster + one CRC-32 pass over all its final pixels; a bound only for a renderer that clears and encodes the whole page) | {:.3} ms | {:.3} ms | {:.1} of `generate`'s CPU / this | |",
+        per(dw),
+        per(dc),
+        rc / dc
     )?;
     outln!(
         "| pages written | {:.0} MB | | | |",
@@ -545,6 +555,9 @@ struct PagesWritten {
     ink: u64,
     /// Chunks whose stored CRC-32 is not the one computed (0 for sound files).
     mismatched: usize,
+    /// Wall and CPU seconds of the dense floor's extra work ([`PageFloor::dense`]).
+    dense_wall: f64,
+    dense_cpu: f64,
 }
 
 /// Reads each PNG in `pages` back (untimed) and times its [`PageFloor`].
@@ -555,7 +568,7 @@ fn floor_of_pages(pages: &std::path::Path) -> Result<PagesWritten> {
     files.retain(|p| p.extension().is_some_and(|e| e == "png"));
     files.sort();
     let mut sum = PagesWritten::default();
-    let (mut ink_out, mut png_out) = (Vec::new(), Vec::new());
+    let (mut ink_out, mut png_out, mut raster) = (Vec::new(), Vec::new(), Vec::new());
     for path in files {
         let bytes = std::fs::read(&path)?;
         let floor =
@@ -563,6 +576,7 @@ fn floor_of_pages(pages: &std::path::Path) -> Result<PagesWritten> {
         // Buffers sized once, outside the timing: the floor writes, it does not allocate.
         ink_out.reserve(floor.ink.len());
         png_out.reserve(floor.png.len());
+        raster.reserve(floor.gray.len());
         let (wall, cpu, bad) = timed(this_thread_cpu_seconds, || {
             (0..FLOOR_REPS)
                 .map(|_| floor.run(&mut ink_out, &mut png_out))
@@ -573,6 +587,13 @@ fn floor_of_pages(pages: &std::path::Path) -> Result<PagesWritten> {
         sum.bytes += floor.png.len() as u64;
         sum.ink += floor.ink.len() as u64;
         sum.mismatched += bad / FLOOR_REPS as usize;
+        let (wall, cpu, _) = timed(this_thread_cpu_seconds, || {
+            for _ in 0..FLOOR_REPS {
+                black_box(floor.dense(&mut raster));
+            }
+        });
+        sum.dense_wall += wall / f64::from(FLOOR_REPS);
+        sum.dense_cpu += cpu / f64::from(FLOOR_REPS);
     }
     Ok(sum)
 }
@@ -593,6 +614,8 @@ struct PageFloor {
     ink: Vec<u8>,
     /// Each chunk's CRC-covered bytes (type and data) and its stored CRC-32.
     chunks: Vec<(std::ops::Range<usize>, u32)>,
+    /// The page's final gray levels, row-major (for [`PageFloor::dense`]).
+    gray: Vec<u8>,
 }
 
 impl PageFloor {
@@ -622,7 +645,25 @@ impl PageFloor {
             chunks.push((at + 4..end, u32::from_be_bytes(stored.try_into()?)));
             at = end + 4;
         }
-        Ok(PageFloor { png, ink, chunks })
+        Ok(PageFloor {
+            png,
+            ink,
+            chunks,
+            gray,
+        })
+    }
+
+    /// The extra work of the dense floor, for a renderer that keeps the whole page
+    /// in one raster and encodes all of it (as this one did before it visited only drawn
+    /// blocks): clear every pixel of the raster once (`raster`, reused, its memory already
+    /// there) and read every final pixel once (one CRC-32 pass over them, the cheapest
+    /// pass an encoder's filter and deflate could make). Not a lower bound on a renderer
+    /// that clears and encodes only what it drew, as this one does.
+    fn dense(&self, raster: &mut Vec<u8>) -> u32 {
+        raster.clear();
+        raster.resize(self.gray.len(), 0);
+        black_box(&*raster);
+        crc32fast::hash(black_box(&self.gray))
     }
 
     /// Does the floor's work once into `ink_out` and `png_out` (buffers reused from page
@@ -675,8 +716,17 @@ mod tests {
             png: bad,
             ink: floor.ink.clone(),
             chunks: floor.chunks.clone(),
+            gray: floor.gray.clone(),
         };
         assert_eq!(bad.run(&mut Vec::new(), &mut Vec::new()), 1);
+        // The dense floor clears a whole raster and reads every pixel.
+        let mut raster = vec![7u8; 5];
+        let crc = floor.dense(&mut raster);
+        assert_eq!(raster, vec![0u8; 64 * 48]);
+        assert_eq!(
+            crc,
+            crc32fast::hash(&ink.iter().map(|c| 255 - c).collect::<Vec<_>>())
+        );
     }
 
     #[test]
@@ -695,5 +745,6 @@ mod tests {
         assert_eq!(sum.ink, 2 * ink.iter().filter(|&&c| c != 0).count() as u64);
         assert_eq!(sum.mismatched, 0);
         assert!(sum.wall > 0.0 && sum.cpu >= 0.0, "{sum:?}");
+        assert!(sum.dense_wall > 0.0 && sum.dense_cpu >= 0.0, "{sum:?}");
     }
 }
