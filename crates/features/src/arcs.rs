@@ -14,7 +14,7 @@
 
 use super::fit::{Circle, CircleFitOptions, fit_circle, kasa_circle};
 use super::{FeatureTolerances, PseudoArc, Side, dash_count};
-use crate::maximal::Candidates;
+use crate::maximal::{Candidates, set_bits};
 use coupler_kinematics::{Curve, DashPattern};
 
 /// The samples of a closed curve taken twice round (so that a window passing the last
@@ -229,7 +229,7 @@ fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
             cb[i] = b;
             cr2[i] = r2;
         }
-        for i in (0..n).filter(|&i| wind[i]) {
+        for i in set_bits(&wind) {
             let (a, b, r2) = (ca[i], cb[i], cr2[i]);
             let (hx, hy) = (xh[i] - x0[i] - a, yh[i] - y0[i] - b);
             let (ex, ey) = (xl[i] - x0[i] - a, yl[i] - y0[i] - b);

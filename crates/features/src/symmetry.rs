@@ -79,14 +79,24 @@ pub fn symmetry<M: Mechanism>(
         // Coarse: each reflected sample has a sample within about a chord length (squared
         // distances; samples visited in a stride so a miss shows early).
         // The mirror partner of M_k moves at M_k's speed, so the local chord bounds the gap.
+        // Each search starts where the last partner found suggests (a reflection runs the
+        // curve backwards: sample k + s near q − s) and goes outwards, so a partner is
+        // usually found in a few steps; every sample is still looked at before one is
+        // declared missing, so the answer is that of a plain scan.
+        let mut last: Option<(usize, usize)> = None;
         let coarse = (0..n).map(|i| (i * 37) % n).all(|k| {
             let thr = 0.75 * chords[k].max(chords[(k + n - 1) % n]) + 1e-9 * size;
             let thr2 = thr * thr;
             let r = m.reflect(c.x[k], c.y[k]);
-            (0..n).any(|q| {
+            let start = last.map_or(0, |(k0, q0)| (q0 + k0 + n - k) % n);
+            let partner = (0..n).map(|t| (start + outward(t, n)) % n).find(|&q| {
                 let (dx, dy) = (c.x[q] - r[0], c.y[q] - r[1]);
                 dx * dx + dy * dy <= thr2
-            })
+            });
+            if let Some(q) = partner {
+                last = Some((k, q));
+            }
+            partner.is_some()
         });
         if !coarse {
             continue;
@@ -97,6 +107,16 @@ pub fn symmetry<M: Mechanism>(
         }
     }
     None
+}
+
+/// The `t`-th offset of a search outwards from a start, modulo `n`: 0, +1, −1, +2, −2, …
+/// (`t < n`: each residue once).
+fn outward(t: usize, n: usize) -> usize {
+    if t % 2 == 1 {
+        t.div_ceil(2)
+    } else {
+        (n - t / 2) % n
+    }
 }
 
 /// Reflection in the line through `g` along the unit vector `d`.
@@ -163,5 +183,20 @@ impl Mirror {
             }
         }
         worst
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::outward;
+
+    #[test]
+    fn outward_offsets_visit_every_sample_once() {
+        for n in 1..40 {
+            let mut seen: Vec<usize> = (0..n).map(|t| outward(t, n)).collect();
+            assert_eq!(&seen[..n.min(3)], &[0, 1, n.saturating_sub(1)][..n.min(3)]);
+            seen.sort();
+            assert_eq!(seen, (0..n).collect::<Vec<_>>(), "{n}");
+        }
     }
 }

@@ -9,7 +9,7 @@
 use crate::error::io_err;
 use crate::{Artifact, GenerateError};
 use serde::{Deserialize, Serialize};
-use std::io::{Read, Write as _};
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 /// The folder (inside the output folder) that holds chunk records, the lock, the
@@ -337,30 +337,112 @@ pub(crate) fn write_file(
     durable: bool,
     write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), GenerateError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let (tmp, file) = create_temporary(path).map_err(io_err(path))?;
-    let result = (|| {
-        let mut w = std::io::BufWriter::new(file);
-        write(&mut w)?;
-        w.flush()?;
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        if durable {
-            file.sync_all()?;
+    let mut t = Temporary::create(path).map_err(io_err(path))?;
+    write(t.buffer())
+        .and_then(|()| t.close(durable))
+        .and_then(|()| t.commit(durable))
+        .map_err(io_err(path))
+}
+
+/// A file being written under a temporary name beside its final path (created as
+/// [`create_temporary`] creates it), counting and hashing (XXH3-128) what is written
+/// through its [`Write`](std::io::Write); renamed into place by [`Temporary::commit`],
+/// removed if dropped before (an error or an interrupted run leaves nothing behind).
+pub(crate) struct Temporary {
+    path: PathBuf,
+    tmp: PathBuf,
+    w: Option<std::io::BufWriter<std::fs::File>>,
+    hasher: xxhash_rust::xxh3::Xxh3,
+    bytes: u64,
+    committed: bool,
+}
+
+impl Temporary {
+    /// Creates the temporary file of `path`.
+    pub(crate) fn create(path: &Path) -> std::io::Result<Temporary> {
+        let (tmp, file) = create_temporary(path)?;
+        Ok(Temporary {
+            path: path.to_path_buf(),
+            tmp,
+            w: Some(std::io::BufWriter::with_capacity(1 << 16, file)),
+            hasher: xxhash_rust::xxh3::Xxh3::new(),
+            bytes: 0,
+            committed: false,
+        })
+    }
+
+    /// The final path.
+    pub(crate) fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The file's buffer, for writing what need not be counted or hashed.
+    fn buffer(&mut self) -> &mut std::io::BufWriter<std::fs::File> {
+        self.w.as_mut().expect("written before it is closed")
+    }
+
+    /// Size and hash of what was written through `Write`, as recorded for file `name`.
+    pub(crate) fn entry(&self, name: &str) -> FileEntry {
+        FileEntry {
+            name: name.to_string(),
+            bytes: self.bytes,
+            xxh3: format!("{:032x}", self.digest()),
         }
-        drop(file);
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
     }
-    result.map_err(io_err(path))?;
-    if durable {
-        sync_dir(&dir).map_err(io_err(&dir))?;
+
+    /// XXH3-128 of what was written through `Write`.
+    pub(crate) fn digest(&self) -> u128 {
+        self.hasher.digest128()
     }
-    Ok(())
+
+    /// Ends writing: flushes, makes the content durable when `durable`, closes.
+    pub(crate) fn close(&mut self, durable: bool) -> std::io::Result<()> {
+        if let Some(mut w) = self.w.take() {
+            w.flush()?;
+            let file = w.into_inner().map_err(|e| e.into_error())?;
+            if durable {
+                file.sync_all()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Closes (if not yet) and renames the file into place; with `durable`, the rename is
+    /// made durable too (fsync of the folder).
+    pub(crate) fn commit(mut self, durable: bool) -> std::io::Result<()> {
+        self.close(durable)?;
+        std::fs::rename(&self.tmp, &self.path)?;
+        self.committed = true;
+        if durable {
+            let dir = match self.path.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            sync_dir(dir)?;
+        }
+        Ok(())
+    }
+}
+
+impl std::io::Write for Temporary {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.buffer().write(buf)?;
+        self.hasher.update(&buf[..n]);
+        self.bytes += n as u64;
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.buffer().flush()
+    }
+}
+
+impl Drop for Temporary {
+    fn drop(&mut self) {
+        if !self.committed {
+            drop(self.w.take());
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
 }
 
 /// Whether process `pid` may still be running (`/proc/PID` exists). Where `/proc` is not

@@ -10,12 +10,13 @@
 //! when a chunk's pages are in place, a chunk record (its index lines and its files'
 //! sizes and hashes) is written the same way under `DIR/.coupler-atlas/chunks/`. A run
 //! skips every chunk whose record is present and whose files verify, so running the same
-//! command again resumes. The index is then streamed from the chunk records, so memory
-//! stays bounded whatever the atlas size. A shard (`K/N`) computes chunks `c` with
+//! command again resumes. The index (with its search columns and shape sidecar) is
+//! written as the chunks come, one chunk at a time, so memory stays bounded whatever the
+//! atlas size. A shard (`K/N`) computes chunks `c` with
 //! `c mod N = K − 1`; [`merge`] gathers shard folders and assembles exactly what one run
 //! writes.
 
-mod columns;
+mod assembly;
 mod curves;
 mod error;
 mod files;

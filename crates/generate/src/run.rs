@@ -1,9 +1,12 @@
 //! Running a job: work cut into fixed chunks of units in atlas order; each chunk's pages
 //! written as they finish and its record (index lines with their hash, files with sizes
 //! and hashes) written last, so a killed run resumes where it stopped; a shard computes
-//! its share of the chunks; [`merge`] gathers shard folders; the index and manifest are
-//! assembled from the chunk records, every record verified as it is read.
+//! its share of the chunks; [`merge`] gathers shard folders. The index, its search columns
+//! and the shape sidecar are built as the chunks come (`assembly.rs`: a computed chunk
+//! from memory, a chunk found complete from its record, verified as it is read); the
+//! manifest is written last.
 
+use crate::assembly::{Assembly, ChunkParts};
 use crate::error::io_err;
 use crate::files::{
     PAGES_DIR, check_name, check_out_dir, check_subfolders, hash_reader, open_regular,
@@ -20,10 +23,7 @@ use crate::{
     FileEntry, GenerateError, Group, Job, PageFailure, Rendered, Renderer, STATE_DIR,
     compute_group, write_atomically,
 };
-use coupler_index::{
-    IndexCurve, IndexSummary, MAX_INDEX_LINE, curve_line, read_line_bounded, write_curve_line,
-    write_index_footer, write_index_header,
-};
+use coupler_index::{IndexCurve, IndexSummary, MAX_INDEX_LINE, curve_line, read_line_bounded};
 use coupler_kinematics::AngleTables;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -228,13 +228,27 @@ pub(crate) fn read_chunk(
 }
 
 /// A computed chunk, ready to be recorded: its curve lines (each ending in a newline, in
-/// id order), how many, the first id, and the files its pages are in.
+/// id order), how many, the first id, and the files its pages are in; for a whole run,
+/// also its curves and their shape records (for the assembly).
 struct ChunkLines {
     chunk: u64,
     lines: String,
     curves: u64,
     first_id: u64,
     files: Vec<FileEntry>,
+    records: Vec<IndexCurve>,
+    shapes: Vec<u8>,
+}
+
+/// What the record writer is given, in chunk order.
+enum Finished {
+    /// A chunk computed by this run: its record is written (and it is assembled).
+    Computed(ChunkLines),
+    /// A chunk found complete (its record verified), and its units: assembled from the
+    /// record.
+    Reused(u64, Vec<Group>),
+    /// A chunk not recorded (a page failed): the atlas is not assembled.
+    Failed,
 }
 
 /// The index lines of `curves`, each ending in a newline (formatted by the worker that
@@ -250,7 +264,7 @@ fn format_lines(curves: &[IndexCurve]) -> std::io::Result<String> {
 
 /// Writes the record of a computed chunk (durably: after the files it lists are made
 /// durable).
-fn write_chunk(dir: &Path, key: &str, c: ChunkLines) -> Result<(), GenerateError> {
+fn write_chunk(dir: &Path, key: &str, c: &ChunkLines) -> Result<(), GenerateError> {
     sync_files(dir, c.files.iter().map(|f| f.name.as_str()))?;
     let header = ChunkHeader {
         format: CHUNK_FORMAT,
@@ -260,7 +274,7 @@ fn write_chunk(dir: &Path, key: &str, c: ChunkLines) -> Result<(), GenerateError
         first_id: c.first_id,
         lines_bytes: c.lines.len() as u64,
         lines_xxh3: format!("{:032x}", xxhash_rust::xxh3::xxh3_128(c.lines.as_bytes())),
-        files: c.files,
+        files: c.files.clone(),
     };
     write_atomically(&chunk_path(dir, c.chunk), |w| {
         serde_json::to_writer(&mut *w, &header)?;
@@ -270,13 +284,15 @@ fn write_chunk(dir: &Path, key: &str, c: ChunkLines) -> Result<(), GenerateError
 }
 
 /// A group's index lines (see [`format_lines`]), their count and first id, the files it
-/// wrote, and the pages that failed.
+/// wrote, and the pages that failed; for a whole run, its curves and their shape records.
 struct GroupOutput {
     lines: String,
     curves: u64,
     first_id: Option<u64>,
     files: Vec<FileEntry>,
     failed: Vec<PageFailure>,
+    records: Vec<IndexCurve>,
+    shapes: Vec<u8>,
 }
 
 /// Writes what a renderer made: the names recorded in the ledger first (durably), then
@@ -489,16 +505,44 @@ pub fn run(
         .features
         .enabled
         .then_some(&job.spec.features.tolerances);
+    let summary = job.summary(renderer.pages(job));
+    // For a whole run, the index, columns and sidecar are built as the chunks come.
+    let assembly = if whole {
+        Some(Assembly::start(job, &summary)?)
+    } else {
+        None
+    };
+    let shape_kind = assembly.as_ref().and_then(Assembly::record_kind);
     // The chunks are computed in order, each by all workers; a computed chunk's record is
-    // written (its pages made durable, the record written and made durable) on a thread
-    // of its own while the next chunk is computed. At most one chunk waits for it.
-    let (computed, reused, failed, chunk_files) = std::thread::scope(|scope| {
-        let (records, pending) = std::sync::mpsc::sync_channel::<ChunkLines>(1);
-        let (out, record_key) = (&job.out, key.as_str());
-        let writer = scope.spawn(move || {
-            pending
-                .into_iter()
-                .try_for_each(|lines| write_chunk(out, record_key, lines))
+    // written (its pages made durable, the record written and made durable) and the chunk
+    // added to the assembly on a thread of its own while the next chunk is computed. At
+    // most one chunk waits for it.
+    let (computed, reused, failed, chunk_files, assembly) = std::thread::scope(|scope| {
+        let (records, pending) = std::sync::mpsc::sync_channel::<Finished>(1);
+        let (record_key, pool) = (key.as_str(), &pool);
+        let writer = scope.spawn(move || -> Result<Option<Assembly>, GenerateError> {
+            let mut assembly = assembly;
+            for f in pending {
+                match f {
+                    Finished::Computed(c) => {
+                        write_chunk(&job.out, record_key, &c)?;
+                        if let Some(a) = assembly.as_mut() {
+                            a.push(ChunkParts {
+                                lines: &c.lines,
+                                curves: &c.records,
+                                shapes: &c.shapes,
+                            })?;
+                        }
+                    }
+                    Finished::Reused(c, units) => {
+                        if let Some(a) = assembly.as_mut() {
+                            a.push_record(job, c, record_key, &units, pool)?;
+                        }
+                    }
+                    Finished::Failed => assembly = None,
+                }
+            }
+            Ok(assembly)
         });
         let mut computed = 0;
         let mut reused = 0;
@@ -529,6 +573,10 @@ pub fn run(
                     reused += 1;
                     if whole {
                         chunk_files.push(Some(header.files));
+                        if records.send(Finished::Reused(c, chunk)).is_err() {
+                            // The writer stopped on an error: it is reported below.
+                            break;
+                        }
                     }
                     continue;
                 }
@@ -557,6 +605,10 @@ pub fn run(
                             let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
                             let lines =
                                 format_lines(&curves).map_err(io_err(&chunk_path(&job.out, c)))?;
+                            let shapes = match shape_kind {
+                                Some(kind) => crate::shapes::unit_records(job, g, kind)?,
+                                None => Vec::new(),
+                            };
                             progress(curves.len() as u64);
                             Ok(GroupOutput {
                                 lines,
@@ -564,6 +616,8 @@ pub fn run(
                                 first_id: curves.first().map(|c| c.id),
                                 files,
                                 failed,
+                                records: if whole { curves } else { Vec::new() },
+                                shapes,
                             })
                         })
                         .collect::<Result<_, _>>()
@@ -577,24 +631,35 @@ pub fn run(
                     failed.extend(chunk_failed);
                     if whole {
                         chunk_files.push(None);
+                        if records.send(Finished::Failed).is_err() {
+                            break;
+                        }
                     }
                     continue;
                 }
                 let mut lines = String::with_capacity(results.iter().map(|r| r.lines.len()).sum());
+                let mut shapes = Vec::with_capacity(results.iter().map(|r| r.shapes.len()).sum());
                 for r in &results {
                     lines.push_str(&r.lines);
+                    shapes.extend_from_slice(&r.shapes);
                 }
-                let record = ChunkLines {
+                let mut record = ChunkLines {
                     chunk: c,
                     lines,
                     curves: results.iter().map(|r| r.curves).sum(),
                     first_id: results.iter().find_map(|r| r.first_id).unwrap_or(0),
-                    files: results.into_iter().flat_map(|r| r.files).collect(),
+                    files: Vec::new(),
+                    records: Vec::new(),
+                    shapes,
                 };
+                for r in results {
+                    record.files.extend(r.files);
+                    record.records.extend(r.records);
+                }
                 if whole {
                     chunk_files.push(Some(record.files.clone()));
                 }
-                if records.send(record).is_err() {
+                if records.send(Finished::Computed(record)).is_err() {
                     // The writer stopped on an error: it is reported below.
                     break;
                 }
@@ -609,7 +674,7 @@ pub fn run(
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         match (result, written) {
             (_, Err(e)) => Err(or_removed(&job.out, e)),
-            (r, Ok(())) => r.map(|()| (computed, reused, failed, chunk_files)),
+            (r, Ok(assembly)) => r.map(|()| (computed, reused, failed, chunk_files, assembly)),
         }
     })?;
     still_there(&job.out)?;
@@ -626,12 +691,12 @@ pub fn run(
             dir: job.out.clone(),
         });
     }
-    let summary = job.summary(renderer.pages(job));
-    let (index_path, removed_files) = if whole {
-        let (p, removed) = assemble(job, renderer, &key, chunk_files, &prep.ledger)?;
-        (Some(p), removed)
-    } else {
-        (None, 0)
+    let (index_path, removed_files) = match assembly {
+        Some(a) => {
+            let (p, removed) = assemble(job, renderer, &key, chunk_files, &prep.ledger, a)?;
+            (Some(p), removed)
+        }
+        None => (None, 0),
     };
     Ok(RunReport {
         summary,
@@ -645,17 +710,18 @@ pub fn run(
     })
 }
 
-/// Writes `index.json` (streamed from the chunk records, in chunk order, each verified
-/// against its hash as it is read), the atlas-level files, and `manifest.json` into
-/// `job.out`, then removes files of earlier runs this atlas no longer has. `known` holds
-/// the files of the chunks already verified (the others are verified here). Returns the
-/// index's path and how many old files were removed.
+/// Puts the atlas-level files into `job.out`: the atlas pages, then the index, columns
+/// and sidecar of `assembly` (every chunk added), then `manifest.json`; then removes files
+/// of earlier runs this atlas no longer has. `known` holds the files of the chunks already
+/// verified (the others are verified here). Returns the index's path and how many old
+/// files were removed.
 fn assemble(
     job: &Job,
     renderer: &dyn Renderer,
     key: &str,
     known: Vec<Option<Vec<FileEntry>>>,
     ledger: &Ledger,
+    assembly: Assembly,
 ) -> Result<(PathBuf, usize), GenerateError> {
     let total = job.chunk_count();
     let mut files: Vec<FileEntry> = Vec::new();
@@ -673,6 +739,7 @@ fn assemble(
             }
         }
     }
+    let assembled = assembly.finish()?;
     ledger.add(ROOT_FILES)?;
     let (atlas_files, failed) = write_rendered(&job.out, renderer.render_atlas(job), ledger);
     if !failed.is_empty() {
@@ -683,42 +750,12 @@ fn assemble(
     }
     sync_files(&job.out, atlas_files.iter().map(|f| f.name.as_str()))?;
     files.extend(atlas_files);
-    let summary = job.summary(renderer.pages(job));
-    let index_path = job.out.join("index.json");
-    write_atomically(&index_path, |w| {
-        write_index_header(&mut *w, &job.spec, &summary)?;
-        let mut first = true;
-        for c in 0..total {
-            // Only one chunk's lines are in memory at a time; a record that changed
-            // since it was checked stops the write (the temporary index is discarded).
-            let mut sink = |line: &str| {
-                let r = write_curve_line(&mut *w, first, line);
-                first = false;
-                r
-            };
-            read_chunk(&job.out, c, key, false, Some(&mut sink)).map_err(|p| {
-                std::io::Error::other(format!("chunk {c} changed while assembling: {p}"))
-            })?;
-        }
-        write_index_footer(&mut *w)
-    })?;
-    let index_entry = FileEntry::of_file(&job.out, "index.json").map_err(io_err(&index_path))?;
-    files.push(crate::columns::write_columns(
-        job,
-        &index_entry,
-        |c, sink| {
-            read_chunk(&job.out, c, key, false, Some(sink))
-                .map(|_| ())
-                .map_err(|p| p.to_string())
-        },
-    )?);
-    files.push(index_entry);
-    files.extend(crate::shapes::write_shapes(job)?);
+    files.extend(assembled.commit(&job.out)?);
     write_manifest(&job.out, key, files.clone())?;
     let mut keep: Vec<String> = files.into_iter().map(|f| f.name).collect();
     keep.push("manifest.json".into());
     let removed = prune(&job.out, ledger, &keep)?;
-    Ok((index_path, removed))
+    Ok((job.out.join("index.json"), removed))
 }
 
 /// Copies file `f` of shard folder `src` into `out` (atomically), checking its size and
@@ -919,5 +956,6 @@ pub fn merge(
     if interrupt.load(Ordering::Relaxed) {
         return Err(stopped());
     }
-    assemble(job, renderer, &key, chunk_files, &prep.ledger).map(|(p, _)| p)
+    let assembly = Assembly::of_records(job, &job.summary(renderer.pages(job)), &key)?;
+    assemble(job, renderer, &key, chunk_files, &prep.ledger, assembly).map(|(p, _)| p)
 }

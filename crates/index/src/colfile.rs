@@ -490,8 +490,15 @@ impl<W: Write> ColumnsWriter<W> {
         })
     }
 
-    /// Adds the next curve.
+    /// Adds the next curve (after the lines given to [`ColumnsWriter::push_line`]).
     pub fn push(&mut self, c: &IndexCurve) -> std::io::Result<()> {
+        if !self.lines.is_empty() {
+            self.parse_lines()?;
+        }
+        self.push_curve(c)
+    }
+
+    fn push_curve(&mut self, c: &IndexCurve) -> std::io::Result<()> {
         let too_many =
             || std::io::Error::other("more features than the search columns hold (2^32)");
         let page = match &c.page {
@@ -554,7 +561,7 @@ impl<W: Write> ColumnsWriter<W> {
             })
             .collect::<std::io::Result<_>>()?;
         for c in &curves {
-            self.push(c)?;
+            self.push_curve(c)?;
         }
         Ok(())
     }

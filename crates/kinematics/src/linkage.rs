@@ -69,7 +69,35 @@ impl FourBar {
     /// Barker's class (Norton, *Design of Machinery*, Table 2-4), decided with exact
     /// decimal arithmetic so that `s + l = p + q` on a decimal grid is never a float
     /// coin-flip. Input = crank, output = rocker.
+    ///
+    /// Far from the Grashof equality it is decided on the `f64` lengths themselves, with
+    /// the same result: the exact decimals sort as the `f64`s do (the shortest decimal
+    /// that rounds to `x` increases with `x`, and equal decimals are equal `f64`s), and
+    /// each decimal is within half an ulp of its `f64` (2⁻⁵³ of it), so `s + l − p − q`
+    /// computed in `f64` is within `3·2⁻⁵³·(s + l + p + q)` of the exact difference: when
+    /// it is larger than `10⁻¹²·(s + l + p + q)` in size, its sign is the exact one.
+    /// Nearer the equality the exact decimals decide (as they always did).
     pub fn class(&self) -> Class {
+        let floats = [self.ground, 1.0, self.coupler, self.rocker];
+        if floats.iter().all(|x| x.is_finite() && *x > 0.0) {
+            let mut sorted = floats;
+            sorted.sort_by(f64::total_cmp);
+            let (s, p, q, l) = (sorted[0], sorted[1], sorted[2], sorted[3]);
+            let diff = (s + l) - (p + q);
+            if diff.abs() > 1e-12 * (s + l + p + q) {
+                let which = |x: f64| floats.iter().position(|&y| y == x).unwrap_or(0);
+                return if diff < 0.0 {
+                    [Class::Gccc, Class::Gcrr, Class::Grcr, Class::Grrc][which(s)]
+                } else {
+                    [Class::Rrr1, Class::Rrr2, Class::Rrr3, Class::Rrr4][which(l)]
+                };
+            }
+        }
+        self.class_exact()
+    }
+
+    /// [`FourBar::class`] decided on the exact decimals alone.
+    fn class_exact(&self) -> Class {
         let [crank, coupler, rocker, ground] = self.exact_lengths();
         // Barker's link order: L1 ground, L2 input, L3 coupler, L4 output.
         let links = [ground, crank, coupler, rocker];
@@ -285,6 +313,36 @@ mod tests {
 
     fn class(a: f64, b: f64, c: f64) -> Class {
         FourBar::new(a, b, c).unwrap().class()
+    }
+
+    /// Deciding on the `f64` lengths away from the Grashof equality gives the class the
+    /// exact decimals give: on a decimal grid (where equalities are exact and sums of
+    /// decimals round), on lengths a rounding away from an equality, and on generic
+    /// lengths such as a cognate's.
+    #[test]
+    fn class_by_floats_is_the_exact_class() {
+        let mut lengths: Vec<f64> = (1..=40).map(|k| k as f64 * 0.1).collect();
+        lengths.extend([0.3 + 0.6, 0.1 + 0.2, 1.0 + 1e-15, 3.0 - 4e-16, 2.0 + 2e-12]);
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..20 {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            lengths.push(0.05 + (seed >> 11) as f64 / (1u64 << 53) as f64 * 4.0);
+        }
+        let mut change_points = 0;
+        for &a in &lengths {
+            for &b in &lengths {
+                for &c in &lengths {
+                    let l = FourBar::new(a, b, c).unwrap();
+                    let exact = l.class_exact();
+                    assert_eq!(l.class(), exact, "{a} {b} {c}");
+                    change_points += usize::from(exact.is_change_point());
+                }
+            }
+        }
+        // The grid holds equalities, which the exact decimals decide.
+        assert!(change_points > 100, "{change_points}");
     }
 
     #[test]
