@@ -31,13 +31,16 @@ enum Which {
         atlas_reps: usize,
     },
     /// Pages: `generate` of the default atlas with pages (300 dpi tabloid grayscale PNG),
-    /// wall time and the per-page split into compute, layout, draw, encode, write.
+    /// wall and CPU time, beside its output floor measured in the same rounds (each page's
+    /// ink written once, its file's bytes written once and the PNG's CRC-32s computed, one
+    /// thread), the ratio, and the per-page split into compute, layout, draw, encode, write.
     Pages {
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
         jobs: usize,
-        /// Repetitions (the median wall time is reported, the split from the last).
-        #[arg(long, default_value_t = 1)]
+        /// Rounds (each runs `generate` and then the floor of the pages it wrote; medians
+        /// are reported, the split from the last round).
+        #[arg(long, default_value_t = 3)]
         reps: usize,
         /// Output folder (kept, so its size can be measured); default: a temporary one,
         /// removed afterwards.
@@ -420,44 +423,99 @@ fn core(reps: usize, atlas_reps: usize) -> Result<ExitCode> {
 
 fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<ExitCode> {
     use coupler_atlas::generate::{PageOptions, PageRenderer};
-    outln!("## Pages\n\nMachine: {}\n", machine())?;
+    let load_before = load();
     let spec = Spec::default_atlas();
     let keep = out.is_some();
     let dir = out.unwrap_or_else(|| {
         std::env::temp_dir().join(format!("coupler-atlas-bench-pages-{}", std::process::id()))
     });
-    let mut times = Vec::new();
+    // Alternating rounds: `generate` with pages, then the output floor of the pages that
+    // run wrote (each page read back and decoded untimed, its floor timed alone); so a
+    // change in the machine's load falls on both alike.
+    let (mut runs, mut floors) = ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
+    let mut dense = (Vec::new(), Vec::new());
     let mut last = None;
-    for _ in 0..reps {
+    let mut written = PagesWritten::default();
+    for round in 0..reps {
         let _ = std::fs::remove_dir_all(&dir);
         let job = generate::Job::new(spec.clone(), "built-in", &dir, jobs);
         let renderer = PageRenderer::new(PageOptions::from_spec(&job.spec)?);
         let interrupt = std::sync::atomic::AtomicBool::new(false);
-        let t = Instant::now();
-        generate::run(&job, &renderer, &|_| {}, &interrupt)?;
-        let wall = t.elapsed().as_secs_f64();
-        times.push(wall);
+        let (wall, cpu, report) = timed(process_cpu_seconds, || {
+            generate::run(&job, &renderer, &|_| {}, &interrupt)
+        });
+        black_box(report?);
+        runs.0.push(wall);
+        runs.1.push(cpu);
+        written = floor_of_pages(&dir.join("pages"))?;
+        if written.mismatched > 0 {
+            anyhow::bail!(
+                "{}: {} PNG chunks whose CRC-32 does not match their bytes",
+                dir.display(),
+                written.mismatched
+            );
+        }
+        floors.0.push(written.wall);
+        floors.1.push(written.cpu);
+        dense.0.push(written.wall + written.dense_wall);
+        dense.1.push(written.cpu + written.dense_cpu);
         last = Some((renderer.timings.seconds(), job.curves(), wall));
-    }
-    let bytes: u64 = std::fs::read_dir(dir.join("pages"))?
-        .filter_map(|e| e.ok()?.metadata().ok())
-        .map(|m| m.len())
-        .sum();
-    if !keep {
-        let _ = std::fs::remove_dir_all(&dir);
+        if !keep || round + 1 < reps {
+            let _ = std::fs::remove_dir_all(&dir);
+        }
     }
     let ((mut secs, pages), curves, wall) = last.expect("at least one run");
+    let (rw, rc) = (median(runs.0), median(runs.1));
+    let (fw, fc) = (median(floors.0), median(floors.1));
+    let (dw, dc) = (median(dense.0), median(dense.1));
+    let n = pages.max(1) as f64;
+    let per = |s: f64| s / n * 1e3;
+    outln!(
+        "## Pages\n\nMachine: {}; load average {load_before} before, {} after; {reps} alternating rounds, medians\n",
+        machine(),
+        load()
+    )?;
+    outln!(
+        "Floor per page: what any renderer writing the same PNG files must do with drawing and compression free: write the page's ink once (its {:.0} non-paper coverage bytes per page on average, packed, one copy), write the file's bytes once ({:.0} KB per page on average, one copy) and compute the CRC-32 the PNG format stores for every chunk (checked against the file's). One thread, CPU to the nanosecond; each page's floor is run {FLOOR_REPS} times and averaged. It leaves out the deflate, the filter, the Adler-32, drawing and layout, so it is a lower bound and the ratio an upper one; clearing is not in it because this renderer clears and encodes only the blocks it drew (the dense row below adds the issue's clear + one pass over every pixel). The `generate` CPU is the whole process's (all threads, the index too), in 10 ms ticks.\n",
+        written.ink as f64 / n,
+        written.bytes as f64 / n / 1e3
+    )?;
+    outln!("| run | wall | CPU | CPU / floor | target |\n|---|---|---|---|---|")?;
+    outln!(
+        "| floor: ink + file bytes + CRC-32, 1 thread, all {pages} pages | {fw:.3} s | {fc:.3} s | 1 | |"
+    )?;
+    outln!(
+        "| `generate` default spec with pages ({curves} curves, {pages} pages, 300 dpi tabloid 8-bit gray PNG), {jobs} threads | {rw:.2} s | {rc:.2} s | {:.1} | ≤ 15 s wall |",
+        rc / fc
+    )?;
+    outln!(
+        "| per page: floor | {:.3} ms | {:.3} ms | 1 | |",
+        per(fw),
+        per(fc)
+    )?;
+    outln!(
+        "| per page: `generate` (wall × {jobs} threads / pages; CPU / pages) | {:.2} ms | {:.2} ms | {:.1} | ≤ 10 ms |",
+        per(rw * jobs as f64),
+        per(rc),
+        rc / fc
+    )?;
+    outln!(
+        "| per page: the issue's dense floor (the floor + clearing the whole raster + one CRC-32 pass over all its final pixels; a bound only for a renderer that clears and encodes the whole page) | {:.3} ms | {:.3} ms | {:.1} of `generate`'s CPU / this | |",
+        per(dw),
+        per(dc),
+        rc / dc
+    )?;
+    outln!(
+        "| pages written | {:.0} MB | | | |",
+        written.bytes as f64 / 1e6
+    )?;
     // Writing (atomic rename, hashing, chunk records, index) is done by `generate`, not the
     // renderer: count it as the rest of the workers' time.
     secs[4] = (wall * jobs as f64 - secs[..4].iter().sum::<f64>()).max(0.0);
-    let per = |s: f64| s / pages.max(1) as f64 * 1e3;
     let busy: f64 = secs.iter().sum();
-    outln!("| measure | value | target |\n|---|---|---|")?;
     outln!(
-        "| `generate` default spec with pages ({curves} curves, {pages} pages, 300 dpi tabloid 8-bit gray PNG), {jobs} threads, wall | {:.2} s | ≤ 15 s |",
-        median(times)
+        "\nThe split of the last round's workers' wall time (the renderer's own clocks):\n\n| per page | wall | share |\n|---|---|---|"
     )?;
-    outln!("| pages written | {:.0} MB | |", bytes as f64 / 1e6)?;
     let names = [
         "compute (dash sampling)",
         "layout",
@@ -467,11 +525,226 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
     ];
     for (name, s) in names.iter().zip(secs) {
         outln!(
-            "| per page: {name} | {:.2} ms ({:.0} %) | |",
+            "| {name} | {:.2} ms | {:.0} % |",
             per(s),
             100.0 * s / busy.max(1e-12)
         )?;
     }
-    outln!("| per page: total (one worker) | {:.2} ms | |", per(busy))?;
+    outln!("| total (one worker) | {:.2} ms | |", per(busy))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// How many times each page's floor is run in one timed block (the mean is taken).
+const FLOOR_REPS: u32 = 4;
+
+/// The CPU time of the calling thread, seconds, to the nanosecond (Linux:
+/// `/proc/thread-self/schedstat`); `None` elsewhere.
+fn this_thread_cpu_seconds() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    Some(s.split_whitespace().next()?.parse::<u64>().ok()? as f64 * 1e-9)
+}
+
+/// The floors of every PNG in a pages folder, summed.
+#[derive(Debug, Default)]
+struct PagesWritten {
+    /// Wall and CPU seconds of the floors (reading and decoding not counted).
+    wall: f64,
+    cpu: f64,
+    /// Bytes of all the PNG files, and non-paper pixels of all the pages.
+    bytes: u64,
+    ink: u64,
+    /// Chunks whose stored CRC-32 is not the one computed (0 for sound files).
+    mismatched: usize,
+    /// Wall and CPU seconds of the dense floor's extra work ([`PageFloor::dense`]).
+    dense_wall: f64,
+    dense_cpu: f64,
+}
+
+/// Reads each PNG in `pages` back (untimed) and times its [`PageFloor`].
+fn floor_of_pages(pages: &std::path::Path) -> Result<PagesWritten> {
+    let mut files: Vec<_> = std::fs::read_dir(pages)?
+        .map(|e| e.map(|e| e.path()))
+        .collect::<std::io::Result<_>>()?;
+    files.retain(|p| p.extension().is_some_and(|e| e == "png"));
+    files.sort();
+    let mut sum = PagesWritten::default();
+    let (mut ink_out, mut png_out, mut raster) = (Vec::new(), Vec::new(), Vec::new());
+    for path in files {
+        let bytes = std::fs::read(&path)?;
+        let floor =
+            PageFloor::new(bytes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        // Buffers sized once, outside the timing: the floor writes, it does not allocate.
+        ink_out.reserve(floor.ink.len());
+        png_out.reserve(floor.png.len());
+        raster.reserve(floor.gray.len());
+        let (wall, cpu, bad) = timed(this_thread_cpu_seconds, || {
+            (0..FLOOR_REPS)
+                .map(|_| floor.run(&mut ink_out, &mut png_out))
+                .sum::<usize>()
+        });
+        sum.wall += wall / f64::from(FLOOR_REPS);
+        sum.cpu += cpu / f64::from(FLOOR_REPS);
+        sum.bytes += floor.png.len() as u64;
+        sum.ink += floor.ink.len() as u64;
+        sum.mismatched += bad / FLOOR_REPS as usize;
+        let (wall, cpu, _) = timed(this_thread_cpu_seconds, || {
+            for _ in 0..FLOOR_REPS {
+                black_box(floor.dense(&mut raster));
+            }
+        });
+        sum.dense_wall += wall / f64::from(FLOOR_REPS);
+        sum.dense_cpu += cpu / f64::from(FLOOR_REPS);
+    }
+    Ok(sum)
+}
+
+/// The output floor of one PNG page: the work any renderer that writes these exact bytes
+/// must do, however fast it draws and compresses. It must produce every non-paper pixel's
+/// final coverage at least once (here: those bytes written once, packed, by one copy —
+/// the cheapest way to write that many bytes), write every byte of the file at least once
+/// (one copy of the file), and compute the CRC-32 the PNG format stores after every chunk
+/// (over the chunk's type and data, as `crc32fast` does it). Clearing the raster is not
+/// in it: a renderer that visits only the blocks it drew into (as this one does) clears
+/// no more than its ink. Nor is the deflate, the filter, the Adler-32 or the layout: all
+/// are real work the floor leaves out, so it is a lower bound and the ratio an upper one.
+struct PageFloor {
+    /// The file.
+    png: Vec<u8>,
+    /// The page's non-paper pixels as ink coverage (255 − gray), row-major, packed.
+    ink: Vec<u8>,
+    /// Each chunk's CRC-covered bytes (type and data) and its stored CRC-32.
+    chunks: Vec<(std::ops::Range<usize>, u32)>,
+    /// The page's final gray levels, row-major (for [`PageFloor::dense`]).
+    gray: Vec<u8>,
+}
+
+impl PageFloor {
+    /// The floor of the 8-bit grayscale PNG `png` (decoded here, untimed).
+    fn new(png: Vec<u8>) -> Result<PageFloor> {
+        let mut reader = png::Decoder::new(std::io::Cursor::new(&png[..])).read_info()?;
+        let info = reader.info();
+        if (info.color_type, info.bit_depth) != (png::ColorType::Grayscale, png::BitDepth::Eight) {
+            anyhow::bail!("not an 8-bit grayscale PNG");
+        }
+        let mut gray = vec![0; reader.output_buffer_size().unwrap_or(0)];
+        let frame = reader.next_frame(&mut gray)?;
+        gray.truncate(frame.buffer_size());
+        let ink: Vec<u8> = gray
+            .iter()
+            .filter(|&&g| g != 255)
+            .map(|&g| 255 - g)
+            .collect();
+        let mut chunks = Vec::new();
+        let mut at = 8;
+        while at + 12 <= png.len() {
+            let len = u32::from_be_bytes(png[at..at + 4].try_into()?) as usize;
+            let end = at + 8 + len;
+            let stored = png
+                .get(end..end + 4)
+                .ok_or_else(|| anyhow::anyhow!("chunk at byte {at} runs past the end"))?;
+            chunks.push((at + 4..end, u32::from_be_bytes(stored.try_into()?)));
+            at = end + 4;
+        }
+        Ok(PageFloor {
+            png,
+            ink,
+            chunks,
+            gray,
+        })
+    }
+
+    /// The extra work of the dense floor, for a renderer that keeps the whole page
+    /// in one raster and encodes all of it (as this one did before it visited only drawn
+    /// blocks): clear every pixel of the raster once (`raster`, reused, its memory already
+    /// there) and read every final pixel once (one CRC-32 pass over them, the cheapest
+    /// pass an encoder's filter and deflate could make). Not a lower bound on a renderer
+    /// that clears and encodes only what it drew, as this one does.
+    fn dense(&self, raster: &mut Vec<u8>) -> u32 {
+        raster.clear();
+        raster.resize(self.gray.len(), 0);
+        black_box(&*raster);
+        crc32fast::hash(black_box(&self.gray))
+    }
+
+    /// Does the floor's work once into `ink_out` and `png_out` (buffers reused from page
+    /// to page); the number of chunks whose CRC-32 is not the stored one.
+    fn run(&self, ink_out: &mut Vec<u8>, png_out: &mut Vec<u8>) -> usize {
+        ink_out.clear();
+        ink_out.extend_from_slice(black_box(&self.ink));
+        black_box(&*ink_out);
+        png_out.clear();
+        png_out.extend_from_slice(black_box(&self.png));
+        let file = black_box(&*png_out);
+        self.chunks
+            .iter()
+            .filter(|(range, stored)| crc32fast::hash(&file[range.clone()]) != *stored)
+            .count()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coupler_atlas::render::{PngCompression, RasterPage};
+
+    /// A small drawn page as `generate` encodes it, and its ink coverage.
+    fn page() -> (Vec<u8>, Vec<u8>) {
+        let mut page = RasterPage::new(64, 48, 72.0).expect("a page");
+        page.fill_rect_px(3.0, 4.0, 20.5, 9.25);
+        page.fill_rect_px(30.0, 20.0, 31.0, 47.0);
+        let ink = page.ink().to_vec();
+        (page.take_png(PngCompression::Fast).expect("encoded"), ink)
+    }
+
+    #[test]
+    fn the_page_floor_writes_the_ink_and_the_file_and_checks_every_crc() {
+        let (png, ink) = page();
+        let floor = PageFloor::new(png.clone()).expect("a floor");
+        let inked: Vec<u8> = ink.iter().copied().filter(|&c| c != 0).collect();
+        assert!(!inked.is_empty());
+        assert_eq!(floor.ink, inked, "the non-paper pixels, packed");
+        // IHDR, pHYs, IDAT…, IEND: every chunk's CRC is computed and matches.
+        assert!(floor.chunks.len() >= 3, "{:?}", floor.chunks);
+        let (mut ink_out, mut png_out) = (Vec::new(), Vec::new());
+        assert_eq!(floor.run(&mut ink_out, &mut png_out), 0);
+        assert_eq!((ink_out, &png_out), (inked, &png));
+        // A flipped bit in the last chunk before IEND is found: the CRCs are computed.
+        let mut bad = png.clone();
+        let idat = floor.chunks[floor.chunks.len() - 2].0.clone();
+        bad[idat.end - 1] ^= 1;
+        let bad = PageFloor {
+            png: bad,
+            ink: floor.ink.clone(),
+            chunks: floor.chunks.clone(),
+            gray: floor.gray.clone(),
+        };
+        assert_eq!(bad.run(&mut Vec::new(), &mut Vec::new()), 1);
+        // The dense floor clears a whole raster and reads every pixel.
+        let mut raster = vec![7u8; 5];
+        let crc = floor.dense(&mut raster);
+        assert_eq!(raster, vec![0u8; 64 * 48]);
+        assert_eq!(
+            crc,
+            crc32fast::hash(&ink.iter().map(|c| 255 - c).collect::<Vec<_>>())
+        );
+    }
+
+    #[test]
+    fn the_floor_of_a_pages_folder_sums_its_pngs() {
+        let dir = std::env::temp_dir().join(format!("coupler-atlas-floor-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("a folder");
+        let (png, ink) = page();
+        std::fs::write(dir.join("p-0001.png"), &png).expect("written");
+        std::fs::write(dir.join("p-0002.png"), &png).expect("written");
+        std::fs::write(dir.join("notes.txt"), "not a page").expect("written");
+        let sum = floor_of_pages(&dir);
+        let _ = std::fs::remove_dir_all(&dir);
+        let sum = sum.expect("floors");
+        assert_eq!(sum.bytes, 2 * png.len() as u64);
+        assert_eq!(sum.ink, 2 * ink.iter().filter(|&&c| c != 0).count() as u64);
+        assert_eq!(sum.mismatched, 0);
+        assert!(sum.wall > 0.0 && sum.cpu >= 0.0, "{sum:?}");
+        assert!(sum.dense_wall > 0.0 && sum.dense_cpu >= 0.0, "{sum:?}");
+    }
 }
