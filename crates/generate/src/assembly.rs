@@ -9,9 +9,9 @@
 //! them in place; dropped before (an error, an interrupted run, a failed page), they are
 //! removed.
 
+use crate::chunk::{CHUNK_GROUPS, read_chunk};
 use crate::error::io_err;
 use crate::files::{FileEntry, Temporary, sync_dir};
-use crate::run::{CHUNK_GROUPS, read_chunk};
 use crate::shapes::{record_kind, unit_records};
 use crate::{GenerateError, Group, Job};
 use coupler_index::{
@@ -240,7 +240,6 @@ mod tests {
     use crate::compute_group;
     use coupler_index::curve_line;
     use coupler_kinematics::AngleTables;
-    use coupler_specs::Spec;
 
     /// The columns a run builds from the curves it computed are the bytes of the columns
     /// built from those curves' index lines (as a resumed run or a merge builds them from
@@ -248,15 +247,8 @@ mod tests {
     /// chunks writes what a fresh run writes.
     #[test]
     fn columns_from_curves_equal_columns_from_their_lines() {
-        for (text, name) in [
-            (include_str!("../../../atlas-spec/quick.toml"), "quick"),
-            (
-                include_str!("../../../atlas-spec/geared-quick.toml"),
-                "geared-quick",
-            ),
-        ] {
-            let spec = Spec::parse(text, name).unwrap();
-            let job = Job::new(spec, name, std::env::temp_dir(), 1);
+        for job in crate::job::quick_jobs() {
+            let name = job.source.as_str();
             let table = AngleTables::new(job.spec.sampling.crank_step_deg).unwrap();
             let dash = job.spec.sampling.dash_pattern();
             let tolerances = &job.spec.features.tolerances;

@@ -369,6 +369,25 @@ pub fn compute_group(
     Ok(out)
 }
 
+/// The built-in quick specs, a four-bar one and a geared five-bar one, as one-thread jobs
+/// writing nowhere: for tests that run every kind of atlas through one piece of the run.
+#[cfg(test)]
+pub(crate) fn quick_jobs() -> Vec<Job> {
+    [
+        (include_str!("../../../atlas-spec/quick.toml"), "quick"),
+        (
+            include_str!("../../../atlas-spec/geared-quick.toml"),
+            "geared-quick",
+        ),
+    ]
+    .into_iter()
+    .map(|(text, name)| {
+        let spec = coupler_specs::Spec::parse(text, name).expect("a built-in spec");
+        Job::new(spec, name, std::env::temp_dir(), 1)
+    })
+    .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

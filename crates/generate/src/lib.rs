@@ -17,6 +17,7 @@
 //! writes.
 
 mod assembly;
+mod chunk;
 mod curves;
 mod error;
 mod files;
@@ -29,6 +30,7 @@ mod run;
 mod shapes;
 mod state;
 
+pub use chunk::{CHUNK_FORMAT, CHUNK_GROUPS};
 pub use curves::{
     CURVES_SCHEMA_VERSION, CurveJob, CurveRecord, CurveRunReport, run as run_curve_set,
 };
@@ -45,6 +47,6 @@ pub use pages::{
     RenderedPage, render_classic, render_contents, render_page,
 };
 pub use plan::{DiskEstimate, Limits, MAX_CURVES, Plan, human_bytes};
-pub use run::{CHUNK_FORMAT, CHUNK_GROUPS, RunReport, merge, run, run_key};
+pub use run::{RunReport, merge, run, run_key};
 pub use shapes::atlas_curves;
 pub use state::{Identity, PageFlags, read_identity};

@@ -49,21 +49,13 @@ pub(crate) fn unit_records(
 mod tests {
     use super::*;
     use coupler_shape::{encode_sidecar, sidecar_header_for};
-    use coupler_specs::Spec;
 
     /// The sidecar header and every unit's records in atlas order are the bytes of the
     /// whole atlas encoded at once.
     #[test]
     fn unit_records_make_the_whole_encoding() {
-        for (text, name) in [
-            (include_str!("../../../atlas-spec/quick.toml"), "quick"),
-            (
-                include_str!("../../../atlas-spec/geared-quick.toml"),
-                "geared-quick",
-            ),
-        ] {
-            let spec = Spec::parse(text, name).unwrap();
-            let job = Job::new(spec, name, std::env::temp_dir(), 1);
+        for job in crate::job::quick_jobs() {
+            let name = job.source.as_str();
             let kind = record_kind(&job).unwrap();
             let mut streamed = sidecar_header_for(kind, job.curves()).to_vec();
             for g in job.units() {
