@@ -746,19 +746,20 @@ struct Scan<'a> {
 }
 
 impl<'a> Scan<'a> {
-    fn new(view: View<'a>) -> Scan<'a> {
-        let vals = (0..NCOLS)
-            .map(|c| {
-                if kind(c) == Kind::Row || c == SIDE {
-                    Vec::new()
-                } else {
+    /// The scan of `view`, decoding into `vals` (the buffers of an earlier scan, reused:
+    /// a scan of many groups allocates its buffers once, not once per group).
+    fn new(view: View<'a>, mut vals: Vec<Vec<f64>>) -> Scan<'a> {
+        vals.resize_with(NCOLS, Vec::new);
+        for (c, out) in vals.iter_mut().enumerate() {
+            out.clear();
+            if !(kind(c) == Kind::Row || c == SIDE) {
+                out.extend(
                     view.cols[c]
                         .chunks_exact(8)
-                        .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
-                        .collect()
-                }
-            })
-            .collect();
+                        .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8]))),
+                );
+            }
+        }
         Scan { view, vals }
     }
 
@@ -1116,8 +1117,8 @@ impl ColumnTable {
         let need = columns_read(q);
         let per_group: Vec<(Vec<Keyed>, usize)> = (0..self.groups.len())
             .into_par_iter()
-            .map(|g| {
-                let v = Scan::new(self.view(g, &need)?);
+            .map_init(Vec::new, |bufs, g| {
+                let v = Scan::new(self.view(g, &need)?, std::mem::take(bufs));
                 let mut best = Best::new(q.limit);
                 let mut m = Matched::default();
                 for i in 0..v.view.group.rows {
@@ -1127,6 +1128,7 @@ impl ColumnTable {
                         best.push((key, r.id, v.view.group.first_row + i));
                     }
                 }
+                *bufs = v.vals;
                 Ok(best.finish())
             })
             .collect::<Result<_, ColumnsError>>()?;

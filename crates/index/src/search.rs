@@ -807,22 +807,28 @@ impl Query {
         }
         if self.double_dwell {
             let two_lines = m.straight.len() >= 2;
-            let arcs = &m.arcs;
-            let pair = arcs.iter().enumerate().find_map(|(x, &p)| {
-                arcs[x + 1..].iter().find_map(|&q| {
-                    let (a, b) = (t.arc_radius(p), t.arc_radius(q));
-                    let equal = (a - b).abs() <= self.radius_tol_pct / 100.0 * a.max(b);
-                    (equal && t.arc_concave(p) == t.arc_concave(q)).then_some([p, q])
-                })
-            });
-            match (two_lines, pair) {
-                // Show the arcs that passed --arc if it was given, else the equal pair.
-                (true, _) if want_arc => {}
-                (true, pair) | (false, pair @ Some(_)) => {
-                    m.arcs.clear();
-                    m.arcs.extend(pair.into_iter().flatten());
+            // Two lines with --arc given: the arcs that passed --arc are shown, and the
+            // equal pair is not needed (not looked for).
+            if !(two_lines && want_arc) {
+                let arcs = &m.arcs;
+                // The first equal pair (p before q, both in order); each arc's radius
+                // and side are read once per p, not once per pair.
+                let pair = arcs.iter().enumerate().find_map(|(x, &p)| {
+                    let (a, side) = (t.arc_radius(p), t.arc_concave(p));
+                    arcs[x + 1..].iter().find_map(|&q| {
+                        let b = t.arc_radius(q);
+                        let equal = (a - b).abs() <= self.radius_tol_pct / 100.0 * a.max(b);
+                        (equal && side == t.arc_concave(q)).then_some([p, q])
+                    })
+                });
+                match (two_lines, pair) {
+                    // Else the equal pair is shown (none with two lines: no arc).
+                    (true, pair) | (false, pair @ Some(_)) => {
+                        m.arcs.clear();
+                        m.arcs.extend(pair.into_iter().flatten());
+                    }
+                    (false, None) => return false,
                 }
-                (false, None) => return false,
             }
         }
         true
