@@ -184,6 +184,13 @@ impl BufferPool {
             v.push(b);
         }
     }
+
+    /// Lets go of all free buffers but `n` (a page buffer is tens of MB at 300 dpi).
+    fn keep(&self, n: usize) {
+        if let Ok(mut v) = self.free.lock() {
+            v.truncate(n);
+        }
+    }
 }
 
 /// Time spent per phase, summed over pages (nanoseconds), shared by workers.
@@ -751,6 +758,10 @@ impl Renderer for PageRenderer {
 
     fn render_atlas(&self, job: &Job) -> Rendered {
         let entries = self.contents_entries(job);
+        // The contents pages are drawn one after another: one buffer serves them, the
+        // others (one per worker of the run) are let go first, so that the run's memory
+        // peaks no higher here than while the workers draw.
+        self.pool.keep(1);
         let mut out: Rendered = match render_contents(&self.opts, &self.pool, &entries) {
             Ok(files) => files
                 .into_iter()
@@ -765,6 +776,8 @@ impl Renderer for PageRenderer {
                 self.failure(self.opts.contents_file(1, self.first_format()), e)
             )],
         };
+        // Nothing is drawn into a raster buffer after the contents.
+        self.pool.keep(0);
         if self.opts.wants_pdf() {
             out.push(match self.atlas_pdf(job, &entries) {
                 Ok(bytes) => Ok(Artifact {
