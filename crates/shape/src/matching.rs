@@ -139,29 +139,15 @@ pub fn coarse_candidates(
         }
         let q = ClosedQuery::new(&target.complex_points(), options.allow_mirror)
             .ok_or(MatchError::Undescribable)?;
-        let d: Vec<f64> = codes.iter().map(|c| q.distance(c)).collect();
-        // A curve whose period is shorter than the target's timed angles cannot carry it.
-        let mut order: Vec<usize> = (0..curves.len())
-            .filter(|&i| d[i].is_finite() && target.fits_period(curves[i].curve.period_deg()))
-            .collect();
-        let by = |a: &usize, b: &usize| {
-            d[*a]
-                .total_cmp(&d[*b])
-                .then(curves[*a].id.cmp(&curves[*b].id))
-        };
-        if order.len() > keep {
-            order.select_nth_unstable_by(keep, by);
-            order.truncate(keep);
-        }
-        order.sort_by(by);
-        Ok(order
-            .into_iter()
-            .map(|i| Candidate {
-                curve: curves[i],
-                coarse: d[i],
-                start: None,
-            })
-            .collect())
+        closed_stage(
+            &q,
+            target,
+            0..curves.len(),
+            keep,
+            |i| Ok(Some(codes[i])),
+            |i| Ok(curves[i]),
+            |i| curves[i].id,
+        )
     } else {
         let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
         let groups = open_linkages(target, curves, options, |screen, groups| {
@@ -197,23 +183,46 @@ pub fn closed_candidates_in(
     ids: Range<usize>,
     options: &MatchOptions,
 ) -> Result<Vec<Candidate>, MatchError> {
-    let keep = options.kept(target);
     let ids = ids.start.min(view.len())..ids.end.min(view.len());
-    // A timed target also needs each curve's period (its linkage: the record decoded).
+    // Ids are record positions.
+    closed_stage(
+        query,
+        target,
+        ids,
+        options.kept(target),
+        |i| Ok(view.code(i)?),
+        |i| Ok(view.curve(i)?),
+        |i| i as u64,
+    )
+}
+
+/// The closed coarse stage over the curves `ids`, however they are held: `code(i)` gives
+/// curve `i`'s shape code (`None`: it has none), `curve(i)` the curve (called only for
+/// the kept candidates, and for every curve when the target is timed: its period), and
+/// `id(i)` its id. The best `keep` by distance, ties by id, best first; a curve whose
+/// period is shorter than the target's timed angles cannot carry it and is left out.
+fn closed_stage(
+    query: &ClosedQuery,
+    target: &Target,
+    ids: Range<usize>,
+    keep: usize,
+    code: impl Fn(usize) -> Result<Option<ShapeCode>, MatchError>,
+    curve: impl Fn(usize) -> Result<AtlasCurve, MatchError>,
+    id: impl Fn(usize) -> u64,
+) -> Result<Vec<Candidate>, MatchError> {
     let timed = target.angle_span().is_some();
-    let mut scored: Vec<(f64, usize)> = Vec::new();
+    let mut scored: Vec<(f64, u64, usize)> = Vec::new();
     for i in ids {
-        let d = query.distance(&view.code(i)?.unwrap_or(ShapeCode::ABSENT));
+        let d = query.distance(&code(i)?.unwrap_or(ShapeCode::ABSENT));
         if !d.is_finite() {
             continue;
         }
-        if timed && !target.fits_period(view.curve(i)?.curve.period_deg()) {
+        if timed && !target.fits_period(curve(i)?.curve.period_deg()) {
             continue;
         }
-        scored.push((d, i));
+        scored.push((d, id(i), i));
     }
-    // Ids are record positions, so (distance, position) orders as (distance, id).
-    let by = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    let by = |a: &(f64, u64, usize), b: &(f64, u64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
     if scored.len() > keep {
         scored.select_nth_unstable_by(keep, by);
         scored.truncate(keep);
@@ -221,9 +230,9 @@ pub fn closed_candidates_in(
     scored.sort_by(by);
     scored
         .into_iter()
-        .map(|(d, i)| {
+        .map(|(d, _, i)| {
             Ok(Candidate {
-                curve: view.curve(i)?,
+                curve: curve(i)?,
                 coarse: d,
                 start: None,
             })
