@@ -537,13 +537,6 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
 /// How many times each page's floor is run in one timed block (the mean is taken).
 const FLOOR_REPS: u32 = 4;
 
-/// The CPU time of the calling thread, seconds, to the nanosecond (Linux:
-/// `/proc/thread-self/schedstat`); `None` elsewhere.
-fn this_thread_cpu_seconds() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    Some(s.split_whitespace().next()?.parse::<u64>().ok()? as f64 * 1e-9)
-}
-
 /// The floors of every PNG in a pages folder, summed.
 #[derive(Debug, Default)]
 struct PagesWritten {
@@ -577,7 +570,7 @@ fn floor_of_pages(pages: &std::path::Path) -> Result<PagesWritten> {
         ink_out.reserve(floor.ink.len());
         png_out.reserve(floor.png.len());
         raster.reserve(floor.gray.len());
-        let (wall, cpu, bad) = timed(this_thread_cpu_seconds, || {
+        let (wall, cpu, bad) = timed(thread_cpu_seconds, || {
             (0..FLOOR_REPS)
                 .map(|_| floor.run(&mut ink_out, &mut png_out))
                 .sum::<usize>()
@@ -587,7 +580,7 @@ fn floor_of_pages(pages: &std::path::Path) -> Result<PagesWritten> {
         sum.bytes += floor.png.len() as u64;
         sum.ink += floor.ink.len() as u64;
         sum.mismatched += bad / FLOOR_REPS as usize;
-        let (wall, cpu, _) = timed(this_thread_cpu_seconds, || {
+        let (wall, cpu, _) = timed(thread_cpu_seconds, || {
             for _ in 0..FLOOR_REPS {
                 black_box(floor.dense(&mut raster));
             }

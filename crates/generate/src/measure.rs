@@ -44,11 +44,18 @@ fn civil_from_days(z: i64) -> (i64, u32, u32) {
     (yoe + era * 400 + i64::from(m <= 2), m, d)
 }
 
-/// CPU time of the calling thread in seconds (user + system, from
-/// `/proc/thread-self/stat`, 10 ms ticks), or `None` where that is not available. Unlike
+/// CPU time of the calling thread in seconds: from `/proc/thread-self/schedstat` (the
+/// scheduler's run time, to the nanosecond) where the kernel has it, else user + system
+/// from `/proc/thread-self/stat` (10 ms ticks); `None` where neither is available. Unlike
 /// wall time it excludes time the thread spent waiting for a core, so it measures the
 /// cost on one core even on a busy shared machine.
 pub fn thread_cpu_seconds() -> Option<f64> {
+    if let Some(ns) = std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+    {
+        return Some(ns as f64 * 1e-9);
+    }
     let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
     // Fields after the command name (which is in parentheses and may hold spaces).
     let rest = &stat[stat.rfind(')')? + 2..];
