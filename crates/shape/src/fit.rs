@@ -372,6 +372,7 @@ pub(crate) fn fit_untimed(
     };
     let lm = LmOptions {
         max_iterations: options.max_iterations,
+        reuse_trial: true,
         ..LmOptions::DEFAULT
     };
     let res = solve(vec![a.re, a.im, b.re, b.im], start.theta.clone(), eval, &lm)?;
@@ -555,6 +556,7 @@ fn timed_lm(
     }
     let lm = LmOptions {
         max_iterations: options.max_iterations,
+        reuse_trial: true,
         ..LmOptions::DEFAULT
     };
     let res = solve(g, Vec::new(), eval, &lm)?;

@@ -43,6 +43,13 @@ pub(crate) struct LmOptions {
     pub cost_floor: f64,
     /// Largest change of a local parameter in one step.
     pub max_local_step: f64,
+    /// Evaluate each trial step with its Jacobian and, when the step is accepted, keep
+    /// that evaluation for the next iteration instead of evaluating the same point again.
+    /// Only for an `eval` whose residuals do not depend on whether the Jacobian was asked
+    /// for (then the iterations are the same, bit for bit, at one evaluation fewer per
+    /// accepted step); an `eval` that computes its residuals another way with the
+    /// Jacobian (as the refinement's sensitivities do) must leave it off.
+    pub reuse_trial: bool,
 }
 
 impl LmOptions {
@@ -51,6 +58,7 @@ impl LmOptions {
         relative_decrease: 1e-12,
         cost_floor: 0.0,
         max_local_step: 20.0,
+        reuse_trial: false,
     };
 }
 
@@ -79,34 +87,55 @@ where
     let mut cost = e.cost();
     let mut lambda = 1e-3;
     let mut iterations = 0;
+    // The normal equations in flat row-major buffers, made once: `hgg` (G × G), `grad_g`,
+    // and per point `hgl` (n × G), `hll`, `grad_l`; each damping's Schur complement `s`
+    // and right-hand side `rhs`. Every entry is summed in the same order as the textbook
+    // loops over (point, row, column), so the steps are the same bit for bit.
+    let mut hgg = vec![0.0; ng * ng];
+    let mut grad_g = vec![0.0; ng];
+    let mut hgl: Vec<f64> = Vec::new();
+    let mut hll: Vec<f64> = Vec::new();
+    let mut grad_l: Vec<f64> = Vec::new();
+    let mut damped: Vec<f64> = Vec::new();
+    let mut s = vec![0.0; ng * ng];
+    let mut rhs = vec![0.0; ng];
+    let mut g_new = vec![0.0; ng];
+    let mut l_new: Vec<f64> = Vec::new();
     while iterations < options.max_iterations && cost > options.cost_floor {
         iterations += 1;
         let n = e.r.len();
-        let mut hgg = DMatrix::<f64>::zeros(ng, ng);
-        let mut grad_g = DVector::<f64>::zeros(ng);
-        let mut hgl = vec![0.0; if has_locals { n * ng } else { 0 }];
-        let mut hll = vec![0.0; if has_locals { n } else { 0 }];
-        let mut grad_l = vec![0.0; if has_locals { n } else { 0 }];
+        hgg.fill(0.0);
+        grad_g.fill(0.0);
+        let nl = if has_locals { n } else { 0 };
+        hgl.clear();
+        hgl.resize(nl * ng, 0.0);
+        hll.clear();
+        hll.resize(nl, 0.0);
+        grad_l.clear();
+        grad_l.resize(nl, 0.0);
         for j in 0..n {
             let row = &e.jg[j * ng..(j + 1) * ng];
+            let rj = e.r[j];
             for p in 0..ng {
-                grad_g[p] += dot(row[p], e.r[j]);
+                grad_g[p] += dot(row[p], rj);
+                let h = &mut hgg[p * ng..(p + 1) * ng];
                 for q in p..ng {
-                    hgg[(p, q)] += dot(row[p], row[q]);
+                    h[q] += dot(row[p], row[q]);
                 }
             }
             if has_locals {
                 let jl = e.jl[j];
+                let h = &mut hgl[j * ng..(j + 1) * ng];
                 for p in 0..ng {
-                    hgl[j * ng + p] = dot(row[p], jl);
+                    h[p] = dot(row[p], jl);
                 }
                 hll[j] = jl.norm_sqr();
-                grad_l[j] = dot(jl, e.r[j]);
+                grad_l[j] = dot(jl, rj);
             }
         }
         for p in 0..ng {
             for q in 0..p {
-                hgg[(p, q)] = hgg[(q, p)];
+                hgg[p * ng + q] = hgg[q * ng + p];
             }
         }
         let mean_hll = if has_locals {
@@ -115,70 +144,75 @@ where
             0.0
         };
         let mut accepted = false;
+        let mut next: Option<Eval> = None;
         for _ in 0..12 {
-            let mut s = hgg.clone();
-            let mut rhs = -grad_g.clone();
-            for p in 0..ng {
-                s[(p, p)] += lambda * hgg[(p, p)].max(1e-300);
+            s.copy_from_slice(&hgg);
+            for (r, gg) in rhs.iter_mut().zip(&grad_g) {
+                *r = -gg;
             }
-            let damped: Vec<f64> = hll
-                .iter()
-                .map(|&h| h + lambda * h.max(1e-9 * mean_hll).max(1e-300))
-                .collect();
+            for p in 0..ng {
+                s[p * ng + p] += lambda * hgg[p * ng + p].max(1e-300);
+            }
+            damped.clear();
+            damped.extend(
+                hll.iter()
+                    .map(|&h| h + lambda * h.max(1e-9 * mean_hll).max(1e-300)),
+            );
             if has_locals {
-                for j in 0..n {
-                    let row = &hgl[j * ng..(j + 1) * ng];
-                    let inv = 1.0 / damped[j];
-                    for p in 0..ng {
-                        rhs[p] += row[p] * grad_l[j] * inv;
-                        for q in 0..ng {
-                            s[(p, q)] -= row[p] * row[q] * inv;
-                        }
-                    }
+                match ng {
+                    4 => schur_fixed::<4>(&mut s, &mut rhs, &hgl, &grad_l, &damped),
+                    _ => schur(ng, &mut s, &mut rhs, &hgl, &grad_l, &damped),
                 }
             }
-            let Some(dg) = s
+            let sm = DMatrix::<f64>::from_row_slice(ng, ng, &s);
+            let rv = DVector::<f64>::from_column_slice(&rhs);
+            let Some(dg) = sm
                 .clone()
                 .cholesky()
-                .map(|c| c.solve(&rhs))
-                .or_else(|| s.lu().solve(&rhs))
+                .map(|c| c.solve(&rv))
+                .or_else(|| sm.lu().solve(&rv))
             else {
                 lambda *= 10.0;
                 continue;
             };
-            let g_new: Vec<f64> = g.iter().zip(dg.iter()).map(|(a, b)| a + b).collect();
-            let l_new: Vec<f64> = if has_locals {
-                (0..n)
-                    .map(|j| {
-                        let row = &hgl[j * ng..(j + 1) * ng];
-                        let mut t = grad_l[j];
-                        for p in 0..ng {
-                            t += row[p] * dg[p];
-                        }
-                        let step =
-                            (-t / damped[j]).clamp(-options.max_local_step, options.max_local_step);
-                        l[j] + step
-                    })
-                    .collect()
-            } else {
-                Vec::new()
-            };
+            for ((x, a), b) in g_new.iter_mut().zip(&g).zip(dg.iter()) {
+                *x = a + b;
+            }
+            l_new.clear();
+            if has_locals {
+                l_new.extend((0..n).map(|j| {
+                    let row = &hgl[j * ng..(j + 1) * ng];
+                    let mut t = grad_l[j];
+                    for p in 0..ng {
+                        t += row[p] * dg[p];
+                    }
+                    let step =
+                        (-t / damped[j]).clamp(-options.max_local_step, options.max_local_step);
+                    l[j] + step
+                }));
+            }
             let trial = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
                 && dg.iter().all(|x| x.is_finite());
-            let new_cost = if trial {
-                eval(&g_new, &l_new, false).map(|t| t.cost())
+            let new_eval = if trial {
+                eval(&g_new, &l_new, options.reuse_trial)
             } else {
                 None
             };
+            let new_cost = new_eval.as_ref().map(Eval::cost);
             match new_cost {
                 Some(c) if c.is_finite() && c <= cost => {
                     let decrease = cost - c;
-                    g = g_new;
-                    l = l_new;
+                    std::mem::swap(&mut g, &mut g_new);
+                    std::mem::swap(&mut l, &mut l_new);
                     lambda = (lambda / 3.0).max(1e-15);
                     accepted = true;
                     if decrease <= options.relative_decrease * cost {
-                        return finish(g, l, eval, iterations);
+                        return finish(g, l, eval, iterations, options.reuse_trial);
+                    }
+                    if options.reuse_trial {
+                        // The residuals and Jacobian at the accepted point: what
+                        // `eval(&g, &l, true)` gives.
+                        next = new_eval;
                     }
                     break;
                 }
@@ -188,17 +222,89 @@ where
         if !accepted {
             break;
         }
-        e = eval(&g, &l, true)?;
+        e = match next.take() {
+            Some(kept) => kept,
+            None => eval(&g, &l, true)?,
+        };
         cost = e.cost();
     }
-    finish(g, l, eval, iterations)
+    finish(g, l, eval, iterations, options.reuse_trial)
 }
 
-fn finish<F>(g: Vec<f64>, l: Vec<f64>, mut eval: F, iterations: usize) -> Option<LmResult>
+/// Eliminates the locals: `s −= Σ_j h_j·h_jᵀ/d_j` and `rhs += Σ_j h_j·g_j/d_j` (`h_j` row
+/// `j` of `hgl`, `g_j = grad_l[j]`, `d_j = damped[j]`), points in order. `s` is symmetric
+/// and stays so: only its upper triangle is computed (`h_p·h_q` and `h_q·h_p` are the same
+/// product), then copied down.
+fn schur(ng: usize, s: &mut [f64], rhs: &mut [f64], hgl: &[f64], grad_l: &[f64], damped: &[f64]) {
+    for (j, row) in hgl.chunks_exact(ng).enumerate() {
+        let inv = 1.0 / damped[j];
+        let gl = grad_l[j];
+        for p in 0..ng {
+            rhs[p] += row[p] * gl * inv;
+            let rp = row[p];
+            let sp = &mut s[p * ng..(p + 1) * ng];
+            for q in p..ng {
+                sp[q] -= rp * row[q] * inv;
+            }
+        }
+    }
+    for p in 0..ng {
+        for q in 0..p {
+            s[p * ng + q] = s[q * ng + p];
+        }
+    }
+}
+
+/// [`schur`] for `G` globals known at compile time (the untimed fit's four), held in
+/// registers: the same sums in the same order.
+fn schur_fixed<const G: usize>(
+    s: &mut [f64],
+    rhs: &mut [f64],
+    hgl: &[f64],
+    grad_l: &[f64],
+    damped: &[f64],
+) {
+    let mut m = [[0.0; G]; G];
+    let mut r = [0.0; G];
+    for p in 0..G {
+        m[p].copy_from_slice(&s[p * G..(p + 1) * G]);
+        r[p] = rhs[p];
+    }
+    for (j, row) in hgl.chunks_exact(G).enumerate() {
+        let row: &[f64; G] = row.try_into().expect("rows of G");
+        let inv = 1.0 / damped[j];
+        let gl = grad_l[j];
+        for p in 0..G {
+            r[p] += row[p] * gl * inv;
+            for q in p..G {
+                m[p][q] -= row[p] * row[q] * inv;
+            }
+        }
+    }
+    for p in 0..G {
+        for q in 0..G {
+            s[p * G + q] = if q < p { m[q][p] } else { m[p][q] };
+        }
+        rhs[p] = r[p];
+    }
+}
+
+/// The result at `(g, l)`. Every exit of [`solve`] stands on a point that was evaluated
+/// (the start, or an accepted step): with `evaluated` (a pure `eval`, [`LmOptions::reuse_trial`])
+/// it is not evaluated again; otherwise it is, as a last check that the model is defined there.
+fn finish<F>(
+    g: Vec<f64>,
+    l: Vec<f64>,
+    mut eval: F,
+    iterations: usize,
+    evaluated: bool,
+) -> Option<LmResult>
 where
     F: FnMut(&[f64], &[f64], bool) -> Option<Eval>,
 {
-    eval(&g, &l, false)?;
+    if !evaluated {
+        eval(&g, &l, false)?;
+    }
     Some(LmResult {
         global: g,
         local: l,

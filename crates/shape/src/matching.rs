@@ -11,6 +11,7 @@ use crate::placement::Placement;
 use crate::sidecar::{SidecarError, SidecarView};
 use crate::target::Target;
 use crate::traced::Traced;
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// Settings of a search.
@@ -252,7 +253,8 @@ const ROBUST_OPEN: usize = 64;
 /// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
 /// fit of the candidates ([`rank_candidates`]); the best `options.top` by RMS error,
 /// ties broken by coarse distance then id. Deterministic: the same inputs give the same
-/// matches, bit for bit. Sequential.
+/// matches, bit for bit. The coarse stage is sequential; the exact fits run on the
+/// calling thread's rayon pool ([`rank_candidates`]).
 pub fn find_matches(
     target: &Target,
     curves: &[AtlasCurve],
@@ -351,7 +353,9 @@ impl MatchOptions {
 /// The exact stage of [`find_matches`]: the best `options.candidates` of `candidates`
 /// (by coarse distance, then id; duplicates of one curve dropped) each get a quick fit,
 /// the best `4·top` (at least `top + 8`) the full fit on every point, and the best `options.top` by RMS error
-/// are returned.
+/// are returned. The candidates are fitted in parallel on the calling thread's rayon pool
+/// (run it inside `ThreadPool::install` to choose the threads); the result is the same,
+/// bit for bit, on any number of threads.
 pub fn rank_candidates(
     target: &Target,
     mut candidates: Vec<Candidate>,
@@ -375,44 +379,58 @@ pub fn rank_candidates(
     let p = target.complex_points();
     // Every candidate gets a quick fit: closed targets on at most RANK_POINTS of the
     // target's points, open ones from their start on every point (the starts are per
-    // point); the best few get the full fit.
+    // point); the best few get the full fit. Candidates are fitted in parallel (on the
+    // calling thread's rayon pool); each fit is sequential and the lists keep the
+    // candidates' order, so the result does not depend on the threads.
     let thin = target.thinned(RANK_POINTS);
+    // A candidate's dense trace, made once: the quick fit, the robust start and the final
+    // fit all scan it.
+    let traced_of = |c: &Candidate| Traced::new(&c.curve.curve, fit_options.trace_samples);
     // An open target's best few candidates by coarse distance also get the exact fit's own
     // robust start (its window scan of the traced curve): the scan's start can sit in the
     // basin of a neighbouring window.
-    let robust_fit = |c: &Candidate| -> Option<CurveFit> {
-        let traced = Traced::new(&c.curve.curve, fit_options.trace_samples)?;
-        fit_with(target, &c.curve.curve, &traced, &fit_options)
-    };
-    let mut robust: Vec<Option<CurveFit>> = candidates
-        .iter()
+    struct Ranked {
+        traced: Option<Option<Traced>>,
+        robust: Option<CurveFit>,
+        quick: Option<f64>,
+    }
+    let mut ranked: Vec<Ranked> = candidates
+        .par_iter()
         .enumerate()
         .map(|(i, c)| {
-            if i >= ROBUST_OPEN || c.start.is_none() {
-                return None;
-            }
-            robust_fit(c)
-        })
-        .collect();
-    let mut quick: Vec<(f64, usize)> = candidates
-        .iter()
-        .enumerate()
-        .filter_map(|(i, c)| {
+            let mut traced = None;
+            let robust = match &c.start {
+                Some(_) if i < ROBUST_OPEN => {
+                    let t = traced.insert(traced_of(c));
+                    t.as_ref()
+                        .and_then(|t| fit_with(target, &c.curve.curve, t, &fit_options))
+                }
+                _ => None,
+            };
             let f = match &c.start {
                 Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_options),
-                None => {
-                    let traced = Traced::new(&c.curve.curve, fit_options.trace_samples)?;
-                    fit_with(&thin, &c.curve.curve, &traced, &quick_options)
-                }
+                None => traced
+                    .insert(traced_of(c))
+                    .as_ref()
+                    .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_options)),
             };
-            let rms = match (f, &robust[i]) {
-                (Some(f), Some(r)) => f.rms.min(r.rms),
-                (Some(f), None) => f.rms,
-                (None, Some(r)) => r.rms,
-                (None, None) => return None,
+            let quick = match (f, &robust) {
+                (Some(f), Some(r)) => Some(f.rms.min(r.rms)),
+                (Some(f), None) => Some(f.rms),
+                (None, Some(r)) => Some(r.rms),
+                (None, None) => None,
             };
-            Some((rms, i))
+            Ranked {
+                traced,
+                robust,
+                quick,
+            }
         })
+        .collect();
+    let mut quick: Vec<(f64, usize)> = ranked
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| Some((r.quick?, i)))
         .collect();
     quick.sort_by(|a, b| {
         a.0.total_cmp(&b.0)
@@ -420,31 +438,53 @@ pub fn rank_candidates(
             .then(candidates[a.1].curve.id.cmp(&candidates[b.1].curve.id))
     });
     quick.truncate((4 * options.top).max(options.top + 8));
-    // Every open candidate that reaches the final fits also gets the robust start, so a
-    // reported curve's fit is the better of the two basins (a curve's fit from the scan's
-    // start alone can stop in a neighbouring window's, a hair or more above its best).
-    for &(_, i) in &quick {
-        if robust[i].is_none() && candidates[i].start.is_some() {
-            robust[i] = robust_fit(&candidates[i]);
-        }
-    }
-    let size = target.size();
-    let mut matches: Vec<Match> = quick
+    // The final fits, each candidate with its own (moved out) ranking state. Every open
+    // candidate that reaches them also gets the robust start, so a reported curve's fit is
+    // the better of the two basins (a curve's fit from the scan's start alone can stop in
+    // a neighbouring window's, a hair or more above its best).
+    let finalists: Vec<(usize, Ranked)> = quick
         .iter()
-        .filter_map(|&(_, i)| {
+        .map(|&(_, i)| {
+            let r = Ranked {
+                traced: ranked[i].traced.take(),
+                robust: ranked[i].robust.take(),
+                quick: ranked[i].quick,
+            };
+            (i, r)
+        })
+        .collect();
+    drop(ranked);
+    let size = target.size();
+    let mut matches: Vec<Match> = finalists
+        .into_par_iter()
+        .filter_map(|(i, mut r)| {
             let c = &candidates[i];
             let curve = &c.curve.curve;
+            let traced = |r: &mut Ranked| -> Option<Traced> {
+                r.traced.take().unwrap_or_else(|| traced_of(c))
+            };
             let fit = match &c.start {
                 Some(s) => {
+                    let mut t = None;
+                    let robust = match r.robust.take() {
+                        Some(f) => Some(f),
+                        None => t
+                            .insert(traced(&mut r))
+                            .as_ref()
+                            .and_then(|t| fit_with(target, curve, t, &fit_options)),
+                    };
                     let from_scan = fit_untimed(&p, curve, s, &fit_options).and_then(|untimed| {
                         if target.timing().is_timed() {
-                            let traced = Traced::new(curve, fit_options.trace_samples)?;
-                            fit_timed(target, curve, &traced, Some(&untimed), &fit_options)
+                            let t = match t.take() {
+                                Some(t) => t,
+                                None => traced(&mut r),
+                            }?;
+                            fit_timed(target, curve, &t, Some(&untimed), &fit_options)
                         } else {
                             Some(untimed)
                         }
                     });
-                    match (from_scan, robust[i].clone()) {
+                    match (from_scan, robust) {
                         (Some(a), Some(b)) => {
                             if b.rms < a.rms {
                                 b
@@ -456,8 +496,8 @@ pub fn rank_candidates(
                     }
                 }
                 None => {
-                    let traced = Traced::new(curve, fit_options.trace_samples)?;
-                    fit_with(target, curve, &traced, &fit_options)?
+                    let t = traced(&mut r)?;
+                    fit_with(target, curve, &t, &fit_options)?
                 }
             };
             Some(Match {
