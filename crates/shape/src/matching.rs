@@ -549,6 +549,43 @@ mod tests {
         encode_sidecar(&curves)
     }
 
+    /// The exact stage gives the same matches, bit for bit, on one thread and on three,
+    /// for closed and open targets (the candidates are fitted in parallel).
+    #[test]
+    fn rank_candidates_does_not_depend_on_threads() {
+        let atlas = decode_sidecar(&sidecar()).unwrap();
+        let options = MatchOptions {
+            candidates: 12,
+            open_candidates: 24,
+            top: 3,
+            ..MatchOptions::DEFAULT
+        };
+        let mut rng = SplitMix64(11);
+        for (source, closed, span) in [(5, true, 360.0), (30, false, 160.0)] {
+            let t = make_target(
+                &mut rng,
+                &atlas.curves[source].curve,
+                closed,
+                20.0,
+                span,
+                40,
+                false,
+                0.01,
+            )
+            .unwrap();
+            let on = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| find_matches(&t, &atlas.curves, &atlas.codes, &options).unwrap())
+            };
+            let one = on(1);
+            assert_eq!(one.len(), 3);
+            assert_eq!(on(3), one, "source {source}");
+        }
+    }
+
     /// The closed coarse stage read in place, in uneven parts, proposes exactly the
     /// candidates of the stage over the decoded atlas, and the ranked matches are the
     /// same, bit for bit; a damaged record is an error when the search reads it, as the

@@ -41,12 +41,22 @@ const REESTIMATIONS: usize = 5;
 const PROJECTIONS: usize = 10;
 
 /// One linkage on one circuit at 1° crank steps over its period (360° for a four-bar,
-/// `360°·q` for a geared five-bar of ratio p/q): crank pin and coupler direction.
+/// `360°·q` for a geared five-bar of ratio p/q): crank pin and coupler direction, each
+/// 1° cell with its start values and its differences to the next (the linear
+/// interpolant's slopes, computed once per linkage instead of at every lookup).
 struct Table {
-    pa: Vec<C64>,
-    e: Vec<C64>,
+    cells: Vec<TableCell>,
     /// The period, degrees of input.
     period: f64,
+}
+
+/// `Pa` and `e` at the start of a 1° cell and their differences across it.
+#[derive(Clone, Copy)]
+struct TableCell {
+    pa: C64,
+    dpa: C64,
+    e: C64,
+    de: C64,
 }
 
 impl Table {
@@ -58,33 +68,33 @@ impl Table {
             return None;
         }
         let n = t.len();
-        let mut pa = Vec::with_capacity(n + 1);
-        let mut e = Vec::with_capacity(n + 1);
-        for k in 0..n {
-            pa.push(C64::new(t.pa_x[k], t.pa_y[k]));
-            e.push(C64::new(t.e_x[k], t.e_y[k]));
-        }
-        pa.push(pa[0]);
-        e.push(e[0]);
-        Some(Table { pa, e, period })
+        let pa = |k: usize| C64::new(t.pa_x[k % n], t.pa_y[k % n]);
+        let e = |k: usize| C64::new(t.e_x[k % n], t.e_y[k % n]);
+        let cells = (0..n)
+            .map(|k| TableCell {
+                pa: pa(k),
+                dpa: pa(k + 1) - pa(k),
+                e: e(k),
+                de: e(k + 1) - e(k),
+            })
+            .collect();
+        Some(Table { cells, period })
     }
 
     /// `(Pa, e)` at `deg` by linear interpolation.
     #[inline(always)]
     fn at(&self, deg: f64) -> (C64, C64) {
-        let (k, t) = cell(deg, self.pa.len() - 1);
-        (
-            self.pa[k] + (self.pa[k + 1] - self.pa[k]) * t,
-            self.e[k] + (self.e[k + 1] - self.e[k]) * t,
-        )
+        let (k, t) = cell(deg, self.cells.len());
+        let c = &self.cells[k];
+        (c.pa + c.dpa * t, c.e + c.de * t)
     }
 
     /// `(Pa, e, dPa/dθ, de/dθ)` at `deg` (derivatives per degree, of the interpolant).
     #[inline]
     fn with_slope(&self, deg: f64) -> (C64, C64, C64, C64) {
-        let (k, t) = cell(deg, self.pa.len() - 1);
-        let (dp, de) = (self.pa[k + 1] - self.pa[k], self.e[k + 1] - self.e[k]);
-        (self.pa[k] + dp * t, self.e[k] + de * t, dp, de)
+        let (k, t) = cell(deg, self.cells.len());
+        let c = &self.cells[k];
+        (c.pa + c.dpa * t, c.e + c.de * t, c.dpa, c.de)
     }
 }
 
@@ -133,6 +143,21 @@ struct Sums {
 
 impl Sums {
     fn of(table: &Table, theta: impl Iterator<Item = f64>, y: &[C64], mirror: bool) -> Sums {
+        if mirror {
+            Sums::of_with::<true>(table, theta, y)
+        } else {
+            Sums::of_with::<false>(table, theta, y)
+        }
+    }
+
+    /// [`Sums::of`] with the reflection's sums (`MIRROR`) or without, decided at compile
+    /// time (the hot loop has no branch).
+    #[inline(always)]
+    fn of_with<const MIRROR: bool>(
+        table: &Table,
+        theta: impl Iterator<Item = f64>,
+        y: &[C64],
+    ) -> Sums {
         let zero = C64::new(0.0, 0.0);
         let mut s = Sums {
             m: 0.0,
@@ -149,7 +174,7 @@ impl Sums {
             s.spe += p.conj() * e;
             s.r[0][0] += p.conj() * yj;
             s.r[0][1] += e.conj() * yj;
-            if mirror {
+            if MIRROR {
                 let yc = yj.conj();
                 s.r[1][0] += p.conj() * yc;
                 s.r[1][1] += e.conj() * yc;
@@ -173,14 +198,42 @@ impl Sums {
 
     /// [`Sums::at_point`] with the Gram matrix computed once for many points.
     #[inline]
-    fn at_point_with(&self, (g11, g12, g22): (f64, C64, f64), v: usize, w: C64) -> (f64, C64) {
-        let [r1, r2] = self.r[v];
-        let mm = g11 + 2.0 * (w * g12).re + w.norm_sqr() * g22;
+    fn at_point_with(&self, gram: (f64, C64, f64), v: usize, w: C64) -> (f64, C64) {
+        let mm = Sums::model_norm(gram, w);
         if mm <= 0.0 {
             return (1.0, C64::new(0.0, 0.0));
         }
-        let my = r1 + w.conj() * r2;
+        let my = self.r[v][0] + w.conj() * self.r[v][1];
         ((1.0 - my.norm_sqr() / mm).max(0.0), my / mm)
+    }
+
+    /// `Σ|Pa + w·e − mean|²`, the centred model's squared norm at the point `w` (the same
+    /// with and without reflection).
+    #[inline(always)]
+    fn model_norm((g11, g12, g22): (f64, C64, f64), w: C64) -> f64 {
+        g11 + 2.0 * (w * g12).re + w.norm_sqr() * g22
+    }
+
+    /// Whether the misfit at `w` ([`Sums::misfit_with`]) is surely above `bound`, decided
+    /// without its division: `1 − q/mm > bound` holds when `q < (1 − bound − 10⁻⁹)·mm`
+    /// (`q = |my|²`, `mm > 0`), whose rounding errors, a few units in the last place of
+    /// values near 1, are far inside the margin. `false` means "not sure" (also for NaN):
+    /// the caller then computes the misfit. So skipping a point on `true` changes no
+    /// decision [`offer`] would make (it refuses a misfit at or above the list's last).
+    #[inline(always)]
+    fn surely_above(&self, mm: f64, v: usize, w: C64, bound: f64) -> bool {
+        let my = self.r[v][0] + w.conj() * self.r[v][1];
+        mm > 0.0 && bound < 1.0 && my.norm_sqr() < (1.0 - bound - 1e-9) * mm
+    }
+
+    /// The misfit of [`Sums::at_point_with`] alone, given [`Sums::model_norm`] `mm`.
+    #[inline(always)]
+    fn misfit_with(&self, mm: f64, v: usize, w: C64) -> f64 {
+        if mm <= 0.0 {
+            return 1.0;
+        }
+        let my = self.r[v][0] + w.conj() * self.r[v][1];
+        (1.0 - my.norm_sqr() / mm).max(0.0)
     }
 }
 
@@ -374,6 +427,9 @@ impl OpenQuery {
         };
         let mut best: Vec<Vec<Window>> = points.iter().map(|_| Vec::new()).collect();
         let period = table.period;
+        // Each point's least misfit [`offer`] still takes (its list's last, once full).
+        let mut worst = vec![f64::INFINITY; points.len()];
+        let mut offsets = vec![0.0; self.x.len()];
         for span in self.spans(period) {
             let h = match self.layout {
                 Layout::Angles { .. } => 3.0,
@@ -382,21 +438,32 @@ impl OpenQuery {
             let count = (period / h).ceil() as usize;
             let h = period / count as f64;
             for sense in [1.0, -1.0] {
+                // `θ_j = start + σ·Δ·x_j` as `thetas` gives it, the products made once.
+                for (o, &x) in offsets.iter_mut().zip(&self.x) {
+                    *o = sense * span * x;
+                }
                 for i in 0..count {
                     let start = i as f64 * h;
                     let sums = Sums::of(
                         table,
-                        self.thetas(start, span, sense),
+                        offsets.iter().map(|&o| start + o),
                         &self.y,
                         self.allow_mirror,
                     );
                     let gram = sums.gram();
-                    for &mirror in mirrors {
-                        let v = usize::from(mirror);
-                        for (k, &w) in points.iter().enumerate() {
-                            let m = sums.at_point_with(gram, v, w).0;
+                    // Point by point, both reflections (each point's list sees its offers
+                    // in the same order as reflection by reflection).
+                    for (k, &w) in points.iter().enumerate() {
+                        let mm = Sums::model_norm(gram, w);
+                        for &mirror in mirrors {
+                            let v = usize::from(mirror);
+                            if sums.surely_above(mm, v, w, worst[k]) {
+                                continue;
+                            }
+                            let m = sums.misfit_with(mm, v, w);
+                            let list = &mut best[k];
                             offer(
-                                &mut best[k],
+                                list,
                                 Window {
                                     misfit: m,
                                     mirror,
@@ -406,6 +473,9 @@ impl OpenQuery {
                                 },
                                 period,
                             );
+                            if list.len() == WINDOWS {
+                                worst[k] = list[WINDOWS - 1].misfit;
+                            }
                         }
                     }
                 }
@@ -932,7 +1002,52 @@ pub(crate) fn open_stage2(
 
 #[cfg(test)]
 mod tests {
-    use super::cell;
+    use super::{C64, Sums, cell};
+    use crate::cases::SplitMix64;
+
+    /// The scan skips a point's misfit only when it is surely above the bound: wherever
+    /// `surely_above` says so, the misfit computed in full is above the bound, over
+    /// random sums, points and bounds, also with the bound a hair below the misfit.
+    #[test]
+    fn surely_above_never_skips_a_misfit_below_the_bound() {
+        let mut rng = SplitMix64(17);
+        let c = |rng: &mut SplitMix64| C64::new(rng.normal(), rng.normal());
+        let mut skipped = 0;
+        for _ in 0..200_000 {
+            let s = Sums {
+                m: 32.0,
+                sp: c(&mut rng),
+                se: c(&mut rng),
+                spe: c(&mut rng),
+                r: [
+                    [c(&mut rng) * 0.3, c(&mut rng) * 0.3],
+                    [c(&mut rng), c(&mut rng)],
+                ],
+            };
+            let gram = (32.0 * rng.uniform(), c(&mut rng), 32.0 * rng.uniform());
+            let w = c(&mut rng) * 2.0;
+            let mm = Sums::model_norm(gram, w);
+            for v in 0..2 {
+                let m = s.misfit_with(mm, v, w);
+                assert_eq!(m, s.at_point_with(gram, v, w).0);
+                for bound in [
+                    rng.uniform(),
+                    m - 1e-12,
+                    m - 2e-9,
+                    m * (1.0 - 1e-15),
+                    m,
+                    0.0,
+                    1.0,
+                ] {
+                    if s.surely_above(mm, v, w, bound) {
+                        skipped += 1;
+                        assert!(m > bound, "{m} {bound}");
+                    }
+                }
+            }
+        }
+        assert!(skipped > 10_000, "the test reaches the skip: {skipped}");
+    }
 
     /// The cell of an angle is the one of the floating remainder's whole part, with the
     /// same fraction, inside the scan's range and far outside it.
