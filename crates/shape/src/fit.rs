@@ -12,8 +12,8 @@
 //! or `θ₀ + ω·k`.
 
 use crate::geom::{C64, abs, fit_similarity, mean};
-use crate::kin::CouplerCurve;
-use crate::lm::{Eval, LmOptions, solve};
+use crate::kin::{CouplerCurve, PointAt};
+use crate::lm::{Eval, LmOptions, solve, solve_from};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
 
@@ -341,21 +341,16 @@ pub(crate) fn fit_untimed(
 ) -> Option<CurveFit> {
     let mir = start.mirrored;
     let gaps = curve.gaps();
-    let m0: Vec<C64> = start
-        .theta
-        .iter()
-        .map(|&t| curve.at_with(&gaps, t).map(|x| tilde(mir, x.m)))
-        .collect::<Option<_>>()?;
-    let (a, b, _) = fit_similarity(&m0, p)?;
-    let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
-        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+    // The residuals `a·M̃(θ_k) + b − p_k` and, with `jac`, their derivatives, from the
+    // curve's points at the angles.
+    let residuals = |a: C64, b: C64, at: &mut dyn Iterator<Item = Option<PointAt>>, jac: bool| {
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
             jg: Vec::with_capacity(if jac { 4 * p.len() } else { 0 }),
             jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
         };
-        for (k, &pk) in p.iter().enumerate() {
-            let at = curve.at_with(&gaps, l[k])?;
+        for &pk in p {
+            let at = at.next()??;
             let m = tilde(mir, at.m);
             e.r.push(a * m + b - pk);
             if jac {
@@ -370,14 +365,38 @@ pub(crate) fn fit_untimed(
         }
         Some(e)
     };
+    // The start's points serve both its similarity and LM's first evaluation.
+    let at0: Vec<PointAt> = start
+        .theta
+        .iter()
+        .map(|&t| curve.at_with(&gaps, t))
+        .collect::<Option<_>>()?;
+    let m0: Vec<C64> = at0.iter().map(|x| tilde(mir, x.m)).collect();
+    let (a, b, _) = fit_similarity(&m0, p)?;
+    let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
+        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+        residuals(a, b, &mut l.iter().map(|&t| curve.at_with(&gaps, t)), jac)
+    };
+    let g0 = vec![a.re, a.im, b.re, b.im];
+    let first = residuals(
+        C64::new(g0[0], g0[1]),
+        C64::new(g0[2], g0[3]),
+        &mut at0.into_iter().map(Some),
+        true,
+    );
     let lm = LmOptions {
         max_iterations: options.max_iterations,
         reuse_trial: true,
         ..LmOptions::DEFAULT
     };
-    let res = solve(vec![a.re, a.im, b.re, b.im], start.theta.clone(), eval, &lm)?;
-    let theta = unwrap_sequence(res.local, curve.period_deg());
-    finish_fit(p, curve, mir, &res.global, theta, None)
+    let res = solve_from(g0, start.theta.clone(), Some(first?), eval, &lm)?;
+    let theta = unwrap_sequence(res.local.clone(), curve.period_deg());
+    // The residuals at the result, where the unwrapped angles are the ones LM evaluated.
+    let known = res
+        .last
+        .as_ref()
+        .map(|e| (res.local.as_slice(), e.r.as_slice()));
+    finish_fit_with(p, curve, mir, &res.global, theta, None, known)
 }
 
 fn finish_fit(
@@ -388,13 +407,30 @@ fn finish_fit(
     theta: Vec<f64>,
     step: Option<f64>,
 ) -> Option<CurveFit> {
+    finish_fit_with(p, curve, mirrored, g, theta, step, None)
+}
+
+/// [`finish_fit`], given `known = (angles, residuals)` of an evaluation at `g`: a point whose
+/// angle is bit for bit the evaluated one takes its residual from there (the same value
+/// the curve would give again).
+fn finish_fit_with(
+    p: &[C64],
+    curve: &CouplerCurve,
+    mirrored: bool,
+    g: &[f64],
+    theta: Vec<f64>,
+    step: Option<f64>,
+    known: Option<(&[f64], &[C64])>,
+) -> Option<CurveFit> {
     let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
     let gaps = curve.gaps();
     let mut sum = 0.0;
     let mut max = 0.0f64;
     for (k, &pk) in p.iter().enumerate() {
-        let m = tilde(mirrored, curve.at_with(&gaps, theta[k])?.m);
-        let d = abs(a * m + b - pk);
+        let d = match known {
+            Some((l, r)) if l.get(k).map(|x| x.to_bits()) == Some(theta[k].to_bits()) => abs(r[k]),
+            _ => abs(a * tilde(mirrored, curve.at_with(&gaps, theta[k])?.m) + b - pk),
+        };
         sum += d * d;
         max = max.max(d);
     }

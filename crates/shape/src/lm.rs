@@ -10,6 +10,7 @@ use crate::geom::C64;
 use nalgebra::{DMatrix, DVector};
 
 /// Residuals and Jacobian at a parameter vector.
+#[derive(Clone, Debug)]
 pub(crate) struct Eval {
     /// `r_j`, one per point.
     pub r: Vec<C64>,
@@ -31,6 +32,8 @@ pub(crate) struct LmResult {
     pub global: Vec<f64>,
     pub local: Vec<f64>,
     pub iterations: usize,
+    /// The evaluation at `(global, local)` (with [`LmOptions::reuse_trial`]; else `None`).
+    pub last: Option<Eval>,
 }
 
 /// Options.
@@ -74,6 +77,21 @@ fn dot(a: C64, b: C64) -> f64 {
 pub(crate) fn solve<F>(
     global: Vec<f64>,
     local: Vec<f64>,
+    eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], bool) -> Option<Eval>,
+{
+    solve_from(global, local, None, eval, options)
+}
+
+/// [`solve`] given the start's evaluation with its Jacobian, `first` (what
+/// `eval(&global, &local, true)` returns; evaluated when `None`).
+pub(crate) fn solve_from<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    first: Option<Eval>,
     mut eval: F,
     options: &LmOptions,
 ) -> Option<LmResult>
@@ -83,7 +101,10 @@ where
     let ng = global.len();
     let has_locals = !local.is_empty();
     let (mut g, mut l) = (global, local);
-    let mut e = eval(&g, &l, true)?;
+    let mut e = match first {
+        Some(e) => e,
+        None => eval(&g, &l, true)?,
+    };
     let mut cost = e.cost();
     let mut lambda = 1e-3;
     let mut iterations = 0;
@@ -207,7 +228,13 @@ where
                     lambda = (lambda / 3.0).max(1e-15);
                     accepted = true;
                     if decrease <= options.relative_decrease * cost {
-                        return finish(g, l, eval, iterations, options.reuse_trial);
+                        return finish(
+                            g,
+                            l,
+                            eval,
+                            iterations,
+                            new_eval.filter(|_| options.reuse_trial),
+                        );
                     }
                     if options.reuse_trial {
                         // The residuals and Jacobian at the accepted point: what
@@ -228,7 +255,8 @@ where
         };
         cost = e.cost();
     }
-    finish(g, l, eval, iterations, options.reuse_trial)
+    let last = options.reuse_trial.then_some(e);
+    finish(g, l, eval, iterations, last)
 }
 
 /// Eliminates the locals: `s −= Σ_j h_j·h_jᵀ/d_j` and `rhs += Σ_j h_j·g_j/d_j` (`h_j` row
@@ -290,25 +318,27 @@ fn schur_fixed<const G: usize>(
 }
 
 /// The result at `(g, l)`. Every exit of [`solve`] stands on a point that was evaluated
-/// (the start, or an accepted step): with `evaluated` (a pure `eval`, [`LmOptions::reuse_trial`])
-/// it is not evaluated again; otherwise it is, as a last check that the model is defined there.
+/// (the start, or an accepted step): given that evaluation, `last` (a pure `eval`,
+/// [`LmOptions::reuse_trial`]), it is not evaluated again; otherwise it is, as a last check
+/// that the model is defined there.
 fn finish<F>(
     g: Vec<f64>,
     l: Vec<f64>,
     mut eval: F,
     iterations: usize,
-    evaluated: bool,
+    last: Option<Eval>,
 ) -> Option<LmResult>
 where
     F: FnMut(&[f64], &[f64], bool) -> Option<Eval>,
 {
-    if !evaluated {
+    if last.is_none() {
         eval(&g, &l, false)?;
     }
     Some(LmResult {
         global: g,
         local: l,
         iterations,
+        last,
     })
 }
 
