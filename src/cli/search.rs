@@ -353,9 +353,8 @@ pub struct Found {
     pub curves: usize,
 }
 
-/// [`run`], writing the results to `w`, and the closing summary line to stderr only with
-/// `summary` (`bench search` runs queries without it).
-pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
+/// The query `args` describe (the index aside).
+pub fn query_of(args: &Args) -> Result<Query> {
     let class = match &args.class {
         None => None,
         Some(c) => Some(
@@ -366,7 +365,7 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
                 .ok_or_else(|| UsageError(format!("unknown class `{c}`")))?,
         ),
     };
-    let query = Query {
+    Ok(Query {
         straight: args.straight,
         arc: args.arc,
         double_dwell: args.double_dwell,
@@ -388,7 +387,13 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
         max_velocity_variation_pct: args.max_ev,
         sort: args.sort,
         limit: args.limit,
-    };
+    })
+}
+
+/// [`run`], writing the results to `w`, and the closing summary line to stderr only with
+/// `summary` (`bench search` runs queries without it).
+pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
+    let query = query_of(&args)?;
     let t0 = Instant::now();
     let searched = resolve(&args.index)?;
     let (mut loaded, extracted) = match &searched {

@@ -1064,6 +1064,24 @@ impl ColumnTable {
         self.rows == 0
     }
 
+    /// The file extents (offset, length in bytes) of the chunks read so far, in file
+    /// order: every byte a search read from the file (each chunk is checked, whole, on
+    /// its first read, and nothing outside a checked chunk is read besides the header,
+    /// the directory and the trailer, which opening reads). What `bench search` reads as
+    /// a query's own I/O floor.
+    pub fn extents_read(&self) -> Vec<(u64, u64)> {
+        let chunks = self
+            .groups
+            .iter()
+            .flat_map(|g| g.chunks.iter())
+            .chain(self.page_chunks.iter());
+        chunks
+            .zip(&self.checked)
+            .filter(|(_, c)| c.load(Ordering::Relaxed) != 0)
+            .map(|(k, _)| (k.at as u64, k.len as u64))
+            .collect()
+    }
+
     /// Chunk `c` (number `n` among all chunks), its checksum checked on first use.
     fn bytes_of(&self, c: Chunk, n: usize) -> Result<&[u8], ColumnsError> {
         let data = &self.bytes[c.at..c.at + c.len];
