@@ -170,12 +170,7 @@ fn read_extents(path: &std::path::Path, extents: &[(u64, u64)]) -> std::io::Resu
 /// This process's resident memory now, kB: (own: `RssAnon`, mapped files: `RssFile`),
 /// from `/proc/self/status` (Linux; `None` elsewhere).
 fn rss_now() -> Option<(u64, u64)> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let field = |name: &str| -> Option<u64> {
-        let line = status.lines().find(|l| l.starts_with(name))?;
-        line[name.len()..].split_whitespace().next()?.parse().ok()
-    };
-    Some((field("RssAnon:")?, field("RssFile:")?))
+    super::search::status_kb(["RssAnon:", "RssFile:"]).map(|[a, f]| (a, f))
 }
 
 /// Resident memory while some work ran, kB: own (`RssAnon`) before it and at its peak,

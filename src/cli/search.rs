@@ -478,8 +478,19 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
     if !summary {
         return Ok(Found { total, curves });
     }
+    // Memory (Linux): the peak resident set counts the mapped files' pages the scan
+    // touched (the page cache's, shared) with the process's own memory.
+    let memory = match status_kb(["VmHWM:", "RssAnon:", "RssFile:"]) {
+        Some([peak, own, mapped]) => format!(
+            "; memory: peak resident {:.0} MB (now: own {:.1} MB, mapped files {:.0} MB)",
+            peak as f64 / 1024.0,
+            own as f64 / 1024.0,
+            mapped as f64 / 1024.0
+        ),
+        None => String::new(),
+    };
     eprintln!(
-        "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s",
+        "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s{memory}",
         hits.len(),
         curves,
         if hits.len() < total {
@@ -505,6 +516,18 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
         }
     }
     Ok(Found { total, curves })
+}
+
+/// Fields of `/proc/self/status` in kB (e.g. `RssAnon:`), in the order asked; `None`
+/// where there is no such file (not Linux) or a field is missing.
+pub fn status_kb<const N: usize>(fields: [&str; N]) -> Option<[u64; N]> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let mut out = [0u64; N];
+    for (o, name) in out.iter_mut().zip(fields) {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        *o = line[name.len()..].split_whitespace().next()?.parse().ok()?;
+    }
+    Some(out)
 }
 
 /// One matching feature of a hit, as the table and CSV print it.

@@ -785,6 +785,31 @@ impl View<'_> {
         Ok((s..s + sc as usize, a..a + ac as usize))
     }
 
+    /// Row `i`'s linkage, checked as [`row_at`] checks it.
+    #[inline]
+    fn linkage(&self, i: usize) -> Result<Linkage, ColumnsError> {
+        let cell = |k: usize| f64_at(self.cols[1], i * 24 + k * 8);
+        linkage_of_cells(
+            [cell(0), cell(1), cell(2)],
+            self.cols[GEAR].get(i * 24..i * 24 + 24).unwrap_or(&[]),
+        )
+        .ok_or_else(|| bad(format!("row {i}: not a valid linkage")))
+    }
+
+    /// Row `i`'s transmission range, checked finite as [`row_at`] checks it.
+    #[inline]
+    fn transmission(&self, i: usize) -> Result<[f64; 2], ColumnsError> {
+        let range = [
+            f64_at(self.cols[3], i * 16),
+            f64_at(self.cols[3], i * 16 + 8),
+        ];
+        if range.iter().all(|x| x.is_finite()) {
+            Ok(range)
+        } else {
+            Err(bad(format!("row {i}: a value is not finite")))
+        }
+    }
+
     fn row(&self, i: usize) -> Result<CurveRow, ColumnsError> {
         row_at(
             &self.cols,
@@ -1156,6 +1181,8 @@ impl ColumnTable {
         use rayon::prelude::*;
         let need = columns_read(q);
         let (linkage, transmission) = q.reads_row();
+        // The scan reads the rows' columns it needs (each checked as `row_at` checks
+        // it) without building a `CurveRow`.
         let per_group: Vec<(Vec<Keyed>, usize)> = (0..self.groups.len())
             .into_par_iter()
             .map(|g| {
@@ -1173,12 +1200,15 @@ impl ColumnTable {
                     if !q.passes_flags(fl) {
                         continue;
                     }
-                    let transmission = if linkage || transmission {
-                        let r = v.row(i)?;
-                        if !q.passes_row(&r) {
+                    if linkage && !q.passes_linkage(&v.linkage(i)?) {
+                        continue;
+                    }
+                    let transmission = if transmission {
+                        let range = v.transmission(i)?;
+                        if !q.passes_transmission(range) {
                             continue;
                         }
-                        r.transmission_deg
+                        range
                     } else {
                         [f64::NAN; 2]
                     };
@@ -1242,7 +1272,9 @@ impl ColumnTable {
             let sides = (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
                 .all(|k| v.cols[SIDE].get(v.local(SIDE, k)).is_some_and(|&b| b <= 1));
             if !(segs.iter().all(segment_is_valid) && arcs.iter().all(arc_is_valid) && sides) {
-                return Err(bad(format!("row {row}: a segment or arc value is not valid")));
+                return Err(bad(format!(
+                    "row {row}: a segment or arc value is not valid"
+                )));
             }
             if r.page != u32::MAX {
                 r.page = match pages.get(&r.page) {

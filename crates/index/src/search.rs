@@ -802,12 +802,22 @@ impl Query {
     /// The tests of [`Query::eval`] on the row's linkage and transmission range (the
     /// fields [`Query::reads_row`] names).
     pub(crate) fn passes_row(&self, r: &CurveRow) -> bool {
+        self.passes_linkage(&r.linkage) && self.passes_transmission(r.transmission_deg)
+    }
+
+    /// The test of [`Query::eval`] on the row's linkage.
+    #[inline]
+    pub(crate) fn passes_linkage(&self, linkage: &Linkage) -> bool {
         self.linkage
             .as_ref()
-            .is_none_or(|l| same_linkage(&r.linkage, l))
-            && self.min_transmission_deg.is_none_or(|mt| {
-                !(r.transmission_deg[0] < mt || r.transmission_deg[1] > 180.0 - mt)
-            })
+            .is_none_or(|l| same_linkage(linkage, l))
+    }
+
+    /// The test of [`Query::eval`] on the row's transmission range.
+    #[inline]
+    pub(crate) fn passes_transmission(&self, range: [f64; 2]) -> bool {
+        self.min_transmission_deg
+            .is_none_or(|mt| !(range[0] < mt || range[1] > 180.0 - mt))
     }
 
     /// Whether straight segment `k` passes the segment filters (each field is read only
