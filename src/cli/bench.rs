@@ -48,9 +48,10 @@ enum Which {
         out: Option<std::path::PathBuf>,
     },
     /// Search: each query run in this process as `search` runs it (`--limit 10`, results
-    /// discarded), wall and CPU time (all threads, to the nanosecond), beside its I/O floor measured in the
-    /// same rounds: reading the whole `index.columns` a cached query maps (a query maps
-    /// only the columns it tests, so the floor is an upper one and the ratio a lower one).
+    /// discarded), wall and CPU time (all threads, to the nanosecond), beside two I/O
+    /// floors measured in the same rounds: reading the whole `index.columns`, and reading
+    /// only the bytes of it the query reads (the chunks it checks); and its peak memory:
+    /// own (`RssAnon`) and mapped files' pages (`RssFile`), sampled every millisecond.
     /// With `--first`, also the first search of the index (hashed whole, as after
     /// `generate` or a copy) beside reading the whole `index.json`.
     Search {

@@ -29,9 +29,12 @@
 //! every count (groups cover the rows, segments and arcs in sequence), and that the
 //! index's content key in the trailer is the index's (see [`crate::stamp`] for how the key
 //! is known without hashing the index on every search). A chunk's checksum is checked
-//! the first time it is read. Each row read is checked (flags, class, values, its
-//! segments and arcs inside its group, its page inside the page names). So any damage is
-//! found before a value of the damaged chunk is used, and [`ColumnTable::select`] then
+//! the first time it is read. Each value is checked where it is used: a row's flags
+//! before it is tested; for a row they do not reject, its segment and arc ranges and the
+//! linkage or transmission it is tested on; every value of a row that is shown (finite,
+//! its segments and arcs inside its group, its page inside the page names), including
+//! fields no filter read. So any damage is found before a value of the damaged chunk is
+//! used, and [`ColumnTable::select`] then
 //! returns an error: the caller rebuilds from the index (the file is not trusted again).
 //! What the checksums do not defend against: someone who writes the folder can write
 //! another file with valid checksums (XXH3 is not a signature), as they can rewrite the
