@@ -396,24 +396,13 @@ pub(crate) fn fit_untimed(
         .last
         .as_ref()
         .map(|e| (res.local.as_slice(), e.r.as_slice()));
-    finish_fit_with(p, curve, mir, &res.global, theta, None, known)
+    finish_fit(p, curve, mir, &res.global, theta, None, known)
 }
 
+/// The fit's report at `g` and the angles `theta`. Given `known = (angles, residuals)` of an
+/// evaluation at `g`, a point whose angle is bit for bit the evaluated one takes its
+/// residual from there (the same value the curve would give again).
 fn finish_fit(
-    p: &[C64],
-    curve: &CouplerCurve,
-    mirrored: bool,
-    g: &[f64],
-    theta: Vec<f64>,
-    step: Option<f64>,
-) -> Option<CurveFit> {
-    finish_fit_with(p, curve, mirrored, g, theta, step, None)
-}
-
-/// [`finish_fit`], given `known = (angles, residuals)` of an evaluation at `g`: a point whose
-/// angle is bit for bit the evaluated one takes its residual from there (the same value
-/// the curve would give again).
-fn finish_fit_with(
     p: &[C64],
     curve: &CouplerCurve,
     mirrored: bool,
@@ -598,7 +587,7 @@ fn timed_lm(
     let res = solve(g, Vec::new(), eval, &lm)?;
     let s = if free_step { res.global[5] } else { step };
     let theta = o.iter().map(|&x| res.global[4] + s * x).collect();
-    finish_fit(p, curve, mir, &res.global, theta, Some(s))
+    finish_fit(p, curve, mir, &res.global, theta, Some(s), None)
 }
 
 /// Fits `target` to `curve`: the global scans, then Levenberg–Marquardt from the best
