@@ -534,12 +534,12 @@ fn write_png_fast(
     let mut blank = 0;
     let mut spans: Vec<(usize, usize)> = Vec::new();
     for j in 1..h {
-        spans.clear();
-        spans.extend(dirty.row_pair_spans(j));
-        if spans.is_empty() {
+        if dirty.row_pair_blank(j) {
             blank += 1;
             continue;
         }
+        spans.clear();
+        spans.extend(dirty.row_pair_spans(j));
         z.blank_rows(w + 1, 2, blank);
         blank = 0;
         let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
