@@ -15,24 +15,9 @@ use coupler_atlas::{
     AngleTables, Circuit, CouplerPoint, CrankTable, Curve, FourBar, GearRatio, GearTable,
     GearedFiveBar, Linkage, Mechanism, PoseTable,
 };
+use coupler_generate::{median, thread_cpu_seconds as cpu_seconds};
 use std::hint::black_box;
 use std::time::Instant;
-
-/// User + system CPU time of this thread in seconds (`/proc/thread-self/stat`, fields 14
-/// and 15, in 10 ms ticks); `None` off Linux.
-fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
-    let after_name = stat.rsplit_once(')')?.1;
-    let mut fields = after_name.split_whitespace().skip(11);
-    let user: f64 = fields.next()?.parse().ok()?;
-    let system: f64 = fields.next()?.parse().ok()?;
-    Some((user + system) / 100.0)
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
 
 /// Runs `work` (which traces `samples` samples) for at least 0.5 s of CPU; returns
 /// (CPU ns per sample, wall ns per sample).

@@ -10,6 +10,8 @@ use coupler_atlas::{
     ColumnTable, IndexKey, Query, SearchTable, SortKey, SpanFilter, cache_path, columns_path,
     load_table, stamp_path,
 };
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
@@ -23,9 +25,7 @@ fn atlas() -> &'static (PathBuf, Vec<u8>) {
     ATLAS.get_or_init(|| {
         // Shared by every test of this file and never removed (a static): kept in the
         // build's own scratch folder rather than the system's temporary folder.
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join(format!("coupler-fuzz-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let dir = common::shared_scratch("coupler-fuzz").join("atlas");
         let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("atlas-spec/quick.toml");
         let o = Command::new(BIN)
             .args([

@@ -4,6 +4,8 @@
 use coupler_atlas::{Circuit, Class, FourBar, IndexCurve, LinkageClass};
 use coupler_atlas::{Query, SearchTable, SortKey, SpanFilter};
 use proptest::prelude::*;
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
 use std::sync::OnceLock;
@@ -34,9 +36,8 @@ crank_step_deg = 2.0
 fn atlas() -> &'static (PathBuf, Vec<IndexCurve>, SearchTable) {
     static ATLAS: OnceLock<(PathBuf, Vec<IndexCurve>, SearchTable)> = OnceLock::new();
     ATLAS.get_or_init(|| {
-        let dir =
-            std::env::temp_dir().join(format!("coupler-atlas-search-test-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        // Held by a static and never removed: kept in the build's scratch folder.
+        let dir = common::shared_scratch("coupler-atlas-search-test");
         let spec = dir.join("spec.toml");
         std::fs::write(&spec, SPEC).unwrap();
         let out = dir.join("atlas");
