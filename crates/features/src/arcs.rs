@@ -14,7 +14,7 @@
 
 use super::fit::{Circle, CircleFitOptions, fit_circle, kasa_circle};
 use super::{FeatureTolerances, PseudoArc, Side, dash_count};
-use crate::maximal::{Candidates, set_bits};
+use crate::maximal::Candidates;
 use coupler_kinematics::{Curve, DashPattern};
 
 /// The samples of a closed curve taken twice round (so that a window passing the last
@@ -95,23 +95,37 @@ fn turn(c: &Samples, i: usize, j: usize, center: [f64; 2], sign: f64, stop_at: f
 
 /// The O(1) filter of every window of a closed curve of `n` samples, for every start at
 /// once (structure of arrays, so the compiler vectorises it): Kåsa's sums of the window
-/// `[i, i + l]` about its first sample (so that a small window far from the origin keeps
-/// its digits), grown by one sample per round of `l`; from them its circle, and whether
-/// that circle holds the window's first, middle and last samples within the tolerance
-/// (0.1 % slack on it, and more than the rounding of a circle fitted from sums), and
-/// whether the point runs one way round that circle's centre at those three samples.
-/// Windows whose samples are (nearly) collinear pass: the exact test decides.
+/// `[i, i + l]` about its first sample ([`KasaSums`]: running fit sums, so that a small
+/// window far from the origin keeps its digits), grown by one sample per round of `l`;
+/// from them its circle, and whether that circle holds the window's first, middle and
+/// last samples within the tolerance (0.1 % slack on it, and more than the rounding of a
+/// circle fitted from sums), and whether the point runs one way round that circle's
+/// centre at those three samples, all branch-free.
+/// Windows whose samples are (nearly) collinear pass, and so do windows more than 1000
+/// of their radii from the origin: the exact test decides those.
+///
+/// **How close the two circles are.** The exact test fits [`kasa_circle`] directly (the
+/// samples' mean, then sums about it); the filter solves the same centred normal
+/// equations from its running sums. Both differ from the circle through the samples only
+/// by rounding, `κ·O(m·ε)·R` with `κ` the condition number of the 2 × 2 scatter matrix,
+/// plus, for the direct fit, the rounding of its mean, `O(ε·|x̄|)`, which it then treats
+/// as exact (its split normal equations take `Σ(x − x̄) = 0`), amplified by `κ`: the
+/// direct fit, not the running sums, loses digits far from the origin (the tests:
+/// `running_sums_are_the_more_exact_far_from_the_origin`). Hence the limit of 1000 radii.
+/// Within it, `running_sums_circle_matches_the_direct_fit` measures the two on hard
+/// cases (circles, wobbles near the tolerance, a 1000:1 ellipse's nearly straight sides,
+/// four-bar curves, all also moved up to 10⁹ from the origin): centres within 6·10⁻¹²·R
+/// where the filter trusts its centre, radii within 1.2·10⁻⁶ (half the radial slack is
+/// asserted), and `filter_passes_every_qualifying_window` checks every window of them.
 ///
 /// **Why the winding filter never rejects a qualifying window.** The exact test takes the
-/// winding about [`kasa_circle`]'s centre `c`, the filter about its own centre `c'`, the
-/// same centred normal equations solved from sums accumulated in another order: they
-/// differ only by rounding, `|c − c'| ≤ κ·O(m·ε)·R` with `κ` the condition number of the
-/// 2 × 2 scatter matrix. The filter trusts its centre only where `κ ≤ 10⁴` (`det >
-/// 10⁻⁴·scale²`; the exact test decides the rest), so `|c − c'| < 10⁻⁹·R` there, and it
-/// rejects a window only when two of the three samples have cross products
-/// `(M − c')×V` of opposite signs, each larger in size than `10⁻⁶·2R·|V|`: moving the centre
-/// by less than that cannot change either sign (`|δ×V| ≤ |δ|·|V|`), so the window does
-/// not run one way round `c` either.
+/// winding about the direct fit's centre `c`, the filter about its own `c'`. The filter
+/// trusts its centre only where `κ ≤ 10⁴` (`det > 10⁻⁴·scale²`; the exact test decides
+/// the rest) and the window is within 1000 radii of the origin, so `|c − c'| < 10⁻⁹·R`
+/// there, and it rejects a window only when two of the three samples have cross products
+/// `(M − c')×V` of opposite signs, each larger in size than `10⁻⁶·2R·|V|`: moving the
+/// centre by less than that cannot change either sign (`|δ×V| ≤ |δ|·|V|`), so the window
+/// does not run one way round `c` either.
 ///
 /// **Four lanes where the processor has them.** On x86-64 with AVX2 (checked at run
 /// time) the same code is compiled for AVX2 and run instead: the compiler packs four
@@ -155,33 +169,38 @@ fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
     let mut syy = vec![0.0; n];
     let mut szx = vec![0.0; n];
     let mut szy = vec![0.0; n];
-    // Per start of the current length: the filter's circle (centre about the first
-    // sample, radius²) and whether the winding decides.
-    let (mut ca, mut cb, mut cr2) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let mut wind = vec![false; n];
     // |V|², taken twice round like the samples.
     let speed2: Vec<f64> = vx2
         .iter()
         .zip(vy2)
         .map(|(ux, uy)| ux * ux + uy * uy)
         .collect();
+    // The circles of the current length, by start (centre about the first sample, radius²,
+    // determinant and trace of the scatter matrix).
+    let (mut ca, mut cb, mut cr2) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let (mut cdet, mut cscale) = (vec![0.0; n], vec![0.0; n]);
+    // |M|² of each start: a window more than 1000 radii from the origin is not filtered
+    // (the direct fit the exact test uses loses digits there: see above).
+    let far2: Vec<f64> = x0.iter().zip(y0).map(|(x, y)| x * x + y * y).collect();
     let lo_f = (1.0 - 1.001 * tol - 1e-9).max(0.0).powi(2);
     let hi_f = (1.0 + 1.001 * tol + 1e-9).powi(2);
     for l in 1..n {
         let (xl, yl) = (&x2[l..l + n], &y2[l..l + n]);
-        for i in 0..n {
-            let (x, y) = (xl[i] - x0[i], yl[i] - y0[i]);
-            let (xx, xy, yy) = (x * x, x * y, y * y);
-            let z = xx + yy;
-            sx[i] += x;
-            sy[i] += y;
-            sxx[i] += xx;
-            sxy[i] += xy;
-            syy[i] += yy;
-            szx[i] += z * x;
-            szy[i] += z * y;
-        }
         if l < min_steps {
+            for i in 0..n {
+                let mut s = KasaSums {
+                    sx: sx[i],
+                    sy: sy[i],
+                    sxx: sxx[i],
+                    sxy: sxy[i],
+                    syy: syy[i],
+                    szx: szx[i],
+                    szy: szy[i],
+                };
+                s.add(xl[i] - x0[i], yl[i] - y0[i]);
+                (sx[i], sy[i], sxx[i], sxy[i], syy[i]) = (s.sx, s.sy, s.sxx, s.sxy, s.syy);
+                (szx[i], szy[i]) = (s.szx, s.szy);
+            }
             continue;
         }
         let m = (l + 1) as f64;
@@ -193,26 +212,30 @@ fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
         let (uxl, uyl) = (&vx2[l..l + n], &vy2[l..l + n]);
         let (v0, vh, vl) = (&speed2[..n], &speed2[h..h + n], &speed2[l..l + n]);
         let pass = cand.row_mut(l);
-        // First the circles and the radial test, for every start (vectorised); then the
-        // winding, only where it decides (a fitted, trusted circle that holds the three
-        // samples: about one window in seven). The same arithmetic as one pass, so the
-        // same windows pass: `(round & !(trusted & reverses)) | !fitted`.
+        // Two short branch-free passes over the starts, each vectorised: the sums grown by
+        // one sample and their circles; then the radial test and the winding at the three
+        // samples, `(round & !(trusted & reverses)) | !fitted`. (One pass doing both, or the
+        // winding only where it decides, measured 5–10 % slower for the arcs: each pass's
+        // chain of dependent operations is shorter, so more starts are in flight at once.)
         for i in 0..n {
-            let (mx, my) = (sx[i] * inv_m, sy[i] * inv_m);
-            let sz = sxx[i] + syy[i];
-            let cxx = sxx[i] - sx[i] * mx;
-            let cxy = sxy[i] - sx[i] * my;
-            let cyy = syy[i] - sy[i] * my;
-            let czx = szx[i] - sz * mx;
-            let czy = szy[i] - sz * my;
-            let det = cxx * cyy - cxy * cxy;
-            let scale = cxx + cyy;
-            let inv_det = 1.0 / det;
-            let d = -(czx * cyy - czy * cxy) * inv_det;
-            let e = -(cxx * czy - cxy * czx) * inv_det;
-            let f = -(sz + d * sx[i] + e * sy[i]) * inv_m;
-            let (a, b) = (-0.5 * d, -0.5 * e);
-            let r2 = a * a + b * b - f;
+            let mut s = KasaSums {
+                sx: sx[i],
+                sy: sy[i],
+                sxx: sxx[i],
+                sxy: sxy[i],
+                syy: syy[i],
+                szx: szx[i],
+                szy: szy[i],
+            };
+            s.add(xl[i] - x0[i], yl[i] - y0[i]);
+            (sx[i], sy[i], sxx[i], sxy[i], syy[i]) = (s.sx, s.sy, s.sxx, s.sxy, s.syy);
+            (szx[i], szy[i]) = (s.szx, s.szy);
+            let k = s.circle(inv_m);
+            (ca[i], cb[i], cr2[i]) = (k.a, k.b, k.r2);
+            (cdet[i], cscale[i]) = (k.det, k.scale);
+        }
+        for i in 0..n {
+            let (a, b, r2, det, scale) = (ca[i], cb[i], cr2[i], cdet[i], cscale[i]);
             let (lo, hi) = (r2 * lo_f, r2 * hi_f);
             // The first sample is the origin; then the middle and the last.
             let d0 = a * a + b * b;
@@ -220,34 +243,108 @@ fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
             let dh = hx * hx + hy * hy;
             let (ex, ey) = (xl[i] - x0[i] - a, yl[i] - y0[i] - b);
             let de = ex * ex + ey * ey;
-            let round = (lo <= d0) & (d0 <= hi) & (lo <= dh) & (dh <= hi) & (lo <= de) & (de <= hi);
-            let fitted = (det > 1e-9 * scale * scale) & (r2 > 0.0);
-            let trusted = det > 1e-4 * scale * scale;
-            pass[i] = round | !fitted;
-            wind[i] = round & fitted & trusted;
-            ca[i] = a;
-            cb[i] = b;
-            cr2[i] = r2;
-        }
-        for i in set_bits(&wind) {
-            let (a, b, r2) = (ca[i], cb[i], cr2[i]);
-            let (hx, hy) = (xh[i] - x0[i] - a, yh[i] - y0[i] - b);
-            let (ex, ey) = (xl[i] - x0[i] - a, yl[i] - y0[i] - b);
+            // Conditions as lane masks (all ones or zero), combined as such and made a
+            // flag once: the compiler keeps them in the vector lanes.
+            let round = mask(lo <= d0)
+                & mask(d0 <= hi)
+                & mask(lo <= dh)
+                & mask(dh <= hi)
+                & mask(lo <= de)
+                & mask(de <= hi);
+            let fitted =
+                mask(det > 1e-9 * scale * scale) & mask(r2 > 0.0) & mask(far2[i] <= 1e6 * r2);
+            let trusted = mask(det > 1e-4 * scale * scale);
             // Winding at the three samples: (M − c) × V, and (its margin)² over |V|².
             let w0 = -a * uy0[i] + b * ux0[i];
             let wh = hx * uyh[i] - hy * uxh[i];
             let we = ex * uyl[i] - ey * uxl[i];
             let margin = 4e-12 * r2;
             let (p0, ph, pe) = (
-                w0 * w0 > margin * v0[i],
-                wh * wh > margin * vh[i],
-                we * we > margin * vl[i],
+                mask(w0 * w0 > margin * v0[i]),
+                mask(wh * wh > margin * vh[i]),
+                mask(we * we > margin * vl[i]),
             );
-            let (s0, sh, se) = (w0 > 0.0, wh > 0.0, we > 0.0);
-            let reverses = (p0 & ph & (s0 != sh)) | (p0 & pe & (s0 != se)) | (ph & pe & (sh != se));
-            pass[i] = !reverses;
+            let (s0, sh, se) = (mask(w0 > 0.0), mask(wh > 0.0), mask(we > 0.0));
+            let reverses = (p0 & ph & (s0 ^ sh)) | (p0 & pe & (s0 ^ se)) | (ph & pe & (sh ^ se));
+            pass[i] = ((round & !(trusted & reverses)) | !fitted) != 0;
         }
     }
+}
+
+/// Kåsa's sums of a window about its first sample (which is the origin of `x`, `y`),
+/// grown one sample at a time: the filter's running fit sums ([`filter_windows`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct KasaSums {
+    sx: f64,
+    sy: f64,
+    sxx: f64,
+    sxy: f64,
+    syy: f64,
+    szx: f64,
+    szy: f64,
+}
+
+/// The filter's circle of a window: centre `(a, b)` about the window's first sample,
+/// radius², and the centred scatter matrix's determinant and trace (how well the circle
+/// is determined).
+#[derive(Clone, Copy, Debug)]
+struct FilterCircle {
+    a: f64,
+    b: f64,
+    r2: f64,
+    det: f64,
+    scale: f64,
+}
+
+impl KasaSums {
+    /// Adds the sample at `(x, y)` from the window's first sample.
+    #[inline(always)]
+    fn add(&mut self, x: f64, y: f64) {
+        let (xx, xy, yy) = (x * x, x * y, y * y);
+        let z = xx + yy;
+        self.sx += x;
+        self.sy += y;
+        self.sxx += xx;
+        self.sxy += xy;
+        self.syy += yy;
+        self.szx += z * x;
+        self.szy += z * y;
+    }
+
+    /// Kåsa's circle of the `m = 1 / inv_m` samples summed: the centred normal equations
+    /// ([`kasa_circle`]'s) with the centred sums taken from these, solved in closed form.
+    /// Meaningless (infinite or NaN) where `det` is 0; the caller tests `det` first.
+    #[inline(always)]
+    fn circle(&self, inv_m: f64) -> FilterCircle {
+        let (mx, my) = (self.sx * inv_m, self.sy * inv_m);
+        let sz = self.sxx + self.syy;
+        let cxx = self.sxx - self.sx * mx;
+        let cxy = self.sxy - self.sx * my;
+        let cyy = self.syy - self.sy * my;
+        let czx = self.szx - sz * mx;
+        let czy = self.szy - sz * my;
+        let det = cxx * cyy - cxy * cxy;
+        let scale = cxx + cyy;
+        let inv_det = 1.0 / det;
+        let d = -(czx * cyy - czy * cxy) * inv_det;
+        let e = -(cxx * czy - cxy * czx) * inv_det;
+        let f = -(sz + d * self.sx + e * self.sy) * inv_m;
+        let (a, b) = (-0.5 * d, -0.5 * e);
+        let r2 = a * a + b * b - f;
+        FilterCircle {
+            a,
+            b,
+            r2,
+            det,
+            scale,
+        }
+    }
+}
+
+/// A condition as a lane mask: all ones if it holds, else zero.
+#[inline(always)]
+fn mask(c: bool) -> u64 {
+    u64::from(c).wrapping_neg()
 }
 
 /// A window's circle if the window qualifies (the contract above): Kåsa's circle, the
@@ -364,4 +461,197 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
             })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use coupler_kinematics::{Circuit, CouplerPoint, CrankTable, FourBar, Mechanism};
+
+    /// A closed curve of 72 samples (5° of crank) from positions and velocities at θ.
+    fn closed(f: impl Fn(f64) -> [f64; 4]) -> Curve {
+        let mut c = Curve::default();
+        for k in 0..72 {
+            let [x, y, vx, vy] = f((5.0 * k as f64).to_radians());
+            c.x.push(x);
+            c.y.push(y);
+            c.vx.push(vx);
+            c.vy.push(vy);
+        }
+        c
+    }
+
+    /// Curves where running sums are hardest to trust: far from the origin (up to 1e8
+    /// radii), tiny and huge, nearly straight windows (radius of curvature 10⁶ times the
+    /// width), deviations near the arc tolerance, and four-bar curves moved far away.
+    fn hard_curves() -> Vec<(String, Curve)> {
+        let mut out = Vec::new();
+        for (off, r) in [(0.0, 1.0), (1e6, 1.0), (1e8, 1.0), (3.0, 1e-6), (-2e9, 1e3)] {
+            out.push((
+                format!("circle r={r} at {off}"),
+                closed(|t| {
+                    let (s, c) = (libm::sin(t), libm::cos(t));
+                    [off + r * c, -off + r * s, -r * s, r * c]
+                }),
+            ));
+            // A three-lobed wobble of 0.45 % (arcs just inside 0.5 %) and of 0.6 %.
+            for w in [0.0045, 0.006] {
+                out.push((
+                    format!("wobble {w} r={r} at {off}"),
+                    closed(|t| {
+                        let (s, c) = (libm::sin(t), libm::cos(t));
+                        let (s3, c3) = (libm::sin(3.0 * t), libm::cos(3.0 * t));
+                        let rho = r * (1.0 + w * c3);
+                        let drho = -3.0 * r * w * s3;
+                        [
+                            off + rho * c,
+                            off + rho * s,
+                            drho * c - rho * s,
+                            drho * s + rho * c,
+                        ]
+                    }),
+                ));
+            }
+            // A flat ellipse: windows along its sides are nearly straight.
+            out.push((
+                format!("ellipse 1000:1 r={r} at {off}"),
+                closed(|t| {
+                    let (s, c) = (libm::sin(t), libm::cos(t));
+                    [off + 1000.0 * r * c, off + r * s, -1000.0 * r * s, r * c]
+                }),
+            ));
+        }
+        let table = CrankTable::new(5.0).unwrap();
+        for (a, b, c) in [(2.5, 2.5, 2.0), (3.0, 2.5, 3.5), (4.0, 3.0, 5.0)] {
+            let l = FourBar::new(a, b, c).unwrap();
+            let poses = l.pose_table(Circuit::Open, &table);
+            for (u, v) in [
+                (1.0, 0.0),
+                (2.5, 0.0),
+                (1.25, 2.5),
+                (-1.0, 1.5),
+                (3.0, -2.0),
+            ] {
+                let curve = poses.trace(CouplerPoint::new(u, v));
+                for off in [0.0, 1e5, 1e7] {
+                    let mut moved = curve.clone();
+                    moved.x.iter_mut().for_each(|x| *x += off);
+                    moved.y.iter_mut().for_each(|y| *y -= off);
+                    out.push((format!("four-bar {a},{b},{c} ({u},{v}) at {off}"), moved));
+                }
+            }
+        }
+        out
+    }
+
+    /// The filter's running sums, grown one sample at a time about the window's first
+    /// sample, give the circle the direct fit ([`kasa_circle`], two passes about the
+    /// samples' mean) gives, to within what the filter's soundness argument allows, on
+    /// every window of the hard curves that the filter decides (fitted, and within 1000
+    /// radii of the origin): radii within 2.5·10⁻⁶ (half the radial test's slack of 10⁻³ of the 0.5 % tolerance; the
+    /// worst, 1.1·10⁻⁶, on nearly straight windows of a 1000:1 ellipse 10⁸ from the origin),
+    /// and where it trusts its centre for the winding (`det > 10⁻⁴·scale²`) centres
+    /// within 10⁻⁹ of the radius. Farther out the direct fit itself loses digits (its
+    /// centring leaves `Σ(x − x̄)` at a few ulps of `|x̄|`, which its split normal
+    /// equations take as 0): on a unit circle 10⁶ from the origin it is 10⁻⁷ off the
+    /// circle through the samples, which the running sums give to 10⁻¹⁵.
+    #[test]
+    fn running_sums_circle_matches_the_direct_fit() {
+        let (mut worst_c, mut worst_r, mut compared, mut far) = (0.0f64, 0.0f64, 0, 0);
+        for (name, c) in hard_curves() {
+            let n = c.len();
+            let s = Samples::new(&c);
+            for i in 0..n {
+                let mut sums = KasaSums::default();
+                for l in 1..n {
+                    sums.add(s.x[i + l] - s.x[i], s.y[i + l] - s.y[i]);
+                    if l < 6 {
+                        continue;
+                    }
+                    let f = sums.circle(1.0 / (l + 1) as f64);
+                    if !(f.det > 1e-9 * f.scale * f.scale && f.r2 > 0.0) {
+                        continue;
+                    }
+                    if s.x[i] * s.x[i] + s.y[i] * s.y[i] > 1e6 * f.r2 {
+                        far += 1;
+                        continue;
+                    }
+                    let k = kasa_circle(&s.x[i..=i + l], &s.y[i..=i + l]).unwrap();
+                    compared += 1;
+                    let dr = (f.r2.sqrt() - k.radius).abs() / k.radius;
+                    worst_r = worst_r.max(dr);
+                    assert!(dr < 2.5e-6, "{name}, window {i}+{l}: radius off by {dr:e}");
+                    if f.det > 1e-4 * f.scale * f.scale {
+                        // The direct fit's centre about the same first sample.
+                        let (ka, kb) = (k.center[0] - s.x[i], k.center[1] - s.y[i]);
+                        let dc = (f.a - ka).hypot(f.b - kb) / k.radius;
+                        worst_c = worst_c.max(dc);
+                        assert!(dc < 1e-9, "{name}, window {i}+{l}: centre off by {dc:e} R");
+                    }
+                }
+            }
+        }
+        assert!(compared > 100_000 && far > 10_000, "{compared} {far}");
+        eprintln!("{compared} windows: centres within {worst_c:e} R, radii within {worst_r:e}");
+    }
+
+    /// The hard case behind the 1000-radii limit: the direct fit of three samples of a
+    /// unit circle 10⁶ from the origin is 10⁻⁷ away from their circumcircle (computed
+    /// exactly, by hand, from the same three `f64` samples), the running sums are not.
+    #[test]
+    fn running_sums_are_the_more_exact_far_from_the_origin() {
+        let c = closed(|t| {
+            let (s, c) = (libm::sin(t), libm::cos(t));
+            [1e6 + c, -1e6 + s, -s, c]
+        });
+        let s = Samples::new(&c);
+        let mut sums = KasaSums::default();
+        for k in 1..3 {
+            sums.add(s.x[k] - s.x[0], s.y[k] - s.y[0]);
+        }
+        let f = sums.circle(1.0 / 3.0);
+        // The circumcentre of the three samples about the first, from their exact
+        // differences (exact by Sterbenz's lemma) in 128-bit-free form: the samples
+        // differ by less than 0.2, so the few roundings below are ≈ 1e-17 of it.
+        let (bx, by) = (s.x[1] - s.x[0], s.y[1] - s.y[0]);
+        let (cx, cy) = (s.x[2] - s.x[0], s.y[2] - s.y[0]);
+        let d = 2.0 * (bx * cy - by * cx);
+        let ux = (cy * (bx * bx + by * by) - by * (cx * cx + cy * cy)) / d;
+        let uy = (bx * (cx * cx + cy * cy) - cx * (bx * bx + by * by)) / d;
+        assert!(
+            (f.a - ux).hypot(f.b - uy) < 1e-12,
+            "{} {} {ux} {uy}",
+            f.a,
+            f.b
+        );
+        let k = kasa_circle(&s.x[..3], &s.y[..3]).unwrap();
+        let (ka, kb) = (k.center[0] - s.x[0], k.center[1] - s.y[0]);
+        assert!((ka - ux).hypot(kb - uy) > 1e-8, "{ka} {kb} {ux} {uy}");
+    }
+
+    /// The filter never rejects a window the exact test accepts (the contract's
+    /// qualifying windows), on the hard curves: every window of every start and length.
+    #[test]
+    fn filter_passes_every_qualifying_window() {
+        let tol = FeatureTolerances::DEFAULT;
+        let limit = tol.arc_pct / 100.0;
+        let min_turn = tol.arc_min_turn_deg.to_radians();
+        let min_steps = 6;
+        let mut qualifying_windows = 0;
+        for (name, c) in hard_curves() {
+            let n = c.len();
+            let s = Samples::new(&c);
+            let mut cand = Candidates::new(n, true);
+            filter_windows(&s, limit, min_steps, &mut cand);
+            for i in 0..n {
+                for l in min_steps..n {
+                    if qualifying(&s, i, i + l, limit, min_turn).is_some() {
+                        qualifying_windows += 1;
+                        assert!(cand.passes(i, l), "{name}: window {i}+{l} rejected");
+                    }
+                }
+            }
+        }
+        assert!(qualifying_windows > 10_000, "{qualifying_windows}");
+    }
 }

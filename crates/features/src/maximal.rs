@@ -61,6 +61,12 @@ impl Candidates {
         self.pass[l * self.n + i] = true;
     }
 
+    /// Whether the window of `l` steps from `i` passed the filter.
+    #[cfg(test)]
+    pub fn passes(&self, i: usize, l: usize) -> bool {
+        self.pass[l * self.n + i]
+    }
+
     /// Whether each window of `l` steps passes, by start (`n` entries; windows longer
     /// than [`Candidates::max_steps`] are never tested, whatever their entry says).
     #[inline]
