@@ -745,3 +745,32 @@ fn refused_file_is_not_stamped() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A scan reads only the fields a query tests (`--arc 20`, no tolerance, reads no
+/// deviation): a value it did not test is checked when its row is used. A NaN written
+/// (with valid checksums) into the first arc's deviation is refused for a query that
+/// shows that row (before, the scan read the deviation and the NaN failed `≤ ∞`: the
+/// arc silently did not match).
+#[test]
+fn untested_values_of_the_rows_used_are_checked() {
+    let (index, text) = atlas();
+    let key = key_of(text);
+    let mut b = std::fs::read(columns_path(index)).unwrap();
+    let t = b.len() - 128;
+    let u64_at = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+    let dir_at = u64_at(&b, t + 64) as usize;
+    // Group 0's `arc.dev` chunk (column 21): its first arc.
+    let dev = u64_at(&b, dir_at + 48 + 21 * 24) as usize;
+    b[dev..dev + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    reseal_columns(&mut b);
+    let cols = ColumnTable::from_vec(b, key).unwrap();
+    let f = |s: &str| s.parse::<SpanFilter>().unwrap();
+    let shows_it = Query {
+        arc: Some(f("0")),
+        include_trivial: true,
+        limit: 0,
+        ..Query::default()
+    };
+    let err = cols.select(&shows_it).unwrap_err();
+    assert!(err.to_string().contains("not valid"), "{err}");
+}

@@ -48,9 +48,10 @@ enum Which {
         out: Option<std::path::PathBuf>,
     },
     /// Search: each query run in this process as `search` runs it (`--limit 10`, results
-    /// discarded), wall and CPU time (all threads, to the nanosecond), beside its I/O floor measured in the
-    /// same rounds: reading the whole `index.columns` a cached query maps (a query maps
-    /// only the columns it tests, so the floor is an upper one and the ratio a lower one).
+    /// discarded), wall and CPU time (all threads, to the nanosecond), beside two I/O
+    /// floors measured in the same rounds: reading the whole `index.columns`, and reading
+    /// only the bytes of it the query reads (the chunks it checks); and its peak memory:
+    /// own (`RssAnon`) and mapped files' pages (`RssFile`), sampled every millisecond.
     /// With `--first`, also the first search of the index (hashed whole, as after
     /// `generate` or a copy) beside reading the whole `index.json`.
     Search {
@@ -147,6 +148,76 @@ fn read_through(path: &std::path::Path) -> std::io::Result<u64> {
     }
 }
 
+/// Reads the extents `(offset, length)` of `path` through one 1 MiB buffer: the I/O
+/// floor of a search that reads exactly those bytes of the mapped file.
+fn read_extents(path: &std::path::Path, extents: &[(u64, u64)]) -> std::io::Result<u64> {
+    use std::os::unix::fs::FileExt;
+    let f = std::fs::File::open(path)?;
+    let mut buf = vec![0u8; 1 << 20];
+    let mut total = 0u64;
+    for &(at, len) in extents {
+        let mut done = 0u64;
+        while done < len {
+            let n = ((len - done) as usize).min(buf.len());
+            f.read_exact_at(&mut buf[..n], at + done)?;
+            black_box(&buf[..n]);
+            done += n as u64;
+        }
+        total += len;
+    }
+    Ok(total)
+}
+
+/// This process's resident memory now, kB: (own: `RssAnon`, mapped files: `RssFile`),
+/// from `/proc/self/status` (Linux; `None` elsewhere).
+fn rss_now() -> Option<(u64, u64)> {
+    super::search::status_kb(["RssAnon:", "RssFile:"]).map(|[a, f]| (a, f))
+}
+
+/// Resident memory while some work ran, kB: own (`RssAnon`) before it and at its peak,
+/// and the peak of mapped files' pages (`RssFile`: the page cache's, shared, including
+/// the program's own text).
+#[derive(Clone, Copy, Debug, Default)]
+struct Rss {
+    anon_before: u64,
+    anon_peak: u64,
+    file_peak: u64,
+}
+
+/// Runs `f` while a thread samples [`rss_now`] every millisecond (and once before and
+/// after), and returns its value and the peaks. The sampling thread ends before this
+/// returns, so a CPU clock of the live threads read around this call does not count it.
+fn with_peak_rss<T: Send>(f: impl FnOnce() -> T + Send) -> (T, Rss) {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let (anon, file) = rss_now().unwrap_or((0, 0));
+    let stop = AtomicBool::new(false);
+    let (v, peak) = std::thread::scope(|s| {
+        let sampler = s.spawn(|| {
+            let mut peak = (anon, file);
+            loop {
+                if let Some((a, f)) = rss_now() {
+                    peak = (peak.0.max(a), peak.1.max(f));
+                }
+                if stop.load(Ordering::Relaxed) {
+                    return peak;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        });
+        let v = f();
+        stop.store(true, Ordering::Relaxed);
+        (v, sampler.join().unwrap_or((anon, file)))
+    });
+    (
+        v,
+        Rss {
+            anon_before: anon,
+            anon_peak: peak.0,
+            file_peak: peak.1,
+        },
+    )
+}
+
 /// `search`'s arguments from one query string.
 #[derive(clap::Parser)]
 struct SearchLine {
@@ -195,28 +266,54 @@ fn search(
     for q in &queries {
         parse(q)?;
     }
+    // The bytes each query reads of `index.columns` (every chunk it checks): found by
+    // running it once before the rounds (which also warms the page cache).
+    let mut needs = Vec::with_capacity(queries.len());
+    for q in &queries {
+        let args = parse(q)?;
+        let query = super::search::query_of(&args)?;
+        let mut loaded = coupler_atlas::load(&json, true)?;
+        loaded.select(&query)?;
+        needs.push(loaded.extents_read().unwrap_or_default());
+    }
     let load_before = load();
     let run = |q: &str| -> Result<super::search::Found> {
         super::search::run_to(parse(q)?, &mut std::io::sink(), false)
     };
-    // Rounds: the floor, then every query, then (with --first) the first search and its
-    // floor; so a change in the machine's load falls on all of them alike.
+    // Rounds: the floor, then every query and the floor of the bytes it reads, then
+    // (with --first) the first search and its floor; so a change in the machine's load
+    // falls on all of them alike.
     let mut floor = (Vec::new(), Vec::new());
-    let mut rows: Vec<(Vec<f64>, Vec<f64>, usize, usize)> =
-        vec![(Vec::new(), Vec::new(), 0, 0); queries.len()];
-    let mut first_rows = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    #[derive(Clone, Default)]
+    struct Row {
+        wall: Vec<f64>,
+        cpu: Vec<f64>,
+        own_wall: Vec<f64>,
+        own_cpu: Vec<f64>,
+        own_bytes: u64,
+        rss: Vec<Rss>,
+        total: usize,
+        curves: usize,
+    }
+    let mut rows: Vec<Row> = vec![Row::default(); queries.len()];
+    let mut first_rows = (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let mut bytes = (0u64, 0u64);
     for _ in 0..reps {
         let (w, c, n) = timed(live_threads_cpu_seconds, || read_through(&columns));
         bytes.0 = n?;
         floor.0.push(w);
         floor.1.push(c);
-        for (q, row) in queries.iter().zip(rows.iter_mut()) {
-            let (w, c, found) = timed(live_threads_cpu_seconds, || run(q));
+        for ((q, row), need) in queries.iter().zip(rows.iter_mut()).zip(&needs) {
+            let (w, c, (found, rss)) = timed(live_threads_cpu_seconds, || with_peak_rss(|| run(q)));
             let found = found?;
-            row.0.push(w);
-            row.1.push(c);
-            (row.2, row.3) = (found.total, found.curves);
+            row.wall.push(w);
+            row.cpu.push(c);
+            row.rss.push(rss);
+            (row.total, row.curves) = (found.total, found.curves);
+            let (w, c, n) = timed(live_threads_cpu_seconds, || read_extents(&columns, need));
+            row.own_bytes = n?;
+            row.own_wall.push(w);
+            row.own_cpu.push(c);
         }
         if first {
             let stamp = coupler_atlas::stamp_path(&json);
@@ -226,13 +323,13 @@ fn search(
                 }
                 _ => {}
             }
-            let (w, c, found) = timed(
-                live_threads_cpu_seconds,
-                || run(&queries[queries.len() - 1]),
-            );
+            let (w, c, (found, rss)) = timed(live_threads_cpu_seconds, || {
+                with_peak_rss(|| run(&queries[queries.len() - 1]))
+            });
             found?;
             first_rows.0.push(w);
             first_rows.1.push(c);
+            first_rows.4.push(rss);
             let (w, c, n) = timed(live_threads_cpu_seconds, || read_through(&json));
             bytes.1 = n?;
             first_rows.2.push(w);
@@ -248,28 +345,48 @@ fn search(
     )?;
     let (fw, fc) = (median(floor.0), median(floor.1));
     outln!(
-        "Floor (cached): reading all of `index.columns` ({:.0} MB) from the page cache: {fw:.3} s wall, {fc:.3} s CPU.\n",
+        "Floor (cached), all columns: reading all of `index.columns` ({:.0} MB) from the page cache: {fw:.3} s wall, {fc:.3} s CPU. Own floor: reading the bytes of `index.columns` the query reads (the chunks it checks), the same way.\n",
         bytes.0 as f64 / 1e6
     )?;
+    // Memory, MB: own (RssAnon) peak during the query and its rise over the value
+    // before it, mapped files' pages (RssFile) peak; medians over the rounds.
+    let mb = |kb: u64| kb as f64 / 1024.0;
+    let memory = |rss: &[Rss]| {
+        let own = median(rss.iter().map(|r| mb(r.anon_peak)).collect());
+        let rise = median(
+            rss.iter()
+                .map(|r| mb(r.anon_peak.saturating_sub(r.anon_before)))
+                .collect(),
+        );
+        let mapped = median(rss.iter().map(|r| mb(r.file_peak)).collect());
+        format!("{own:.1} MB (+{rise:.1}) | {mapped:.0} MB")
+    };
     outln!(
-        "| query (`--limit 10`) | matches | wall | CPU | CPU / floor | target |\n|---|---|---|---|---|---|"
+        "| query (`--limit 10`) | matches | wall | CPU | reads | own floor: wall, CPU | CPU / all-columns floor | CPU / own floor | own memory peak (rise) | mapped peak | target |\n|---|---|---|---|---|---|---|---|---|---|---|"
     )?;
-    for (q, (w, c, total, curves)) in queries.iter().zip(rows) {
-        let cpu = median(c);
+    for (q, row) in queries.iter().zip(rows) {
+        let cpu = median(row.cpu.clone());
+        let (ow, oc) = (median(row.own_wall.clone()), median(row.own_cpu.clone()));
         outln!(
-            "| `{q}` | {total} of {curves} | {:.3} s | {cpu:.3} s | {:.2} | ≤ 0.1 s |",
-            median(w),
-            cpu / fc
+            "| `{q}` | {} of {} | {:.3} s | {cpu:.3} s | {:.0} MB | {ow:.3} s, {oc:.3} s | {:.2} | {:.2} | {} | ≤ 0.1 s, ≤ 100 MB own |",
+            row.total,
+            row.curves,
+            median(row.wall.clone()),
+            row.own_bytes as f64 / 1e6,
+            cpu / fc,
+            cpu / oc,
+            memory(&row.rss)
         )?;
     }
     if first {
         let (w, c) = (median(first_rows.0), median(first_rows.1));
         let (jw, jc) = (median(first_rows.2), median(first_rows.3));
         outln!(
-            "| first search (no stamp: `index.json` hashed whole), `{}` | | {w:.3} s | {c:.3} s | {:.2} of reading `index.json` ({:.0} MB: {jw:.3} s wall, {jc:.3} s CPU) | ≤ 1 s |",
+            "| first search (no stamp: `index.json` hashed whole), `{}` | | {w:.3} s | {c:.3} s | {:.0} MB (`index.json`) | {jw:.3} s, {jc:.3} s | | {:.2} | {} | ≤ 1 s, ≤ 100 MB own |",
             queries[queries.len() - 1],
+            bytes.1 as f64 / 1e6,
             c / jc,
-            bytes.1 as f64 / 1e6
+            memory(&first_rows.4)
         )?;
     }
     Ok(ExitCode::SUCCESS)

@@ -353,9 +353,8 @@ pub struct Found {
     pub curves: usize,
 }
 
-/// [`run`], writing the results to `w`, and the closing summary line to stderr only with
-/// `summary` (`bench search` runs queries without it).
-pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
+/// The query `args` describe (the index aside).
+pub fn query_of(args: &Args) -> Result<Query> {
     let class = match &args.class {
         None => None,
         Some(c) => Some(
@@ -366,7 +365,7 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
                 .ok_or_else(|| UsageError(format!("unknown class `{c}`")))?,
         ),
     };
-    let query = Query {
+    Ok(Query {
         straight: args.straight,
         arc: args.arc,
         double_dwell: args.double_dwell,
@@ -388,7 +387,13 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
         max_velocity_variation_pct: args.max_ev,
         sort: args.sort,
         limit: args.limit,
-    };
+    })
+}
+
+/// [`run`], writing the results to `w`, and the closing summary line to stderr only with
+/// `summary` (`bench search` runs queries without it).
+pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
+    let query = query_of(&args)?;
     let t0 = Instant::now();
     let searched = resolve(&args.index)?;
     let (mut loaded, extracted) = match &searched {
@@ -473,8 +478,19 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
     if !summary {
         return Ok(Found { total, curves });
     }
+    // Memory (Linux): the peak resident set counts the mapped files' pages the scan
+    // touched (the page cache's, shared) with the process's own memory.
+    let memory = match status_kb(["VmHWM:", "RssAnon:", "RssFile:"]) {
+        Some([peak, own, mapped]) => format!(
+            "; memory: peak resident {:.0} MB (now: own {:.1} MB, mapped files {:.0} MB)",
+            peak as f64 / 1024.0,
+            own as f64 / 1024.0,
+            mapped as f64 / 1024.0
+        ),
+        None => String::new(),
+    };
     eprintln!(
-        "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s",
+        "{} of {total} matching curve(s) shown (of {} curves){}; load {:.3} s (from {source}), search {:.3} s{memory}",
         hits.len(),
         curves,
         if hits.len() < total {
@@ -500,6 +516,18 @@ pub fn run_to(args: Args, w: &mut dyn Write, summary: bool) -> Result<Found> {
         }
     }
     Ok(Found { total, curves })
+}
+
+/// Fields of `/proc/self/status` in kB (e.g. `RssAnon:`), in the order asked; `None`
+/// where there is no such file (not Linux) or a field is missing.
+pub fn status_kb<const N: usize>(fields: [&str; N]) -> Option<[u64; N]> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let mut out = [0u64; N];
+    for (o, name) in out.iter_mut().zip(fields) {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        *o = line[name.len()..].split_whitespace().next()?.parse().ok()?;
+    }
+    Some(out)
 }
 
 /// One matching feature of a hit, as the table and CSV print it.

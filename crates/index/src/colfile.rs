@@ -29,9 +29,12 @@
 //! every count (groups cover the rows, segments and arcs in sequence), and that the
 //! index's content key in the trailer is the index's (see [`crate::stamp`] for how the key
 //! is known without hashing the index on every search). A chunk's checksum is checked
-//! the first time it is read. Each row read is checked (flags, class, values, its
-//! segments and arcs inside its group, its page inside the page names). So any damage is
-//! found before a value of the damaged chunk is used, and [`ColumnTable::select`] then
+//! the first time it is read. Each value is checked where it is used: a row's flags
+//! before it is tested; for a row they do not reject, its segment and arc ranges and the
+//! linkage or transmission it is tested on; every value of a row that is shown (finite,
+//! its segments and arcs inside its group, its page inside the page names), including
+//! fields no filter read. So any damage is found before a value of the damaged chunk is
+//! used, and [`ColumnTable::select`] then
 //! returns an error: the caller rebuilds from the index (the file is not trusted again).
 //! What the checksums do not defend against: someone who writes the folder can write
 //! another file with valid checksums (XXH3 is not a signature), as they can rewrite the
@@ -41,7 +44,9 @@
 
 use crate::key::IndexKey;
 use crate::schema::IndexCurve;
-use crate::search::{ArcRow, CurveRow, Features, Matched, Query, SearchTable, SegmentRow, order};
+use crate::search::{
+    ArcRow, CurveRow, Features, Matched, Query, RowFlags, SearchTable, SegmentRow, order,
+};
 use coupler_features::Side;
 use coupler_kinematics::{Circuit, FourBar, GearRatio, GearedFiveBar, Linkage, LinkageClass};
 use std::io::Write;
@@ -359,32 +364,19 @@ pub(crate) fn row_at(
         u(8, 1),
     );
     let fl = cols[9].get(i * 5..i * 5 + 5).ok_or("row flags")?;
-    let inside = |start: u32, count: u32, r: &std::ops::Range<u64>| {
-        let (s, e) = (u64::from(start), u64::from(start) + u64::from(count));
-        r.start <= s && e <= r.end && e <= u64::from(u32::MAX)
-    };
     if !inside(seg_start, seg_count, &segs)
         || !inside(arc_start, arc_count, &arcs)
         || (page != u32::MAX && u64::from(page) >= pages)
-        || fl[0] > 1
-        || fl[2] > 1
-        || fl[3] > 1
-        || fl[4] > 1
     {
         return Err(format!("row {i} refers outside the table"));
     }
+    let fl = flags_at(fl, i)?;
     Ok(CurveRow {
         id: u64_at(cols[0], i * 8),
         linkage,
         point,
-        circuit: if fl[0] == 1 {
-            Circuit::Crossed
-        } else {
-            Circuit::Open
-        },
-        class: *LinkageClass::ALL
-            .get(fl[1] as usize)
-            .ok_or_else(|| format!("row {i}: class"))?,
+        circuit: fl.circuit,
+        class: fl.class,
         transmission_deg,
         page,
         page_bbox,
@@ -392,11 +384,44 @@ pub(crate) fn row_at(
         seg_count,
         arc_start,
         arc_count,
-        symmetric: fl[2] == 1,
+        symmetric: fl.symmetric,
         crunodes,
         cusps,
-        has_features: fl[3] == 1,
-        trivial: fl[4] == 1,
+        has_features: fl.has_features,
+        trivial: fl.trivial,
+    })
+}
+
+/// Whether `count` elements from `start` lie inside `r` (and below 2^32).
+#[inline]
+fn inside(start: u32, count: u32, r: &std::ops::Range<u64>) -> bool {
+    let (s, e) = (u64::from(start), u64::from(start) + u64::from(count));
+    r.start <= s && e <= r.end && e <= u64::from(u32::MAX)
+}
+
+/// The flags of row `i` from its five bytes of `row.flag` (crossed, class, symmetric,
+/// features, trivial), checked: each yes/no byte 0 or 1, the class one of
+/// [`LinkageClass::ALL`].
+#[inline]
+pub(crate) fn flags_at(fl: &[u8], i: usize) -> Result<RowFlags, String> {
+    let &[crossed, class, symmetric, features, trivial] = fl else {
+        return Err(format!("row {i}: flags"));
+    };
+    if crossed > 1 || symmetric > 1 || features > 1 || trivial > 1 {
+        return Err(format!("row {i} refers outside the table"));
+    }
+    Ok(RowFlags {
+        class: *LinkageClass::ALL
+            .get(class as usize)
+            .ok_or_else(|| format!("row {i}: class"))?,
+        circuit: if crossed == 1 {
+            Circuit::Crossed
+        } else {
+            Circuit::Open
+        },
+        symmetric: symmetric == 1,
+        has_features: features == 1,
+        trivial: trivial == 1,
     })
 }
 
@@ -440,6 +465,38 @@ pub(crate) fn arc_at(cols: &[&[u8]], k: usize) -> ArcRow {
         turn_deg: v(ARC_TURN),
         transmission_deg: [two(ARC_TR, 0), two(ARC_TR, 1)],
     }
+}
+
+/// Whether a segment's values are valid: finite, its window's transmission finite or
+/// NaN (unknown), never ±∞.
+pub(crate) fn segment_is_valid(s: &SegmentRow) -> bool {
+    [
+        s.start_deg,
+        s.span_deg,
+        s.straightness_pct,
+        s.velocity_variation_pct,
+        s.length,
+        s.direction_deg,
+    ]
+    .iter()
+    .all(|x| x.is_finite())
+        && s.transmission_deg.iter().all(|x| !x.is_infinite())
+}
+
+/// Whether an arc's values are valid (as [`segment_is_valid`]).
+pub(crate) fn arc_is_valid(a: &ArcRow) -> bool {
+    [
+        a.start_deg,
+        a.span_deg,
+        a.radius,
+        a.deviation_pct,
+        a.center[0],
+        a.center[1],
+        a.turn_deg,
+    ]
+    .iter()
+    .all(|x| x.is_finite())
+        && a.transmission_deg.iter().all(|x| !x.is_infinite())
 }
 
 /// Writes the columns file of an index, one curve at a time, in index order: holds one
@@ -716,6 +773,46 @@ struct View<'a> {
 }
 
 impl View<'_> {
+    /// Row `i`'s segments and arcs (global ranges), checked as [`row_at`] checks them.
+    #[inline]
+    fn ranges(
+        &self,
+        i: usize,
+    ) -> Result<(std::ops::Range<usize>, std::ops::Range<usize>), ColumnsError> {
+        let (s, sc) = (u32_at(self.cols[6], i * 8), u32_at(self.cols[6], i * 8 + 4));
+        let (a, ac) = (u32_at(self.cols[7], i * 8), u32_at(self.cols[7], i * 8 + 4));
+        if !(inside(s, sc, &self.group.segs) && inside(a, ac, &self.group.arcs)) {
+            return Err(bad(format!("row {i} refers outside the table")));
+        }
+        let (s, a) = (s as usize, a as usize);
+        Ok((s..s + sc as usize, a..a + ac as usize))
+    }
+
+    /// Row `i`'s linkage, checked as [`row_at`] checks it.
+    #[inline]
+    fn linkage(&self, i: usize) -> Result<Linkage, ColumnsError> {
+        let cell = |k: usize| f64_at(self.cols[1], i * 24 + k * 8);
+        linkage_of_cells(
+            [cell(0), cell(1), cell(2)],
+            self.cols[GEAR].get(i * 24..i * 24 + 24).unwrap_or(&[]),
+        )
+        .ok_or_else(|| bad(format!("row {i}: not a valid linkage")))
+    }
+
+    /// Row `i`'s transmission range, checked finite as [`row_at`] checks it.
+    #[inline]
+    fn transmission(&self, i: usize) -> Result<[f64; 2], ColumnsError> {
+        let range = [
+            f64_at(self.cols[3], i * 16),
+            f64_at(self.cols[3], i * 16 + 8),
+        ];
+        if range.iter().all(|x| x.is_finite()) {
+            Ok(range)
+        } else {
+            Err(bad(format!("row {i}: a value is not finite")))
+        }
+    }
+
     fn row(&self, i: usize) -> Result<CurveRow, ColumnsError> {
         row_at(
             &self.cols,
@@ -728,48 +825,17 @@ impl View<'_> {
     }
 }
 
-impl Features for View<'_> {
-    fn segment(&self, k: usize) -> SegmentRow {
-        segment_at(&self.cols, k.wrapping_sub(self.group.segs.start as usize))
-    }
-    fn arc(&self, k: usize) -> ArcRow {
-        arc_at(&self.cols, k.wrapping_sub(self.group.arcs.start as usize))
-    }
-}
-
-/// A group as a scan reads it: its [`View`], with the segment and arc fields the query
-/// reads decoded to `f64` once (a filter then reads an array, not bytes).
-struct Scan<'a> {
-    view: View<'a>,
-    /// Per column: its values, for the decoded segment and arc columns (else empty).
-    vals: Vec<Vec<f64>>,
-}
-
-impl<'a> Scan<'a> {
-    /// The scan of `view`, decoding into `vals` (the buffers of an earlier scan, reused:
-    /// a scan of many groups allocates its buffers once, not once per group).
-    fn new(view: View<'a>, mut vals: Vec<Vec<f64>>) -> Scan<'a> {
-        vals.resize_with(NCOLS, Vec::new);
-        for (c, out) in vals.iter_mut().enumerate() {
-            out.clear();
-            if !(kind(c) == Kind::Row || c == SIDE) {
-                out.extend(
-                    view.cols[c]
-                        .chunks_exact(8)
-                        .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8]))),
-                );
-            }
-        }
-        Scan { view, vals }
-    }
-
+/// The fields of segments and arcs are read straight from the mapped bytes (a chunk
+/// starts on a 64-byte boundary, so each `f64` is one aligned load): nothing is copied
+/// or decoded ahead, and a field no filter tests is never touched.
+impl View<'_> {
     /// Element `k` (a global segment or arc index, by the kind of column `c`) as an
     /// index into the group's chunk of column `c`.
     #[inline]
     fn local(&self, c: usize, k: usize) -> usize {
         let start = match kind(c) {
-            Kind::Seg => self.view.group.segs.start,
-            _ => self.view.group.arcs.start,
+            Kind::Seg => self.group.segs.start,
+            _ => self.group.arcs.start,
         };
         k.wrapping_sub(start as usize)
     }
@@ -778,11 +844,14 @@ impl<'a> Scan<'a> {
     /// or outside).
     #[inline]
     fn val(&self, c: usize, k: usize, width: usize, j: usize) -> f64 {
-        self.local(c, k)
-            .checked_mul(width)
-            .and_then(|x| self.vals[c].get(x + j))
-            .copied()
-            .unwrap_or(f64::NAN)
+        let col = self.cols[c];
+        match self.local(c, k).checked_mul(width).map(|x| x + j) {
+            Some(x) if x < col.len() / 8 => {
+                let at = x * 8;
+                f64::from_le_bytes(col[at..at + 8].try_into().unwrap_or([0xff; 8]))
+            }
+            _ => f64::NAN,
+        }
     }
 
     /// The one value of element `k` (global) of column `c`.
@@ -798,31 +867,12 @@ impl<'a> Scan<'a> {
     }
 }
 
-impl Features for Scan<'_> {
+impl Features for View<'_> {
     fn segment(&self, k: usize) -> SegmentRow {
-        let v = |c: usize| self.one(c, k);
-        SegmentRow {
-            start_deg: v(SEG_START),
-            span_deg: v(SEG_SPAN),
-            straightness_pct: v(SEG_ES),
-            velocity_variation_pct: v(SEG_EV),
-            length: v(SEG_LEN),
-            direction_deg: v(SEG_DIR),
-            transmission_deg: self.two(SEG_TR, k),
-        }
+        segment_at(&self.cols, self.local(SEG_START, k))
     }
     fn arc(&self, k: usize) -> ArcRow {
-        let v = |c: usize| self.one(c, k);
-        ArcRow {
-            start_deg: v(ARC_START),
-            span_deg: v(ARC_SPAN),
-            radius: v(ARC_R),
-            deviation_pct: v(ARC_DEV),
-            center: self.two(ARC_CTR, k),
-            concave: self.arc_concave(k),
-            turn_deg: v(ARC_TURN),
-            transmission_deg: self.two(ARC_TR, k),
-        }
+        arc_at(&self.cols, self.local(ARC_START, k))
     }
     fn seg_span(&self, k: usize) -> f64 {
         self.one(SEG_SPAN, k)
@@ -849,7 +899,7 @@ impl Features for Scan<'_> {
         self.one(ARC_TURN, k)
     }
     fn arc_concave(&self, k: usize) -> Side {
-        if self.view.cols[SIDE].get(self.local(SIDE, k)) == Some(&1) {
+        if self.cols[SIDE].get(self.local(SIDE, k)) == Some(&1) {
             Side::Right
         } else {
             Side::Left
@@ -1064,6 +1114,24 @@ impl ColumnTable {
         self.rows == 0
     }
 
+    /// The file extents (offset, length in bytes) of the chunks read so far, in file
+    /// order: every byte a search read from the file (each chunk is checked, whole, on
+    /// its first read, and nothing outside a checked chunk is read besides the header,
+    /// the directory and the trailer, which opening reads). What `bench search` reads as
+    /// a query's own I/O floor.
+    pub fn extents_read(&self) -> Vec<(u64, u64)> {
+        let chunks = self
+            .groups
+            .iter()
+            .flat_map(|g| g.chunks.iter())
+            .chain(self.page_chunks.iter());
+        chunks
+            .zip(&self.checked)
+            .filter(|(_, c)| c.load(Ordering::Relaxed) != 0)
+            .map(|(k, _)| (k.at as u64, k.len as u64))
+            .collect()
+    }
+
     /// Chunk `c` (number `n` among all chunks), its checksum checked on first use.
     fn bytes_of(&self, c: Chunk, n: usize) -> Result<&[u8], ColumnsError> {
         let data = &self.bytes[c.at..c.at + c.len];
@@ -1115,20 +1183,45 @@ impl ColumnTable {
     pub fn select(&self, q: &Query) -> Result<(SearchTable, usize), ColumnsError> {
         use rayon::prelude::*;
         let need = columns_read(q);
+        let (linkage, transmission) = q.reads_row();
+        // The scan reads the rows' columns it needs (each checked as `row_at` checks
+        // it) without building a `CurveRow`.
         let per_group: Vec<(Vec<Keyed>, usize)> = (0..self.groups.len())
             .into_par_iter()
-            .map_init(Vec::new, |bufs, g| {
-                let v = Scan::new(self.view(g, &need)?, std::mem::take(bufs));
+            .map(|g| {
+                let v = self.view(g, &need)?;
                 let mut best = Best::new(q.limit);
                 let mut m = Matched::default();
-                for i in 0..v.view.group.rows {
-                    let r = v.view.row(i)?;
-                    if q.eval(&v, &r, &mut m) {
-                        let key = q.sort_key_of(&v, &r, &m.straight, &m.arcs);
-                        best.push((key, r.id, v.view.group.first_row + i));
+                let (ids, flags) = (v.cols[0], v.cols[9]);
+                for i in 0..v.group.rows {
+                    // `Query::eval`, in parts: the flags first (a row they reject is not
+                    // read further: each column's checks run on the rows tested), the
+                    // linkage and transmission only for a query that reads them (the
+                    // row then read and checked whole), then the segments and arcs.
+                    let fl = flags_at(flags.get(i * 5..i * 5 + 5).unwrap_or(&[]), i)
+                        .map_err(ColumnsError)?;
+                    if !q.passes_flags(fl) {
+                        continue;
+                    }
+                    if linkage && !q.passes_linkage(&v.linkage(i)?) {
+                        continue;
+                    }
+                    let transmission = if transmission {
+                        let range = v.transmission(i)?;
+                        if !q.passes_transmission(range) {
+                            continue;
+                        }
+                        range
+                    } else {
+                        [f64::NAN; 2]
+                    };
+                    let (segs, arcs) = v.ranges(i)?;
+                    if q.eval_features(&v, segs, arcs, &mut m) {
+                        let id = u64_at(ids, i * 8);
+                        let key = q.sort_key_of(&v, id, transmission, &m.straight, &m.arcs);
+                        best.push((key, id, v.group.first_row + i));
                     }
                 }
-                *bufs = v.vals;
                 Ok(best.finish())
             })
             .collect::<Result<_, ColumnsError>>()?;
@@ -1177,6 +1270,15 @@ impl ColumnTable {
             let arcs: Vec<ArcRow> = (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
                 .map(|k| v.arc(k))
                 .collect();
+            // The values of a row that is used are checked as the cache's are (a scan
+            // reads only the fields it tests, and trusts an untested field to be finite).
+            let sides = (r.arc_start as usize..(r.arc_start + r.arc_count) as usize)
+                .all(|k| v.cols[SIDE].get(v.local(SIDE, k)).is_some_and(|&b| b <= 1));
+            if !(segs.iter().all(segment_is_valid) && arcs.iter().all(arc_is_valid) && sides) {
+                return Err(bad(format!(
+                    "row {row}: a segment or arc value is not valid"
+                )));
+            }
             if r.page != u32::MAX {
                 r.page = match pages.get(&r.page) {
                     Some(&p) => p,

@@ -5,7 +5,8 @@
 
 use crate::cache::{Column, Section, write_container};
 use crate::colfile::{
-    COLS, Kind, NCOLS, SIDE, arc_at, kind, push_arc, push_row, push_segment, row_at, segment_at,
+    COLS, Kind, NCOLS, SIDE, arc_at, arc_is_valid, kind, push_arc, push_row, push_segment, row_at,
+    segment_at, segment_is_valid,
 };
 use crate::key::IndexKey;
 use crate::search::SearchTable;
@@ -135,13 +136,10 @@ impl SearchTable {
         }) {
             return Err(bad("a segment or arc column's length"));
         }
-        // A window's transmission is NaN where the index did not say (never ±∞).
-        let known = |xs: &[f64]| xs.iter().all(|x| !x.is_infinite());
         let (off, text) = (find("page.off", 8)?, find("page.txt", 1)?);
         if off.count == 0 {
             return Err(bad("column page.off"));
         }
-        let finite = |xs: &[f64]| xs.iter().all(|x| x.is_finite());
         let mut t = SearchTable::default();
         // Page names: offsets rise from 0 to the text's end, each name UTF-8.
         let npages = off.count as usize - 1;
@@ -172,15 +170,7 @@ impl SearchTable {
         t.segments.reserve_exact(nsegs as usize);
         for k in 0..nsegs as usize {
             let s = segment_at(&data, k);
-            let v = [
-                s.start_deg,
-                s.span_deg,
-                s.straightness_pct,
-                s.velocity_variation_pct,
-                s.length,
-                s.direction_deg,
-            ];
-            if !finite(&v) || !known(&s.transmission_deg) {
+            if !segment_is_valid(&s) {
                 return Err(bad("a segment value is not finite"));
             }
             t.segments.push(s);
@@ -188,16 +178,7 @@ impl SearchTable {
         t.arcs.reserve_exact(narcs as usize);
         for k in 0..narcs as usize {
             let a = arc_at(&data, k);
-            let v = [
-                a.start_deg,
-                a.span_deg,
-                a.radius,
-                a.deviation_pct,
-                a.center[0],
-                a.center[1],
-                a.turn_deg,
-            ];
-            if !finite(&v) || !known(&a.transmission_deg) || data[SIDE][k] > 1 {
+            if !arc_is_valid(&a) || data[SIDE][k] > 1 {
                 return Err(bad("an arc value is not valid"));
             }
             t.arcs.push(a);

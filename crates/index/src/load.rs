@@ -112,6 +112,15 @@ impl Loaded {
         self.note.as_deref()
     }
 
+    /// The extents (offset, length) of `index.columns` read so far, when the answers come
+    /// from it (see `ColumnTable::extents_read`).
+    pub fn extents_read(&self) -> Option<Vec<(u64, u64)>> {
+        match &self.source {
+            Source::Columns(c) => Some(c.extents_read()),
+            Source::Table(_) => None,
+        }
+    }
+
     /// The curves that pass `q` (the best `q.limit` by its sort), as a table of their own
     /// on which `q` gives the same hits as on the whole index, and how many curves passed.
     /// Columns found damaged while reading are given up (see [`Loaded::note`]) and the

@@ -650,14 +650,18 @@ impl Query {
         let (straight, arc) = self.wants();
         let window = self.min_window_transmission_deg.is_some();
         let sort = |k: SortKey| self.sort == k;
+        // A filter without a tolerance (`--arc 40`: TOL is ∞) tests the span only (every
+        // stored error is finite: checked where a row is used).
+        let tested = |f: SpanFilter| f.max_error_pct != f64::INFINITY;
         FeatureReads {
             seg_span: straight && (self.straight.is_some() || sort(SortKey::Straight)),
-            seg_straightness: straight && (self.straight.is_some() || sort(SortKey::Straightness)),
+            seg_straightness: straight
+                && (self.straight.is_some_and(tested) || sort(SortKey::Straightness)),
             seg_velocity: straight
                 && (self.max_velocity_variation_pct.is_some() || sort(SortKey::Velocity)),
             seg_transmission: straight && (window || sort(SortKey::WindowTransmission)),
             arc_span: arc && (self.arc.is_some() || sort(SortKey::Arc)),
-            arc_deviation: arc && (self.arc.is_some() || sort(SortKey::Deviation)),
+            arc_deviation: arc && (self.arc.is_some_and(tested) || sort(SortKey::Deviation)),
             arc_radius: arc
                 && (self.radius.is_some() || self.double_dwell || sort(SortKey::Radius)),
             arc_turn: arc && (self.min_turn_deg.is_some() || sort(SortKey::Turn)),
@@ -668,26 +672,34 @@ impl Query {
 
     /// The sort key of hit `h` of row `r` (smaller first).
     pub(crate) fn sort_key(&self, t: &impl Features, r: &CurveRow, h: &Hit) -> f64 {
-        self.sort_key_of(t, r, &h.straight, &h.arcs)
+        self.sort_key_of(t, r.id, r.transmission_deg, &h.straight, &h.arcs)
     }
 
-    /// The sort key of row `r` whose matching segments and arcs are `straight` and `arcs`.
+    /// The sort key of the row of id `id` and transmission range `transmission` (read
+    /// only for a sort on it: [`Query::reads_row`]) whose matching segments and arcs are
+    /// `straight` and `arcs`.
     pub(crate) fn sort_key_of(
         &self,
         t: &impl Features,
-        r: &CurveRow,
+        id: u64,
+        transmission: [f64; 2],
         straight: &[usize],
         arcs: &[usize],
     ) -> f64 {
-        let min = |xs: &mut dyn Iterator<Item = f64>| xs.fold(f64::INFINITY, f64::min);
-        let max = |xs: &mut dyn Iterator<Item = f64>| xs.fold(0.0, f64::max);
+        // Generic, not `dyn`: the sort key is computed for every hit of a scan.
+        fn min(xs: &[usize], f: impl Fn(usize) -> f64) -> f64 {
+            xs.iter().fold(f64::INFINITY, |m, &k| m.min(f(k)))
+        }
+        fn max(xs: &[usize], f: impl Fn(usize) -> f64) -> f64 {
+            xs.iter().fold(0.0, |m: f64, &k| m.max(f(k)))
+        }
         match self.sort {
-            SortKey::Id => r.id as f64,
-            SortKey::Straight => -max(&mut straight.iter().map(|&k| t.seg_span(k))),
-            SortKey::Arc => -max(&mut arcs.iter().map(|&k| t.arc_span(k))),
-            SortKey::Deviation => min(&mut arcs.iter().map(|&k| t.arc_deviation(k))),
-            SortKey::Straightness => min(&mut straight.iter().map(|&k| t.seg_straightness(k))),
-            SortKey::Transmission => -transmission_margin(r.transmission_deg),
+            SortKey::Id => id as f64,
+            SortKey::Straight => -max(straight, |k| t.seg_span(k)),
+            SortKey::Arc => -max(arcs, |k| t.arc_span(k)),
+            SortKey::Deviation => min(arcs, |k| t.arc_deviation(k)),
+            SortKey::Straightness => min(straight, |k| t.seg_straightness(k)),
+            SortKey::Transmission => -transmission_margin(transmission),
             SortKey::WindowTransmission => -straight
                 .iter()
                 .map(|&k| transmission_margin(t.seg_transmission(k)))
@@ -696,9 +708,9 @@ impl Query {
                         .map(|&k| transmission_margin(t.arc_transmission(k))),
                 )
                 .fold(f64::NEG_INFINITY, f64::max),
-            SortKey::Turn => -max(&mut arcs.iter().map(|&k| t.arc_turn(k))),
-            SortKey::Radius => min(&mut arcs.iter().map(|&k| t.arc_radius(k))),
-            SortKey::Velocity => min(&mut straight.iter().map(|&k| t.seg_velocity(k))),
+            SortKey::Turn => -max(arcs, |k| t.arc_turn(k)),
+            SortKey::Radius => min(arcs, |k| t.arc_radius(k)),
+            SortKey::Velocity => min(straight, |k| t.seg_velocity(k)),
         }
     }
 
@@ -716,6 +728,18 @@ impl Query {
         })
     }
 
+    /// Whether a row with flags `f` may pass: the tests of [`Query::eval`] on the class,
+    /// circuit, symmetry, trivial point and features (the scan of a columns file runs
+    /// this on a row's flag bytes alone, before it reads the rest of the row).
+    pub(crate) fn passes_flags(&self, f: RowFlags) -> bool {
+        let (want_straight, want_arc) = self.wants();
+        self.class.is_none_or(|c| f.class == c)
+            && self.circuit.is_none_or(|c| f.circuit == c)
+            && (f.symmetric || !self.symmetric)
+            && (!f.trivial || self.include_trivial)
+            && (f.has_features || !(want_straight || want_arc))
+    }
+
     /// Whether row `r` passes, its matching segments and arcs (as [`Hit`] gives them)
     /// left in `m` (whose lists are reused from row to row: a scan allocates nothing per
     /// row). The one test behind [`Query::matches`] and the columns' scan. Row fields
@@ -724,78 +748,119 @@ impl Query {
     pub(crate) fn eval(&self, t: &impl Features, r: &CurveRow, m: &mut Matched) -> bool {
         m.straight.clear();
         m.arcs.clear();
-        if let Some(c) = self.class {
-            if r.class != c {
-                return false;
-            }
-        }
-        if let Some(c) = self.circuit {
-            if r.circuit != c {
-                return false;
-            }
-        }
-        if let Some(l) = &self.linkage {
-            if !same_linkage(&r.linkage, l) {
-                return false;
-            }
-        }
-        if let Some(mt) = self.min_transmission_deg {
-            if r.transmission_deg[0] < mt || r.transmission_deg[1] > 180.0 - mt {
-                return false;
-            }
-        }
-        if self.symmetric && !r.symmetric {
+        if !(self.passes_flags(RowFlags::of(r)) && self.passes_row(r)) {
             return false;
         }
-        if r.trivial && !self.include_trivial {
-            return false;
+        let segs = r.seg_start as usize..(r.seg_start + r.seg_count) as usize;
+        let arcs = r.arc_start as usize..(r.arc_start + r.arc_count) as usize;
+        self.eval_features(t, segs, arcs, m)
+    }
+
+    /// The part of [`Query::eval`] after the row tests, for a row whose segments are
+    /// `segs` and arcs `arcs`: whether it passes, its matching segments and arcs left in
+    /// `m`.
+    pub(crate) fn eval_features(
+        &self,
+        t: &impl Features,
+        segs: std::ops::Range<usize>,
+        arcs: std::ops::Range<usize>,
+        m: &mut Matched,
+    ) -> bool {
+        m.straight.clear();
+        m.arcs.clear();
+        let (straight, arc) = self.collects();
+        if straight {
+            for k in segs {
+                if self.segment_passes(t, k) {
+                    m.straight.push(k);
+                }
+            }
         }
+        if arc {
+            for k in arcs {
+                if self.arc_passes(t, k) {
+                    m.arcs.push(k);
+                }
+            }
+        }
+        self.decide(t, m)
+    }
+
+    /// Which of a row's features [`Query::eval`] tests and collects: (straight segments,
+    /// arcs). Within what [`Query::wants`] reads.
+    pub(crate) fn collects(&self) -> (bool, bool) {
+        let want_straight = self.straight.is_some() || self.max_velocity_variation_pct.is_some();
+        let want_arc = self.arc.is_some() || self.radius.is_some() || self.min_turn_deg.is_some();
+        let want_any = self.min_window_transmission_deg.is_some()
+            && !(want_straight || want_arc || self.double_dwell);
+        (
+            want_straight || self.double_dwell || want_any,
+            want_arc || self.double_dwell || want_any,
+        )
+    }
+
+    /// The tests of [`Query::eval`] on the row's linkage and transmission range (the
+    /// fields [`Query::reads_row`] names).
+    pub(crate) fn passes_row(&self, r: &CurveRow) -> bool {
+        self.passes_linkage(&r.linkage) && self.passes_transmission(r.transmission_deg)
+    }
+
+    /// The test of [`Query::eval`] on the row's linkage.
+    #[inline]
+    pub(crate) fn passes_linkage(&self, linkage: &Linkage) -> bool {
+        self.linkage
+            .as_ref()
+            .is_none_or(|l| same_linkage(linkage, l))
+    }
+
+    /// The test of [`Query::eval`] on the row's transmission range.
+    #[inline]
+    pub(crate) fn passes_transmission(&self, range: [f64; 2]) -> bool {
+        self.min_transmission_deg
+            .is_none_or(|mt| !(range[0] < mt || range[1] > 180.0 - mt))
+    }
+
+    /// Whether straight segment `k` passes the segment filters (each field is read only
+    /// if a filter tests it: `reads_features`). NaN (unknown) never passes.
+    #[inline]
+    pub(crate) fn segment_passes(&self, t: &impl Features, k: usize) -> bool {
+        self.straight.is_none_or(|f| {
+            t.seg_span(k) >= f.min_span_deg
+                && (f.max_error_pct == f64::INFINITY || t.seg_straightness(k) <= f.max_error_pct)
+        }) && self
+            .min_window_transmission_deg
+            .is_none_or(|mw| transmission_margin(t.seg_transmission(k)) >= mw)
+            && self
+                .max_velocity_variation_pct
+                .is_none_or(|mv| t.seg_velocity(k) <= mv)
+    }
+
+    /// Whether arc `k` passes the arc filters (as [`Query::segment_passes`]).
+    #[inline]
+    pub(crate) fn arc_passes(&self, t: &impl Features, k: usize) -> bool {
+        self.arc.is_none_or(|f| {
+            t.arc_span(k) >= f.min_span_deg
+                && (f.max_error_pct == f64::INFINITY || t.arc_deviation(k) <= f.max_error_pct)
+        }) && self
+            .min_window_transmission_deg
+            .is_none_or(|mw| transmission_margin(t.arc_transmission(k)) >= mw)
+            && self.radius.is_none_or(|[lo, hi]| {
+                let radius = t.arc_radius(k);
+                lo <= radius && radius <= hi
+            })
+            && self.min_turn_deg.is_none_or(|mt| t.arc_turn(k) >= mt)
+    }
+
+    /// The end of [`Query::eval`] for a row that passed the row tests and whose passing
+    /// segments and arcs are in `m` (those of them the query wants): whether it passes,
+    /// with what it shows left in `m`.
+    fn decide(&self, t: &impl Features, m: &mut Matched) -> bool {
         // Arc and segment measures filter the arcs or segments; given alone, they ask for one.
         let want_straight = self.straight.is_some() || self.max_velocity_variation_pct.is_some();
         let want_arc = self.arc.is_some() || self.radius.is_some() || self.min_turn_deg.is_some();
         // The window's transmission alone asks for a segment or an arc.
         let want_any = self.min_window_transmission_deg.is_some()
             && !(want_straight || want_arc || self.double_dwell);
-        let wants_features = want_straight || want_arc || self.double_dwell || want_any;
-        if wants_features && !r.has_features {
-            return false;
-        }
-        // Each field is read only if a filter tests it (`reads_features`).
-        fn pass(f: &Option<SpanFilter>, span: impl Fn() -> f64, err: impl Fn() -> f64) -> bool {
-            f.is_none_or(|f| span() >= f.min_span_deg && err() <= f.max_error_pct)
-        }
-        // NaN (unknown) never passes.
-        let window_ok = |tr: [f64; 2]| {
-            self.min_window_transmission_deg
-                .is_none_or(|mw| transmission_margin(tr) >= mw)
-        };
-        let window = self.min_window_transmission_deg.is_some();
-        if want_straight || self.double_dwell || want_any {
-            for k in r.seg_start as usize..(r.seg_start + r.seg_count) as usize {
-                if pass(&self.straight, || t.seg_span(k), || t.seg_straightness(k))
-                    && (!window || window_ok(t.seg_transmission(k)))
-                    && self
-                        .max_velocity_variation_pct
-                        .is_none_or(|mv| t.seg_velocity(k) <= mv)
-                {
-                    m.straight.push(k);
-                }
-            }
-        }
-        if want_arc || self.double_dwell || want_any {
-            for k in r.arc_start as usize..(r.arc_start + r.arc_count) as usize {
-                if pass(&self.arc, || t.arc_span(k), || t.arc_deviation(k))
-                    && (!window || window_ok(t.arc_transmission(k)))
-                    && self.radius.is_none_or(|[lo, hi]| {
-                        let radius = t.arc_radius(k);
-                        lo <= radius && radius <= hi
-                    })
-                    && self.min_turn_deg.is_none_or(|mt| t.arc_turn(k) >= mt)
-                {
-                    m.arcs.push(k);
-                }
-            }
-        }
         if want_straight && m.straight.is_empty() {
             return false;
         }
@@ -832,6 +897,29 @@ impl Query {
             }
         }
         true
+    }
+}
+
+/// A row's flags: what [`Query::passes_flags`] tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct RowFlags {
+    pub class: LinkageClass,
+    pub circuit: Circuit,
+    pub symmetric: bool,
+    pub has_features: bool,
+    pub trivial: bool,
+}
+
+impl RowFlags {
+    /// The flags of row `r`.
+    pub(crate) fn of(r: &CurveRow) -> RowFlags {
+        RowFlags {
+            class: r.class,
+            circuit: r.circuit,
+            symmetric: r.symmetric,
+            has_features: r.has_features,
+            trivial: r.trivial,
+        }
     }
 }
 
