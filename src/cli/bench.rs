@@ -576,12 +576,12 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
         floors.1.push(written.cpu);
         dense.0.push(written.wall + written.dense_wall);
         dense.1.push(written.cpu + written.dense_cpu);
-        last = Some((renderer.timings.seconds(), job.curves(), wall));
+        last = Some((renderer.timings.seconds(), job.curves(), wall, cpu));
         if !keep || round + 1 < reps {
             let _ = std::fs::remove_dir_all(&dir);
         }
     }
-    let ((mut secs, pages), curves, wall) = last.expect("at least one run");
+    let ((secs, pages), curves, wall, cpu_last) = last.expect("at least one run");
     let (rw, rc) = (median(runs.0), median(runs.1));
     let (fw, fc) = (median(floors.0), median(floors.1));
     let (dw, dc) = (median(dense.0), median(dense.1));
@@ -626,28 +626,40 @@ fn pages(jobs: usize, reps: usize, out: Option<std::path::PathBuf>) -> Result<Ex
         "| pages written | {:.0} MB | | | |",
         written.bytes as f64 / 1e6
     )?;
-    // Writing (atomic rename, hashing, chunk records, index) is done by `generate`, not the
-    // renderer: count it as the rest of the workers' time.
-    secs[4] = (wall * jobs as f64 - secs[..4].iter().sum::<f64>()).max(0.0);
-    let busy: f64 = secs.iter().sum();
+    // The workers' clocks: the renderer's phases, and `generate`'s own work on each
+    // group (its curves, features and index lines; writing its files). The rest of the
+    // workers' wall time is spent outside them: waiting (for the other worker at the end
+    // of each chunk, for the chunk writer's fsyncs, for the CPU under load) and the
+    // serial parts (start, the contents pages, the index's end).
+    let [compute, layout, draw, encode, write, index] = secs;
+    let timed = [compute, layout, draw, encode, index, write];
+    let rest = (wall * jobs as f64 - timed.iter().sum::<f64>()).max(0.0);
+    let busy = wall * jobs as f64;
     outln!(
-        "\nThe split of the last round's workers' wall time (the renderer's own clocks):\n\n| per page | wall | share |\n|---|---|---|"
+        "\nThe split of the last round's workers' wall time ({jobs} workers × the run's wall; the renderer's and the run's own clocks):\n\n| per page | wall | share |\n|---|---|---|"
     )?;
     let names = [
         "compute (dash sampling)",
         "layout",
         "draw (rasterise)",
         "encode (PNG)",
-        "write + index (the rest of the workers' time)",
+        "index (the group's curves, features, index lines, shape records)",
+        "write (the page files: create, write, hash, rename)",
+        "outside the clocks (waiting for the other worker, the chunk writer or the CPU; start, contents pages, end)",
     ];
-    for (name, s) in names.iter().zip(secs) {
+    for (name, s) in names.iter().zip(timed.iter().copied().chain([rest])) {
         outln!(
             "| {name} | {:.2} ms | {:.0} % |",
             per(s),
             100.0 * s / busy.max(1e-12)
         )?;
     }
-    outln!("| total (one worker) | {:.2} ms | |", per(busy))?;
+    outln!(
+        "| of all the rows above: not on a CPU (workers' wall − the process's CPU) | {:.2} ms | {:.0} % |",
+        per((busy - cpu_last).max(0.0)),
+        100.0 * (busy - cpu_last).max(0.0) / busy.max(1e-12)
+    )?;
+    outln!("| total ({jobs} workers × wall) | {:.2} ms | |", per(busy))?;
     Ok(ExitCode::SUCCESS)
 }
 

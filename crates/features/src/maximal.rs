@@ -56,7 +56,7 @@ impl Candidates {
     }
 
     /// Marks the window of `l` steps from `i` as passing the filter.
-    #[inline]
+    #[cfg(test)]
     pub fn set(&mut self, i: usize, l: usize) {
         self.pass[l * self.n + i] = true;
     }
@@ -208,14 +208,17 @@ pub(crate) fn set_bits(flags: &[bool]) -> impl Iterator<Item = usize> + '_ {
 /// one way along some line has all its velocities, or all its steps, there). The first
 /// direction added is the reference; the others are kept as angles from it in (−π, π];
 /// the set fits in an open half-plane iff their range is below π. Once it fails, every
-/// larger set fails too.
+/// larger set fails too. (The straight filter makes this test lane by lane,
+/// `straight::grow`; this form is its one-start reference in the tests.)
 #[derive(Clone, Copy, Debug)]
+#[cfg(test)]
 pub(crate) struct HalfPlane {
     reference: Option<f64>,
     lo: f64,
     hi: f64,
 }
 
+#[cfg(test)]
 impl HalfPlane {
     pub fn new() -> HalfPlane {
         HalfPlane {
@@ -245,6 +248,7 @@ impl HalfPlane {
 }
 
 /// An angle wrapped into (−π, π].
+#[cfg(test)]
 #[inline]
 pub(crate) fn wrap_pi(a: f64) -> f64 {
     use std::f64::consts::{PI, TAU};

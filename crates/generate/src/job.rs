@@ -118,6 +118,11 @@ pub trait Renderer: Sync {
     fn page_options(&self) -> Option<&crate::PageOptions> {
         None
     }
+    /// Its clocks, if it keeps any: the run adds its own work on each group to them
+    /// (curves and index, file writing), so that a benchmark can split a worker's time.
+    fn timings(&self) -> Option<&crate::PageTimings> {
+        None
+    }
     /// The names of the files [`Renderer::render_group`] will return for `group`, when
     /// known in advance: the run records them (durably) once per chunk before rendering,
     /// rather than once per group. `None`: recorded as they come (correct, slower).

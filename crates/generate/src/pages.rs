@@ -204,22 +204,26 @@ pub struct PageTimings {
     pub draw: AtomicU64,
     /// PNG encoding.
     pub encode: AtomicU64,
-    /// Writing files (unused by [`PageRenderer`]: `generate` writes and hashes the
-    /// files it returns).
+    /// Writing files: `generate` writes and hashes the files a renderer returns, and
+    /// records here how long that took (per group, on the worker).
     pub write: AtomicU64,
+    /// `generate`'s own work on a group that has pages, on the worker: its curves and
+    /// their features, its index lines and shape records.
+    pub index: AtomicU64,
     /// Pages done.
     pub pages: AtomicU64,
 }
 
 impl PageTimings {
-    fn add(field: &AtomicU64, since: Instant) -> Instant {
+    /// Adds the time since `since` to `field`; gives the time now.
+    pub fn add(field: &AtomicU64, since: Instant) -> Instant {
         let now = Instant::now();
         field.fetch_add((now - since).as_nanos() as u64, Ordering::Relaxed);
         now
     }
 
-    /// `[compute, layout, draw, encode, write]` in seconds, and the page count.
-    pub fn seconds(&self) -> ([f64; 5], u64) {
+    /// `[compute, layout, draw, encode, write, index]` in seconds, and the page count.
+    pub fn seconds(&self) -> ([f64; 6], u64) {
         let s = |a: &AtomicU64| a.load(Ordering::Relaxed) as f64 * 1e-9;
         (
             [
@@ -228,6 +232,7 @@ impl PageTimings {
                 s(&self.draw),
                 s(&self.encode),
                 s(&self.write),
+                s(&self.index),
             ],
             self.pages.load(Ordering::Relaxed),
         )
@@ -796,6 +801,10 @@ impl Renderer for PageRenderer {
 
     fn page_options(&self) -> Option<&PageOptions> {
         Some(&self.opts)
+    }
+
+    fn timings(&self) -> Option<&PageTimings> {
+        Some(&self.timings)
     }
 
     fn group_files(&self, _job: &Job, group: &Group) -> Option<Vec<String>> {

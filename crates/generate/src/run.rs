@@ -21,7 +21,7 @@ use crate::state::{
     write_identity,
 };
 use crate::{
-    FileEntry, GenerateError, Group, Job, PageFailure, Rendered, Renderer, STATE_DIR,
+    FileEntry, GenerateError, Group, Job, PageFailure, PageTimings, Rendered, Renderer, STATE_DIR,
     compute_group, write_atomically,
 };
 use coupler_index::{IndexCurve, IndexSummary, curve_line};
@@ -30,6 +30,7 @@ use rayon::prelude::*;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 /// What a run did.
 #[derive(Clone, Debug, PartialEq)]
@@ -444,15 +445,27 @@ pub fn run(
                                     dir: job.out.clone(),
                                 });
                             }
+                            let clocks = renderer.timings();
+                            let t = Instant::now();
                             let mut curves = compute_group(&table, g, features, &dash)?;
+                            let index_time = t.elapsed();
                             let rendered = renderer.render_group(job, g, &mut curves);
+                            let t = Instant::now();
                             let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
+                            let t = match clocks {
+                                Some(k) => PageTimings::add(&k.write, t),
+                                None => t,
+                            };
                             let lines =
                                 format_lines(&curves).map_err(io_err(&chunk_path(&job.out, c)))?;
                             let shapes = match shape_kind {
                                 Some(kind) => crate::shapes::unit_records(job, g, kind)?,
                                 None => Vec::new(),
                             };
+                            if let Some(k) = clocks {
+                                let ns = (index_time + t.elapsed()).as_nanos() as u64;
+                                k.index.fetch_add(ns, Ordering::Relaxed);
+                            }
                             progress(curves.len() as u64);
                             Ok(GroupOutput {
                                 lines,

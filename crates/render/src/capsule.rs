@@ -29,6 +29,8 @@ struct Seg {
     d: [f32; 2],
     /// `1 / |d|²`, or 0 for a point.
     inv: f32,
+    /// `|d|` (as the body's interval needs it, row after row).
+    l: f32,
     /// First row reached and one past the last.
     rows: (u32, u32),
 }
@@ -54,6 +56,31 @@ pub(crate) struct Capsules {
     spans: Vec<(u32, u32)>,
 }
 
+/// `x.floor()` without a call into libm (which the baseline x86-64 target makes of it),
+/// the same value for every `x` but the sign of a zero result (`−0.5` gives `−1`, `−0.0`
+/// gives `+0.0`), which every caller turns into an integer or compares.
+#[inline(always)]
+fn floor(x: f32) -> f32 {
+    // Below 2^23 an f32 may have a fraction and fits an i32; beyond (and NaN), libm.
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32 as f32;
+        if t > x { t - 1.0 } else { t }
+    } else {
+        x.floor()
+    }
+}
+
+/// `x.ceil()`, as [`floor`].
+#[inline(always)]
+fn ceil(x: f32) -> f32 {
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32 as f32;
+        if t < x { t + 1.0 } else { t }
+    } else {
+        x.ceil()
+    }
+}
+
 /// Coverage (0..=255) of a pixel whose centre is `d` from the middle of a stroke of half
 /// width `r`.
 #[inline(always)]
@@ -71,6 +98,7 @@ impl Capsules {
             a,
             d,
             inv: if len2 > 0.0 { 1.0 / len2 } else { 0.0 },
+            l: len2.sqrt(),
             rows: (0, 0),
         });
     }
@@ -91,8 +119,8 @@ impl Capsules {
         for (k, s) in segs.iter_mut().enumerate() {
             let (y0, y1) = (s.a[1].min(s.a[1] + s.d[1]), s.a[1].max(s.a[1] + s.d[1]));
             // Rows whose centre j + ½ lies within `reach` of the segment's rows.
-            let lo = (y0 - reach - 0.5).floor().clamp(0.0, h);
-            let hi = (y1 + reach + 0.5).ceil().clamp(0.0, h);
+            let lo = floor(y0 - reach - 0.5).clamp(0.0, h);
+            let hi = ceil(y1 + reach + 0.5).clamp(0.0, h);
             if lo.is_nan() || hi.is_nan() || lo >= hi || !(s.a[0] + s.d[0]).is_finite() {
                 continue; // off the page, or not a number
             }
@@ -169,8 +197,8 @@ impl Capsules {
         if self.row.len() != t.width {
             self.row = vec![0; t.width];
         }
-        let lo = (c[1] - outer - 0.5).floor().clamp(0.0, h) as usize;
-        let hi = (c[1] + outer + 0.5).ceil().clamp(0.0, h) as usize;
+        let lo = floor(c[1] - outer - 0.5).clamp(0.0, h) as usize;
+        let hi = ceil(c[1] + outer + 0.5).clamp(0.0, h) as usize;
         let inner = (radius.abs() - reach).max(0.0);
         for j in lo..hi {
             let dy = j as f32 + 0.5 - c[1];
@@ -179,8 +207,8 @@ impl Capsules {
             self.spans.clear();
             // The two arcs of the ring on this row: [c − xo, c − xi] and [c + xi, c + xo].
             for (a, b) in [(c[0] - xo, c[0] - xi), (c[0] + xi, c[0] + xo)] {
-                let x0 = (a - 1.0).floor().clamp(0.0, w) as usize;
-                let x1 = (b + 1.0).ceil().clamp(0.0, w) as usize;
+                let x0 = floor(a - 1.0).clamp(0.0, w) as usize;
+                let x1 = ceil(b + 1.0).clamp(0.0, w) as usize;
                 if x0 >= x1 {
                     continue;
                 }
@@ -219,7 +247,7 @@ fn interval(s: &Seg, cy: f32, rho: f32) -> Option<(f32, f32)> {
     if s.inv > 0.0 {
         // Body: 0 ≤ t ≤ 1 and |perpendicular distance| ≤ rho, with u = x − ax:
         // t·L² = u·dx + ey·dy, perp·L = ey·dx − u·dy.
-        let l = (dx * dx + dy * dy).sqrt();
+        let l = s.l;
         let (mut u0, mut u1) = (f32::NEG_INFINITY, f32::INFINITY);
         let mut within = |k: f32, c0: f32, c1: f32| {
             // c0 ≤ u·k ≤ c1
@@ -246,15 +274,15 @@ fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32,
     let (a, b) = interval(s, cy, reach)?;
     let w = row.len() as f32;
     // Pixel i's centre is i + ½.
-    let x0 = (a - 0.5).ceil().clamp(0.0, w) as usize;
-    let x1 = ((b - 0.5).floor() + 1.0).clamp(0.0, w) as usize;
+    let x0 = ceil(a - 0.5).clamp(0.0, w) as usize;
+    let x1 = (floor(b - 0.5) + 1.0).clamp(0.0, w) as usize;
     if x0 >= x1 {
         return None;
     }
     let (mut i0, mut i1) = (x1, x1);
     if let Some((a, b)) = interval(s, cy, r - 0.5).filter(|_| r > 0.5) {
-        i0 = ((a - 0.5).ceil().clamp(0.0, w) as usize).clamp(x0, x1);
-        i1 = (((b - 0.5).floor() + 1.0).clamp(0.0, w) as usize).clamp(i0, x1);
+        i0 = (ceil(a - 0.5).clamp(0.0, w) as usize).clamp(x0, x1);
+        i1 = ((floor(b - 0.5) + 1.0).clamp(0.0, w) as usize).clamp(i0, x1);
         row[i0..i1].fill(255);
     }
     let py = cy - s.a[1];
@@ -307,6 +335,49 @@ mod tests {
             ink,
             dirty,
             layer: None,
+        }
+    }
+
+    /// The inline floor and ceil give libm's values (a zero's sign aside), everywhere:
+    /// around every integer, at 2^23 and beyond, for infinities and NaN.
+    #[test]
+    fn floor_and_ceil_match_libm() {
+        let same = |a: f32, b: f32| a == b || (a.is_nan() && b.is_nan());
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            1e-45,
+            -1e-45,
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            -8_388_608.0,
+            8_388_609.0,
+            16_777_217.0,
+            3e9,
+            -3e9,
+        ];
+        for i in -3000..3000 {
+            let x = i as f32 * 0.5;
+            xs.extend([x, x.next_up(), x.next_down(), x * 1.37, x * 2731.7]);
+        }
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        for _ in 0..200_000 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            xs.push(f32::from_bits(s as u32));
+        }
+        for x in xs {
+            assert!(same(floor(x), x.floor()), "floor {x:e}");
+            assert!(same(ceil(x), x.ceil()), "ceil {x:e}");
         }
     }
 

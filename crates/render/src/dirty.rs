@@ -1,24 +1,28 @@
 //! Which parts of a page buffer may hold ink, so that clearing, compositing and encoding
 //! visit only those (a tabloid page at 300 dpi is 16.8 MB, most of it paper).
 //!
-//! The buffer is cut into bands of [`BAND`] rows and column blocks of [`BLOCK`] pixels; a
-//! band's blocks are bits in a few `u64` words. Marks are conservative (a pixel outside
-//! every marked block is known to be 0) and widened by one pixel on every side, because
-//! anti-aliasing reaches into the pixels an edge crosses.
+//! Every row of the buffer is cut into column blocks of [`BLOCK`] pixels; a row's blocks
+//! are bits in a few `u64` words. Marks are conservative (a pixel outside every marked
+//! block is known to be 0); [`Dirty::mark`] widens a box by one pixel on every side,
+//! because anti-aliasing reaches into the pixels an edge crosses. Marks are kept per row
+//! (not per band of rows) and in blocks of 8 pixels, one deflate word: a thin slanted
+//! stroke marks little more than the pixels it inks, so the encoder and the clear read
+//! little more than the ink.
 
-/// Rows per band.
-pub(crate) const BAND: usize = 8;
 /// Pixels per column block.
-pub(crate) const BLOCK: usize = 16;
+pub(crate) const BLOCK: usize = 8;
 
 /// Marked blocks of a `width × height` buffer.
 #[derive(Clone, Debug)]
 pub(crate) struct Dirty {
     width: usize,
     height: usize,
-    /// `u64` words per band.
+    /// `u64` words per row.
     words: usize,
     bits: Vec<u64>,
+    /// Rows `[lo, hi)` hold every mark (empty when nothing is marked).
+    lo: usize,
+    hi: usize,
 }
 
 impl Dirty {
@@ -29,7 +33,9 @@ impl Dirty {
             width,
             height,
             words,
-            bits: vec![0; height.div_ceil(BAND) * words],
+            bits: vec![0; height * words],
+            lo: height,
+            hi: 0,
         }
     }
 
@@ -43,32 +49,23 @@ impl Dirty {
         self.mark_px(x0, y0, x1, y1);
     }
 
-    /// Sets blocks `b0..b1` of band `k`.
-    fn set(&mut self, k: usize, b0: usize, b1: usize) {
-        let band = &mut self.bits[k * self.words..(k + 1) * self.words];
-        for (i, w) in band.iter_mut().enumerate() {
-            let (lo, hi) = (b0.saturating_sub(64 * i), b1.saturating_sub(64 * i).min(64));
-            if lo < hi {
-                *w |= bit_range(lo, hi);
-            }
-        }
-    }
-
-    /// Marks the columns `[x0, x1)` of band `k`.
-    fn set_px(&mut self, k: usize, x0: usize, x1: usize) {
-        if x1 > x0 {
-            self.set(k, x0 / BLOCK, (x1 - 1) / BLOCK + 1);
-        }
-    }
-
     /// Marks the pixel box `[x0, x1) × [y0, y1)` (clamped to the buffer).
+    #[inline]
     pub(crate) fn mark_px(&mut self, x0: usize, y0: usize, x1: usize, y1: usize) {
         let (x1, y1) = (x1.min(self.width), y1.min(self.height));
         if x1 <= x0 || y1 <= y0 {
             return;
         }
-        for k in y0 / BAND..=(y1 - 1) / BAND {
-            self.set_px(k, x0, x1);
+        self.lo = self.lo.min(y0);
+        self.hi = self.hi.max(y1);
+        let (b0, b1) = (x0 / BLOCK, (x1 - 1) / BLOCK + 1);
+        let (w0, w1) = (b0 / 64, (b1 - 1) / 64);
+        for j in y0..y1 {
+            let row = &mut self.bits[j * self.words..(j + 1) * self.words];
+            for (i, w) in row[w0..=w1].iter_mut().enumerate() {
+                let i = w0 + i;
+                *w |= bit_range(b0.saturating_sub(64 * i), (b1 - 64 * i).min(64));
+            }
         }
     }
 
@@ -79,7 +76,10 @@ impl Dirty {
 
     /// Nothing marked.
     pub(crate) fn reset(&mut self) {
-        self.bits.fill(0);
+        if self.lo < self.hi {
+            self.bits[self.lo * self.words..self.hi * self.words].fill(0);
+        }
+        (self.lo, self.hi) = (self.height, 0);
     }
 
     /// Whether anything is marked.
@@ -88,42 +88,54 @@ impl Dirty {
         self.bits.iter().any(|&b| b != 0)
     }
 
+    /// Row `j`'s words.
+    fn row(&self, j: usize) -> &[u64] {
+        &self.bits[j * self.words..(j + 1) * self.words]
+    }
+
     /// The marked column spans `[x0, x1)` of the rows `j` and `j − 1` (the union; for
     /// `j = 0` row 0 alone), adjacent blocks merged.
-    pub(crate) fn row_pair_spans(&self, j: usize) -> Spans {
-        let mut s = Spans::new(self.words, self.width);
-        let k = j / BAND;
-        s.or(&self.bits[k * self.words..(k + 1) * self.words]);
-        if j > 0 && (j - 1) / BAND != k {
-            let k = (j - 1) / BAND;
-            s.or(&self.bits[k * self.words..(k + 1) * self.words]);
+    pub(crate) fn row_pair_spans(&self, j: usize) -> Spans<'_> {
+        let a = self.row(j);
+        Spans {
+            a,
+            b: if j > 0 { self.row(j - 1) } else { a },
+            width: self.width,
+            at: 0,
         }
-        s
     }
 
-    /// Calls `f(row, x0, x1)` for every marked span, band by band, row by row.
+    /// Whether rows `j` and `j − 1` hold no mark (for `j = 0`, row 0).
+    #[inline]
+    pub(crate) fn row_pair_blank(&self, j: usize) -> bool {
+        if j < self.lo || j > self.hi {
+            return true;
+        }
+        let a = self.row(j);
+        let b = if j > 0 { self.row(j - 1) } else { a };
+        a.iter().zip(b).all(|(x, y)| x | y == 0)
+    }
+
+    /// Calls `f(row, x0, x1)` for every marked span, row by row.
     pub(crate) fn for_each_span(&self, mut f: impl FnMut(usize, usize, usize)) {
-        let mut spans = [(0usize, 0usize); 8 * 64];
-        for (k, band) in self.bits.chunks(self.words).enumerate() {
-            if band.iter().all(|&w| w == 0) {
+        for j in self.lo..self.hi {
+            let a = self.row(j);
+            if a.iter().all(|&w| w == 0) {
                 continue;
             }
-            let mut it = Spans::new(self.words, self.width);
-            it.or(band);
-            let mut n = 0;
-            for s in it {
-                spans[n] = s;
-                n += 1;
-            }
-            for j in k * BAND..((k + 1) * BAND).min(self.height) {
-                for &(x0, x1) in &spans[..n] {
-                    f(j, x0, x1);
-                }
+            let spans = Spans {
+                a,
+                b: a,
+                width: self.width,
+                at: 0,
+            };
+            for (x0, x1) in spans {
+                f(j, x0, x1);
             }
         }
     }
 
-    /// Every marked `(row, x0, x1)`, band by band, row by row.
+    /// Every marked `(row, x0, x1)`, row by row.
     #[cfg(test)]
     pub(crate) fn rows(&self) -> Vec<(usize, usize, usize)> {
         let mut v = Vec::new();
@@ -132,63 +144,54 @@ impl Dirty {
     }
 }
 
-/// The runs of set blocks of one band, as pixel spans `[x0, x1)`.
-pub(crate) struct Spans {
-    words: [u64; 8],
-    n: usize,
+/// The runs of set blocks of the union of two rows' words, as pixel spans `[x0, x1)`.
+pub(crate) struct Spans<'a> {
+    a: &'a [u64],
+    b: &'a [u64],
     width: usize,
     /// Next block to look at.
     at: usize,
 }
 
-impl Spans {
-    fn new(words: usize, width: usize) -> Spans {
-        assert!(words <= 8, "pages up to {} px wide", 8 * 64 * BLOCK);
-        Spans {
-            words: [0; 8],
-            n: words,
-            width,
-            at: 0,
-        }
-    }
-
-    fn or(&mut self, band: &[u64]) {
-        for (a, b) in self.words.iter_mut().zip(band) {
-            *a |= *b;
-        }
-    }
-
-    fn bit(&self, i: usize) -> bool {
-        self.words[i / 64] >> (i % 64) & 1 == 1
-    }
-
-    /// The first set block at or after `i`, if any.
-    fn next_set(&self, i: usize) -> Option<usize> {
-        let mut w = i / 64;
-        if w >= self.n {
-            return None;
-        }
-        let mut m = self.words[w] & !bit_range(0, i % 64);
-        loop {
-            if m != 0 {
-                return Some(64 * w + m.trailing_zeros() as usize);
-            }
-            w += 1;
-            if w >= self.n {
-                return None;
-            }
-            m = self.words[w];
-        }
+impl Spans<'_> {
+    #[inline]
+    fn word(&self, i: usize) -> u64 {
+        self.a[i] | self.b[i]
     }
 }
 
-impl Iterator for Spans {
+impl Iterator for Spans<'_> {
     type Item = (usize, usize);
+    #[inline]
     fn next(&mut self) -> Option<(usize, usize)> {
-        let s = self.next_set(self.at)?;
-        let mut e = s + 1;
-        while e < 64 * self.n && self.bit(e) {
-            e += 1;
+        let n = self.a.len();
+        // The first set block at or after `at`.
+        let mut w = self.at / 64;
+        if w >= n {
+            return None;
+        }
+        let mut m = self.word(w) & !bit_range(0, self.at % 64);
+        while m == 0 {
+            w += 1;
+            if w >= n {
+                self.at = 64 * n;
+                return None;
+            }
+            m = self.word(w);
+        }
+        let s = 64 * w + m.trailing_zeros() as usize;
+        // The first clear block after it.
+        let mut e = s;
+        loop {
+            let (wi, bi) = (e / 64, e % 64);
+            if wi >= n {
+                break;
+            }
+            let ones = (self.word(wi) >> bi).trailing_ones() as usize;
+            e += ones;
+            if ones < 64 - bi {
+                break;
+            }
         }
         self.at = e;
         Some(((s * BLOCK).min(self.width), (e * BLOCK).min(self.width)))
@@ -200,7 +203,6 @@ fn bit_range(lo: usize, hi: usize) -> u64 {
     let upto = |n: usize| if n >= 64 { u64::MAX } else { (1u64 << n) - 1 };
     upto(hi) & !upto(lo)
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -212,34 +214,96 @@ mod tests {
         d.mark([100.2, 40.0, 130.9, 41.0]);
         d.mark([131.0, 40.0, 200.0, 41.0]);
         let rows = d.rows();
-        // Rows 39..42 (two bands), one merged span covering 99..202.
-        assert_eq!(rows.len(), 2 * BAND);
+        // Rows 39..42 (widened by a pixel), one merged span covering 99..202.
+        assert_eq!(rows.len(), 3);
         for (j, x0, x1) in rows {
-            assert!((32..48).contains(&j), "{j}");
-            assert!(x0 <= 99 && x1 >= 202, "{x0} {x1}");
+            assert!((39..42).contains(&j), "{j}");
+            assert_eq!((x0, x1), (96, 208));
         }
+        assert!(d.row_pair_blank(38) && !d.row_pair_blank(39) && !d.row_pair_blank(42));
+        assert!(d.row_pair_blank(43) && d.row_pair_blank(0));
         d.mark([-5.0, -5.0, 1e9, f32::NAN]);
         d.mark_all();
         let covered: usize = d.rows().into_iter().map(|(_, a, b)| b - a).sum();
         assert_eq!(covered, 3300 * 5100);
         d.reset();
-        assert!(d.rows().is_empty());
+        assert!(d.rows().is_empty() && !d.any());
+        assert!((0..5100).all(|j| d.row_pair_blank(j)));
     }
 
     #[test]
     fn narrow_buffers_and_spans_across_words() {
         let mut d = Dirty::new(10, 3);
         d.mark_px(9, 2, 10, 3);
-        assert_eq!(d.rows(), vec![(0, 0, 10), (1, 0, 10), (2, 0, 10)]);
+        assert_eq!(d.rows(), vec![(2, 8, 10)]);
         let mut d = Dirty::new(3300, 20);
-        d.mark_px(1000, 9, 1100, 10); // blocks 62..69: across the first word's end
+        d.mark_px(500, 9, 530, 10); // blocks 62..67: across the first word's end
         d.mark_px(3290, 17, 3300, 18);
-        assert_eq!(d.row_pair_spans(8).collect::<Vec<_>>(), vec![(992, 1104)]);
-        assert_eq!(
-            d.row_pair_spans(16).collect::<Vec<_>>(),
-            vec![(992, 1104), (3280, 3300)]
-        );
-        assert_eq!(d.row_pair_spans(17).collect::<Vec<_>>(), vec![(3280, 3300)]);
+        assert_eq!(d.row_pair_spans(9).collect::<Vec<_>>(), vec![(496, 536)]);
+        assert_eq!(d.row_pair_spans(10).collect::<Vec<_>>(), vec![(496, 536)]);
+        assert_eq!(d.row_pair_spans(11).count(), 0);
+        assert_eq!(d.row_pair_spans(18).collect::<Vec<_>>(), vec![(3288, 3300)]);
         assert_eq!(d.row_pair_spans(0).count(), 0);
+        // Wider than the old fixed limit of 8 words (a landscape tabloid at 1200 dpi).
+        let mut d = Dirty::new(20_400, 2);
+        d.mark_px(0, 1, 20_400, 2);
+        assert_eq!(d.row_pair_spans(1).collect::<Vec<_>>(), vec![(0, 20_400)]);
+    }
+
+    /// Random boxes: the spans of every row pair are exactly the union of the marked
+    /// blocks of both rows, cover every marked pixel, and reset clears all.
+    #[test]
+    fn spans_are_the_marked_blocks_exactly() {
+        let (w, h) = (1100, 60);
+        let mut d = Dirty::new(w, h);
+        let mut truth = vec![false; w.div_ceil(BLOCK) * h];
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = |n: usize| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s % n as u64) as usize
+        };
+        for round in 0..3 {
+            for _ in 0..40 {
+                let (x0, y0) = (rnd(w), rnd(h));
+                let (x1, y1) = (x0 + rnd(if round == 0 { 9 } else { 700 }), y0 + rnd(4));
+                d.mark_px(x0, y0, x1, y1);
+                let (x1, y1) = (x1.min(w), y1.min(h));
+                for j in y0..y1 {
+                    for x in x0..x1 {
+                        truth[j * w.div_ceil(BLOCK) + x / BLOCK] = true;
+                    }
+                }
+            }
+            let cols = w.div_ceil(BLOCK);
+            for j in 0..h {
+                let mut want = Vec::new();
+                for b in 0..cols {
+                    let on = truth[j * cols + b] || (j > 0 && truth[(j - 1) * cols + b]);
+                    if on {
+                        match want.last_mut() {
+                            Some((_, e)) if *e == (b * BLOCK).min(w) => {
+                                *e = ((b + 1) * BLOCK).min(w)
+                            }
+                            _ => want.push((b * BLOCK, ((b + 1) * BLOCK).min(w))),
+                        }
+                    }
+                }
+                assert_eq!(d.row_pair_spans(j).collect::<Vec<_>>(), want, "row {j}");
+                assert_eq!(d.row_pair_blank(j), want.is_empty(), "row {j}");
+            }
+            let rows = d.rows();
+            for j in 0..h {
+                for b in 0..cols {
+                    let x = b * BLOCK;
+                    let inside = rows.iter().any(|&(r, a, e)| r == j && a <= x && x < e);
+                    assert_eq!(inside, truth[j * cols + b], "{j} {b}");
+                }
+            }
+            d.reset();
+            truth.fill(false);
+            assert!(!d.any());
+        }
     }
 }
