@@ -280,8 +280,19 @@ fn match_refuses_bad_input_clearly() {
         &["match", t, "--atlas", atlas, "--closed"],
         "at least 6 points",
     );
-    // A sidecar changed after it was written.
+    // A sidecar replaced by a link to the same bytes: refused, and the message says so
+    // (not that the bytes changed).
     let side = dir.join(SHAPES_FILE);
+    let moved = dir.join("shapes-elsewhere.bin");
+    std::fs::rename(&side, &moved).unwrap();
+    std::os::unix::fs::symlink(&moved, &side).unwrap();
+    fails(
+        &["match", t, "--atlas", atlas],
+        "shapes.bin is a link or not a regular file",
+    );
+    std::fs::remove_file(&side).unwrap();
+    std::fs::rename(&moved, &side).unwrap();
+    // A sidecar changed after it was written.
     let mut bytes = std::fs::read(&side).unwrap();
     let last = bytes.len() - 1;
     bytes[last] ^= 1;

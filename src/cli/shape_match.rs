@@ -236,7 +236,11 @@ pub(super) fn load_shapes(dir: &Path) -> Result<Shapes> {
     };
     // A regular file only (not a link), checked on what was opened.
     if !std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
-        return Err(changed());
+        return Err(UsageError(format!(
+            "{} is a link or not a regular file: the shape sidecar is read only as the regular file `coupler-atlas generate` wrote; copy the file in place of the link, or run `coupler-atlas generate` again for the atlas",
+            path.display()
+        ))
+        .into());
     }
     let file = std::fs::File::open(&path).map_err(read_err)?;
     if !file.metadata().map_err(read_err)?.is_file() {
