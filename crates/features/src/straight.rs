@@ -454,21 +454,12 @@ impl Track<'_> {
         }
     }
 
-    /// The maximal windows with `ε_S ≤ tol` that move one way along their line, travel at
-    /// least `min_travel` (`travel(i, j)`, at most `h_max` per step), at most `max_picks`
-    /// of them ([`crate::maximal`]). Error: ε_S.
-    pub fn maximal(
-        &self,
-        tol: f64,
-        travel: impl Fn(usize, usize) -> f64,
-        h_max: f64,
-        min_travel: f64,
-        max_picks: usize,
-    ) -> Vec<Window> {
+    /// The filter's inputs: each sample's direction (one `atan2`; `None` where the
+    /// direction is zero or not finite), the polyline's length as prefix sums over two
+    /// turns, and the bound `far` on a qualifying window's spread (1.01 `tol` times the
+    /// diameter of all finite samples).
+    fn filter_inputs(&self, tol: f64) -> (Vec<Option<f64>>, Vec<f64>, f64) {
         let n = self.len();
-        if n < 3 {
-            return Vec::new();
-        }
         // Directions whose half-plane test is exact and cheap: one atan2 per sample.
         let angles: Vec<Option<f64>> = (0..n)
             .map(|k| {
@@ -513,8 +504,25 @@ impl Track<'_> {
                 (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
             }
         }
-        let diameter = (x1 - x0).hypot(y1 - y0);
-        let far = 1.01 * tol * diameter;
+        (angles, chord, 1.01 * tol * (x1 - x0).hypot(y1 - y0))
+    }
+
+    /// The maximal windows with `ε_S ≤ tol` that move one way along their line, travel at
+    /// least `min_travel` (`travel(i, j)`, at most `h_max` per step), at most `max_picks`
+    /// of them ([`crate::maximal`]). Error: ε_S.
+    pub fn maximal(
+        &self,
+        tol: f64,
+        travel: impl Fn(usize, usize) -> f64,
+        h_max: f64,
+        min_travel: f64,
+        max_picks: usize,
+    ) -> Vec<Window> {
+        let n = self.len();
+        if n < 3 {
+            return Vec::new();
+        }
+        let (angles, chord, far) = self.filter_inputs(tol);
         let mut cand = Candidates::new(n, self.periodic);
         self.filter(&angles, &chord, far, tol, &travel, min_travel, &mut cand);
         cand.pick(travel, h_max, min_travel, max_picks, |i, j| {
@@ -745,43 +753,6 @@ mod tests {
         ]
     }
 
-    /// The filter's inputs, as [`Track::maximal`] makes them.
-    fn inputs(t: &Track, tol: f64) -> (Vec<Option<f64>>, Vec<f64>, f64) {
-        let n = t.len();
-        let angles: Vec<Option<f64>> = (0..n)
-            .map(|k| {
-                let v = match t.velocity {
-                    Some((vx, vy)) => [vx[k], vy[k]],
-                    None => {
-                        let q = if k + 1 < n {
-                            k + 1
-                        } else if t.periodic {
-                            0
-                        } else {
-                            k
-                        };
-                        [t.x[q] - t.x[k], t.y[q] - t.y[k]]
-                    }
-                };
-                let zero = v == [0.0, 0.0];
-                (!zero && v[0].is_finite() && v[1].is_finite()).then(|| libm::atan2(v[1], v[0]))
-            })
-            .collect();
-        let mut chord = vec![0.0; 2 * n];
-        for k in 1..2 * n {
-            let (a, b) = ((k - 1) % n, k % n);
-            let (dx, dy) = (t.x[b] - t.x[a], t.y[b] - t.y[a]);
-            chord[k] = chord[k - 1] + (dx * dx + dy * dy).sqrt();
-        }
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for (&x, &y) in t.x.iter().zip(t.y) {
-            if x.is_finite() && y.is_finite() {
-                (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-            }
-        }
-        (angles, chord, 1.01 * tol * (x1 - x0).hypot(y1 - y0))
-    }
-
     /// Every window of every start and length that the exact test accepts (finite,
     /// moving one way along its line, ε_S ≤ tol, at least 2 steps) passes the filter,
     /// and the filter passes exactly the windows the one-start loop it replaces passes.
@@ -795,7 +766,7 @@ mod tests {
             for (kind, t) in tracks(&c) {
                 let n = t.len();
                 for tol in [0.002, 0.01, 0.05] {
-                    let (angles, chord, far) = inputs(&t, tol);
+                    let (angles, chord, far) = t.filter_inputs(tol);
                     let travel = |i: usize, j: usize| (j - i) as f64;
                     let mut cand = Candidates::new(n, t.periodic);
                     t.filter(&angles, &chord, far, tol, &travel, 2.0, &mut cand);
