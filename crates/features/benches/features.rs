@@ -2,11 +2,13 @@
 //!
 //! The workload is the 1768 curves of `tests/features.rs` (`feature_cost_per_curve`): four
 //! linkages × both circuits × a 17 × 13 grid of coupler points, at the default tolerances.
-//! Each pass extracts every feature of every curve; the report gives, per curve, the median
-//! over the passes of the wall time and of the thread's CPU time (Linux:
-//! `/proc/thread-self/schedstat`; absent elsewhere), in total and for each part, and a
-//! fingerprint of every result (a hash of their full-precision `Debug` text) so that two
-//! builds can be checked to give identical features. Arguments: `--passes N` (default 15).
+//! Each pass extracts every feature of every curve through `FeatureExtractor`, then runs
+//! each part over every curve; the report gives, per curve, the median over the passes of
+//! the wall time and of the thread's CPU time (Linux: `/proc/thread-self/schedstat`; absent
+//! elsewhere), in total, for each part, and for the rest (total − Σ parts of the same pass,
+//! so a change of the machine's speed between passes cancels), and a fingerprint of every
+//! result (a hash of their full-precision `Debug` text, from an untimed first pass) so that
+//! two builds can be checked to give identical features. Arguments: `--passes N` (default 15).
 
 use coupler_features::{
     FeatureExtractor, FeatureTolerances, crunodes, cusps, pseudo_arcs, straight_segments, symmetry,
@@ -67,43 +69,7 @@ fn main() {
     let dash = DashPattern::default();
     let table = CrankTable::new(tol.step_deg).expect("crank table");
 
-    // The fingerprint of every result, and the whole extraction timed.
-    let mut hasher = std::collections::hash_map::DefaultHasher::new();
-    let mut curves = 0usize;
-    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
-    for pass in 0..passes {
-        let (t, c) = (Instant::now(), thread_cpu());
-        for (a, b, c) in LINKAGES {
-            let l = FourBar::new(a, b, c).expect("linkage");
-            for circuit in [Circuit::Open, Circuit::Crossed] {
-                let mut x = FeatureExtractor::new(&l, circuit, &tol, &dash).expect("extractor");
-                for p in points() {
-                    let f = std::hint::black_box(x.extract(p));
-                    if pass == 0 {
-                        format!("{f:?}").hash(&mut hasher);
-                        curves += 1;
-                    }
-                }
-            }
-        }
-        wall.push(t.elapsed().as_secs_f64());
-        if let (Some(c0), Some(c1)) = (c, thread_cpu()) {
-            cpu.push(c1 - c0);
-        }
-    }
-    let per = |v: &mut Vec<f64>| median(v) / curves as f64 * 1e6;
-    println!(
-        "features per curve ({curves} curves, {passes} passes, one thread): {:.1} µs wall, {} CPU (medians)",
-        per(&mut wall),
-        if cpu.is_empty() {
-            "n/a".to_string()
-        } else {
-            format!("{:.1} µs", per(&mut cpu))
-        }
-    );
-    println!("fingerprint of the features: {:016x}", hasher.finish());
-
-    // By part: each part run over all the curves in one block, timed (wall and CPU).
+    // The work of the parts: every curve traced once, with its mechanism.
     let mut work = Vec::new();
     for (a, b, c) in LINKAGES {
         let l = FourBar::new(a, b, c).expect("linkage");
@@ -114,8 +80,40 @@ fn main() {
             }
         }
     }
+
+    // Each pass times the whole extraction, then each part run over all the curves in one
+    // block (wall and CPU): the total and the parts of one pass see the machine at the same
+    // speed, so the rest (total − Σ parts, per pass) is what the extractor spends outside
+    // the parts. The fingerprint of every result is taken first, in an untimed pass.
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    let mut curves = 0usize;
+    for (a, b, c) in LINKAGES {
+        let l = FourBar::new(a, b, c).expect("linkage");
+        for circuit in [Circuit::Open, Circuit::Crossed] {
+            let mut x = FeatureExtractor::new(&l, circuit, &tol, &dash).expect("extractor");
+            for p in points() {
+                format!("{:?}", x.extract(p)).hash(&mut hasher);
+                curves += 1;
+            }
+        }
+    }
+    let (mut wall, mut cpu) = (Vec::new(), Vec::new());
     let mut parts: Vec<(Vec<f64>, Vec<f64>)> = vec![(Vec::new(), Vec::new()); PARTS.len()];
+    let (mut rest_wall, mut rest_cpu) = (Vec::new(), Vec::new());
     for _ in 0..passes {
+        let (t, c) = (Instant::now(), thread_cpu());
+        for (a, b, c) in LINKAGES {
+            let l = FourBar::new(a, b, c).expect("linkage");
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                let mut x = FeatureExtractor::new(&l, circuit, &tol, &dash).expect("extractor");
+                for p in points() {
+                    drop(std::hint::black_box(x.extract(p)));
+                }
+            }
+        }
+        let total_wall = t.elapsed().as_secs_f64();
+        let total_cpu = c.zip(thread_cpu()).map(|(c0, c1)| c1 - c0);
+        let (mut sum_wall, mut sum_cpu) = (0.0, 0.0);
         for (k, (w, c)) in parts.iter_mut().enumerate() {
             let (clock, c0) = (Instant::now(), thread_cpu());
             for (l, circuit, p, curve) in &work {
@@ -133,12 +131,40 @@ fn main() {
                     }
                 }
             }
-            w.push(clock.elapsed().as_secs_f64());
+            let dt = clock.elapsed().as_secs_f64();
+            w.push(dt);
+            sum_wall += dt;
             if let (Some(c0), Some(c1)) = (c0, thread_cpu()) {
                 c.push(c1 - c0);
+                sum_cpu += c1 - c0;
             }
         }
+        wall.push(total_wall);
+        rest_wall.push(total_wall - sum_wall);
+        if let Some(tc) = total_cpu {
+            cpu.push(tc);
+            rest_cpu.push(tc - sum_cpu);
+        }
     }
+    let per = |v: &mut Vec<f64>| median(v) / curves as f64 * 1e6;
+    let cpu_text = |v: &mut Vec<f64>| {
+        if v.is_empty() {
+            "n/a".to_string()
+        } else {
+            format!("{:.1} µs", per(v))
+        }
+    };
+    println!(
+        "features per curve ({curves} curves, {passes} passes, one thread): {:.1} µs wall, {} CPU (medians)",
+        per(&mut wall),
+        cpu_text(&mut cpu)
+    );
+    println!("fingerprint of the features: {:016x}", hasher.finish());
+    println!(
+        "  rest (total − Σ parts, per pass; the parts build a pose table per curve, the extractor one per linkage): {:.1} µs wall, {} CPU per curve (medians)",
+        per(&mut rest_wall),
+        cpu_text(&mut rest_cpu)
+    );
     for (name, (w, c)) in PARTS.iter().zip(parts.iter_mut()) {
         let cpu = if c.is_empty() {
             "n/a".to_string()
