@@ -55,9 +55,9 @@ pub(crate) struct TransmissionMemo {
 }
 
 /// The memo's hasher: its keys are angles' bits, chosen by the program, not by an
-/// adversary, so a multiply per word, the high half folded onto the low, does (the default SipHash cost more than
-/// the rest of the lookup). Which hasher a map uses changes only where entries sit, never
-/// what a lookup returns.
+/// adversary, so a multiply per word, the high half folded onto the low, does (the
+/// default SipHash cost more than the rest of the lookup). Which hasher a map uses
+/// changes only where entries sit, never what a lookup returns.
 type BitsHash = BuildHasherDefault<WordHasher>;
 
 /// A word-at-a-time multiplicative hash ([`BitsHash`]).
