@@ -280,6 +280,27 @@ fn match_refuses_bad_input_clearly() {
         &["match", t, "--atlas", atlas, "--closed"],
         "at least 6 points",
     );
+    // Angles spanning more than a crank turn, on a four-bar atlas.
+    let long = dir.join("long.csv");
+    let pts: String = (0..40)
+        .map(|k| {
+            let (a, r) = (f64::from(k) * 10.0, 1.0 + f64::from(k) * 0.01);
+            let (x, y) = (r * a.to_radians().cos(), r * a.to_radians().sin());
+            format!("{x},{y},{a}\n")
+        })
+        .collect();
+    std::fs::write(&long, pts).unwrap();
+    fails(
+        &[
+            "match",
+            long.to_str().unwrap(),
+            "--atlas",
+            atlas,
+            "--closed",
+            "--timed",
+        ],
+        "angles span 390°, but the longest period of the curves is 360° of input",
+    );
     // A sidecar replaced by a link to the same bytes: refused, and the message says so
     // (not that the bytes changed).
     let side = dir.join(SHAPES_FILE);

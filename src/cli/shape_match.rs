@@ -135,12 +135,17 @@ fn check_timing(target: &Target, atlas: &Shapes, name: &str, dir: &Path) -> Resu
     if view.is_empty() {
         return Ok(());
     }
-    // Only a target timed by angles needs the periods (every record decoded).
-    let longest = atlas
-        .curves(&view)?
-        .iter()
-        .map(|c| c.curve.period_deg())
-        .fold(0.0, f64::max);
+    // Only a target timed by angles needs the periods. A four-bar curve's period is one
+    // crank turn, whatever its record; a geared atlas's periods (360°·q by its gears)
+    // need every record decoded.
+    let longest = match view.kind() {
+        coupler_atlas::shape::RecordKind::FourBar => 360.0,
+        coupler_atlas::shape::RecordKind::GearedFiveBar => atlas
+            .curves(&view)?
+            .iter()
+            .map(|c| c.curve.period_deg())
+            .fold(0.0, f64::max),
+    };
     if target.fits_period(longest) {
         return Ok(());
     }
