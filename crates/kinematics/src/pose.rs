@@ -61,7 +61,7 @@ impl CrankAngle {
 /// symmetries exactly (`sin(180° − θ) = sin θ` to the bit), which symmetric curves rely on.
 pub fn sincos_deg(degrees: f64) -> (f64, f64) {
     let negative = degrees < 0.0;
-    let mut r = degrees.abs() % 360.0; // exact
+    let mut r = turn_remainder(degrees.abs());
     let mut sin_sign = if negative { -1.0 } else { 1.0 };
     let mut cos_sign = 1.0;
     if r > 180.0 {
@@ -85,6 +85,22 @@ pub fn sincos_deg(degrees: f64) -> (f64, f64) {
     let (s, c) = if swap { (c, s) } else { (s, c) };
     // `+ 0.0` turns a −0 into +0 so that sin 180° prints as 0.
     (sin_sign * s + 0.0, cos_sign * c + 0.0)
+}
+
+/// `x % 360.0` for `x ≥ 0` (or NaN), the same bits: the remainder is exact, so any exact
+/// way to it gives the same value. Below 720° one subtraction is exact (Sterbenz's lemma:
+/// `360 ≤ x ≤ 2·360`); further out, and for infinities and NaN, the library's `fmod`,
+/// which is a loop of exact steps and costs tens of nanoseconds: the fits evaluate crank
+/// angles by the million, almost all within a turn or two.
+#[inline]
+fn turn_remainder(x: f64) -> f64 {
+    if x < 360.0 {
+        x
+    } else if x < 720.0 {
+        x - 360.0
+    } else {
+        x % 360.0
+    }
 }
 
 /// How far (in ulps of the longest side) the triangle inequality may fail by rounding
@@ -347,6 +363,33 @@ impl Pose {
         })
     }
 
+    /// The coupler's frame of [`Pose::solve_with`]'s pose where that pose is finite
+    /// ([`Pose::is_finite`]), else `None`: the same values, bit for bit, as
+    /// `Pose::solve_with(..).filter(Pose::is_finite).map(|p| p.frame())`, without what a
+    /// coupler point does not need (the rocker's direction and the transmission angle,
+    /// whose `atan2` costs as much as the rest of the pose). For evaluating a coupler
+    /// point and its velocity at many angles, as the shape fits do.
+    #[inline]
+    pub fn finite_frame_with(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<CouplerFrame> {
+        let core = PoseCore::solve(linkage, gaps, circuit, angle)?;
+        let (a_len, b_len) = (linkage.coupler, linkage.rocker);
+        // ω4 exactly as `solve_with` forms it: only its finiteness is asked.
+        let e3 = Vector2::new(core.e_x, core.e_y);
+        let va = Vector2::new(-angle.sin, angle.cos);
+        let cross34 = circuit.sign() * 0.5 * core.area4 / (a_len * b_len);
+        let rocker_omega = -va.dot(&e3) / (b_len * cross34);
+        let finite = core.pb_x.is_finite()
+            && core.pb_y.is_finite()
+            && core.omega.is_finite()
+            && rocker_omega.is_finite();
+        finite.then(|| core.frame(angle))
+    }
+
     /// The coupler's frame: origin Pa, direction e3, angular velocity ω3.
     #[inline]
     pub fn frame(&self) -> CouplerFrame {
@@ -407,6 +450,96 @@ mod tests {
             let (s3, c3) = sincos_deg(360.0 - t);
             assert_eq!((s, c), (-s3, c3), "reflection at {t}");
         }
+    }
+
+    /// The fast reduction is `%` to the bit, at the edges and far out.
+    #[test]
+    fn turn_remainder_is_the_remainder() {
+        let mut xs = vec![
+            0.0,
+            f64::MIN_POSITIVE,
+            5e-324,
+            1e-300,
+            359.0,
+            360.0,
+            720.0,
+            1080.0,
+            1e6 + 0.125,
+            2f64.powi(52) + 1.0,
+            1e300,
+            f64::MAX,
+        ];
+        for edge in [360.0f64, 720.0, 1080.0] {
+            let mut x = edge;
+            for _ in 0..4 {
+                x = x.next_down();
+                xs.push(x);
+            }
+            let mut x = edge;
+            for _ in 0..4 {
+                x = x.next_up();
+                xs.push(x);
+            }
+        }
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..20_000 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let u = (state >> 11) as f64 / (1u64 << 53) as f64;
+            xs.push(u * 1500.0);
+            xs.push(u * 360.0 * 4.0f64.powi((state % 12) as i32));
+        }
+        for x in xs {
+            assert_eq!(turn_remainder(x).to_bits(), (x % 360.0).to_bits(), "{x:e}");
+        }
+        assert!(turn_remainder(f64::INFINITY).is_nan());
+        assert!(turn_remainder(f64::NAN).is_nan());
+    }
+
+    /// The lean frame is the full pose's frame, bit for bit, where that pose is finite,
+    /// and `None` where it is not: at a change point (toggles: infinite velocities) and
+    /// where the linkage does not assemble.
+    #[test]
+    fn finite_frame_is_the_poses_frame() {
+        let linkages = [
+            FourBar::new(2.5, 3.0, 3.5).unwrap(),
+            FourBar::new(3.0, 3.0, 3.0).unwrap(),
+            FourBar::new(2.0, 2.0, 1.0).unwrap(), // change point: toggles at 0°
+            FourBar::new(1.0, 3.0, 4.5).unwrap(), // does not assemble everywhere
+            FourBar::new(4.0, 2.5, 2.5).unwrap(),
+        ];
+        let mut none = 0;
+        for l in &linkages {
+            let gaps = ToggleGaps::of(l);
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                for k in -800..800 {
+                    let deg = k as f64 * 0.9 + if k % 3 == 0 { 0.0 } else { 1.0 / 7.0 };
+                    let angle = CrankAngle::from_degrees(deg);
+                    let full = Pose::solve_with(l, &gaps, circuit, &angle)
+                        .filter(Pose::is_finite)
+                        .map(|p| p.frame());
+                    let lean = Pose::finite_frame_with(l, &gaps, circuit, &angle);
+                    none += usize::from(full.is_none());
+                    let bits = |f: Option<CouplerFrame>| {
+                        f.map(|f| {
+                            [
+                                f.origin.x,
+                                f.origin.y,
+                                f.origin_velocity.x,
+                                f.origin_velocity.y,
+                                f.direction.x,
+                                f.direction.y,
+                                f.omega,
+                            ]
+                            .map(f64::to_bits)
+                        })
+                    };
+                    assert_eq!(bits(lean), bits(full), "{l} {circuit} {deg}");
+                }
+            }
+        }
+        assert!(none > 100, "no pose was left out: {none}");
     }
 
     #[test]
