@@ -13,7 +13,7 @@
 
 use crate::geom::{C64, abs, fit_similarity, mean};
 use crate::kin::{CouplerCurve, PointAt};
-use crate::lm::{Eval, LmOptions, solve, solve_from};
+use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve, solve_from};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
 
@@ -341,18 +341,25 @@ pub(crate) fn fit_untimed(
 ) -> Option<CurveFit> {
     let mir = start.mirrored;
     let gaps = curve.gaps();
-    // The residuals `a·M̃(θ_k) + b − p_k` and, with `jac`, their derivatives, from the
-    // curve's points at the angles.
-    let residuals = |a: C64, b: C64, at: &mut dyn Iterator<Item = Option<PointAt>>, jac: bool| {
+    // The residuals `a·M̃(θ_k) + b − p_k` and, with the Jacobian asked, their derivatives,
+    // from the curve's points at the angles (`at` yields them lazily: a trial rejected
+    // part-way evaluates no more of them).
+    let residuals = |a: C64, b: C64, at: &mut dyn Iterator<Item = Option<PointAt>>, ask: Ask| {
+        let jac = ask.jacobian;
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
             jg: Vec::with_capacity(if jac { 4 * p.len() } else { 0 }),
             jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
         };
+        let mut cost = RunningCost::new(ask);
         for &pk in p {
             let at = at.next()??;
             let m = tilde(mir, at.m);
-            e.r.push(a * m + b - pk);
+            let r = a * m + b - pk;
+            if !cost.add(r) {
+                return None;
+            }
+            e.r.push(r);
             if jac {
                 e.jg.extend([
                     m,
@@ -373,16 +380,16 @@ pub(crate) fn fit_untimed(
         .collect::<Option<_>>()?;
     let m0: Vec<C64> = at0.iter().map(|x| tilde(mir, x.m)).collect();
     let (a, b, _) = fit_similarity(&m0, p)?;
-    let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
+    let eval = |g: &[f64], l: &[f64], ask: Ask| -> Option<Eval> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
-        residuals(a, b, &mut l.iter().map(|&t| curve.at_with(&gaps, t)), jac)
+        residuals(a, b, &mut l.iter().map(|&t| curve.at_with(&gaps, t)), ask)
     };
     let g0 = vec![a.re, a.im, b.re, b.im];
     let first = residuals(
         C64::new(g0[0], g0[1]),
         C64::new(g0[2], g0[3]),
         &mut at0.into_iter().map(Some),
-        true,
+        Ask::whole(true),
     );
     let lm = LmOptions {
         max_iterations: options.max_iterations,
@@ -547,7 +554,7 @@ fn timed_lm(
         .map(|&x| curve.at_with(&gaps, t0 + step * x).map(|a| tilde(mir, a.m)))
         .collect::<Option<_>>()?;
     let (a, b, _) = fit_similarity(&m0, p)?;
-    let eval = |g: &[f64], _: &[f64], jac: bool| -> Option<Eval> {
+    let eval = |g: &[f64], _: &[f64], ask: Ask| -> Option<Eval> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let (t0, s) = (g[4], if free_step { g[5] } else { step });
         let mut e = Eval {
@@ -555,11 +562,16 @@ fn timed_lm(
             jg: Vec::new(),
             jl: Vec::new(),
         };
+        let mut cost = RunningCost::new(ask);
         for (k, &pk) in p.iter().enumerate() {
             let at = curve.at_with(&gaps, t0 + s * o[k])?;
             let m = tilde(mir, at.m);
-            e.r.push(a * m + b - pk);
-            if jac {
+            let r = a * m + b - pk;
+            if !cost.add(r) {
+                return None;
+            }
+            e.r.push(r);
+            if ask.jacobian {
                 let dv = a * tilde(mir, at.dm_dtheta);
                 e.jg.extend([
                     m,

@@ -100,11 +100,8 @@ impl CouplerCurve {
         let angle = CrankAngle::from_degrees(deg);
         let (m, v) = match (&self.linkage, gaps) {
             (Linkage::FourBar(l), CurveGaps::FourBar(g)) => {
-                let pose = Pose::solve_with(l, g, self.circuit, &angle)?;
-                if !pose.is_finite() {
-                    return None;
-                }
-                (pose.point(self.point), pose.velocity(self.point))
+                let frame = Pose::finite_frame_with(l, g, self.circuit, &angle)?;
+                (frame.point(self.point), frame.velocity(self.point))
             }
             (Linkage::GearedFiveBar(l), CurveGaps::Geared(g)) => {
                 let frame = l.frame_with(g, self.circuit, &angle)?;

@@ -26,6 +26,56 @@ impl Eval {
     }
 }
 
+/// What [`solve`] asks of one evaluation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Ask {
+    /// Also the Jacobian.
+    pub jacobian: bool,
+    /// A trial step whose cost exceeds this is rejected whatever else it holds: the
+    /// evaluation may give up (return `None`) as soon as the cost of the points so far,
+    /// `Σ |r_j|²` summed in point order, exceeds it. That partial sum never decreases as
+    /// points are added (each term is ≥ 0 and rounding is monotone), so a trial that
+    /// gives up would have been rejected anyway, and the iterations are the same, bit for
+    /// bit: only the rest of a rejected trial's points go unevaluated. `+∞` for an
+    /// evaluation that must be whole.
+    pub reject_above: f64,
+}
+
+impl Ask {
+    /// The whole evaluation, with the Jacobian or without.
+    pub const fn whole(jacobian: bool) -> Ask {
+        Ask {
+            jacobian,
+            reject_above: f64::INFINITY,
+        }
+    }
+}
+
+/// Keeps the running cost of an evaluation point by point, in the order of
+/// [`Eval::cost`], for [`Ask::reject_above`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RunningCost {
+    sum: f64,
+    limit: f64,
+}
+
+impl RunningCost {
+    pub fn new(ask: Ask) -> RunningCost {
+        RunningCost {
+            sum: 0.0,
+            limit: ask.reject_above,
+        }
+    }
+
+    /// Adds a point's residual; `false` once the cost so far exceeds the limit (the trial
+    /// is rejected: the evaluation may stop).
+    #[inline]
+    pub fn add(&mut self, r: C64) -> bool {
+        self.sum += r.norm_sqr();
+        !(self.sum > self.limit)
+    }
+}
+
 /// What [`solve`] found.
 #[derive(Clone, Debug)]
 pub(crate) struct LmResult {
@@ -70,9 +120,10 @@ fn dot(a: C64, b: C64) -> f64 {
     a.re * b.re + a.im * b.im
 }
 
-/// Minimises `Σ |r_j|²` from `(global, local)`. `eval(g, l, jacobian)` returns the
-/// residuals (and the Jacobian when asked), or `None` where the model is undefined (a
-/// step there is rejected). `local` is empty for a fit without locals; otherwise it has
+/// Minimises `Σ |r_j|²` from `(global, local)`. `eval(g, l, ask)` returns the
+/// residuals (and the Jacobian when `ask.jacobian`), or `None` where the model is
+/// undefined (a step there is rejected) or, for a trial step, once its cost exceeds
+/// `ask.reject_above` ([`Ask`]). `local` is empty for a fit without locals; otherwise it has
 /// one entry per residual. `None` if the start itself is undefined.
 pub(crate) fn solve<F>(
     global: Vec<f64>,
@@ -81,13 +132,13 @@ pub(crate) fn solve<F>(
     options: &LmOptions,
 ) -> Option<LmResult>
 where
-    F: FnMut(&[f64], &[f64], bool) -> Option<Eval>,
+    F: FnMut(&[f64], &[f64], Ask) -> Option<Eval>,
 {
     solve_from(global, local, None, eval, options)
 }
 
 /// [`solve`] given the start's evaluation with its Jacobian, `first` (what
-/// `eval(&global, &local, true)` returns; evaluated when `None`).
+/// `eval(&global, &local, Ask::whole(true))` returns; evaluated when `None`).
 pub(crate) fn solve_from<F>(
     global: Vec<f64>,
     local: Vec<f64>,
@@ -96,14 +147,14 @@ pub(crate) fn solve_from<F>(
     options: &LmOptions,
 ) -> Option<LmResult>
 where
-    F: FnMut(&[f64], &[f64], bool) -> Option<Eval>,
+    F: FnMut(&[f64], &[f64], Ask) -> Option<Eval>,
 {
     let ng = global.len();
     let has_locals = !local.is_empty();
     let (mut g, mut l) = (global, local);
     let mut e = match first {
         Some(e) => e,
-        None => eval(&g, &l, true)?,
+        None => eval(&g, &l, Ask::whole(true))?,
     };
     let mut cost = e.cost();
     let mut lambda = 1e-3;
@@ -215,7 +266,14 @@ where
             let trial = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
                 && dg.iter().all(|x| x.is_finite());
             let new_eval = if trial {
-                eval(&g_new, &l_new, options.reuse_trial)
+                eval(
+                    &g_new,
+                    &l_new,
+                    Ask {
+                        jacobian: options.reuse_trial,
+                        reject_above: cost,
+                    },
+                )
             } else {
                 None
             };
@@ -238,7 +296,7 @@ where
                     }
                     if options.reuse_trial {
                         // The residuals and Jacobian at the accepted point: what
-                        // `eval(&g, &l, true)` gives.
+                        // `eval(&g, &l, Ask::whole(true))` gives.
                         next = new_eval;
                     }
                     break;
@@ -251,7 +309,7 @@ where
         }
         e = match next.take() {
             Some(kept) => kept,
-            None => eval(&g, &l, true)?,
+            None => eval(&g, &l, Ask::whole(true))?,
         };
         cost = e.cost();
     }
@@ -329,10 +387,10 @@ fn finish<F>(
     last: Option<Eval>,
 ) -> Option<LmResult>
 where
-    F: FnMut(&[f64], &[f64], bool) -> Option<Eval>,
+    F: FnMut(&[f64], &[f64], Ask) -> Option<Eval>,
 {
     if last.is_none() {
-        eval(&g, &l, false)?;
+        eval(&g, &l, Ask::whole(false))?;
     }
     Some(LmResult {
         global: g,
@@ -356,7 +414,7 @@ mod tests {
             .iter()
             .map(|&p| c0 + super::super::geom::cis(p) * r0)
             .collect();
-        let eval = |g: &[f64], l: &[f64], jac: bool| {
+        let eval = |g: &[f64], l: &[f64], ask: Ask| {
             let c = C64::new(g[0], g[1]);
             let mut e = Eval {
                 r: Vec::new(),
@@ -366,7 +424,7 @@ mod tests {
             for (j, p) in pts.iter().enumerate() {
                 let u = super::super::geom::cis(l[j]);
                 e.r.push(c + u * g[2] - p);
-                if jac {
+                if ask.jacobian {
                     e.jg.extend([C64::new(1.0, 0.0), C64::new(0.0, 1.0), u]);
                     e.jl.push(C64::new(0.0, 1.0) * u * g[2]);
                 }
@@ -384,9 +442,9 @@ mod tests {
         // Keeping the accepted trial's evaluation (a pure `eval`) takes the same steps,
         // bit for bit, at fewer evaluations.
         let count = std::cell::Cell::new(0usize);
-        let counted = |g: &[f64], l: &[f64], jac: bool| {
+        let counted = |g: &[f64], l: &[f64], ask: Ask| {
             count.set(count.get() + 1);
-            eval(g, l, jac)
+            eval(g, l, ask)
         };
         let reused = LmOptions {
             reuse_trial: true,
@@ -411,5 +469,79 @@ mod tests {
             .sum();
         assert!(cost < 1e-24, "{res:?}");
         assert!((res.global[2] - r0).abs() < 1e-12);
+    }
+
+    /// An evaluation that gives up on a trial once its running cost exceeds
+    /// [`Ask::reject_above`] leaves every iteration the same, bit for bit (the same
+    /// result, iterations and last evaluation), and evaluates fewer points: here a
+    /// far start, where many trial steps are rejected.
+    #[test]
+    fn giving_up_on_rejected_trials_changes_nothing() {
+        let (c0, r0) = (C64::new(1.0, -2.0), 3.0);
+        let phis: Vec<f64> = (0..30).map(|k| 0.1 + 0.2 * k as f64).collect();
+        let pts: Vec<C64> = phis
+            .iter()
+            .map(|&p| c0 + super::super::geom::cis(p) * r0 + C64::new(0.01 * (p * 7.0).sin(), 0.0))
+            .collect();
+        let points = std::cell::Cell::new(0usize);
+        let gave_up = std::cell::Cell::new(0usize);
+        let eval = |bounded: bool| {
+            let (pts, points, gave_up) = (&pts, &points, &gave_up);
+            move |g: &[f64], l: &[f64], ask: Ask| {
+                let c = C64::new(g[0], g[1]);
+                let mut e = Eval {
+                    r: Vec::new(),
+                    jg: Vec::new(),
+                    jl: Vec::new(),
+                };
+                let mut cost = RunningCost::new(if bounded {
+                    ask
+                } else {
+                    Ask::whole(ask.jacobian)
+                });
+                for (j, p) in pts.iter().enumerate() {
+                    points.set(points.get() + 1);
+                    let u = super::super::geom::cis(l[j]);
+                    let r = c + u * g[2] - p;
+                    if !cost.add(r) {
+                        gave_up.set(gave_up.get() + 1);
+                        return None;
+                    }
+                    e.r.push(r);
+                    if ask.jacobian {
+                        e.jg.extend([C64::new(1.0, 0.0), C64::new(0.0, 1.0), u]);
+                        e.jl.push(C64::new(0.0, 1.0) * u * g[2]);
+                    }
+                }
+                Some(e)
+            }
+        };
+        let options = LmOptions {
+            reuse_trial: true,
+            ..LmOptions::DEFAULT
+        };
+        let start_l: Vec<f64> = phis.iter().map(|p| p - 1.5).collect();
+        let whole = solve(vec![-2.0, 1.0, 6.0], start_l.clone(), eval(false), &options).unwrap();
+        let (whole_points, whole_gave_up) = (points.replace(0), gave_up.replace(0));
+        let bounded = solve(vec![-2.0, 1.0, 6.0], start_l, eval(true), &options).unwrap();
+        assert_eq!(whole_gave_up, 0);
+        assert!(
+            gave_up.get() > 0,
+            "no trial was rejected: the test tests nothing"
+        );
+        assert!(
+            points.get() < whole_points,
+            "{} {whole_points} {} {}",
+            points.get(),
+            gave_up.get(),
+            whole.iterations
+        );
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&bounded.global), bits(&whole.global));
+        assert_eq!(bits(&bounded.local), bits(&whole.local));
+        assert_eq!(bounded.iterations, whole.iterations);
+        let last = |r: &LmResult| r.last.as_ref().unwrap().r.clone();
+        assert_eq!(last(&bounded), last(&whole));
+        assert!(whole.iterations > 3);
     }
 }

@@ -7,7 +7,7 @@
 use crate::fit::{CurveFit, FitOptions};
 use crate::geom::{C64, abs};
 use crate::kin::CouplerCurve;
-use crate::lm::{Eval, LmOptions, solve};
+use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve};
 use crate::matching::Match;
 use crate::placement::Placement;
 use crate::target::{Target, Timing};
@@ -109,7 +109,9 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
             l[k]
         }
     };
-    let eval = |g: &[f64], l: &[f64], jac: bool| -> Option<Eval> {
+    let eval = |g: &[f64], l: &[f64], ask: Ask| -> Option<Eval> {
+        let jac = ask.jacobian;
+        let mut cost = RunningCost::new(ask);
         let curve = make(g)?;
         let gaps = curve.gaps();
         let (a, b) = (C64::new(g[nd], g[nd + 1]), C64::new(g[nd + 2], g[nd + 3]));
@@ -122,12 +124,20 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
             let t = theta_of(g, l, k);
             if !jac {
                 let m = tilde(curve.at_with(&gaps, t)?.m);
-                e.r.push(a * m + b - pk);
+                let r = a * m + b - pk;
+                if !cost.add(r) {
+                    return None;
+                }
+                e.r.push(r);
                 continue;
             }
             let s = curve.sensitivity_with(&gaps, t)?;
             let m = tilde(s.at.m);
-            e.r.push(a * m + b - pk);
+            let r = a * m + b - pk;
+            if !cost.add(r) {
+                return None;
+            }
+            e.r.push(r);
             for &d in &s.d {
                 e.jg.push(a * tilde(d));
             }
