@@ -130,25 +130,29 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec
     };
     let tau = arc_fractions(p, true);
     let len = traced.length();
+    let vars: Vec<(bool, bool, Vec<C64>)> = variants(allow_mirror)
+        .into_iter()
+        .filter_map(|(rev, mir)| {
+            let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
+            if rev {
+                v.reverse();
+                v.rotate_right(1); // keep the first point first
+            }
+            unit(v).map(|v| (rev, mir, v))
+        })
+        .collect();
+    // The curve twice round, so that every shift is one slice.
+    let cc: Vec<C64> = c.iter().chain(&c).map(|z| z.conj()).collect();
+    let best_shifts = match vars.as_slice() {
+        [v0, v1, v2, v3] => best_shifts::<4>(&cc, [&v0.2, &v1.2, &v2.2, &v3.2]).to_vec(),
+        [v0, v1] => best_shifts::<2>(&cc, [&v0.2, &v1.2]).to_vec(),
+        vs => vs
+            .iter()
+            .map(|v| best_shifts::<1>(&cc, [&v.2])[0])
+            .collect(),
+    };
     let mut starts = Vec::new();
-    for (rev, mir) in variants(allow_mirror) {
-        let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
-        if rev {
-            v.reverse();
-            v.rotate_right(1); // keep the first point first
-        }
-        let Some(v) = unit(v) else { continue };
-        let mut best = (-1.0, 0usize);
-        for k in 0..M {
-            let mut s = C64::new(0.0, 0.0);
-            for j in 0..M {
-                s += c[(j + k) % M].conj() * v[j];
-            }
-            let q = s.norm_sqr();
-            if q > best.0 {
-                best = (q, k);
-            }
-        }
+    for ((rev, mir, _), best) in vars.into_iter().zip(best_shifts) {
         let s0 = len * best.1 as f64 / M as f64;
         let theta = tau
             .iter()
@@ -165,6 +169,32 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec
     }
     starts.sort_by(|a, b| a.score.total_cmp(&b.score));
     starts
+}
+
+/// For each of `L` resampled targets `v`, the cyclic shift `k` of the curve (`cc`: its
+/// `M` conjugated points twice round) with the largest `|Σ_j conj(c[j + k])·v[j]|²`, and
+/// that value (the first such `k` on a tie). The `L` sums run side by side (one pass over
+/// the curve for all of them); each is summed over `j` in order, as one target's alone.
+#[inline]
+fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L] {
+    let m = cc.len() / 2;
+    let mut best = [(-1.0, 0usize); L];
+    for k in 0..m {
+        let w = &cc[k..k + m];
+        let mut s = [C64::new(0.0, 0.0); L];
+        for (j, &cj) in w.iter().enumerate() {
+            for l in 0..L {
+                s[l] += cj * vs[l][j];
+            }
+        }
+        for l in 0..L {
+            let q = s[l].norm_sqr();
+            if q > best[l].0 {
+                best[l] = (q, k);
+            }
+        }
+    }
+    best
 }
 
 /// Open target: scan windows of the curve for the best similarity fit of the resampled
