@@ -160,12 +160,25 @@ const SMOOTHINGS: [usize; 3] = [5, 8, 12];
 impl ClosedQuery {
     /// The query vectors of a closed target's points; `None` if none can be formed.
     pub fn new(points: &[C64], allow_mirror: bool) -> Option<ClosedQuery> {
-        let mut vectors = Vec::new();
+        use rayon::prelude::*;
+        // Every (reflection, order, smoothing), described in parallel on the calling
+        // thread's rayon pool (a least-squares smoothing each: most of a closed query's
+        // work before the fits) and kept in this order, so the vectors are the same on
+        // any number of threads.
+        let mut jobs = Vec::new();
         for mir in [false, true] {
             if mir && !allow_mirror {
                 continue;
             }
             for rev in [false, true] {
+                for d in SMOOTHINGS {
+                    jobs.push((mir, rev, d));
+                }
+            }
+        }
+        let parts: Vec<Vec<[f64; CODE_LEN]>> = jobs
+            .into_par_iter()
+            .map(|(mir, rev, d)| {
                 let mut v: Vec<C64> = points
                     .iter()
                     .map(|&z| if mir { z.conj() } else { z })
@@ -173,21 +186,18 @@ impl ClosedQuery {
                 if rev {
                     v.reverse();
                 }
-                for d in SMOOTHINGS {
-                    let terms = (v.len() / d).clamp(2, 24);
-                    let r = super::smooth::smooth_resample(&v, true, terms, SAMPLES)
-                        .map(|r| r.0)
-                        .or_else(|| resample(&v, true, SAMPLES));
-                    let Some(r) = r else { continue };
-                    let Some(n) = normalized(&fourier(&r)) else {
-                        continue;
-                    };
-                    if let Some(c) = canonical(&n) {
-                        vectors.extend(c.iter().map(|x| flatten(x)));
-                    }
-                }
-            }
-        }
+                let terms = (v.len() / d).clamp(2, 24);
+                let r = super::smooth::smooth_resample(&v, true, terms, SAMPLES)
+                    .map(|r| r.0)
+                    .or_else(|| resample(&v, true, SAMPLES));
+                let Some(r) = r else { return Vec::new() };
+                let Some(n) = normalized(&fourier(&r)) else {
+                    return Vec::new();
+                };
+                canonical(&n).map_or_else(Vec::new, |c| c.iter().map(|x| flatten(x)).collect())
+            })
+            .collect();
+        let vectors = parts.concat();
         (!vectors.is_empty()).then_some(ClosedQuery { vectors })
     }
 

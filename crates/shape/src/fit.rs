@@ -16,6 +16,7 @@ use crate::kin::{CouplerCurve, PointAt};
 use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve, solve_from};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
+use rayon::prelude::*;
 
 /// How a target's points sit on a curve: what the fit found.
 #[derive(Clone, Debug, PartialEq)]
@@ -372,9 +373,16 @@ pub(crate) fn fit_untimed(
     let mir = start.mirrored;
     let gaps = curve.gaps();
     // The residuals `a·M̃(θ_k) + b − p_k` and, with the Jacobian asked, their derivatives,
-    // from the curve's points at the angles (`at` yields them lazily: a trial rejected
-    // part-way evaluates no more of them).
-    let residuals = |a: C64, b: C64, at: &mut dyn Iterator<Item = Option<PointAt>>, ask: Ask| {
+    // from the curve's points at the angles (`at(k)` gives point k's, asked in order: a
+    // trial rejected part-way evaluates no more of them).
+    fn residuals(
+        p: &[C64],
+        mir: bool,
+        a: C64,
+        b: C64,
+        mut at: impl FnMut(usize) -> Option<PointAt>,
+        ask: Ask,
+    ) -> Option<Eval> {
         let jac = ask.jacobian;
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
@@ -382,8 +390,8 @@ pub(crate) fn fit_untimed(
             jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
         };
         let mut cost = RunningCost::new(ask);
-        for &pk in p {
-            let at = at.next()??;
+        for (k, &pk) in p.iter().enumerate() {
+            let at = at(k)?;
             let m = tilde(mir, at.m);
             let r = a * m + b - pk;
             if !cost.add(r) {
@@ -391,7 +399,7 @@ pub(crate) fn fit_untimed(
             }
             e.r.push(r);
             if jac {
-                e.jg.extend([
+                e.jg.extend_from_slice(&[
                     m,
                     C64::new(0.0, 1.0) * m,
                     C64::new(1.0, 0.0),
@@ -401,7 +409,7 @@ pub(crate) fn fit_untimed(
             }
         }
         Some(e)
-    };
+    }
     // The start's points serve both its similarity and LM's first evaluation.
     let at0: Vec<PointAt> = start
         .theta
@@ -412,13 +420,15 @@ pub(crate) fn fit_untimed(
     let (a, b, _) = fit_similarity(&m0, p)?;
     let eval = |g: &[f64], l: &[f64], ask: Ask| -> Option<Eval> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
-        residuals(a, b, &mut l.iter().map(|&t| curve.at_with(&gaps, t)), ask)
+        residuals(p, mir, a, b, |k| curve.at_with(&gaps, l[k]), ask)
     };
     let g0 = vec![a.re, a.im, b.re, b.im];
     let first = residuals(
+        p,
+        mir,
         C64::new(g0[0], g0[1]),
         C64::new(g0[2], g0[3]),
-        &mut at0.into_iter().map(Some),
+        |k| Some(at0[k]),
         Ask::whole(true),
     );
     let lm = LmOptions {
@@ -661,22 +671,29 @@ pub(crate) fn fit_with(
         max_iterations: RACE_ITERATIONS,
         ..*options
     };
+    // The starts' fits are independent: they run on the calling thread's rayon pool
+    // (finer work than one candidate's whole fit, so the last candidates of a search
+    // share the threads), and are taken in the starts' order, so the result is the same
+    // on any number of threads.
     let mut raced: Vec<CurveFit> = starts
-        .iter()
+        .par_iter()
         .filter_map(|s| fit_untimed(&p, curve, s, &quick))
         .collect();
     raced.sort_by(|a, b| a.rms.total_cmp(&b.rms));
-    let mut best: Option<CurveFit> = None;
-    for f in raced.iter().take(2) {
+    let finish = |f: Option<&CurveFit>| {
+        let f = f?;
         let start = Start {
             mirrored: f.mirrored,
             theta: f.theta_deg.clone(),
             score: 0.0,
         };
-        if let Some(f) = fit_untimed(&p, curve, &start, options) {
-            if best.as_ref().is_none_or(|b| f.rms < b.rms) {
-                best = Some(f);
-            }
+        fit_untimed(&p, curve, &start, options)
+    };
+    let (first, second) = rayon::join(|| finish(raced.first()), || finish(raced.get(1)));
+    let mut best: Option<CurveFit> = None;
+    for f in [first, second].into_iter().flatten() {
+        if best.as_ref().is_none_or(|b| f.rms < b.rms) {
+            best = Some(f);
         }
     }
     if target.timing().is_timed() {

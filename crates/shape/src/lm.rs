@@ -7,7 +7,7 @@
 //! implementation and theory", 1978). Deterministic: sequential sums in a fixed order.
 
 use crate::geom::C64;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 
 /// Residuals and Jacobian at a parameter vector.
 #[derive(Clone, Debug)]
@@ -72,7 +72,7 @@ impl RunningCost {
     #[inline]
     pub fn add(&mut self, r: C64) -> bool {
         self.sum += r.norm_sqr();
-        !(self.sum > self.limit)
+        self.sum.partial_cmp(&self.limit) != Some(std::cmp::Ordering::Greater)
     }
 }
 
@@ -172,6 +172,7 @@ where
     let mut s = vec![0.0; ng * ng];
     let mut rhs = vec![0.0; ng];
     let mut g_new = vec![0.0; ng];
+    let mut dg = vec![0.0; ng];
     let mut l_new: Vec<f64> = Vec::new();
     while iterations < options.max_iterations && cost > options.cost_floor {
         iterations += 1;
@@ -185,30 +186,16 @@ where
         hll.resize(nl, 0.0);
         grad_l.clear();
         grad_l.resize(nl, 0.0);
-        for j in 0..n {
-            let row = &e.jg[j * ng..(j + 1) * ng];
-            let rj = e.r[j];
-            for p in 0..ng {
-                grad_g[p] += dot(row[p], rj);
-                let h = &mut hgg[p * ng..(p + 1) * ng];
-                for q in p..ng {
-                    h[q] += dot(row[p], row[q]);
-                }
-            }
-            if has_locals {
-                let jl = e.jl[j];
-                let h = &mut hgl[j * ng..(j + 1) * ng];
-                for p in 0..ng {
-                    h[p] = dot(row[p], jl);
-                }
-                hll[j] = jl.norm_sqr();
-                grad_l[j] = dot(jl, rj);
-            }
-        }
-        for p in 0..ng {
-            for q in 0..p {
-                hgg[p * ng + q] = hgg[q * ng + p];
-            }
+        let normal = Normal {
+            hgg: &mut hgg,
+            grad_g: &mut grad_g,
+            hgl: &mut hgl,
+            hll: &mut hll,
+            grad_l: &mut grad_l,
+        };
+        match ng {
+            4 => normal.sum_fixed::<4>(&e, has_locals),
+            _ => normal.sum(ng, &e, has_locals),
         }
         let mean_hll = if has_locals {
             hll.iter().sum::<f64>() / n as f64
@@ -236,17 +223,10 @@ where
                     _ => schur(ng, &mut s, &mut rhs, &hgl, &grad_l, &damped),
                 }
             }
-            let sm = DMatrix::<f64>::from_row_slice(ng, ng, &s);
-            let rv = DVector::<f64>::from_column_slice(&rhs);
-            let Some(dg) = sm
-                .clone()
-                .cholesky()
-                .map(|c| c.solve(&rv))
-                .or_else(|| sm.lu().solve(&rv))
-            else {
+            if !solve_small(&s, &rhs, &mut dg) {
                 lambda *= 10.0;
                 continue;
-            };
+            }
             for ((x, a), b) in g_new.iter_mut().zip(&g).zip(dg.iter()) {
                 *x = a + b;
             }
@@ -315,6 +295,133 @@ where
     }
     let last = options.reuse_trial.then_some(e);
     finish(g, l, eval, iterations, last)
+}
+
+/// The normal equations' buffers (see [`solve_from`]), to be summed from an evaluation.
+struct Normal<'a> {
+    hgg: &'a mut [f64],
+    grad_g: &'a mut [f64],
+    hgl: &'a mut [f64],
+    hll: &'a mut [f64],
+    grad_l: &'a mut [f64],
+}
+
+impl Normal<'_> {
+    /// `hgg = Σ_j row_jᵀ·row_j`, `grad_g = Σ_j row_jᵀ·r_j` (points in order; the upper
+    /// triangle computed, then copied down) and per point `hgl`, `hll`, `grad_l`, from
+    /// zeroed buffers.
+    fn sum(self, ng: usize, e: &Eval, has_locals: bool) {
+        let Normal {
+            hgg,
+            grad_g,
+            hgl,
+            hll,
+            grad_l,
+        } = self;
+        for j in 0..e.r.len() {
+            let row = &e.jg[j * ng..(j + 1) * ng];
+            let rj = e.r[j];
+            for p in 0..ng {
+                grad_g[p] += dot(row[p], rj);
+                let h = &mut hgg[p * ng..(p + 1) * ng];
+                for q in p..ng {
+                    h[q] += dot(row[p], row[q]);
+                }
+            }
+            if has_locals {
+                let jl = e.jl[j];
+                let h = &mut hgl[j * ng..(j + 1) * ng];
+                for p in 0..ng {
+                    h[p] = dot(row[p], jl);
+                }
+                hll[j] = jl.norm_sqr();
+                grad_l[j] = dot(jl, rj);
+            }
+        }
+        for p in 0..ng {
+            for q in 0..p {
+                hgg[p * ng + q] = hgg[q * ng + p];
+            }
+        }
+    }
+
+    /// [`Normal::sum`] for `G` globals known at compile time (the untimed fit's four): the
+    /// sums held in registers instead of memory, each summed in the same order from the
+    /// same zero, so the same bits.
+    fn sum_fixed<const G: usize>(self, e: &Eval, has_locals: bool) {
+        let Normal {
+            hgg,
+            grad_g,
+            hgl,
+            hll,
+            grad_l,
+        } = self;
+        let mut m = [[0.0; G]; G];
+        let mut gr = [0.0; G];
+        for (j, (row, &rj)) in e.jg.chunks_exact(G).zip(&e.r).enumerate() {
+            let row: &[C64; G] = row.try_into().expect("rows of G");
+            for p in 0..G {
+                gr[p] += dot(row[p], rj);
+                for q in p..G {
+                    m[p][q] += dot(row[p], row[q]);
+                }
+            }
+            if has_locals {
+                let jl = e.jl[j];
+                let h = &mut hgl[j * G..(j + 1) * G];
+                for p in 0..G {
+                    h[p] = dot(row[p], jl);
+                }
+                hll[j] = jl.norm_sqr();
+                grad_l[j] = dot(jl, rj);
+            }
+        }
+        for p in 0..G {
+            for q in 0..G {
+                hgg[p * G + q] = if q < p { m[q][p] } else { m[p][q] };
+            }
+            grad_g[p] = gr[p];
+        }
+    }
+}
+
+/// Solves `s·x = rhs` (`s` row-major, symmetric) into `x`: by Cholesky, or by LU where
+/// Cholesky fails; `false` if neither gives a solution. Four unknowns (the untimed fit's
+/// globals) on the stack, others on the heap: nalgebra runs the same generic algorithm
+/// on either, so the same bits (tested).
+fn solve_small(s: &[f64], rhs: &[f64], x: &mut [f64]) -> bool {
+    if rhs.len() == 4 {
+        let sm = Matrix4::<f64>::from_row_slice(s);
+        let rv = Vector4::<f64>::from_column_slice(rhs);
+        let v = sm
+            .cholesky()
+            .map(|c| c.solve(&rv))
+            .or_else(|| sm.lu().solve(&rv));
+        return put(x, v.as_ref().map(|v| v.iter()));
+    }
+    solve_dynamic(s, rhs, x)
+}
+
+/// Copies a solution into `x`; `false` if there is none.
+fn put<'a>(x: &mut [f64], v: Option<impl IntoIterator<Item = &'a f64>>) -> bool {
+    let Some(v) = v else { return false };
+    for (x, v) in x.iter_mut().zip(v) {
+        *x = *v;
+    }
+    true
+}
+
+/// [`solve_small`] on the heap, for any size.
+fn solve_dynamic(s: &[f64], rhs: &[f64], x: &mut [f64]) -> bool {
+    let n = rhs.len();
+    let sm = DMatrix::<f64>::from_row_slice(n, n, s);
+    let rv = DVector::<f64>::from_column_slice(rhs);
+    let v = sm
+        .clone()
+        .cholesky()
+        .map(|c| c.solve(&rv))
+        .or_else(|| sm.lu().solve(&rv));
+    put(x, v.as_ref().map(|v| v.iter()))
 }
 
 /// Eliminates the locals: `s −= Σ_j h_j·h_jᵀ/d_j` and `rhs += Σ_j h_j·g_j/d_j` (`h_j` row
@@ -469,6 +576,48 @@ mod tests {
             .sum();
         assert!(cost < 1e-24, "{res:?}");
         assert!((res.global[2] - r0).abs() < 1e-12);
+    }
+
+    /// The 4 × 4 solve on the stack is the heap one, bit for bit: positive definite
+    /// systems (Cholesky), indefinite ones (Cholesky fails, LU solves) and singular ones
+    /// (neither).
+    #[test]
+    fn small_solve_on_the_stack_is_the_heap_solve() {
+        let mut state = 0x853c_49e6_748f_ea9bu64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut failed = 0;
+        for case in 0..3000 {
+            let a: Vec<f64> = (0..16).map(|_| next()).collect();
+            let mut s = vec![0.0; 16];
+            for p in 0..4 {
+                for q in 0..4 {
+                    s[p * 4 + q] = match case % 3 {
+                        // AᵀA + small diagonal: positive definite.
+                        0 => (0..4).map(|k| a[k * 4 + p] * a[k * 4 + q]).sum::<f64>(),
+                        // Symmetric, usually indefinite.
+                        1 => a[p * 4 + q] + a[q * 4 + p],
+                        // Rank one: singular.
+                        _ => a[p] * a[q],
+                    };
+                }
+            }
+            let rhs: Vec<f64> = (0..4).map(|_| next()).collect();
+            let (mut x, mut y) = (vec![7.0; 4], vec![7.0; 4]);
+            let (ok_x, ok_y) = (
+                solve_small(&s, &rhs, &mut x),
+                solve_dynamic(&s, &rhs, &mut y),
+            );
+            assert_eq!(ok_x, ok_y, "case {case}");
+            failed += usize::from(!ok_x);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&x), bits(&y), "case {case}");
+        }
+        assert!(failed > 0, "no singular system was refused");
     }
 
     /// An evaluation that gives up on a trial once its running cost exceeds
