@@ -232,16 +232,29 @@ where
             }
             l_new.clear();
             if has_locals {
-                l_new.extend((0..n).map(|j| {
-                    let row = &hgl[j * ng..(j + 1) * ng];
-                    let mut t = grad_l[j];
-                    for p in 0..ng {
-                        t += row[p] * dg[p];
-                    }
-                    let step =
-                        (-t / damped[j]).clamp(-options.max_local_step, options.max_local_step);
-                    l[j] + step
-                }));
+                let max = options.max_local_step;
+                // `l_j − (grad_l_j + h_j·dg)/d_j`, the product summed in order; four globals
+                // unrolled (the same sums).
+                let local = |j: usize, t: f64| l[j] + (-t / damped[j]).clamp(-max, max);
+                if let Ok(d) = <[f64; 4]>::try_from(dg.as_slice()) {
+                    l_new.extend(hgl.chunks_exact(4).enumerate().map(|(j, row)| {
+                        let t = grad_l[j]
+                            + row[0] * d[0]
+                            + row[1] * d[1]
+                            + row[2] * d[2]
+                            + row[3] * d[3];
+                        local(j, t)
+                    }));
+                } else {
+                    l_new.extend((0..n).map(|j| {
+                        let row = &hgl[j * ng..(j + 1) * ng];
+                        let mut t = grad_l[j];
+                        for p in 0..ng {
+                            t += row[p] * dg[p];
+                        }
+                        local(j, t)
+                    }));
+                }
             }
             let trial = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
                 && dg.iter().all(|x| x.is_finite());
