@@ -118,6 +118,26 @@ fn variants(allow_mirror: bool) -> Vec<(bool, bool)> {
     v
 }
 
+/// The resampled target `t` in each variant the scans try ([`variants`]), centred and
+/// scaled to unit norm, with its (reversed, mirrored) flags; a reversed one is turned so
+/// that its first point stays first when `keep_first`. Variants that cannot be scaled
+/// (a single point) are left out.
+fn target_variants(t: &[C64], allow_mirror: bool, keep_first: bool) -> Vec<(bool, bool, Vec<C64>)> {
+    variants(allow_mirror)
+        .into_iter()
+        .filter_map(|(rev, mir)| {
+            let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
+            if rev {
+                v.reverse();
+                if keep_first {
+                    v.rotate_right(1);
+                }
+            }
+            unit(v).map(|v| (rev, mir, v))
+        })
+        .collect()
+}
+
 /// Closed target: cyclic correlation of the arc-length resampled target against the
 /// resampled curve, every shift and every variant; the best shift per variant becomes a
 /// start.
@@ -131,17 +151,8 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec
     };
     let tau = arc_fractions(p, true);
     let len = traced.length();
-    let vars: Vec<(bool, bool, Vec<C64>)> = variants(allow_mirror)
-        .into_iter()
-        .filter_map(|(rev, mir)| {
-            let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
-            if rev {
-                v.reverse();
-                v.rotate_right(1); // keep the first point first
-            }
-            unit(v).map(|v| (rev, mir, v))
-        })
-        .collect();
+    // Reversed closed targets keep their first point first.
+    let vars = target_variants(&t, allow_mirror, true);
     // The curve twice round, so that every shift is one slice.
     let cc: Vec<C64> = c.iter().chain(&c).map(|z| z.conj()).collect();
     let best_shifts = match vars.as_slice() {
@@ -226,16 +237,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
             .collect();
         unit(w)
     };
-    let vars: Vec<(bool, bool, Vec<C64>)> = variants(allow_mirror)
-        .into_iter()
-        .filter_map(|(rev, mir)| {
-            let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
-            if rev {
-                v.reverse();
-            }
-            unit(v).map(|v| (rev, mir, v))
-        })
-        .collect();
+    let vars = target_variants(&t, allow_mirror, false);
     let score = |w: &[C64], v: &[C64]| -> f64 {
         let mut s = C64::new(0.0, 0.0);
         for (a, b) in w.iter().zip(v) {

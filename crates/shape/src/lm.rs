@@ -342,13 +342,15 @@ impl Normal<'_> {
                 }
             }
             if has_locals {
-                let jl = e.jl[j];
-                let h = &mut hgl[j * ng..(j + 1) * ng];
-                for p in 0..ng {
-                    h[p] = dot(row[p], jl);
-                }
-                hll[j] = jl.norm_sqr();
-                grad_l[j] = dot(jl, rj);
+                point_locals(
+                    row,
+                    e.jl[j],
+                    rj,
+                    &mut hgl[j * ng..(j + 1) * ng],
+                    j,
+                    hll,
+                    grad_l,
+                );
             }
         }
         for p in 0..ng {
@@ -380,13 +382,15 @@ impl Normal<'_> {
                 }
             }
             if has_locals {
-                let jl = e.jl[j];
-                let h = &mut hgl[j * G..(j + 1) * G];
-                for p in 0..G {
-                    h[p] = dot(row[p], jl);
-                }
-                hll[j] = jl.norm_sqr();
-                grad_l[j] = dot(jl, rj);
+                point_locals(
+                    row,
+                    e.jl[j],
+                    rj,
+                    &mut hgl[j * G..(j + 1) * G],
+                    j,
+                    hll,
+                    grad_l,
+                );
             }
         }
         for p in 0..G {
@@ -396,6 +400,25 @@ impl Normal<'_> {
             grad_g[p] = gr[p];
         }
     }
+}
+
+/// Point `j`'s entries of the normal equations that involve its local: `h = rowᵀ·jl`
+/// (row `j` of `hgl`), `hll[j] = |jl|²`, `grad_l[j] = jl·r_j`.
+#[inline]
+fn point_locals(
+    row: &[C64],
+    jl: C64,
+    rj: C64,
+    h: &mut [f64],
+    j: usize,
+    hll: &mut [f64],
+    grad_l: &mut [f64],
+) {
+    for (h, &x) in h.iter_mut().zip(row) {
+        *h = dot(x, jl);
+    }
+    hll[j] = jl.norm_sqr();
+    grad_l[j] = dot(jl, rj);
 }
 
 /// Solves `s·x = rhs` (`s` row-major, symmetric) into `x`: by Cholesky, or by LU where
