@@ -82,7 +82,11 @@ fn bands_ab(pages: &[(u64, DisplayList)], buf: &mut RasterPage, dpi: f64, reps: 
     let mut digests = [0u64; 2];
     for rep in 0..reps {
         let mut pair = [0.0; 2];
+        let only = std::env::var("PAGECOST_BANDS").unwrap_or_default();
         for (mode, cpu) in pair.iter_mut().enumerate() {
+            if (only == "whole" && mode == 1) || (only == "bands" && mode == 0) {
+                continue;
+            }
             let mut digest = 0xcbf2_9ce4_8422_2325u64;
             let c0 = thread_cpu_seconds().unwrap_or(0.0);
             for (_, display) in pages {

@@ -1524,6 +1524,35 @@ mod tests {
 mod halo_tests {
     use super::*;
 
+    /// A label drawn when the glyph and halo cache is one tile short of full is the
+    /// label drawn on a fresh page: the cache used to be emptied while a label's halo
+    /// was placed, which dropped the halos of the glyphs placed before.
+    #[test]
+    fn a_full_tile_cache_does_not_drop_a_labels_halos() {
+        let (w, h) = (400u32, 80u32);
+        let text = "(−1.875, 2.5) S 35°";
+        let label = |page: &mut RasterPage| {
+            page.fill_rect_px(0.0, 0.0, f64::from(w), f64::from(h));
+            page.text([8.0, 12.0], 9.0, Anchor::Start, text, 1.6);
+            page.to_gray()
+        };
+        let want = label(&mut RasterPage::new(w, h, 300.0).unwrap());
+        let mut page = RasterPage::new(w, h, 300.0).unwrap();
+        for g in 0..MAX_HALO_TILES - 1 {
+            let key = HaloKey {
+                glyph: 60_000,
+                em: g as u32,
+                r: 1,
+                sub: [0, 0],
+            };
+            page.halos.insert(key, None);
+        }
+        assert_eq!(label(&mut page), want);
+        // Emptied between pages.
+        page.clear();
+        assert!(page.halos.is_empty());
+    }
+
     /// A label's halo, made from cached glyph halos at quarter-pixel positions, is the
     /// text's outline stroked in paper at its exact position, but for the quarter-pixel
     /// shift of its edge.

@@ -435,6 +435,8 @@ impl Bands {
 #[cfg(test)]
 mod tests {
     use crate::raster::lerp_white;
+    use crate::{Canvas, PngCompression, RasterPage, draw};
+    use coupler_layout::{Anchor, DisplayList, Ink, PagePoint, Primitive};
 
     /// tiny-skia's blend, on a blank pixel, gives the coverage itself.
     #[test]
@@ -442,6 +444,242 @@ mod tests {
         for c in 0..=255u8 {
             assert_eq!(lerp_white(0, c), c);
             assert_eq!(lerp_white(c, 0), c);
+        }
+    }
+
+    /// A black polygon filled by tiny-skia over ink is the polygon filled on a blank
+    /// page, blended with `lerp_white`.
+    #[test]
+    fn a_black_polygon_blends_as_tiny_skia_fills_it() {
+        let (w, h) = (120u32, 90u32);
+        let mut page = RasterPage::new(w, h, 72.0).unwrap();
+        // Ink of every level under the polygon.
+        for j in 0..h {
+            page.set_ink(Ink::Gray((j * 255 / h) as u8));
+            page.fill_rect_px(0.0, f64::from(j), f64::from(w), f64::from(j) + 1.0);
+        }
+        let under = page.ink().to_vec();
+        page.set_ink(Ink::Black);
+        let tri: [PagePoint; 3] = [[10.3, 4.7], [113.9, 40.2], [30.1, 87.6]];
+        page.fill_polygon(&tri);
+        let want = page.ink().to_vec();
+        let mut blank = RasterPage::new(w, h, 72.0).unwrap();
+        let path = blank.polygon_path(&tri).unwrap();
+        let cover = blank.blank_cover(&path).unwrap();
+        assert!(blank.ink().iter().all(|&x| x == 0), "left blank");
+        let mut got = under.clone();
+        let mut partial = 0;
+        for (j, row) in cover.cov.chunks(cover.w).enumerate() {
+            for (i, &c) in row.iter().enumerate() {
+                let at = (cover.y0 + j) * w as usize + cover.x0 + i;
+                got[at] = lerp_white(got[at], c);
+                partial += usize::from(c != 0 && c != 255);
+            }
+        }
+        assert!(partial > 100, "{partial} edge pixels");
+        assert_eq!(got, want);
+    }
+
+    /// Every kind of primitive, across band edges, in black, grays and paper, and gray
+    /// levels that change in other bands than the ones they draw in.
+    fn every_kind(w: f64, h: f64) -> DisplayList {
+        let mut dl = DisplayList::new(w, h);
+        let push = |dl: &mut DisplayList, p| dl.items.push(p);
+        // Dashes of a wave crossing every band, in gray.
+        let wave: Vec<PagePoint> = (0..400)
+            .map(|i| {
+                let t = f64::from(i) / 399.0;
+                [5.0 + t * (w - 10.0), h * (0.5 + 0.45 * (t * 11.0).sin())]
+            })
+            .collect();
+        push(&mut dl, Primitive::Ink(Ink::Gray(150)));
+        push(
+            &mut dl,
+            Primitive::Polylines {
+                lines: wave
+                    .chunks(9)
+                    .step_by(2)
+                    .map(<[PagePoint]>::to_vec)
+                    .collect(),
+                width: 1.1,
+            },
+        );
+        // A gray stroke near the top, another gray's stroke far below (the layer is
+        // composited there), the first gray again over the first stroke.
+        push(
+            &mut dl,
+            Primitive::Polyline {
+                points: vec![[10.0, 6.0], [w - 10.0, 9.0]],
+                width: 2.0,
+            },
+        );
+        push(&mut dl, Primitive::Ink(Ink::Gray(80)));
+        push(
+            &mut dl,
+            Primitive::Polyline {
+                points: vec![[10.0, h - 6.0], [w - 10.0, h - 9.0]],
+                width: 2.0,
+            },
+        );
+        push(&mut dl, Primitive::Ink(Ink::Gray(150)));
+        push(
+            &mut dl,
+            Primitive::Polyline {
+                points: vec![[w - 10.0, 6.0], [10.0, 9.5]],
+                width: 2.0,
+            },
+        );
+        // One long black polyline down the page, a dot, a stroke in paper.
+        push(&mut dl, Primitive::Ink(Ink::Black));
+        push(
+            &mut dl,
+            Primitive::Polyline {
+                points: (0..60)
+                    .map(|i| [8.0 + f64::from(i) * 0.3 * w / 60.0, f64::from(i) * h / 59.0])
+                    .collect(),
+                width: 0.5,
+            },
+        );
+        push(
+            &mut dl,
+            Primitive::Polyline {
+                points: vec![[0.6 * w, 0.31 * h]],
+                width: 3.0,
+            },
+        );
+        push(
+            &mut dl,
+            Primitive::Rect {
+                rect: [12.0, 12.0, w - 12.0, h - 12.0],
+                width: 0.6,
+            },
+        );
+        push(&mut dl, Primitive::Ink(Ink::Paper));
+        push(
+            &mut dl,
+            Primitive::Polyline {
+                points: vec![[0.2 * w, 0.1 * h], [0.3 * w, 0.9 * h]],
+                width: 1.5,
+            },
+        );
+        // Triangles across band edges: black, gray, paper; a paper panel.
+        push(&mut dl, Primitive::Ink(Ink::Black));
+        push(
+            &mut dl,
+            Primitive::Polygon {
+                points: vec![
+                    [0.4 * w, 0.2 * h],
+                    [0.55 * w, 0.26 * h],
+                    [0.43 * w, 0.5 * h],
+                ],
+            },
+        );
+        push(&mut dl, Primitive::Ink(Ink::Gray(100)));
+        push(
+            &mut dl,
+            Primitive::Polygon {
+                points: vec![[0.6 * w, 0.4 * h], [0.8 * w, 0.45 * h], [0.62 * w, 0.7 * h]],
+            },
+        );
+        push(
+            &mut dl,
+            Primitive::Circle {
+                center: [0.5 * w, 0.5 * h],
+                radius: 0.3 * h,
+                width: Some(0.8),
+            },
+        );
+        push(&mut dl, Primitive::Ink(Ink::Paper));
+        push(
+            &mut dl,
+            Primitive::Polygon {
+                points: vec![[0.7 * w, 0.1 * h], [0.9 * w, 0.15 * h], [0.75 * w, 0.3 * h]],
+            },
+        );
+        push(
+            &mut dl,
+            Primitive::Polygon {
+                points: vec![
+                    [0.1 * w, 0.6 * h],
+                    [0.3 * w, 0.6 * h],
+                    [0.3 * w, 0.75 * h],
+                    [0.1 * w, 0.75 * h],
+                ],
+            },
+        );
+        push(&mut dl, Primitive::Ink(Ink::Black));
+        push(
+            &mut dl,
+            Primitive::Circle {
+                center: [0.35 * w, 0.33 * h],
+                radius: 2.5,
+                width: None,
+            },
+        );
+        // Labels with halos over the gray, across band edges; gray text; a tall size.
+        for (k, y) in [0.33, 0.5, 0.66].into_iter().enumerate() {
+            push(
+                &mut dl,
+                Primitive::Text {
+                    pos: [0.2 * w, y * h],
+                    size: 7.0 + 5.0 * k as f64,
+                    anchor: [Anchor::Start, Anchor::Middle, Anchor::End][k],
+                    text: "(1.875, −1.25) θ 35° Ag".into(),
+                    halo: 1.6,
+                },
+            );
+        }
+        push(&mut dl, Primitive::Ink(Ink::Gray(120)));
+        push(
+            &mut dl,
+            Primitive::Text {
+                pos: [0.5 * w, 0.8 * h],
+                size: 9.0,
+                anchor: Anchor::Start,
+                text: "row v = 1.5 (0.5 L3)".into(),
+                halo: 0.0,
+            },
+        );
+        // Gray strokes after the halos, and a last gray stroke left in the layer.
+        push(
+            &mut dl,
+            Primitive::Polylines {
+                lines: wave
+                    .chunks(7)
+                    .skip(1)
+                    .step_by(3)
+                    .map(<[PagePoint]>::to_vec)
+                    .collect(),
+                width: 0.7,
+            },
+        );
+        dl
+    }
+
+    /// Drawn band by band, a page is byte for byte the page drawn whole, at DPIs that
+    /// put the band edges everywhere, on a fresh buffer and on one reused page after
+    /// page; the buffer is left blank.
+    #[test]
+    fn pages_drawn_in_bands_are_the_pages_drawn_whole() {
+        let (wpt, hpt) = (300.0, 200.0);
+        let dl = every_kind(wpt, hpt);
+        for dpi in [72.0, 150.0, 217.0, 300.0] {
+            let k = dpi / 72.0;
+            let (w, h) = ((wpt * k) as u32, (hpt * k) as u32);
+            let mut whole = RasterPage::new(w, h, dpi).unwrap();
+            draw(&dl, &mut whole);
+            let want = whole.take_png(PngCompression::Fast).unwrap();
+            let mut banded = RasterPage::new(w, h, dpi).unwrap();
+            for round in 0..2 {
+                let (got, _) = banded.render_png(&dl, PngCompression::Fast).unwrap();
+                assert!(got == want, "dpi {dpi}, round {round}: bytes differ");
+                assert!(banded.ink().iter().all(|&x| x == 0), "left blank");
+            }
+            // Best compression: drawn whole, the same bytes as before.
+            draw(&dl, &mut whole);
+            let best = whole.take_png(PngCompression::Best).unwrap();
+            let (got, _) = banded.render_png(&dl, PngCompression::Best).unwrap();
+            assert!(got == best, "dpi {dpi}: best differs");
         }
     }
 }
