@@ -44,6 +44,8 @@ pub(crate) struct Target<'a> {
     /// Only rows `[rows.0, rows.1)` are drawn into (the whole height but while a page
     /// is drawn band by band): a row's pixels do not depend on the others.
     pub(crate) rows: (usize, usize),
+    /// The page row `data` starts at (0 but for a band's buffer).
+    pub(crate) first: usize,
     pub(crate) dirty: &'a mut Dirty,
     /// Where gray goes instead of the page, until it is composited.
     pub(crate) layer: Option<&'a mut GrayLayer>,
@@ -174,7 +176,7 @@ impl Capsules {
             return;
         }
         self.spans.sort_unstable();
-        let row = &mut t.data[j * t.width..(j + 1) * t.width];
+        let row = &mut t.data[(j - t.first) * t.width..(j - t.first + 1) * t.width];
         let mut k = 0;
         while k < self.spans.len() {
             let (x0, mut x1) = self.spans[k];
@@ -344,6 +346,7 @@ mod tests {
             height: h,
             ink,
             rows: (0, h),
+            first: 0,
             dirty,
             layer: None,
         }

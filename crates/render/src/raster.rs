@@ -47,6 +47,20 @@ pub struct RasterPage {
     rows: (usize, usize),
     /// The band plan's scratch, kept from page to page.
     bands: band::Bands,
+    /// While a page is drawn band by band: the band's buffer, `BAND_ROWS + 1` rows
+    /// whose first is page row `first` (the row above the band, which the encoder
+    /// reads), reused band after band so that it stays in cache. The page's own buffer
+    /// then stays blank.
+    band_buf: Vec<u8>,
+    first: usize,
+    banded: bool,
+}
+
+/// The pixels drawn into: the page's buffer, or the band's while a page is drawn band
+/// by band.
+#[inline]
+fn pixels<'a>(mask: &'a mut Mask, band: &'a mut [u8], banded: bool) -> &'a mut [u8] {
+    if banded { band } else { mask.data_mut() }
 }
 
 /// How hard to compress PNG pages.
@@ -102,6 +116,9 @@ impl RasterPage {
             last_png: 0,
             rows: (0, height_px as usize),
             bands: band::Bands::default(),
+            band_buf: Vec::new(),
+            first: 0,
+            banded: false,
         })
     }
 
@@ -178,8 +195,9 @@ impl RasterPage {
     /// Composites the waiting gray into the page.
     fn flush_gray(&mut self) {
         if self.gray.any() {
+            let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             self.gray
-                .flush(self.mask.data_mut(), &mut self.dirty, overprint);
+                .flush(data, self.first, &mut self.dirty, overprint);
         }
     }
 
@@ -320,10 +338,11 @@ impl RasterPage {
             self.dirty.mark_px(i0, j0, i1, j1);
         }
         let columns: Vec<f64> = (i0..i1).map(|i| cover(x0, x1, i)).collect();
-        let data = self.mask.data_mut();
+        let first = self.first;
+        let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
         for j in j0..j1 {
             let cy = cover(y0, y1, j);
-            let row = &mut data[j * stride..(j + 1) * stride];
+            let row = &mut data[(j - first) * stride..(j - first + 1) * stride];
             let mut span = |a: usize, b: usize| {
                 for (px, cx) in row[a..b].iter_mut().zip(&columns[a - i0..b - i0]) {
                     let c = cx * cy;
@@ -427,7 +446,8 @@ impl RasterPage {
         (
             &mut self.capsules,
             Target {
-                data: self.mask.data_mut(),
+                data: pixels(&mut self.mask, &mut self.band_buf, self.banded),
+                first: self.first,
                 width,
                 height,
                 ink: self.ink,
@@ -514,9 +534,10 @@ impl RasterPage {
             self.halo_scratch.merged = row;
             return;
         }
-        let data = self.mask.data_mut();
+        let first = self.first;
+        let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
         for (j, src) in (j0..).zip(rows) {
-            let start = j * stride + cover.x0;
+            let start = (j - first) * stride + cover.x0;
             for (px, &c) in data[start..start + sw].iter_mut().zip(src) {
                 if c != 0 {
                     *px = match ink {
@@ -649,8 +670,8 @@ fn write_png_fast(
 ) -> std::io::Result<Vec<u8>> {
     assert_eq!(ink.len(), width as usize * height as usize, "buffer size");
     let mut png = FastPng::begin(width, height, dpi, capacity)?;
-    png.rows(ink, dirty, height as usize, clear);
-    png.finish(ink, dirty, clear)
+    png.rows(ink, 0, dirty, height as usize, clear);
+    png.finish(ink, 0, dirty, clear)
 }
 
 /// [`write_png_fast`] row by row: the rows of a page drawn band by band are encoded as
@@ -711,10 +732,18 @@ impl FastPng {
         })
     }
 
-    /// Encodes the rows up to `upto` (exclusive) of the page `ink`, which must be drawn
-    /// up to there. With `clear`, the marked spans of each row but the last encoded are
-    /// zeroed once the row below has been filtered.
-    pub(crate) fn rows(&mut self, ink: &mut [u8], dirty: &Dirty, upto: usize, clear: bool) {
+    /// Encodes the rows up to `upto` (exclusive) of the page, which must be drawn up to
+    /// there; `ink` holds the page's rows from row `first` on (the row above the next
+    /// row to encode, if any, included). With `clear`, the marked spans of each row but
+    /// the last encoded are zeroed once the row below has been filtered.
+    pub(crate) fn rows(
+        &mut self,
+        ink: &mut [u8],
+        first: usize,
+        dirty: &Dirty,
+        upto: usize,
+        clear: bool,
+    ) {
         let (w, upto) = (self.width, upto.min(self.height));
         if self.next == 0 && upto > 0 {
             // The first row: the row above is 0 (PNG), so filtered = gray.
@@ -735,7 +764,7 @@ impl FastPng {
             self.spans.extend(dirty.row_pair_spans(j));
             self.z.blank_rows(w + 1, 2, self.blank);
             self.blank = 0;
-            let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
+            let (above, this) = ink[(j - 1 - first) * w..(j + 1 - first) * w].split_at_mut(w);
             for &(x0, x1) in &self.spans {
                 for ((o, a), b) in row[1 + x0..1 + x1]
                     .iter_mut()
@@ -762,6 +791,7 @@ impl FastPng {
     pub(crate) fn finish(
         mut self,
         ink: &mut [u8],
+        first: usize,
         dirty: &Dirty,
         clear: bool,
     ) -> std::io::Result<Vec<u8>> {
@@ -769,7 +799,7 @@ impl FastPng {
         debug_assert_eq!(self.next, h, "every row encoded");
         self.z.blank_rows(w + 1, 2, self.blank);
         if clear && h > 0 {
-            let last = &mut ink[(h - 1) * w..];
+            let last = &mut ink[(h - 1 - first) * w..(h - first) * w];
             for (x0, x1) in dirty.row_pair_spans(h - 1) {
                 last[x0..x1].fill(0);
             }
@@ -945,10 +975,11 @@ impl RasterPage {
                 }
             }
             let stride = pw as usize;
-            let data = self.mask.data_mut();
+            let first = self.first;
+            let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             for y in cy0..cy1 {
                 let src = (y - by0) as usize * bw + (cx0 - bx0) as usize;
-                let dst = y as usize * stride + cx0 as usize;
+                let dst = (y as usize - first) * stride + cx0 as usize;
                 let n = (cx1 - cx0) as usize;
                 for (d, &c) in data[dst..dst + n].iter_mut().zip(&merged[src..src + n]) {
                     *d = composite(*d, c, Ink::Paper);
@@ -1078,6 +1109,7 @@ impl HaloTile {
                 height: h,
                 ink: Ink::Black,
                 rows: (0, h),
+                first: 0,
                 dirty: &mut dirty,
                 layer: None,
             },
@@ -1280,11 +1312,12 @@ impl Canvas for RasterPage {
                 self.dirty
                     .mark_px(cx0 as usize, cy0 as usize, cx1 as usize, cy1 as usize);
             }
-            let data = self.mask.data_mut();
+            let first = self.first as i64;
+            let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             let n = (cx1 - cx0) as usize;
             for y in cy0..cy1 {
                 let src = (y - ty) as usize * tile.w + (cx0 - tx) as usize;
-                let dst = (y * w + cx0) as usize;
+                let dst = ((y - first) * w + cx0) as usize;
                 for (d, &c) in data[dst..dst + n].iter_mut().zip(&tile.cov[src..src + n]) {
                     *d = composite(*d, c, ink);
                 }

@@ -106,21 +106,39 @@ impl RasterPage {
             Ok(p) => p,
             Err(e) => return Some(Err(e)),
         };
-        let h = h as usize;
+        let (h, stride) = (h as usize, w as usize);
+        // The band's buffer: blank, the band's rows and the row above it.
+        self.band_buf.clear();
+        self.band_buf.resize((BAND_ROWS + 1) * stride, 0);
+        self.banded = true;
         for (b, steps) in bands.steps.iter().enumerate() {
             let (y0, y1) = (b * BAND_ROWS, ((b + 1) * BAND_ROWS).min(h));
+            if y0 > 0 {
+                // The last row of the band before (encoded, not yet cleared: the
+                // encoder reads it above this band's first row) moves to the buffer's
+                // first row; the rest of the buffer is blank (the encoder cleared it).
+                let last = y0 - 1 - self.first;
+                if last > 0 {
+                    self.band_buf
+                        .copy_within(last * stride..(last + 1) * stride, 0);
+                    self.band_buf[last * stride..(last + 1) * stride].fill(0);
+                }
+                self.first = y0 - 1;
+            }
             self.rows = (y0, y1);
             self.replay(&bands, steps, display);
             self.flush_gray();
             let t = std::time::Instant::now();
-            png.rows(self.mask.data_mut(), &self.dirty, y1, true);
+            png.rows(&mut self.band_buf, self.first, &self.dirty, y1, true);
             *encode += t.elapsed();
         }
+        let t = std::time::Instant::now();
+        let bytes = png.finish(&mut self.band_buf, self.first, &self.dirty, true);
+        *encode += t.elapsed();
+        self.banded = false;
+        self.first = 0;
         self.rows = (0, h);
         self.bands = bands;
-        let t = std::time::Instant::now();
-        let bytes = png.finish(self.mask.data_mut(), &self.dirty, true);
-        *encode += t.elapsed();
         self.dirty.reset();
         self.ink = Ink::Black;
         self.trim_tiles();
