@@ -239,7 +239,16 @@ fn finish_front(
     let results: Vec<GroupOutput> = outputs
         .into_iter()
         .map(|o| o.expect("every unit's output came"))
-        .collect::<Result<_, _>>()?;
+        .collect::<Result<_, _>>()
+        .map_err(|e| match e {
+            // The chunks done are those handed to the writer before this one.
+            GenerateError::Interrupted { total, dir, .. } => GenerateError::Interrupted {
+                done: done.reused + done.computed,
+                total,
+                dir,
+            },
+            e => e,
+        })?;
     let chunk_failed: Vec<PageFailure> = results
         .iter()
         .flat_map(|r| r.failed.iter().cloned())
@@ -501,10 +510,11 @@ pub fn run(
         None
     };
     let shape_kind = assembly.as_ref().and_then(Assembly::record_kind);
-    // The chunks are computed in order, each by all workers; a computed chunk's record is
-    // written (its pages made durable, the record written and made durable) and the chunk
-    // added to the assembly on a thread of its own while the next chunk is computed. At
-    // most one chunk waits for it.
+    // The chunks' units are computed in atlas order by all workers, a chunk's first units
+    // while the last of the one before are still running (see `finish_front`); a computed
+    // chunk's record is written (its pages made durable, the record written and made
+    // durable) and the chunk added to the assembly on a thread of its own while the next
+    // chunks are computed. At most one chunk waits for it.
     let (computed, reused, failed, chunk_files, assembly) = std::thread::scope(|scope| {
         let (records, pending) = std::sync::mpsc::sync_channel::<Finished>(1);
         let (record_key, pool) = (key.as_str(), &pool);
@@ -541,10 +551,11 @@ pub fn run(
         // worker waits at a chunk's end (at most `AHEAD` chunks beyond the one awaited).
         let (unit_done, unit_outputs) = std::sync::mpsc::channel::<UnitResult>();
         let stop = AtomicBool::new(false);
-        let unit = |c: u64, g: &Group, finished: usize| -> Result<GroupOutput, GenerateError> {
+        let unit = |c: u64, g: &Group| -> Result<GroupOutput, GenerateError> {
             if interrupt.load(Ordering::Relaxed) {
+                // How many chunks are done is filled in by `finish_front`.
                 return Err(GenerateError::Interrupted {
-                    done: finished,
+                    done: 0,
                     total: mine,
                     dir: job.out.clone(),
                 });
@@ -598,10 +609,16 @@ pub fn run(
                             return Ok(());
                         }
                     }
-                    let finished = done.reused + done.computed;
                     if interrupt.load(Ordering::Relaxed) {
+                        // The chunks already taken in are finished first (their units not
+                        // started stop at once: a unit's `Interrupted` ends the run).
+                        while !queue.is_empty() {
+                            if !finish(&mut queue, &mut done)? {
+                                return Ok(());
+                            }
+                        }
                         return Err(GenerateError::Interrupted {
-                            done: finished,
+                            done: done.reused + done.computed,
                             total: mine,
                             dir: job.out.clone(),
                         });
@@ -637,7 +654,7 @@ pub fn run(
                             // (which would otherwise wait for this unit forever).
                             let out =
                                 std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                                    unit(c, &g, finished)
+                                    unit(c, &g)
                                 }));
                             let _ = sender.send((c, k, out));
                         });
@@ -967,7 +984,8 @@ mod tests {
     /// The units of two chunks computing at once finish in any order; the chunks are
     /// still handed to the record writer in chunk order, each with its units' lines and
     /// shape records in unit order, and a unit's error is returned only when its own
-    /// chunk is finished (after the chunks before it are recorded).
+    /// chunk is finished (after the chunks before it are recorded), an interruption
+    /// with the count of the chunks recorded.
     #[test]
     fn chunks_are_finished_in_order_whatever_order_their_units_come_in() {
         let (send, outputs) = std::sync::mpsc::channel::<UnitResult>();
@@ -993,14 +1011,29 @@ mod tests {
         ] {
             send.send((c, k, Ok(Ok(output(lines, id))))).unwrap();
         }
-        send.send((3, 0, Ok(Err(GenerateError::BadStep(7.0)))))
-            .unwrap();
+        let interrupted = GenerateError::Interrupted {
+            done: 0,
+            total: 4,
+            dir: PathBuf::from("out"),
+        };
+        send.send((3, 0, Ok(Err(interrupted)))).unwrap();
         let mut done = Done::default();
         for _ in 0..3 {
             assert!(finish_front(&mut queue, &mut done, true, &outputs, &records, &stop).unwrap());
         }
         let err = finish_front(&mut queue, &mut done, true, &outputs, &records, &stop);
-        assert!(matches!(err, Err(GenerateError::BadStep(_))), "{err:?}");
+        // Interrupted, with the chunks recorded before it counted.
+        assert!(
+            matches!(
+                err,
+                Err(GenerateError::Interrupted {
+                    done: 2,
+                    total: 4,
+                    ..
+                })
+            ),
+            "{err:?}"
+        );
         assert_eq!((done.computed, done.reused), (2, 0));
         assert_eq!(done.chunk_files.len(), 3);
         assert!(done.chunk_files[1].is_none());
