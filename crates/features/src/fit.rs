@@ -328,13 +328,12 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
             a.swap(i, piv);
         }
         let inv_diag = 1.0 / diag;
-        for r in i + 1..3 {
-            a[r][i] *= inv_diag;
-        }
-        for k in i + 1..3 {
-            let p = a[i][k];
-            for r in i + 1..3 {
-                a[r][k] += -p * a[r][i];
+        let pivot = a[i];
+        for row in a.iter_mut().skip(i + 1) {
+            row[i] *= inv_diag;
+            let m = row[i];
+            for (v, p) in row[i + 1..].iter_mut().zip(&pivot[i + 1..]) {
+                *v += -p * m;
             }
         }
     }
@@ -346,8 +345,8 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     // L (unit diagonal), then U.
     for i in 0..2 {
         let coeff = b[i];
-        for r in i + 1..3 {
-            b[r] += -coeff * a[r][i];
+        for (br, row) in b[i + 1..].iter_mut().zip(&a[i + 1..]) {
+            *br += -coeff * row[i];
         }
     }
     for i in (0..3).rev() {
@@ -357,8 +356,8 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
         }
         let coeff = b[i] / diag;
         b[i] = coeff;
-        for r in 0..i {
-            b[r] += -coeff * a[r][i];
+        for (br, row) in b[..i].iter_mut().zip(&a[..i]) {
+            *br += -coeff * row[i];
         }
     }
     Some(b)
@@ -401,6 +400,7 @@ mod tests {
     /// normal equations like the fit's, ties between pivots, zero columns and rows,
     /// singular matrices, and NaN and infinite entries.
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn solve3_is_nalgebras_lu_to_the_bit() {
         use nalgebra::Matrix3;
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
