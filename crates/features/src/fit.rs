@@ -308,6 +308,9 @@ pub fn fit_circle(
 /// cost (it was ≈ 2.5 % of feature extraction, inside [`fit_circle`]). The pivot of a
 /// column is its first entry of largest absolute value at or below the diagonal; a column
 /// whose pivot is 0 is skipped; `None` where a diagonal entry of `U` is 0.
+// Index loops, in nalgebra's order: the iterator forms measured 27 % more instructions in
+// the fit (cachegrind).
+#[allow(clippy::needless_range_loop)]
 fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     let mut swaps = [None; 3];
     for i in 0..3 {
@@ -328,12 +331,13 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
             a.swap(i, piv);
         }
         let inv_diag = 1.0 / diag;
-        let pivot = a[i];
-        for row in a.iter_mut().skip(i + 1) {
-            row[i] *= inv_diag;
-            let m = row[i];
-            for (v, p) in row[i + 1..].iter_mut().zip(&pivot[i + 1..]) {
-                *v += -p * m;
+        for r in i + 1..3 {
+            a[r][i] *= inv_diag;
+        }
+        for k in i + 1..3 {
+            let p = a[i][k];
+            for r in i + 1..3 {
+                a[r][k] += -p * a[r][i];
             }
         }
     }
@@ -345,8 +349,8 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     // L (unit diagonal), then U.
     for i in 0..2 {
         let coeff = b[i];
-        for (br, row) in b[i + 1..].iter_mut().zip(&a[i + 1..]) {
-            *br += -coeff * row[i];
+        for r in i + 1..3 {
+            b[r] += -coeff * a[r][i];
         }
     }
     for i in (0..3).rev() {
@@ -356,8 +360,8 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
         }
         let coeff = b[i] / diag;
         b[i] = coeff;
-        for (br, row) in b[..i].iter_mut().zip(&a[..i]) {
-            *br += -coeff * row[i];
+        for r in 0..i {
+            b[r] += -coeff * a[r][i];
         }
     }
     Some(b)
