@@ -30,6 +30,7 @@ use crate::kin::AtlasCurve;
 use crate::smooth::{default_terms, smooth_resample};
 use crate::target::{Target, Timing};
 use coupler_kinematics::{Circuit, CrankTable, Linkage, Mechanism};
+use rayon::prelude::*;
 
 /// Most points of an untimed query (the target's own points, thinned by index).
 const QUERY_POINTS: usize = 32;
@@ -355,13 +356,44 @@ impl Window {
     /// centres closer than a quarter of the longer span (modulo the `period`), spans
     /// within a ratio of 1.44.
     fn alike(&self, o: &Window, period: f64) -> bool {
-        let centre = |w: &Window| w.start + 0.5 * w.sense * w.span;
-        let d = (centre(self) - centre(o)).rem_euclid(period);
+        // The cheap tests first (the same answer: every test must hold).
+        if self.mirror != o.mirror || self.sense != o.sense {
+            return false;
+        }
         let ratio = self.span.max(o.span) / self.span.min(o.span);
-        self.mirror == o.mirror
-            && self.sense == o.sense
-            && d.min(period - d) < 0.25 * self.span.max(o.span)
-            && ratio < 1.44
+        if !(ratio < 1.44) {
+            return false;
+        }
+        let centre = |w: &Window| w.start + 0.5 * w.sense * w.span;
+        let d = rem_period(centre(self) - centre(o), period);
+        d.min(period - d) < 0.25 * self.span.max(o.span)
+    }
+}
+
+/// `x.rem_euclid(period)` without the floating-point remainder's call when `|x|` is below
+/// two periods, as the difference of two windows' centres is: there the remainder is
+/// `x`, `x − period` or `x + period`, each exact (Sterbenz's lemma), and a negative
+/// remainder gets `period` added, as `rem_euclid` adds it.
+#[inline(always)]
+fn rem_period(x: f64, period: f64) -> f64 {
+    if (0.0..period).contains(&x) {
+        x
+    } else if (period..2.0 * period).contains(&x) {
+        x - period
+    } else if x < 0.0 && x > -period {
+        x + period
+    } else if x <= -period && x > -2.0 * period {
+        // The remainder keeps the dividend's sign: `−0` at `x = −period`.
+        let r = x + period;
+        if r < 0.0 {
+            r + period
+        } else if r == 0.0 {
+            -0.0
+        } else {
+            r
+        }
+    } else {
+        x.rem_euclid(period)
     }
 }
 
@@ -384,11 +416,25 @@ fn offer(list: &mut Vec<Window>, h: Window, period: f64) {
         } else {
             return;
         }
+        // Moved up past the worse windows before it: the order a stable sort by misfit
+        // gives (the rest of the list is sorted, and those after it are worse still).
+        lift(list, i);
     } else {
         list.push(h);
+        let last = list.len() - 1;
+        lift(list, last);
     }
-    list.sort_by(|a, b| a.misfit.total_cmp(&b.misfit));
     list.truncate(WINDOWS);
+}
+
+/// Moves `list[i]` to where a stable sort by misfit puts it, the rest of `list` being
+/// sorted and no better than it after `i`: after every window before it that is not
+/// worse ([`f64::total_cmp`]).
+#[inline]
+fn lift(list: &mut [Window], i: usize) {
+    let m = list[i].misfit;
+    let p = list[..i].partition_point(|x| x.misfit.total_cmp(&m) != std::cmp::Ordering::Greater);
+    list[p..=i].rotate_right(1);
 }
 
 /// The buffers of [`OpenQuery::reproject`]'s dynamic programme, kept between calls: the
@@ -1047,6 +1093,9 @@ pub(crate) struct OpenCandidate {
 /// candidates wanted).
 const STAGE2: usize = 2048;
 
+/// Curves polished by one task of stage 2.
+const STAGE2_PART: usize = 64;
+
 fn stage2_count(keep: usize) -> usize {
     STAGE2.max(2 * keep)
 }
@@ -1145,31 +1194,39 @@ pub(crate) fn open_stage2(
     keep: usize,
 ) -> Vec<OpenCandidate> {
     truncate_stage1(&mut stage1, keep);
-    // Linkage by linkage (one table each).
+    // Linkage by linkage (one table each), in parts on the calling thread's rayon pool:
+    // each curve's polish is its own, and the parts are joined in order, so the result
+    // does not depend on the threads.
     stage1.sort_by_key(|x| (x.group, x.index));
-    let mut out: Vec<OpenCandidate> = Vec::new();
-    let mut table: Option<(usize, Table)> = None;
-    let mut dp = Programme::default();
-    for s in &stage1 {
-        let Some(curve) = curves.get(s.index) else {
-            continue;
-        };
-        if table.as_ref().is_none_or(|t| t.0 != s.group) {
-            let c = &curve.curve;
-            table = Table::new(&c.linkage, c.circuit).map(|t| (s.group, t));
-        }
-        let Some((_, t)) = &table else { continue };
-        let p = query.polish(t, w_of(curve), &s.hyp, &mut dp);
-        out.push(OpenCandidate {
-            curve: *curve,
-            misfit: p.misfit,
-            start: Start {
-                mirrored: p.mirror,
-                theta: query.target_angles(&p),
-                score: p.misfit,
-            },
-        });
-    }
+    let mut out: Vec<OpenCandidate> = stage1
+        .par_chunks(STAGE2_PART)
+        .flat_map_iter(|part| {
+            let mut table: Option<(usize, Table)> = None;
+            let mut dp = Programme::default();
+            let mut out = Vec::with_capacity(part.len());
+            for s in part {
+                let Some(curve) = curves.get(s.index) else {
+                    continue;
+                };
+                if table.as_ref().is_none_or(|t| t.0 != s.group) {
+                    let c = &curve.curve;
+                    table = Table::new(&c.linkage, c.circuit).map(|t| (s.group, t));
+                }
+                let Some((_, t)) = &table else { continue };
+                let p = query.polish(t, w_of(curve), &s.hyp, &mut dp);
+                out.push(OpenCandidate {
+                    curve: *curve,
+                    misfit: p.misfit,
+                    start: Start {
+                        mirrored: p.mirror,
+                        theta: query.target_angles(&p),
+                        score: p.misfit,
+                    },
+                });
+            }
+            out
+        })
+        .collect();
     out.sort_by(|x, y| {
         x.misfit
             .total_cmp(&y.misfit)
@@ -1338,6 +1395,84 @@ mod tests {
                         assert_eq!(open[k] & (1 << v) != 0, want, "{k} {v}");
                     }
                 }
+            }
+        }
+    }
+
+    /// `rem_period` is `rem_euclid`, bit for bit, near and far from the range it shortcuts.
+    #[test]
+    fn rem_period_is_rem_euclid() {
+        let mut rng = SplitMix64(31);
+        for period in [360.0, 720.0, 1080.0] {
+            let mut xs: Vec<f64> = (0..20_000)
+                .map(|_| (rng.uniform() - 0.5) * 6.0 * period)
+                .collect();
+            for k in -3..=3 {
+                let b = k as f64 * period;
+                xs.extend([b, b + 1e-13, b - 1e-13, -0.0, 0.0, b + 0.5, b - 0.5]);
+            }
+            for x in xs {
+                assert_eq!(
+                    super::rem_period(x, period).to_bits(),
+                    x.rem_euclid(period).to_bits(),
+                    "{x} {period}"
+                );
+            }
+        }
+    }
+
+    /// `offer` keeps the windows in the order a stable sort by misfit gives, over random
+    /// offers with many ties.
+    #[test]
+    fn offer_keeps_the_stable_sorted_order() {
+        use super::{WINDOWS, Window, offer};
+        let mut rng = SplitMix64(37);
+        for _ in 0..2_000 {
+            let mut list: Vec<Window> = Vec::new();
+            let mut reference: Vec<Window> = Vec::new();
+            for _ in 0..60 {
+                let h = Window {
+                    misfit: (rng.uniform() * 8.0).floor() / 8.0,
+                    mirror: rng.uniform() < 0.5,
+                    start: (rng.uniform() * 24.0).floor() * 15.0,
+                    span: [30.0, 36.0, 60.0, 180.0][(rng.uniform() * 4.0) as usize],
+                    sense: if rng.uniform() < 0.5 { 1.0 } else { -1.0 },
+                };
+                offer(&mut list, h, 360.0);
+                // The reference: the former form, a stable sort after each change.
+                let r = &mut reference;
+                if !(r.len() == WINDOWS && h.misfit >= r[WINDOWS - 1].misfit) {
+                    let i = r.iter().position(|x| x.alike(&h, 360.0));
+                    let changed = match i {
+                        Some(i) if h.misfit < r[i].misfit => {
+                            r[i] = h;
+                            true
+                        }
+                        Some(_) => false,
+                        None => {
+                            r.push(h);
+                            true
+                        }
+                    };
+                    if changed {
+                        r.sort_by(|a, b| a.misfit.total_cmp(&b.misfit));
+                        r.truncate(WINDOWS);
+                    }
+                }
+                let key = |l: &[Window]| -> Vec<(u64, bool, u64, u64, u64)> {
+                    l.iter()
+                        .map(|w| {
+                            (
+                                w.misfit.to_bits(),
+                                w.mirror,
+                                w.start.to_bits(),
+                                w.span.to_bits(),
+                                w.sense.to_bits(),
+                            )
+                        })
+                        .collect()
+                };
+                assert_eq!(key(&list), key(r));
             }
         }
     }
@@ -1551,6 +1686,12 @@ mod stage_times {
         let stage1 = least("stage1", reps, &mut || {
             std::hint::black_box(open_stage1(&q, curves, &groups, keep));
         });
+        if !(on("stage2") || on("quick") || on("robust")) {
+            println!(
+                "least of {reps}: scan {scan:.1} ms (one point per linkage {one:.1} ms), stage 1 with projection {stage1:.1} ms"
+            );
+            return;
+        }
         let s1 = open_stage1(&q, curves, &groups, keep);
         let stage2 = least("stage2", reps, &mut || {
             std::hint::black_box(open_stage2(&q, curves, s1.clone(), keep));
