@@ -361,7 +361,7 @@ impl Window {
             return false;
         }
         let ratio = self.span.max(o.span) / self.span.min(o.span);
-        if !(ratio < 1.44) {
+        if ratio.partial_cmp(&1.44) != Some(std::cmp::Ordering::Less) {
             return false;
         }
         let centre = |w: &Window| w.start + 0.5 * w.sense * w.span;
@@ -623,7 +623,11 @@ impl OpenQuery {
                     let mut live = [false; 2];
                     for &mirror in mirrors {
                         let v = usize::from(mirror);
-                        live[v] = !(sums.least_misfit(gram, v) > most + BOUND_MARGIN);
+                        // Live unless surely above (a NaN keeps it live).
+                        live[v] = sums
+                            .least_misfit(gram, v)
+                            .partial_cmp(&(most + BOUND_MARGIN))
+                            != Some(std::cmp::Ordering::Greater);
                     }
                     if !live[0] && !live[1] {
                         continue;
@@ -1390,8 +1394,8 @@ mod tests {
                 super::sieve(&s, gram, &cols, &bar, live, &mut open);
                 for (k, &w) in pts.iter().enumerate() {
                     let mm = Sums::model_norm(gram, w);
-                    for v in 0..2 {
-                        let want = live[v] && !s.surely_above(mm, v, w, worst[k]);
+                    for (v, &l) in live.iter().enumerate() {
+                        let want = l && !s.surely_above(mm, v, w, worst[k]);
                         assert_eq!(open[k] & (1 << v) != 0, want, "{k} {v}");
                     }
                 }
