@@ -72,6 +72,67 @@ impl Canvas for Timed<'_> {
     }
 }
 
+/// `PAGECOST_BANDS=1`: the same pages drawn whole then encoded (`draw` + `take_png`)
+/// and drawn and encoded band by band (`render_png`), passes alternated REPS times in
+/// this one thread: CPU per page of each pass, the median of each and of the pair
+/// ratios, and both digests (which must agree).
+fn bands_ab(pages: &[(u64, DisplayList)], buf: &mut RasterPage, dpi: f64, reps: usize) {
+    let n = pages.len() as f64;
+    let (mut whole, mut banded, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
+    let mut digests = [0u64; 2];
+    for rep in 0..reps {
+        let mut pair = [0.0; 2];
+        let only = std::env::var("PAGECOST_BANDS").unwrap_or_default();
+        for (mode, cpu) in pair.iter_mut().enumerate() {
+            if (only == "whole" && mode == 1) || (only == "bands" && mode == 0) {
+                continue;
+            }
+            let mut digest = 0xcbf2_9ce4_8422_2325u64;
+            let c0 = thread_cpu_seconds().unwrap_or(0.0);
+            for (_, display) in pages {
+                let (pw, ph) = display.size_px(dpi);
+                if (buf.width(), buf.height()) != (pw, ph) && !buf.reshape(pw, ph) {
+                    *buf = RasterPage::new(pw, ph, dpi).expect("page");
+                }
+                let bytes = if mode == 0 {
+                    buf.clear();
+                    draw(display, buf);
+                    buf.take_png(PngCompression::Fast).expect("encodes")
+                } else {
+                    buf.render_png(display, PngCompression::Fast)
+                        .expect("encodes")
+                        .0
+                };
+                for b in &bytes {
+                    digest = (digest ^ u64::from(*b)).wrapping_mul(0x0100_0000_01b3);
+                }
+            }
+            *cpu = (thread_cpu_seconds().unwrap_or(0.0) - c0) * 1e3 / n;
+            digests[mode] = digest;
+        }
+        println!(
+            "pass {rep}: whole {:.2} ms, bands {:.2} ms CPU per page",
+            pair[0], pair[1]
+        );
+        whole.push(pair[0]);
+        banded.push(pair[1]);
+        ratio.push(pair[1] / pair[0]);
+    }
+    println!(
+        "median CPU per page: whole {:.2} ms, bands {:.2} ms, ratio {:.3}; digests {:016x} {:016x}{}",
+        median(whole),
+        median(banded),
+        median(ratio),
+        digests[0],
+        digests[1],
+        if digests[0] == digests[1] {
+            ""
+        } else {
+            " DIFFER"
+        }
+    );
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let every: usize = args.get(1).map_or(5, |s| s.parse().expect("EVERY"));
@@ -105,6 +166,10 @@ fn main() {
     );
     let (w, h) = opts.setup.size_px();
     let mut buf = RasterPage::new(w, h, opts.setup.dpi).expect("page");
+    if std::env::var_os("PAGECOST_BANDS").is_some() {
+        bands_ab(&pages, &mut buf, opts.setup.dpi, reps);
+        return;
+    }
     let mut runs: Vec<[f64; KINDS.len()]> = Vec::new();
     let mut totals = Vec::new();
     let mut cpu = Vec::new();

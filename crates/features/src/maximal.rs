@@ -187,10 +187,18 @@ pub(crate) fn set_bits(flags: &[bool]) -> impl Iterator<Item = usize> + '_ {
         // bit 56 + k (no carries: every partial product lands in its own bit).
         let mut mask = 0u64;
         for (q, eight) in chunk.chunks(8).enumerate() {
-            let mut bytes = [0u8; 8];
-            for (b, &f) in bytes.iter_mut().zip(eight) {
-                *b = u8::from(f);
-            }
+            // A full eight as one 8-byte load (copying the bytes into an array first made
+            // the load wait for eight byte stores: a store-forwarding stall per word).
+            let bytes = match <&[bool; 8]>::try_from(eight) {
+                Ok(full) => full.map(u8::from),
+                Err(_) => {
+                    let mut bytes = [0u8; 8];
+                    for (b, &f) in bytes.iter_mut().zip(eight) {
+                        *b = u8::from(f);
+                    }
+                    bytes
+                }
+            };
             let packed = u64::from_le_bytes(bytes).wrapping_mul(0x0102_0408_1020_4080) >> 56;
             mask |= packed << (8 * q);
         }

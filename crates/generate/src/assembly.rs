@@ -96,6 +96,25 @@ impl Assembly {
         self.push_shapes(chunk.shapes)
     }
 
+    /// Makes what was assembled so far durable (on the record writer's thread, while the
+    /// workers compute the next chunk), so that after the last chunk the closing fsyncs
+    /// ([`Assembly::finish`]) have only the last chunk's bytes to write: they are on the
+    /// run's critical path, alone, while every core but one is idle. Nothing to do once
+    /// every curve is in: the closing fsyncs (run side by side) write the rest.
+    pub(crate) fn sync_written(&mut self) -> Result<(), GenerateError> {
+        if self.curves == self.total {
+            return Ok(());
+        }
+        let files = [Some(&mut self.index), Some(self.columns.get_mut())]
+            .into_iter()
+            .chain([self.shapes.as_mut().map(|(t, _)| t)]);
+        for t in files.flatten() {
+            let path = t.path().to_path_buf();
+            t.sync_written().map_err(io_err(&path))?;
+        }
+        Ok(())
+    }
+
     fn push_shapes(&mut self, records: &[u8]) -> Result<(), GenerateError> {
         if let Some((t, _)) = self.shapes.as_mut() {
             t.write_all(records).map_err(io_err(t.path()))?;

@@ -395,6 +395,14 @@ impl Temporary {
         self.hasher.digest128()
     }
 
+    /// Flushes what was written so far and waits until it is on the disk (`fdatasync`),
+    /// so that the closing fsync ([`Temporary::close`]) has only the rest to write.
+    pub(crate) fn sync_written(&mut self) -> std::io::Result<()> {
+        let w = self.buffer();
+        w.flush()?;
+        w.get_ref().sync_data()
+    }
+
     /// Ends writing: flushes, makes the content durable when `durable`, closes.
     pub(crate) fn close(&mut self, durable: bool) -> std::io::Result<()> {
         if let Some(mut w) = self.w.take() {

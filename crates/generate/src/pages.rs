@@ -254,13 +254,20 @@ fn emit(
                 // The page's own size: under `auto` each page is portrait or landscape.
                 let (w, h) = display.size_px(opts.setup.dpi);
                 let mut buf = pool.take(w, h, opts.setup.dpi)?;
-                draw(display, &mut buf);
-                t = PageTimings::add(&timings.draw, t);
-                // Encoded, and the buffer cleared on the way, for the next page.
-                let r = buf.take_png(opts.png_compression);
+                // Drawn and encoded band by band, and the buffer cleared on the way,
+                // for the next page.
+                let r = buf.render_png(display, opts.png_compression);
                 pool.give(buf);
-                let bytes = r.map_err(PageError::Png)?;
-                t = PageTimings::add(&timings.encode, t);
+                let (bytes, encode) = r.map_err(PageError::Png)?;
+                let now = Instant::now();
+                let draw = (now - t).saturating_sub(encode);
+                timings
+                    .draw
+                    .fetch_add(draw.as_nanos() as u64, Ordering::Relaxed);
+                timings
+                    .encode
+                    .fetch_add(encode.as_nanos() as u64, Ordering::Relaxed);
+                t = now;
                 out.push((format, bytes));
             }
             PageFormat::Svg => {

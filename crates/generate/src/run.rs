@@ -26,7 +26,7 @@ use crate::{
 };
 use coupler_index::{IndexCurve, IndexSummary, curve_line};
 use coupler_kinematics::AngleTables;
-use rayon::prelude::*;
+use std::collections::VecDeque;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -138,6 +138,158 @@ struct GroupOutput {
     failed: Vec<PageFailure>,
     records: Vec<IndexCurve>,
     shapes: Vec<u8>,
+}
+
+/// How many chunks may be computing beyond the one whose outputs are awaited: one, so a
+/// worker that finds no unit left in a chunk starts the next chunk's units.
+const AHEAD: usize = 1;
+
+/// One unit's output, by chunk and place in it (a panic carried as its payload).
+type UnitResult = (
+    u64,
+    usize,
+    std::thread::Result<Result<GroupOutput, GenerateError>>,
+);
+
+/// A chunk taken into the run, finished (handed to the record writer) in chunk order.
+enum Admitted {
+    /// Another shard's chunk.
+    Skipped,
+    /// Found complete by an earlier run (its record verified): its files and units.
+    Reused(u64, Vec<FileEntry>, Vec<Group>),
+    /// Being computed: each unit's output as it comes, and how many are still missing.
+    Computing {
+        chunk: u64,
+        outputs: Vec<Option<Result<GroupOutput, GenerateError>>>,
+        missing: usize,
+    },
+}
+
+impl Admitted {
+    fn computing(&self) -> bool {
+        matches!(self, Admitted::Computing { .. })
+    }
+}
+
+/// What the chunks finished so far amount to.
+#[derive(Default)]
+struct Done {
+    computed: usize,
+    reused: usize,
+    failed: Vec<PageFailure>,
+    /// The files of every chunk found complete or computed (for the manifest), in chunk
+    /// order; `None` for a chunk not recorded.
+    chunk_files: Vec<Option<Vec<FileEntry>>>,
+}
+
+/// Finishes the first chunk of `queue`: waits for its units' outputs (keeping those of
+/// later chunks that come meanwhile), then hands the chunk to the record writer. A unit's
+/// error is returned when its chunk is finished, so the chunks before it are recorded as
+/// they would be one at a time. `Ok(false)`: the writer stopped (on an error it reports).
+fn finish_front(
+    queue: &mut VecDeque<Admitted>,
+    done: &mut Done,
+    whole: bool,
+    outputs: &std::sync::mpsc::Receiver<UnitResult>,
+    records: &std::sync::mpsc::SyncSender<Finished>,
+    stop: &AtomicBool,
+) -> Result<bool, GenerateError> {
+    while matches!(queue.front(), Some(Admitted::Computing { missing, .. }) if *missing > 0) {
+        let Ok((c, k, out)) = outputs.recv() else {
+            unreachable!("the run holds a sender of the units' outputs")
+        };
+        let out = out.unwrap_or_else(|panic| {
+            stop.store(true, Ordering::Relaxed);
+            std::panic::resume_unwind(panic)
+        });
+        let slot = queue.iter_mut().find_map(|a| match a {
+            Admitted::Computing {
+                chunk,
+                outputs,
+                missing,
+            } if *chunk == c => Some((outputs, missing)),
+            _ => None,
+        });
+        let Some((slots, missing)) = slot else {
+            unreachable!("an output of chunk {c}, which is not being computed")
+        };
+        slots[k] = Some(out);
+        *missing -= 1;
+    }
+    let Some(front) = queue.pop_front() else {
+        return Ok(true);
+    };
+    let (c, outputs) = match front {
+        Admitted::Skipped => {
+            if whole {
+                done.chunk_files.push(None);
+            }
+            return Ok(true);
+        }
+        Admitted::Reused(c, files, units) => {
+            done.reused += 1;
+            if whole {
+                done.chunk_files.push(Some(files));
+                return Ok(records.send(Finished::Reused(c, units)).is_ok());
+            }
+            return Ok(true);
+        }
+        Admitted::Computing { chunk, outputs, .. } => (chunk, outputs),
+    };
+    let results: Vec<GroupOutput> = outputs
+        .into_iter()
+        .map(|o| o.expect("every unit's output came"))
+        .collect::<Result<_, _>>()
+        .map_err(|e| match e {
+            // The chunks done are those handed to the writer before this one.
+            GenerateError::Interrupted { total, dir, .. } => GenerateError::Interrupted {
+                done: done.reused + done.computed,
+                total,
+                dir,
+            },
+            e => e,
+        })?;
+    let chunk_failed: Vec<PageFailure> = results
+        .iter()
+        .flat_map(|r| r.failed.iter().cloned())
+        .collect();
+    if !chunk_failed.is_empty() {
+        // Not recorded as complete: the same command redoes this chunk.
+        done.failed.extend(chunk_failed);
+        if whole {
+            done.chunk_files.push(None);
+            return Ok(records.send(Finished::Failed).is_ok());
+        }
+        return Ok(true);
+    }
+    let mut lines = String::with_capacity(results.iter().map(|r| r.lines.len()).sum());
+    let mut shapes = Vec::with_capacity(results.iter().map(|r| r.shapes.len()).sum());
+    for r in &results {
+        lines.push_str(&r.lines);
+        shapes.extend_from_slice(&r.shapes);
+    }
+    let mut record = ChunkLines {
+        chunk: c,
+        lines,
+        curves: results.iter().map(|r| r.curves).sum(),
+        first_id: results.iter().find_map(|r| r.first_id).unwrap_or(0),
+        files: Vec::new(),
+        records: Vec::new(),
+        shapes,
+    };
+    for r in results {
+        record.files.extend(r.files);
+        record.records.extend(r.records);
+    }
+    if whole {
+        done.chunk_files.push(Some(record.files.clone()));
+    }
+    if records.send(Finished::Computed(record)).is_err() {
+        // The writer stopped on an error: it is reported by the caller.
+        return Ok(false);
+    }
+    done.computed += 1;
+    Ok(true)
 }
 
 /// Writes what a renderer made: the names recorded in the ledger first (durably), then
@@ -358,10 +510,11 @@ pub fn run(
         None
     };
     let shape_kind = assembly.as_ref().and_then(Assembly::record_kind);
-    // The chunks are computed in order, each by all workers; a computed chunk's record is
-    // written (its pages made durable, the record written and made durable) and the chunk
-    // added to the assembly on a thread of its own while the next chunk is computed. At
-    // most one chunk waits for it.
+    // The chunks' units are computed in atlas order by all workers, a chunk's first units
+    // while the last of the one before are still running (see `finish_front`); a computed
+    // chunk's record is written (its pages made durable, the record written and made
+    // durable) and the chunk added to the assembly on a thread of its own while the next
+    // chunks are computed. At most one chunk waits for it.
     let (computed, reused, failed, chunk_files, assembly) = std::thread::scope(|scope| {
         let (records, pending) = std::sync::mpsc::sync_channel::<Finished>(1);
         let (record_key, pool) = (key.as_str(), &pool);
@@ -377,6 +530,7 @@ pub fn run(
                                 curves: &c.records,
                                 shapes: &c.shapes,
                             })?;
+                            a.sync_written()?;
                         }
                     }
                     Finished::Reused(c, units) => {
@@ -389,142 +543,136 @@ pub fn run(
             }
             Ok(assembly)
         });
-        let mut computed = 0;
-        let mut reused = 0;
-        let mut failed: Vec<PageFailure> = Vec::new();
-        // The files of every chunk found complete (for the manifest), in chunk order.
-        let mut chunk_files: Vec<Option<Vec<FileEntry>>> = Vec::new();
+        let mut done = Done::default();
         let mut units = job.units();
-        let mut compute = || -> Result<(), GenerateError> {
-            for c in 0..total {
-                let chunk: Vec<Group> = units.by_ref().take(CHUNK_GROUPS).collect();
-                if !job.shard.owns(c as usize) {
-                    if whole {
-                        chunk_files.push(None);
-                    }
-                    continue;
-                }
-                let done = reused + computed;
-                if interrupt.load(Ordering::Relaxed) {
-                    return Err(GenerateError::Interrupted {
-                        done,
-                        total: mine,
-                        dir: job.out.clone(),
-                    });
-                }
-                still_there(&job.out)?;
-                if let Ok(header) = read_chunk(&job.out, c, &key, true, None) {
-                    progress(header.curves);
-                    reused += 1;
-                    if whole {
-                        chunk_files.push(Some(header.files));
-                        if records.send(Finished::Reused(c, chunk)).is_err() {
-                            // The writer stopped on an error: it is reported below.
-                            break;
-                        }
-                    }
-                    continue;
-                }
-                // The names this chunk will write, recorded (durably) before any is written.
-                let known: Option<Vec<String>> = chunk
-                    .iter()
-                    .map(|g| renderer.group_files(job, g))
-                    .collect::<Option<Vec<Vec<String>>>>()
-                    .map(|v| v.concat());
-                if let Some(names) = &known {
-                    prep.ledger.add(names.iter().map(String::as_str))?;
-                }
-                let results: Vec<GroupOutput> = pool.install(|| {
-                    chunk
-                        .par_iter()
-                        .map(|g| {
-                            if interrupt.load(Ordering::Relaxed) {
-                                return Err(GenerateError::Interrupted {
-                                    done,
-                                    total: mine,
-                                    dir: job.out.clone(),
-                                });
-                            }
-                            let clocks = renderer.timings();
-                            let t = Instant::now();
-                            let mut curves = compute_group(&table, g, features, &dash)?;
-                            let index_time = t.elapsed();
-                            let rendered = renderer.render_group(job, g, &mut curves);
-                            let t = Instant::now();
-                            let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
-                            let t = match clocks {
-                                Some(k) => PageTimings::add(&k.write, t),
-                                None => t,
-                            };
-                            let lines =
-                                format_lines(&curves).map_err(io_err(&chunk_path(&job.out, c)))?;
-                            let shapes = match shape_kind {
-                                Some(kind) => crate::shapes::unit_records(job, g, kind)?,
-                                None => Vec::new(),
-                            };
-                            if let Some(k) = clocks {
-                                let ns = (index_time + t.elapsed()).as_nanos() as u64;
-                                k.index.fetch_add(ns, Ordering::Relaxed);
-                            }
-                            progress(curves.len() as u64);
-                            Ok(GroupOutput {
-                                lines,
-                                curves: curves.len() as u64,
-                                first_id: curves.first().map(|c| c.id),
-                                files,
-                                failed,
-                                records: if whole { curves } else { Vec::new() },
-                                shapes,
-                            })
-                        })
-                        .collect::<Result<_, _>>()
-                })?;
-                let chunk_failed: Vec<PageFailure> = results
-                    .iter()
-                    .flat_map(|r| r.failed.iter().cloned())
-                    .collect();
-                if !chunk_failed.is_empty() {
-                    // Not recorded as complete: the same command redoes this chunk.
-                    failed.extend(chunk_failed);
-                    if whole {
-                        chunk_files.push(None);
-                        if records.send(Finished::Failed).is_err() {
-                            break;
-                        }
-                    }
-                    continue;
-                }
-                let mut lines = String::with_capacity(results.iter().map(|r| r.lines.len()).sum());
-                let mut shapes = Vec::with_capacity(results.iter().map(|r| r.shapes.len()).sum());
-                for r in &results {
-                    lines.push_str(&r.lines);
-                    shapes.extend_from_slice(&r.shapes);
-                }
-                let mut record = ChunkLines {
-                    chunk: c,
-                    lines,
-                    curves: results.iter().map(|r| r.curves).sum(),
-                    first_id: results.iter().find_map(|r| r.first_id).unwrap_or(0),
-                    files: Vec::new(),
-                    records: Vec::new(),
-                    shapes,
-                };
-                for r in results {
-                    record.files.extend(r.files);
-                    record.records.extend(r.records);
-                }
-                if whole {
-                    chunk_files.push(Some(record.files.clone()));
-                }
-                if records.send(Finished::Computed(record)).is_err() {
-                    // The writer stopped on an error: it is reported below.
-                    break;
-                }
-                computed += 1;
+        // The units are computed as tasks on the pool, in atlas order (first in, first
+        // out), and their outputs gathered here by chunk: while the last units of one chunk
+        // are still being computed, a free worker already starts the next chunk's, so no
+        // worker waits at a chunk's end (at most `AHEAD` chunks beyond the one awaited).
+        let (unit_done, unit_outputs) = std::sync::mpsc::channel::<UnitResult>();
+        let stop = AtomicBool::new(false);
+        let unit = |c: u64, g: &Group| -> Result<GroupOutput, GenerateError> {
+            if interrupt.load(Ordering::Relaxed) {
+                // How many chunks are done is filled in by `finish_front`.
+                return Err(GenerateError::Interrupted {
+                    done: 0,
+                    total: mine,
+                    dir: job.out.clone(),
+                });
             }
-            Ok(())
+            let clocks = renderer.timings();
+            let t = Instant::now();
+            let mut curves = compute_group(&table, g, features, &dash)?;
+            let index_time = t.elapsed();
+            let rendered = renderer.render_group(job, g, &mut curves);
+            let t = Instant::now();
+            let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
+            let t = match clocks {
+                Some(k) => PageTimings::add(&k.write, t),
+                None => t,
+            };
+            let lines = format_lines(&curves).map_err(io_err(&chunk_path(&job.out, c)))?;
+            let shapes = match shape_kind {
+                Some(kind) => crate::shapes::unit_records(job, g, kind)?,
+                None => Vec::new(),
+            };
+            if let Some(k) = clocks {
+                let ns = (index_time + t.elapsed()).as_nanos() as u64;
+                k.index.fetch_add(ns, Ordering::Relaxed);
+            }
+            progress(curves.len() as u64);
+            Ok(GroupOutput {
+                lines,
+                curves: curves.len() as u64,
+                first_id: curves.first().map(|c| c.id),
+                files,
+                failed,
+                records: if whole { curves } else { Vec::new() },
+                shapes,
+            })
         };
-        let result = compute();
+        let result = pool.in_place_scope_fifo(|scope| -> Result<(), GenerateError> {
+            let mut queue: VecDeque<Admitted> = VecDeque::new();
+            let finish =
+                |queue: &mut VecDeque<Admitted>, done: &mut Done| -> Result<bool, GenerateError> {
+                    finish_front(queue, done, whole, &unit_outputs, &records, &stop)
+                };
+            let run = (|| -> Result<(), GenerateError> {
+                for c in 0..total {
+                    let chunk: Vec<Group> = units.by_ref().take(CHUNK_GROUPS).collect();
+                    if !job.shard.owns(c as usize) {
+                        queue.push_back(Admitted::Skipped);
+                        continue;
+                    }
+                    while queue.iter().filter(|a| a.computing()).count() > AHEAD {
+                        if !finish(&mut queue, &mut done)? {
+                            return Ok(());
+                        }
+                    }
+                    if interrupt.load(Ordering::Relaxed) {
+                        // The chunks already taken in are finished first (their units not
+                        // started stop at once: a unit's `Interrupted` ends the run).
+                        while !queue.is_empty() {
+                            if !finish(&mut queue, &mut done)? {
+                                return Ok(());
+                            }
+                        }
+                        return Err(GenerateError::Interrupted {
+                            done: done.reused + done.computed,
+                            total: mine,
+                            dir: job.out.clone(),
+                        });
+                    }
+                    still_there(&job.out)?;
+                    if let Ok(header) = read_chunk(&job.out, c, &key, true, None) {
+                        progress(header.curves);
+                        queue.push_back(Admitted::Reused(c, header.files, chunk));
+                        continue;
+                    }
+                    // The names this chunk will write, recorded (durably) before any is
+                    // written.
+                    let known: Option<Vec<String>> = chunk
+                        .iter()
+                        .map(|g| renderer.group_files(job, g))
+                        .collect::<Option<Vec<Vec<String>>>>()
+                        .map(|v| v.concat());
+                    if let Some(names) = &known {
+                        prep.ledger.add(names.iter().map(String::as_str))?;
+                    }
+                    queue.push_back(Admitted::Computing {
+                        chunk: c,
+                        outputs: (0..chunk.len()).map(|_| None).collect(),
+                        missing: chunk.len(),
+                    });
+                    for (k, g) in chunk.into_iter().enumerate() {
+                        let (unit, stop, sender) = (&unit, &stop, unit_done.clone());
+                        scope.spawn_fifo(move |_| {
+                            if stop.load(Ordering::Relaxed) {
+                                return;
+                            }
+                            // A panic is carried to the thread gathering the outputs
+                            // (which would otherwise wait for this unit forever).
+                            let out =
+                                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                                    unit(c, &g)
+                                }));
+                            let _ = sender.send((c, k, out));
+                        });
+                    }
+                }
+                while !queue.is_empty() {
+                    if !finish(&mut queue, &mut done)? {
+                        return Ok(());
+                    }
+                }
+                Ok(())
+            })();
+            // Units not started yet are skipped (the run stops); those running finish.
+            stop.store(true, Ordering::Relaxed);
+            run
+        });
+        let (computed, reused, failed, chunk_files) =
+            (done.computed, done.reused, done.failed, done.chunk_files);
         drop(records);
         let written = writer
             .join()
@@ -815,4 +963,93 @@ pub fn merge(
     }
     let assembly = Assembly::of_records(job, &job.summary(renderer.pages(job)), &key)?;
     assemble(job, renderer, &key, chunk_files, &prep.ledger, assembly).map(|(p, _)| p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn output(lines: &str, first_id: u64) -> GroupOutput {
+        GroupOutput {
+            lines: lines.to_string(),
+            curves: lines.lines().count() as u64,
+            first_id: Some(first_id),
+            files: Vec::new(),
+            failed: Vec::new(),
+            records: Vec::new(),
+            shapes: lines.as_bytes().to_vec(),
+        }
+    }
+
+    /// The units of two chunks computing at once finish in any order; the chunks are
+    /// still handed to the record writer in chunk order, each with its units' lines and
+    /// shape records in unit order, and a unit's error is returned only when its own
+    /// chunk is finished (after the chunks before it are recorded), an interruption
+    /// with the count of the chunks recorded.
+    #[test]
+    fn chunks_are_finished_in_order_whatever_order_their_units_come_in() {
+        let (send, outputs) = std::sync::mpsc::channel::<UnitResult>();
+        let (records, written) = std::sync::mpsc::sync_channel::<Finished>(8);
+        let stop = AtomicBool::new(false);
+        let computing = |chunk: u64, units: usize| Admitted::Computing {
+            chunk,
+            outputs: (0..units).map(|_| None).collect(),
+            missing: units,
+        };
+        let mut queue: VecDeque<Admitted> = VecDeque::new();
+        queue.push_back(computing(0, 3));
+        queue.push_back(Admitted::Skipped);
+        queue.push_back(computing(2, 2));
+        queue.push_back(computing(3, 1));
+        // Chunk 2's units first, chunk 0's backwards; chunk 3 fails.
+        for (c, k, lines, id) in [
+            (2, 1, "d\n", 4),
+            (0, 2, "c\n", 3),
+            (2, 0, "x\ny\n", 2),
+            (0, 0, "a\n", 1),
+            (0, 1, "b\n", 2),
+        ] {
+            send.send((c, k, Ok(Ok(output(lines, id))))).unwrap();
+        }
+        let interrupted = GenerateError::Interrupted {
+            done: 0,
+            total: 4,
+            dir: PathBuf::from("out"),
+        };
+        send.send((3, 0, Ok(Err(interrupted)))).unwrap();
+        let mut done = Done::default();
+        for _ in 0..3 {
+            assert!(finish_front(&mut queue, &mut done, true, &outputs, &records, &stop).unwrap());
+        }
+        let err = finish_front(&mut queue, &mut done, true, &outputs, &records, &stop);
+        // Interrupted, with the chunks recorded before it counted.
+        assert!(
+            matches!(
+                err,
+                Err(GenerateError::Interrupted {
+                    done: 2,
+                    total: 4,
+                    ..
+                })
+            ),
+            "{err:?}"
+        );
+        assert_eq!((done.computed, done.reused), (2, 0));
+        assert_eq!(done.chunk_files.len(), 3);
+        assert!(done.chunk_files[1].is_none());
+        let got: Vec<(u64, String, u64, u64, Vec<u8>)> = written
+            .try_iter()
+            .map(|f| match f {
+                Finished::Computed(c) => (c.chunk, c.lines, c.curves, c.first_id, c.shapes),
+                _ => panic!("only computed chunks"),
+            })
+            .collect();
+        assert_eq!(
+            got,
+            vec![
+                (0, "a\nb\nc\n".to_string(), 3, 1, b"a\nb\nc\n".to_vec()),
+                (2, "x\ny\nd\n".to_string(), 3, 2, b"x\ny\nd\n".to_vec()),
+            ]
+        );
+    }
 }

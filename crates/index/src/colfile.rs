@@ -547,6 +547,12 @@ impl<W: Write> ColumnsWriter<W> {
         })
     }
 
+    /// The writer the columns go to (for example to make what was written so far
+    /// durable while the rest is still to come).
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.w
+    }
+
     /// Adds the next curve (after the lines given to [`ColumnsWriter::push_line`]).
     pub fn push(&mut self, c: &IndexCurve) -> std::io::Result<()> {
         if !self.lines.is_empty() {

@@ -41,6 +41,11 @@ pub(crate) struct Target<'a> {
     pub(crate) width: usize,
     pub(crate) height: usize,
     pub(crate) ink: Ink,
+    /// Only rows `[rows.0, rows.1)` are drawn into (the whole height but while a page
+    /// is drawn band by band): a row's pixels do not depend on the others.
+    pub(crate) rows: (usize, usize),
+    /// The page row `data` starts at (0 but for a band's buffer).
+    pub(crate) first: usize,
     pub(crate) dirty: &'a mut Dirty,
     /// Where gray goes instead of the page, until it is composited.
     pub(crate) layer: Option<&'a mut GrayLayer>,
@@ -81,6 +86,12 @@ fn ceil(x: f32) -> f32 {
     }
 }
 
+/// The rows a target may be drawn into, `[c0, c1)` within the page, as f32.
+fn clip_rows(t: &Target) -> (f32, f32) {
+    let c1 = t.rows.1.min(t.height);
+    (t.rows.0.min(c1) as f32, c1 as f32)
+}
+
 /// Coverage (0..=255) of a pixel whose centre is `d` from the middle of a stroke of half
 /// width `r`.
 #[inline(always)]
@@ -114,13 +125,13 @@ impl Capsules {
             self.segs = segs;
             return;
         }
-        let h = t.height as f32;
+        let (c0, c1) = clip_rows(t);
         self.order.clear();
         for (k, s) in segs.iter_mut().enumerate() {
             let (y0, y1) = (s.a[1].min(s.a[1] + s.d[1]), s.a[1].max(s.a[1] + s.d[1]));
             // Rows whose centre j + ½ lies within `reach` of the segment's rows.
-            let lo = floor(y0 - reach - 0.5).clamp(0.0, h);
-            let hi = ceil(y1 + reach + 0.5).clamp(0.0, h);
+            let lo = floor(y0 - reach - 0.5).clamp(c0, c1);
+            let hi = ceil(y1 + reach + 0.5).clamp(c0, c1);
             if lo.is_nan() || hi.is_nan() || lo >= hi || !(s.a[0] + s.d[0]).is_finite() {
                 continue; // off the page, or not a number
             }
@@ -165,7 +176,7 @@ impl Capsules {
             return;
         }
         self.spans.sort_unstable();
-        let row = &mut t.data[j * t.width..(j + 1) * t.width];
+        let row = &mut t.data[(j - t.first) * t.width..(j - t.first + 1) * t.width];
         let mut k = 0;
         while k < self.spans.len() {
             let (x0, mut x1) = self.spans[k];
@@ -193,12 +204,13 @@ impl Capsules {
         if !(outer.is_finite() && reach > 0.5 && c[0].is_finite() && c[1].is_finite()) {
             return;
         }
-        let (w, h) = (t.width as f32, t.height as f32);
+        let w = t.width as f32;
+        let (c0, c1) = clip_rows(t);
         if self.row.len() != t.width {
             self.row = vec![0; t.width];
         }
-        let lo = floor(c[1] - outer - 0.5).clamp(0.0, h) as usize;
-        let hi = ceil(c[1] + outer + 0.5).clamp(0.0, h) as usize;
+        let lo = floor(c[1] - outer - 0.5).clamp(c0, c1) as usize;
+        let hi = ceil(c[1] + outer + 0.5).clamp(c0, c1) as usize;
         let inner = (radius.abs() - reach).max(0.0);
         for j in lo..hi {
             let dy = j as f32 + 0.5 - c[1];
@@ -333,6 +345,8 @@ mod tests {
             width: w,
             height: h,
             ink,
+            rows: (0, h),
+            first: 0,
             dirty,
             layer: None,
         }

@@ -100,11 +100,13 @@ impl GrayLayer {
         cov.fill(0);
     }
 
-    /// Composites the layer into `page` (row-major ink, the layer's size) with the
-    /// layer's gray, marks what it inked in `dirty` and empties the layer.
+    /// Composites the layer into `page` (row-major ink, the layer's width, from page row
+    /// `first` on) with the layer's gray, marks what it inked in `dirty` and empties the
+    /// layer.
     pub(crate) fn flush(
         &mut self,
         page: &mut [u8],
+        first: usize,
         dirty: &mut Dirty,
         overprint: impl Fn(u8, u8, u32) -> u8,
     ) {
@@ -121,7 +123,8 @@ impl GrayLayer {
                 }
                 let (lo, hi) = (usize::from(s.0), usize::from(s.1));
                 let (j, x) = (ty * TILE + r, tx * TILE);
-                let dst = &mut page[j * self.width + x + lo..j * self.width + x + hi];
+                let at = (j - first) * self.width + x;
+                let dst = &mut page[at + lo..at + hi];
                 let src = &mut tile.cov[r * TILE + lo..r * TILE + hi];
                 for (d, c) in dst.iter_mut().zip(src.iter()) {
                     *d = overprint(*d, *c, g);
@@ -157,7 +160,7 @@ mod tests {
             let (d, c) = (u32::from(d), u32::from(c));
             (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
         };
-        layer.flush(&mut page, &mut dirty, op);
+        layer.flush(&mut page, 0, &mut dirty, op);
         assert!(!layer.any());
         // 200 over 200: 200 + 55·200/255 = 243.
         assert_eq!(page[70 * w + 105], 243);
@@ -166,13 +169,13 @@ mod tests {
         assert_eq!(page[70 * w + 190], 0);
         assert_eq!(page.iter().filter(|&&v| v != 0).count(), 150);
         // Flushed again: nothing more.
-        layer.flush(&mut page, &mut dirty, op);
+        layer.flush(&mut page, 0, &mut dirty, op);
         assert_eq!(page[70 * w + 105], 243);
         assert!(dirty.row_pair_spans(70).any(|(a, b)| a <= 40 && 189 < b));
         // Off the page: ignored.
         layer.add_span(500, 0, &mut [9u8; 10]);
         layer.add_span(10, 295, &mut [9u8; 10]);
-        layer.flush(&mut page, &mut dirty, op);
+        layer.flush(&mut page, 0, &mut dirty, op);
         assert_eq!(page[10 * w + 299], 9);
     }
 }

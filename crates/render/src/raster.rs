@@ -9,10 +9,12 @@ use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
 };
-use coupler_layout::{self as font, Anchor, Ink, PT_PER_INCH, PagePoint};
+use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePoint};
 use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
+
+mod band;
 
 /// A page being drawn: an 8-bit ink-coverage buffer (0 = paper, 255 = full ink) at a
 /// given DPI. Ink of gray level `g` with coverage `c` overprints in integers
@@ -40,6 +42,25 @@ pub struct RasterPage {
     outlines: HashMap<u16, Option<Outline>>,
     /// Size of the last PNG encoded, to size the next one's buffer.
     last_png: usize,
+    /// Rows `[lo, hi)` drawn into: the whole page, but while it is drawn band by band
+    /// ([`RasterPage::render_png`]), when every primitive draws only the band's rows.
+    rows: (usize, usize),
+    /// The band plan's scratch, kept from page to page.
+    bands: band::Bands,
+    /// While a page is drawn band by band: the band's buffer, `BAND_ROWS + 1` rows
+    /// whose first is page row `first` (the row above the band, which the encoder
+    /// reads), reused band after band so that it stays in cache. The page's own buffer
+    /// then stays blank.
+    band_buf: Vec<u8>,
+    first: usize,
+    banded: bool,
+}
+
+/// The pixels drawn into: the page's buffer, or the band's while a page is drawn band
+/// by band.
+#[inline]
+fn pixels<'a>(mask: &'a mut Mask, band: &'a mut [u8], banded: bool) -> &'a mut [u8] {
+    if banded { band } else { mask.data_mut() }
 }
 
 /// How hard to compress PNG pages.
@@ -93,6 +114,11 @@ impl RasterPage {
             halo_scratch: HaloScratch::default(),
             outlines: HashMap::new(),
             last_png: 0,
+            rows: (0, height_px as usize),
+            bands: band::Bands::default(),
+            band_buf: Vec::new(),
+            first: 0,
+            banded: false,
         })
     }
 
@@ -121,6 +147,15 @@ impl RasterPage {
             .for_each_span(|j, x0, x1| data[j * stride + x0..j * stride + x1].fill(0));
         self.dirty.reset();
         self.ink = Ink::Black;
+        self.trim_tiles();
+    }
+
+    /// Empties the glyph and halo cache when it is full (between pages only: a label's
+    /// tiles must stay while it is drawn).
+    fn trim_tiles(&mut self) {
+        if self.halos.len() >= MAX_HALO_TILES {
+            self.halos.clear();
+        }
     }
 
     /// Erases all ink and turns the page to `width_px × height_px` when that is as many
@@ -147,6 +182,7 @@ impl RasterPage {
         turn(&mut self.mask);
         self.dirty = Dirty::new(width_px as usize, height_px as usize);
         self.gray = GrayLayer::new(width_px as usize, height_px as usize);
+        self.rows = (0, height_px as usize);
         self.width() == width_px && self.height() == height_px
     }
 
@@ -159,8 +195,9 @@ impl RasterPage {
     /// Composites the waiting gray into the page.
     fn flush_gray(&mut self) {
         if self.gray.any() {
+            let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             self.gray
-                .flush(self.mask.data_mut(), &mut self.dirty, overprint);
+                .flush(data, self.first, &mut self.dirty, overprint);
         }
     }
 
@@ -211,6 +248,31 @@ impl RasterPage {
         Ok(bytes)
     }
 
+    /// Draws `display` on the page, blank first, and encodes it: the bytes of [`draw`]
+    /// then [`RasterPage::take_png`], and the page is left blank. The fast PNG is drawn
+    /// and encoded band by band, each band encoded while its rows are in cache (the
+    /// pixels are the same, see `raster/band.rs`). Gives the PNG and the time spent
+    /// encoding (the rest is drawing).
+    ///
+    /// [`draw`]: crate::draw
+    pub fn render_png(
+        &mut self,
+        display: &DisplayList,
+        compression: PngCompression,
+    ) -> Result<(Vec<u8>, std::time::Duration), png::EncodingError> {
+        let mut encode = std::time::Duration::ZERO;
+        if compression == PngCompression::Fast
+            && let Some(bytes) = self.render_bands(display, &mut encode)
+        {
+            return Ok((bytes?, encode));
+        }
+        self.clear();
+        crate::draw(display, self);
+        let t = std::time::Instant::now();
+        let bytes = self.take_png(compression)?;
+        Ok((bytes, t.elapsed()))
+    }
+
     /// The fast PNG of the page in one buffer sized from the last page's; with `clear`,
     /// the page is left blank (and the ink black).
     fn encode_fast(&mut self, clear: bool) -> std::io::Result<Vec<u8>> {
@@ -226,6 +288,7 @@ impl RasterPage {
         if clear {
             self.dirty.reset();
             self.ink = Ink::Black;
+            self.trim_tiles();
         }
         self.last_png = bytes.len();
         Ok(bytes)
@@ -249,12 +312,9 @@ impl RasterPage {
     /// pixel gets the fraction of its area inside), composited as ink. A fast path for
     /// frames and bands, which a general anti-aliasing scan handles row by row.
     pub fn fill_rect_px(&mut self, x0: f64, y0: f64, x1: f64, y1: f64) {
-        let (w, h) = (self.width() as f64, self.height() as f64);
-        let (x0, x1) = (x0.clamp(0.0, w), x1.clamp(0.0, w));
-        let (y0, y1) = (y0.clamp(0.0, h), y1.clamp(0.0, h));
-        if x1 <= x0 || y1 <= y0 {
+        let Some([x0, y0, x1, y1]) = self.rect_on_page([x0, y0, x1, y1]) else {
             return;
-        }
+        };
         let stride = self.width() as usize;
         let cover = |lo: f64, hi: f64, i: usize| -> f64 {
             let (a, b) = (i as f64, i as f64 + 1.0);
@@ -268,14 +328,21 @@ impl RasterPage {
         let ink_of = self.ink;
         if ink_of == Ink::Paper {
             self.flush_gray();
-        } else {
+        }
+        // Only the rows being drawn (the band's, when drawn in bands).
+        let (j0, j1) = (j0.max(self.rows.0), j1.min(self.rows.1));
+        if j1 <= j0 {
+            return;
+        }
+        if ink_of != Ink::Paper {
             self.dirty.mark_px(i0, j0, i1, j1);
         }
         let columns: Vec<f64> = (i0..i1).map(|i| cover(x0, x1, i)).collect();
-        let data = self.mask.data_mut();
+        let first = self.first;
+        let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
         for j in j0..j1 {
             let cy = cover(y0, y1, j);
-            let row = &mut data[j * stride..(j + 1) * stride];
+            let row = &mut data[(j - first) * stride..(j - first + 1) * stride];
             let mut span = |a: usize, b: usize| {
                 for (px, cx) in row[a..b].iter_mut().zip(&columns[a - i0..b - i0]) {
                     let c = cx * cy;
@@ -299,6 +366,41 @@ impl RasterPage {
                 span(i0, i1);
             }
         }
+    }
+
+    /// The four sides of a stroked rectangle (page points) as pixel rectangles: exact
+    /// mitred corners.
+    fn rect_sides(&self, rect: [f64; 4], width: f64) -> [[f64; 4]; 4] {
+        let k = self.px_per_pt;
+        let [x0, y0, x1, y1] = rect.map(|v| v * k);
+        let h = 0.5 * width * k;
+        [
+            [x0 - h, y0 - h, x1 + h, y0 + h],
+            [x0 - h, y1 - h, x1 + h, y1 + h],
+            [x0 - h, y0 + h, x0 + h, y1 - h],
+            [x1 - h, y0 + h, x1 + h, y1 - h],
+        ]
+    }
+
+    /// A polygon (at least 3 points, page points) as a closed pixel path.
+    fn polygon_path(&self, points: &[PagePoint]) -> Option<tiny_skia::Path> {
+        let mut pb = PathBuilder::new();
+        let (x, y) = self.px(*points.first()?);
+        pb.move_to(x, y);
+        for p in &points[1..] {
+            let (x, y) = self.px(*p);
+            pb.line_to(x, y);
+        }
+        pb.close();
+        pb.finish()
+    }
+
+    /// A pixel rectangle clipped to the page, `None` when nothing of it is on the page.
+    fn rect_on_page(&self, r: [f64; 4]) -> Option<[f64; 4]> {
+        let (w, h) = (self.width() as f64, self.height() as f64);
+        let (x0, x1) = (r[0].clamp(0.0, w), r[2].clamp(0.0, w));
+        let (y0, y1) = (r[1].clamp(0.0, h), r[3].clamp(0.0, h));
+        (x0 < x1 && y0 < y1).then_some([x0, y0, x1, y1])
     }
 
     /// Fills `path` in the current ink.
@@ -344,10 +446,12 @@ impl RasterPage {
         (
             &mut self.capsules,
             Target {
-                data: self.mask.data_mut(),
+                data: pixels(&mut self.mask, &mut self.band_buf, self.banded),
+                first: self.first,
                 width,
                 height,
                 ink: self.ink,
+                rows: self.rows,
                 dirty: &mut self.dirty,
                 layer,
             },
@@ -357,47 +461,111 @@ impl RasterPage {
     /// Fills `path` in a gray or in paper: its coverage is rasterised into a scratch
     /// mask over its box, then composited (a gray overprints, paper erases).
     fn fill_with(&mut self, path: &tiny_skia::Path, ink: Ink) {
-        let b = path.bounds();
-        let (w, h) = (i64::from(self.width()), i64::from(self.height()));
-        let x0 = (b.left().floor() as i64 - 1).clamp(0, w);
-        let y0 = (b.top().floor() as i64 - 1).clamp(0, h);
-        let x1 = (b.right().ceil() as i64 + 1).clamp(0, w);
-        let y1 = (b.bottom().ceil() as i64 + 1).clamp(0, h);
-        if x1 <= x0 || y1 <= y0 {
-            return;
+        if let Some(cover) = self.scratch_cover(path) {
+            self.apply_cover(&cover, ink);
         }
-        let Some(mut scratch) = Mask::new((x1 - x0) as u32, (y1 - y0) as u32) else {
-            return;
-        };
+    }
+
+    /// The coverage of `path` rasterised into a scratch mask over its box (widened by a
+    /// pixel, clipped to the page), the path moved by whole pixels: the coverage of a
+    /// gray or paper polygon.
+    fn scratch_cover(&self, path: &tiny_skia::Path) -> Option<Cover> {
+        let [x0, y0, x1, y1] = self.path_box(path)?;
+        let mut scratch = Mask::new((x1 - x0) as u32, (y1 - y0) as u32)?;
         scratch.fill_path(
             path,
             FillRule::Winding,
             true,
             Transform::from_translate(-(x0 as f32), -(y0 as f32)),
         );
-        let stride = self.width() as usize;
-        let sw = (x1 - x0) as usize;
-        if ink != Ink::Paper {
-            self.dirty
-                .mark_px(x0 as usize, y0 as usize, x1 as usize, y1 as usize);
-        }
-        if let Ink::Gray(_) = ink {
-            // Merged with the other strokes of this gray.
-            for (j, row) in scratch.data_mut().chunks_mut(sw).enumerate() {
-                self.gray.add_span(y0 as usize + j, x0 as usize, row);
+        Some(Cover {
+            x0: x0 as usize,
+            y0: y0 as usize,
+            w: (x1 - x0) as usize,
+            cov: scratch.take(),
+        })
+    }
+
+    /// The pixel box of `path`, widened by a pixel and clipped to the page: `None`
+    /// when empty.
+    fn path_box(&self, path: &tiny_skia::Path) -> Option<[i64; 4]> {
+        let b = path.bounds();
+        let (w, h) = (i64::from(self.width()), i64::from(self.height()));
+        let x0 = (b.left().floor() as i64 - 1).clamp(0, w);
+        let y0 = (b.top().floor() as i64 - 1).clamp(0, h);
+        let x1 = (b.right().ceil() as i64 + 1).clamp(0, w);
+        let y1 = (b.bottom().ceil() as i64 + 1).clamp(0, h);
+        (x0 < x1 && y0 < y1).then_some([x0, y0, x1, y1])
+    }
+
+    /// Composites a coverage in `ink`, only in the rows being drawn: black as
+    /// tiny-skia's mask fill blends it ([`lerp_white`]), a gray merged into the gray
+    /// layer, paper erasing.
+    fn apply_cover(&mut self, cover: &Cover, ink: Ink) {
+        match ink {
+            Ink::Gray(level) => {
+                if self.gray.level != level {
+                    self.flush_gray();
+                    self.gray.level = level;
+                }
             }
+            Ink::Paper => self.flush_gray(),
+            Ink::Black => {}
+        }
+        let (sw, stride) = (cover.w, self.width() as usize);
+        let h = cover.cov.len() / sw.max(1);
+        let j0 = cover.y0.max(self.rows.0);
+        let j1 = (cover.y0 + h).min(self.rows.1);
+        if j1 <= j0 {
             return;
         }
-        let data = self.mask.data_mut();
-        for (j, row) in scratch.data().chunks(sw).enumerate() {
-            let start = (y0 as usize + j) * stride + x0 as usize;
-            for (px, &c) in data[start..start + sw].iter_mut().zip(row) {
+        if ink != Ink::Paper {
+            self.dirty.mark_px(cover.x0, j0, cover.x0 + sw, j1);
+        }
+        let rows = cover.cov[(j0 - cover.y0) * sw..(j1 - cover.y0) * sw].chunks(sw);
+        if let Ink::Gray(_) = ink {
+            // Merged with the other strokes of this gray.
+            let mut row = std::mem::take(&mut self.halo_scratch.merged);
+            for (j, src) in (j0..).zip(rows) {
+                row.clear();
+                row.extend_from_slice(src);
+                self.gray.add_span(j, cover.x0, &mut row);
+            }
+            self.halo_scratch.merged = row;
+            return;
+        }
+        let first = self.first;
+        let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
+        for (j, src) in (j0..).zip(rows) {
+            let start = (j - first) * stride + cover.x0;
+            for (px, &c) in data[start..start + sw].iter_mut().zip(src) {
                 if c != 0 {
-                    *px = composite(*px, c, ink);
+                    *px = match ink {
+                        Ink::Black => lerp_white(*px, c),
+                        ink => composite(*px, c, ink),
+                    };
                 }
             }
         }
     }
+}
+
+/// A polygon's coverage over a box of the page: `w` pixels wide from `(x0, y0)`, row-major.
+pub(crate) struct Cover {
+    x0: usize,
+    y0: usize,
+    w: usize,
+    cov: Vec<u8>,
+}
+
+/// tiny-skia's blend of white with coverage `c` over a mask pixel `d` (its low-precision
+/// pipeline: `lerp(d, 255, c)` with `div255(v) = (v + 255) >> 8`). On a blank pixel it
+/// gives `c` itself, so a black polygon filled on a blank page and blended later with
+/// this gives the page tiny-skia would have made (tested).
+#[inline]
+fn lerp_white(d: u8, c: u8) -> u8 {
+    let (d, c) = (u32::from(d), u32::from(c));
+    ((d * (255 - c) + 255 * c + 255) >> 8) as u8
 }
 
 /// Composites coverage `c` (0..=255) of `ink` over the page's ink `dst` (0 paper, 255
@@ -500,80 +668,151 @@ fn write_png_fast(
     clear: bool,
     capacity: usize,
 ) -> std::io::Result<Vec<u8>> {
-    let (w, h) = (width as usize, height as usize);
-    assert_eq!(ink.len(), w * h, "buffer size");
-    let mut out = Vec::with_capacity(capacity);
-    out.extend_from_slice(&[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a]);
-    let mut ihdr = Vec::with_capacity(13);
-    ihdr.extend_from_slice(&width.to_be_bytes());
-    ihdr.extend_from_slice(&height.to_be_bytes());
-    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]); // 8-bit grayscale, deflate, no interlace
-    write_chunk(&mut out, b"IHDR", &ihdr)?;
-    let mut phys = Vec::with_capacity(9);
-    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
-    phys.extend_from_slice(&ppm(dpi).to_be_bytes());
-    phys.push(1); // metre
-    write_chunk(&mut out, b"pHYs", &phys)?;
-    // The IDAT chunk: its length is patched in once the stream is written.
-    let idat = out.len();
-    out.extend_from_slice(&[0, 0, 0, 0]);
-    out.extend_from_slice(b"IDAT");
-    let mut z = RowDeflate::new(out);
-    let mut row = vec![0u8; w + 1];
-    row[0] = 2; // Up
-    if h > 0 {
-        // The first row: the row above is 0 (PNG), so filtered = gray.
-        for (o, i) in row[1..].iter_mut().zip(&ink[..w]) {
-            *o = !*i;
-        }
-        z.row(&row, std::iter::once((0, w + 1)));
-        row[1..].fill(0);
+    assert_eq!(ink.len(), width as usize * height as usize, "buffer size");
+    let mut png = FastPng::begin(width, height, dpi, capacity)?;
+    png.rows(ink, 0, dirty, height as usize, clear);
+    png.finish(ink, 0, dirty, clear)
+}
+
+/// [`write_png_fast`] row by row: the rows of a page drawn band by band are encoded as
+/// each band is done ([`FastPng::rows`]), while they are in cache.
+pub(crate) struct FastPng {
+    z: RowDeflate,
+    /// Where the IDAT chunk starts (its length is patched in at the end).
+    idat: usize,
+    /// The filtered row (filter byte first).
+    row: Vec<u8>,
+    /// Blank rows (no marked block in the row or the one above: filtered bytes all 0)
+    /// waiting to be written as one run.
+    blank: usize,
+    spans: Vec<(usize, usize)>,
+    /// The next row to encode.
+    next: usize,
+    width: usize,
+    height: usize,
+}
+
+impl FastPng {
+    /// The PNG's header chunks and the start of its IDAT, in a buffer of `capacity` bytes
+    /// to start with.
+    pub(crate) fn begin(
+        width: u32,
+        height: u32,
+        dpi: f64,
+        capacity: usize,
+    ) -> std::io::Result<FastPng> {
+        let mut out = Vec::with_capacity(capacity);
+        out.extend_from_slice(&[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a]);
+        let mut ihdr = Vec::with_capacity(13);
+        ihdr.extend_from_slice(&width.to_be_bytes());
+        ihdr.extend_from_slice(&height.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 0, 0, 0, 0]); // 8-bit grayscale, deflate, no interlace
+        write_chunk(&mut out, b"IHDR", &ihdr)?;
+        let mut phys = Vec::with_capacity(9);
+        phys.extend_from_slice(&ppm(dpi).to_be_bytes());
+        phys.extend_from_slice(&ppm(dpi).to_be_bytes());
+        phys.push(1); // metre
+        write_chunk(&mut out, b"pHYs", &phys)?;
+        // The IDAT chunk: its length is patched in once the stream is written.
+        let idat = out.len();
+        out.extend_from_slice(&[0, 0, 0, 0]);
+        out.extend_from_slice(b"IDAT");
+        let w = width as usize;
+        let mut row = vec![0u8; w + 1];
+        row[0] = 2; // Up
+        Ok(FastPng {
+            z: RowDeflate::new(out),
+            idat,
+            row,
+            blank: 0,
+            spans: Vec::new(),
+            next: 0,
+            width: w,
+            height: height as usize,
+        })
     }
-    // Blank rows (no marked block in the row or the one above: filtered bytes all 0)
-    // waiting to be written as one run.
-    let mut blank = 0;
-    let mut spans: Vec<(usize, usize)> = Vec::new();
-    for j in 1..h {
-        if dirty.row_pair_blank(j) {
-            blank += 1;
-            continue;
-        }
-        spans.clear();
-        spans.extend(dirty.row_pair_spans(j));
-        z.blank_rows(w + 1, 2, blank);
-        blank = 0;
-        let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
-        for &(x0, x1) in &spans {
-            for ((o, a), b) in row[1 + x0..1 + x1]
-                .iter_mut()
-                .zip(&above[x0..x1])
-                .zip(&this[x0..x1])
-            {
-                *o = a.wrapping_sub(*b);
+
+    /// Encodes the rows up to `upto` (exclusive) of the page, which must be drawn up to
+    /// there; `ink` holds the page's rows from row `first` on (the row above the next
+    /// row to encode, if any, included). With `clear`, the marked spans of each row but
+    /// the last encoded are zeroed once the row below has been filtered.
+    pub(crate) fn rows(
+        &mut self,
+        ink: &mut [u8],
+        first: usize,
+        dirty: &Dirty,
+        upto: usize,
+        clear: bool,
+    ) {
+        let (w, upto) = (self.width, upto.min(self.height));
+        if self.next == 0 && upto > 0 {
+            // The first row: the row above is 0 (PNG), so filtered = gray.
+            for (o, i) in self.row[1..].iter_mut().zip(&ink[..w]) {
+                *o = !*i;
             }
-            if clear {
-                above[x0..x1].fill(0);
+            self.z.row(&self.row, std::iter::once((0, w + 1)));
+            self.row[1..].fill(0);
+            self.next = 1;
+        }
+        let row = &mut self.row;
+        for j in self.next.max(1)..upto {
+            if dirty.row_pair_blank(j) {
+                self.blank += 1;
+                continue;
+            }
+            self.spans.clear();
+            self.spans.extend(dirty.row_pair_spans(j));
+            self.z.blank_rows(w + 1, 2, self.blank);
+            self.blank = 0;
+            let (above, this) = ink[(j - 1 - first) * w..(j + 1 - first) * w].split_at_mut(w);
+            for &(x0, x1) in &self.spans {
+                for ((o, a), b) in row[1 + x0..1 + x1]
+                    .iter_mut()
+                    .zip(&above[x0..x1])
+                    .zip(&this[x0..x1])
+                {
+                    *o = a.wrapping_sub(*b);
+                }
+                if clear {
+                    above[x0..x1].fill(0);
+                }
+            }
+            self.z
+                .row(row, self.spans.iter().map(|&(x0, x1)| (1 + x0, 1 + x1)));
+            for &(x0, x1) in &self.spans {
+                row[1 + x0..1 + x1].fill(0);
             }
         }
-        z.row(&row, spans.iter().map(|&(x0, x1)| (1 + x0, 1 + x1)));
-        for &(x0, x1) in &spans {
-            row[1 + x0..1 + x1].fill(0);
-        }
+        self.next = self.next.max(upto);
     }
-    z.blank_rows(w + 1, 2, blank);
-    if clear && h > 0 {
-        let last = &mut ink[(h - 1) * w..];
-        for (x0, x1) in dirty.row_pair_spans(h - 1) {
-            last[x0..x1].fill(0);
+
+    /// The finished PNG, once every row is encoded; with `clear`, the last row's marked
+    /// spans are zeroed too (the page is left blank).
+    pub(crate) fn finish(
+        mut self,
+        ink: &mut [u8],
+        first: usize,
+        dirty: &Dirty,
+        clear: bool,
+    ) -> std::io::Result<Vec<u8>> {
+        let (w, h) = (self.width, self.height);
+        debug_assert_eq!(self.next, h, "every row encoded");
+        self.z.blank_rows(w + 1, 2, self.blank);
+        if clear && h > 0 {
+            let last = &mut ink[(h - 1 - first) * w..(h - first) * w];
+            for (x0, x1) in dirty.row_pair_spans(h - 1) {
+                last[x0..x1].fill(0);
+            }
         }
+        let idat = self.idat;
+        let mut out = self.z.finish();
+        let len = u32::try_from(out.len() - idat - 8).map_err(std::io::Error::other)?;
+        out[idat..idat + 4].copy_from_slice(&len.to_be_bytes());
+        let crc = crc32fast::hash(&out[idat + 4..]);
+        out.extend_from_slice(&crc.to_be_bytes());
+        write_chunk(&mut out, b"IEND", &[])?;
+        Ok(out)
     }
-    let mut out = z.finish();
-    let len = u32::try_from(out.len() - idat - 8).map_err(std::io::Error::other)?;
-    out[idat..idat + 4].copy_from_slice(&len.to_be_bytes());
-    let crc = crc32fast::hash(&out[idat + 4..]);
-    out.extend_from_slice(&crc.to_be_bytes());
-    write_chunk(&mut out, b"IEND", &[])?;
-    Ok(out)
 }
 
 /// One PNG chunk: length, type, data, CRC-32 of type and data.
@@ -631,25 +870,46 @@ impl RasterPage {
         capsules.stroke(r, &mut target);
     }
 
-    /// The paper halo of `text`: its glyph outlines stroked `halo` points wide on each
-    /// side, in paper. Each glyph's halo is made once per size and quarter-pixel
-    /// position ([`HaloKey`]) and kept; a label's glyph halos are merged (their union)
-    /// and composited at once.
-    fn halo(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str, halo: f64) {
-        let k = self.px_per_pt;
-        let (glyphs, advance) = font::shape_line(&self.font, size, text);
-        let x = anchored_x(pos[0], advance, anchor);
-        let (em, r) = ((size * k) as f32, (halo * k) as f32);
-        if r.is_nan() || r <= 0.0 {
-            // No halo (and `r == 0` keys are the glyphs' own coverage).
-            return;
-        }
-        // The glyphs' tiles: (page x, page y, key).
-        let mut placed = std::mem::take(&mut self.halo_scratch.placed);
+    /// The tiles of a label's glyphs (`halo: None`) or of their halos (`Some(halo)`,
+    /// points): `(page x, page y, key)` of each tile's top left corner, into `placed`
+    /// (emptied first); each tile is made if not cached. The one placement both the
+    /// drawing and the band plan use.
+    fn place_label(
+        &mut self,
+        pos: PagePoint,
+        size: f64,
+        anchor: Anchor,
+        text: &str,
+        halo: Option<f64>,
+        placed: &mut Vec<(i64, i64, HaloKey)>,
+    ) {
         placed.clear();
-        let (mut bx0, mut by0, mut bx1, mut by1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
+        let k = self.px_per_pt;
+        // Glyphs are shaped at their pixel size, halos at their point size (as drawn
+        // since the halos were introduced: both kept as they are, byte for byte).
+        let (origin, em, r, glyphs) = match halo {
+            Some(halo) => {
+                let (glyphs, advance) = font::shape_line(&self.font, size, text);
+                let x = anchored_x(pos[0], advance, anchor);
+                let r = (halo * k) as f32;
+                if r.is_nan() || r <= 0.0 {
+                    // No halo (and `r == 0` keys are the glyphs' own coverage).
+                    return;
+                }
+                ((x, k), (size * k) as f32, r, glyphs)
+            }
+            None => {
+                let size_px = size * k;
+                let (glyphs, advance) = font::shape_line(&self.font, size_px, text);
+                let x0 = anchored_x(pos[0] * k, advance, anchor);
+                ((x0, 1.0), size_px as f32, 0.0, glyphs)
+            }
+        };
         for g in &glyphs {
-            let (gx, gy) = (((x + g.x) * k) as f32, (pos[1] * k) as f32);
+            let (gx, gy) = match halo {
+                Some(_) => (((origin.0 + g.x) * k) as f32, (pos[1] * k) as f32),
+                None => ((origin.0 + g.x) as f32, (pos[1] * k) as f32),
+            };
             if !(gx.is_finite() && gy.is_finite()) || gx.abs() > 1e7 || gy.abs() > 1e7 {
                 continue;
             }
@@ -665,22 +925,39 @@ impl RasterPage {
             let Some(Some(tile)) = self.halos.get(&key) else {
                 continue;
             };
-            let (tx, ty) = (ix as i64 + tile.x0, iy as i64 + tile.y0);
-            bx0 = bx0.min(tx);
-            by0 = by0.min(ty);
+            placed.push((ix as i64 + tile.x0, iy as i64 + tile.y0, key));
+        }
+    }
+
+    /// The paper halo of `text`: its glyph outlines stroked `halo` points wide on each
+    /// side, in paper. Each glyph's halo is made once per size and quarter-pixel
+    /// position ([`HaloKey`]) and kept; a label's glyph halos are merged (their union)
+    /// and composited at once.
+    fn halo(&mut self, pos: PagePoint, size: f64, anchor: Anchor, text: &str, halo: f64) {
+        // The glyphs' tiles: (page x, page y, key).
+        let mut placed = std::mem::take(&mut self.halo_scratch.placed);
+        self.place_label(pos, size, anchor, text, Some(halo), &mut placed);
+        let (mut bx0, mut by0, mut bx1, mut by1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
+        for (tx, ty, key) in &placed {
+            let Some(Some(tile)) = self.halos.get(key) else {
+                continue;
+            };
+            bx0 = bx0.min(*tx);
+            by0 = by0.min(*ty);
             bx1 = bx1.max(tx + tile.w as i64);
             by1 = by1.max(ty + tile.h as i64);
-            placed.push((tx, ty, key));
         }
         if placed.is_empty() {
             self.halo_scratch.placed = placed;
             return;
         }
-        // The union of the glyphs' halos over the label's box, clipped to the page, in
-        // paper over everything drawn so far.
+        // The union of the glyphs' halos over the label's box, clipped to the page (and
+        // to the rows being drawn), in paper over everything drawn so far.
         self.flush_gray();
         let (pw, ph) = (i64::from(self.width()), i64::from(self.height()));
-        let (cx0, cy0, cx1, cy1) = (bx0.max(0), by0.max(0), bx1.min(pw), by1.min(ph));
+        let (cx0, cx1) = (bx0.max(0), bx1.min(pw));
+        let cy0 = by0.max(0).max(self.rows.0 as i64);
+        let cy1 = by1.min(ph).min(self.rows.1 as i64);
         if cx0 < cx1 && cy0 < cy1 {
             let bw = (bx1 - bx0) as usize;
             let merged = &mut self.halo_scratch.merged;
@@ -698,10 +975,11 @@ impl RasterPage {
                 }
             }
             let stride = pw as usize;
-            let data = self.mask.data_mut();
+            let first = self.first;
+            let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             for y in cy0..cy1 {
                 let src = (y - by0) as usize * bw + (cx0 - bx0) as usize;
-                let dst = y as usize * stride + cx0 as usize;
+                let dst = (y as usize - first) * stride + cx0 as usize;
                 let n = (cx1 - cx0) as usize;
                 for (d, &c) in data[dst..dst + n].iter_mut().zip(&merged[src..src + n]) {
                     *d = composite(*d, c, Ink::Paper);
@@ -714,13 +992,11 @@ impl RasterPage {
     /// Makes the tile of `key` if it is not cached yet: the coverage of a glyph when
     /// `key.r == 0`, else the glyph's halo `key.r` pixels wide on each side (see
     /// [`HaloKey`]). A glyph without outline is cached as `None`. The one place that
-    /// fills the cache: it is emptied first when full.
+    /// fills the cache; it is emptied between pages when full ([`RasterPage::trim_tiles`]),
+    /// never while a label is placed (its tiles are looked up after all are made).
     fn ensure_halo_tile(&mut self, key: HaloKey) {
         if self.halos.contains_key(&key) {
             return;
-        }
-        if self.halos.len() >= MAX_HALO_TILES {
-            self.halos.clear();
         }
         let font = &self.font;
         let outline = self
@@ -743,8 +1019,8 @@ impl RasterPage {
     }
 }
 
-/// Glyphs and glyph halos kept at most (a few kilobytes each); the cache is emptied when
-/// full.
+/// Glyphs and glyph halos kept from page to page at most (a few kilobytes each); the
+/// cache is emptied between pages when full.
 const MAX_HALO_TILES: usize = 4096;
 
 /// A glyph's halo: its glyph id, em size and halo half width in pixels (bits of the
@@ -832,6 +1108,8 @@ impl HaloTile {
                 width: w,
                 height: h,
                 ink: Ink::Black,
+                rows: (0, h),
+                first: 0,
                 dirty: &mut dirty,
                 layer: None,
             },
@@ -967,13 +1245,9 @@ impl Canvas for RasterPage {
     }
 
     fn stroke_rect(&mut self, rect: [f64; 4], width: f64) {
-        let k = self.px_per_pt;
-        let [x0, y0, x1, y1] = rect.map(|v| v * k);
-        let h = 0.5 * width * k;
-        self.fill_rect_px(x0 - h, y0 - h, x1 + h, y0 + h);
-        self.fill_rect_px(x0 - h, y1 - h, x1 + h, y1 + h);
-        self.fill_rect_px(x0 - h, y0 + h, x0 + h, y1 - h);
-        self.fill_rect_px(x1 - h, y0 + h, x1 + h, y1 - h);
+        for [x0, y0, x1, y1] in self.rect_sides(rect, width) {
+            self.fill_rect_px(x0, y0, x1, y1);
+        }
     }
 
     fn fill_polygon(&mut self, points: &[PagePoint]) {
@@ -986,15 +1260,7 @@ impl Canvas for RasterPage {
             self.fill_rect_px(x0 * k, y0 * k, x1 * k, y1 * k);
             return;
         }
-        let mut pb = PathBuilder::new();
-        let (x, y) = self.px(points[0]);
-        pb.move_to(x, y);
-        for p in &points[1..] {
-            let (x, y) = self.px(*p);
-            pb.line_to(x, y);
-        }
-        pb.close();
-        if let Some(path) = pb.finish() {
+        if let Some(path) = self.polygon_path(points) {
             self.fill(&path);
         }
     }
@@ -1027,33 +1293,18 @@ impl Canvas for RasterPage {
             self.halo(pos, size, anchor, text, halo);
         }
         let ink = self.ink;
-        let size_px = size * self.px_per_pt;
-        let (glyphs, advance) = font::shape_line(&self.font, size_px, text);
-        let x0 = anchored_x(pos[0] * self.px_per_pt, advance, anchor);
-        let y0 = pos[1] * self.px_per_pt;
-        let em = size_px as f32;
+        let mut placed = std::mem::take(&mut self.halo_scratch.placed);
+        self.place_label(pos, size, anchor, text, None, &mut placed);
         let (w, h) = (i64::from(self.width()), i64::from(self.height()));
-        for g in glyphs {
+        let (r0, r1) = (self.rows.0 as i64, (self.rows.1 as i64).min(h));
+        for (tx, ty, key) in &placed {
             // The glyph's coverage at its quarter-pixel position, made once and kept.
-            let (gx, gy) = ((x0 + g.x) as f32, y0 as f32);
-            if !(gx.is_finite() && gy.is_finite()) || gx.abs() > 1e7 || gy.abs() > 1e7 {
-                continue;
-            }
-            let (qx, qy) = ((gx * 4.0).round(), (gy * 4.0).round());
-            let (ix, iy) = ((qx / 4.0).floor(), (qy / 4.0).floor());
-            let key = HaloKey {
-                glyph: g.id.0,
-                em: em.to_bits(),
-                r: 0,
-                sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
-            };
-            self.ensure_halo_tile(key);
-            let Some(Some(tile)) = self.halos.get(&key) else {
+            let Some(Some(tile)) = self.halos.get(key) else {
                 continue;
             };
-            let (tx, ty) = (ix as i64 + tile.x0, iy as i64 + tile.y0);
-            let (cx0, cy0) = (tx.max(0), ty.max(0));
-            let (cx1, cy1) = ((tx + tile.w as i64).min(w), (ty + tile.h as i64).min(h));
+            let (tx, ty) = (*tx, *ty);
+            let (cx0, cy0) = (tx.max(0), ty.max(r0));
+            let (cx1, cy1) = ((tx + tile.w as i64).min(w), (ty + tile.h as i64).min(r1));
             if cx0 >= cx1 || cy0 >= cy1 {
                 continue;
             }
@@ -1061,16 +1312,18 @@ impl Canvas for RasterPage {
                 self.dirty
                     .mark_px(cx0 as usize, cy0 as usize, cx1 as usize, cy1 as usize);
             }
-            let data = self.mask.data_mut();
+            let first = self.first as i64;
+            let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             let n = (cx1 - cx0) as usize;
             for y in cy0..cy1 {
                 let src = (y - ty) as usize * tile.w + (cx0 - tx) as usize;
-                let dst = (y * w + cx0) as usize;
+                let dst = ((y - first) * w + cx0) as usize;
                 for (d, &c) in data[dst..dst + n].iter_mut().zip(&tile.cov[src..src + n]) {
                     *d = composite(*d, c, ink);
                 }
             }
         }
+        self.halo_scratch.placed = placed;
     }
 }
 
@@ -1303,6 +1556,35 @@ mod tests {
 #[cfg(test)]
 mod halo_tests {
     use super::*;
+
+    /// A label drawn when the glyph and halo cache is one tile short of full is the
+    /// label drawn on a fresh page: the cache used to be emptied while a label's halo
+    /// was placed, which dropped the halos of the glyphs placed before.
+    #[test]
+    fn a_full_tile_cache_does_not_drop_a_labels_halos() {
+        let (w, h) = (400u32, 80u32);
+        let text = "(−1.875, 2.5) S 35°";
+        let label = |page: &mut RasterPage| {
+            page.fill_rect_px(0.0, 0.0, f64::from(w), f64::from(h));
+            page.text([8.0, 12.0], 9.0, Anchor::Start, text, 1.6);
+            page.to_gray()
+        };
+        let want = label(&mut RasterPage::new(w, h, 300.0).unwrap());
+        let mut page = RasterPage::new(w, h, 300.0).unwrap();
+        for g in 0..MAX_HALO_TILES - 1 {
+            let key = HaloKey {
+                glyph: 60_000,
+                em: g as u32,
+                r: 1,
+                sub: [0, 0],
+            };
+            page.halos.insert(key, None);
+        }
+        assert_eq!(label(&mut page), want);
+        // Emptied between pages.
+        page.clear();
+        assert!(page.halos.is_empty());
+    }
 
     /// A label's halo, made from cached glyph halos at quarter-pixel positions, is the
     /// text's outline stroked in paper at its exact position, but for the quarter-pixel

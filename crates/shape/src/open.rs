@@ -30,6 +30,7 @@ use crate::kin::AtlasCurve;
 use crate::smooth::{default_terms, smooth_resample};
 use crate::target::{Target, Timing};
 use coupler_kinematics::{Circuit, CrankTable, Linkage, Mechanism};
+use rayon::prelude::*;
 
 /// Most points of an untimed query (the target's own points, thinned by index).
 const QUERY_POINTS: usize = 32;
@@ -91,12 +92,15 @@ impl Table {
 
     /// `(Pa, e, dPa/dθ, de/dθ)` at `deg` (derivatives per degree, of the interpolant).
     #[inline]
-    fn with_slope(&self, deg: f64) -> (C64, C64, C64, C64) {
+    fn with_slope(&self, deg: f64) -> Slope {
         let (k, t) = cell(deg, self.cells.len());
         let c = &self.cells[k];
         (c.pa + c.dpa * t, c.e + c.de * t, c.dpa, c.de)
     }
 }
+
+/// `(Pa, e, dPa/dθ, de/dθ)` at one angle ([`Table::with_slope`]).
+type Slope = (C64, C64, C64, C64);
 
 /// The 1° cell of an input angle (any finite value) and the fraction into it: `deg`
 /// modulo the table's `period` (whole degrees: 360 for a four-bar, `360·q` for a geared
@@ -158,6 +162,12 @@ impl Sums {
         theta: impl Iterator<Item = f64>,
         y: &[C64],
     ) -> Sums {
+        Sums::accumulate::<MIRROR>(theta.map(|t| table.at(t)), y)
+    }
+
+    /// The sums over the points' `(Pa, e)` and the target's `y`.
+    #[inline(always)]
+    fn accumulate<const MIRROR: bool>(pe: impl Iterator<Item = (C64, C64)>, y: &[C64]) -> Sums {
         let zero = C64::new(0.0, 0.0);
         let mut s = Sums {
             m: 0.0,
@@ -166,8 +176,7 @@ impl Sums {
             spe: zero,
             r: [[zero; 2]; 2],
         };
-        for (t, &yj) in theta.zip(y) {
-            let (p, e) = table.at(t);
+        for ((p, e), &yj) in pe.zip(y) {
             s.m += 1.0;
             s.sp += p;
             s.se += e;
@@ -181,6 +190,18 @@ impl Sums {
             }
         }
         s
+    }
+
+    /// [`Sums::of`] from the table's values already looked up at the angles
+    /// ([`Table::with_slope`] gives the same `Pa` and `e` as [`Table::at`]): the same sums,
+    /// bit for bit.
+    fn of_looked_up(at: &[Slope], y: &[C64], mirror: bool) -> Sums {
+        let pe = at.iter().map(|&(p, e, _, _)| (p, e));
+        if mirror {
+            Sums::accumulate::<true>(pe, y)
+        } else {
+            Sums::accumulate::<false>(pe, y)
+        }
     }
 
     /// The centred Gram matrix `[[g11, g12], [conj g12, g22]]`.
@@ -226,6 +247,31 @@ impl Sums {
         mm > 0.0 && bound < 1.0 && my.norm_sqr() < (1.0 - bound - 1e-9) * mm
     }
 
+    /// A lower bound of the misfit ([`Sums::misfit_with`]) at **every** coupler point
+    /// `w`, given the Gram matrix `gram` of these sums, for reflection `v`; minus
+    /// infinity when the matrix is too close to singular for the bound to be safe.
+    ///
+    /// With `z = (Pa − P̄) + w·(e − ē)` the misfit at `w` is `1 − |⟨z, y⟩|²/|z|²`, and `z`
+    /// lies in the plane spanned by the centred `Pa` and `e`: the least misfit over every
+    /// `w` is at most `1 −` the squared norm of `y`'s projection on that plane,
+    /// `1 − rᴴ·G⁻¹·r` (`G` the Gram matrix, `r = (R_P, R_e)`); as algebra on the computed
+    /// sums, `|vᴴr|² ≤ (vᴴGv)·(rᴴG⁻¹r)` for `v = (1, w)` (Cauchy–Schwarz in the inner product
+    /// of `G`). Rounding: with `det G ≥ 10⁻⁶·(g11 + g22)²` the condition number of `G` is
+    /// at most about 4·10⁶, so each of the two computed values is within about 10⁻⁹ of
+    /// its exact value on the same sums; the caller adds a margin of [`BOUND_MARGIN`].
+    #[inline]
+    fn least_misfit(&self, (g11, g12, g22): (f64, C64, f64), v: usize) -> f64 {
+        let det = g11 * g22 - g12.norm_sqr();
+        let tr = g11 + g22;
+        if !(g11 > 0.0 && g22 > 0.0 && det >= 1e-6 * tr * tr) {
+            return f64::NEG_INFINITY;
+        }
+        let [r0, r1] = self.r[v];
+        let proj =
+            (g22 * r0.norm_sqr() + g11 * r1.norm_sqr() - 2.0 * (r0.conj() * g12 * r1).re) / det;
+        1.0 - proj
+    }
+
     /// The misfit of [`Sums::at_point_with`] alone, given [`Sums::model_norm`] `mm`.
     #[inline(always)]
     fn misfit_with(&self, mm: f64, v: usize, w: C64) -> f64 {
@@ -236,6 +282,64 @@ impl Sums {
         (1.0 - my.norm_sqr() / mm).max(0.0)
     }
 }
+
+/// A linkage's coupler points as columns, for [`sieve`].
+struct PointColumns {
+    re: Vec<f64>,
+    im: Vec<f64>,
+    /// `|w|²`, as [`C64::norm_sqr`] gives it.
+    norm: Vec<f64>,
+}
+
+impl PointColumns {
+    fn new(points: &[C64]) -> PointColumns {
+        PointColumns {
+            re: points.iter().map(|w| w.re).collect(),
+            im: points.iter().map(|w| w.im).collect(),
+            norm: points.iter().map(|w| w.norm_sqr()).collect(),
+        }
+    }
+}
+
+/// Bit `v` of `open[k]` set unless reflection `v` is not `live` or the misfit at point
+/// `k` is surely above its bound: the test of [`Sums::surely_above`] with `bar[k] =
+/// 1 − bound − 10⁻⁹`, computed with the same operations in the same order (so the same
+/// values, bit for bit: `(w·g12).re` and `conj(w)·r` written out as `num-complex` forms
+/// them), over all points in one branch-free pass the compiler can vectorise.
+#[inline(always)]
+fn sieve(
+    sums: &Sums,
+    (g11, g12, g22): (f64, C64, f64),
+    pts: &PointColumns,
+    bar: &[f64],
+    live: [bool; 2],
+    open: &mut [u8],
+) {
+    let n = open.len();
+    let (re, im, norm, bar) = (&pts.re[..n], &pts.im[..n], &pts.norm[..n], &bar[..n]);
+    let [[a0, b0], [a1, b1]] = sums.r;
+    let (l0, l1) = (u8::from(live[0]), u8::from(live[1]) << 1);
+    for k in 0..n {
+        let (wr, wi) = (re[k], im[k]);
+        let mm = g11 + 2.0 * (wr * g12.re - wi * g12.im) + norm[k] * g22;
+        let t = bar[k] * mm;
+        // `my = r[v][0] + conj(w)·r[v][1]`: `conj(w) = (wr, −wi)`.
+        let m0r = a0.re + (wr * b0.re - -wi * b0.im);
+        let m0i = a0.im + (wr * b0.im + -wi * b0.re);
+        let m1r = a1.re + (wr * b1.re - -wi * b1.im);
+        let m1i = a1.im + (wr * b1.im + -wi * b1.re);
+        let q0 = m0r * m0r + m0i * m0i;
+        let q1 = m1r * m1r + m1i * m1i;
+        let pos = mm > 0.0;
+        let s0 = u8::from(!(pos && q0 < t));
+        let s1 = u8::from(!(pos && q1 < t)) << 1;
+        open[k] = (s0 & l0) | (s1 & l1);
+    }
+}
+
+/// What a hypothesis's [`Sums::least_misfit`] must exceed a point's bound by before the
+/// scan skips the point: far above the rounding of both values (about 10⁻⁹).
+const BOUND_MARGIN: f64 = 1e-7;
 
 /// A stage-1 hypothesis before its angles are laid out.
 #[derive(Clone, Copy, Debug)]
@@ -252,13 +356,44 @@ impl Window {
     /// centres closer than a quarter of the longer span (modulo the `period`), spans
     /// within a ratio of 1.44.
     fn alike(&self, o: &Window, period: f64) -> bool {
-        let centre = |w: &Window| w.start + 0.5 * w.sense * w.span;
-        let d = (centre(self) - centre(o)).rem_euclid(period);
+        // The cheap tests first (the same answer: every test must hold).
+        if self.mirror != o.mirror || self.sense != o.sense {
+            return false;
+        }
         let ratio = self.span.max(o.span) / self.span.min(o.span);
-        self.mirror == o.mirror
-            && self.sense == o.sense
-            && d.min(period - d) < 0.25 * self.span.max(o.span)
-            && ratio < 1.44
+        if ratio.partial_cmp(&1.44) != Some(std::cmp::Ordering::Less) {
+            return false;
+        }
+        let centre = |w: &Window| w.start + 0.5 * w.sense * w.span;
+        let d = rem_period(centre(self) - centre(o), period);
+        d.min(period - d) < 0.25 * self.span.max(o.span)
+    }
+}
+
+/// `x.rem_euclid(period)` without the floating-point remainder's call when `|x|` is below
+/// two periods, as the difference of two windows' centres is: there the remainder is
+/// `x`, `x − period` or `x + period`, each exact (Sterbenz's lemma), and a negative
+/// remainder gets `period` added, as `rem_euclid` adds it.
+#[inline(always)]
+fn rem_period(x: f64, period: f64) -> f64 {
+    if (0.0..period).contains(&x) {
+        x
+    } else if (period..2.0 * period).contains(&x) {
+        x - period
+    } else if x < 0.0 && x > -period {
+        x + period
+    } else if x <= -period && x > -2.0 * period {
+        // The remainder keeps the dividend's sign: `−0` at `x = −period`.
+        let r = x + period;
+        if r < 0.0 {
+            r + period
+        } else if r == 0.0 {
+            -0.0
+        } else {
+            r
+        }
+    } else {
+        x.rem_euclid(period)
     }
 }
 
@@ -281,11 +416,37 @@ fn offer(list: &mut Vec<Window>, h: Window, period: f64) {
         } else {
             return;
         }
+        // Moved up past the worse windows before it: the order a stable sort by misfit
+        // gives (the rest of the list is sorted, and those after it are worse still).
+        lift(list, i);
     } else {
         list.push(h);
+        let last = list.len() - 1;
+        lift(list, last);
     }
-    list.sort_by(|a, b| a.misfit.total_cmp(&b.misfit));
     list.truncate(WINDOWS);
+}
+
+/// Moves `list[i]` to where a stable sort by misfit puts it, the rest of `list` being
+/// sorted and no better than it after `i`: after every window before it that is not
+/// worse ([`f64::total_cmp`]).
+#[inline]
+fn lift(list: &mut [Window], i: usize) {
+    let m = list[i].misfit;
+    let p = list[..i].partition_point(|x| x.misfit.total_cmp(&m) != std::cmp::Ordering::Greater);
+    list[p..=i].rotate_right(1);
+}
+
+/// The buffers of [`OpenQuery::reproject`]'s dynamic programme, kept between calls: the
+/// fitted curve on the grid (real and imaginary parts), the costs of the current and
+/// next point, and the back pointers of every point (`cells` each).
+#[derive(Default)]
+struct Programme {
+    re: Vec<f64>,
+    im: Vec<f64>,
+    cost: Vec<f64>,
+    next: Vec<f64>,
+    back: Vec<u32>,
 }
 
 /// How the query's crank angles are laid out.
@@ -429,6 +590,12 @@ impl OpenQuery {
         let period = table.period;
         // Each point's least misfit [`offer`] still takes (its list's last, once full).
         let mut worst = vec![f64::INFINITY; points.len()];
+        // The greatest of them (infinite until every list is full).
+        let mut most = f64::INFINITY;
+        // `1 − worst − 10⁻⁹`, the factor of [`Sums::surely_above`]'s test.
+        let mut bar = vec![f64::NEG_INFINITY; points.len()];
+        let pts = PointColumns::new(points);
+        let mut open = vec![0u8; points.len()];
         let mut offsets = vec![0.0; self.x.len()];
         for span in self.spans(period) {
             let h = match self.layout {
@@ -451,16 +618,42 @@ impl OpenQuery {
                         self.allow_mirror,
                     );
                     let gram = sums.gram();
+                    // A reflection whose least misfit over every coupler point is above
+                    // every point's bound would be refused by every list: skipped whole.
+                    let mut live = [false; 2];
+                    for &mirror in mirrors {
+                        let v = usize::from(mirror);
+                        // Live unless surely above (a NaN keeps it live).
+                        live[v] = sums
+                            .least_misfit(gram, v)
+                            .partial_cmp(&(most + BOUND_MARGIN))
+                            != Some(std::cmp::Ordering::Greater);
+                    }
+                    if !live[0] && !live[1] {
+                        continue;
+                    }
+                    // Which points each reflection may offer to, all points in one
+                    // branch-free pass: bit `v` of `open[k]` is clear when the misfit
+                    // at point `k` is surely above its bound (the test of
+                    // [`Sums::surely_above`], the same values bit for bit).
+                    sieve(&sums, gram, &pts, &bar, live, &mut open);
+                    let mut offered = false;
                     // Point by point, both reflections (each point's list sees its offers
-                    // in the same order as reflection by reflection).
+                    // in the same order as reflection by reflection). A point left open
+                    // is tested again with its bound of the moment: its first
+                    // reflection's offer may have lowered it.
                     for (k, &w) in points.iter().enumerate() {
+                        if open[k] == 0 {
+                            continue;
+                        }
                         let mm = Sums::model_norm(gram, w);
                         for &mirror in mirrors {
                             let v = usize::from(mirror);
-                            if sums.surely_above(mm, v, w, worst[k]) {
+                            if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[k]) {
                                 continue;
                             }
                             let m = sums.misfit_with(mm, v, w);
+                            offered = true;
                             let list = &mut best[k];
                             offer(
                                 list,
@@ -475,8 +668,12 @@ impl OpenQuery {
                             );
                             if list.len() == WINDOWS {
                                 worst[k] = list[WINDOWS - 1].misfit;
+                                bar[k] = 1.0 - worst[k] - 1e-9;
                             }
                         }
+                    }
+                    if offered {
+                        most = worst.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                     }
                 }
             }
@@ -513,13 +710,17 @@ impl OpenQuery {
         let limit = (hyp.span / 8.0).max(2.0);
         let mut theta = std::mem::take(&mut hyp.theta);
         let mut next = theta.clone();
-        // The sums at `theta` (each step's trial sums become the next step's).
-        let mut s = Sums::of(table, theta.iter().copied(), &self.y, hyp.mirror);
+        // The table at `theta` (each step's trial lookups become the next step's), and
+        // the sums from it: every angle is looked up once.
+        let mut at: Vec<Slope> = theta.iter().map(|&t| table.with_slope(t)).collect();
+        let mut trial_at = at.clone();
+        let mut s = Sums::of_looked_up(&at, &self.y, hyp.mirror);
         for _ in 0..PROJECTIONS {
             let (_, alpha) = s.at_point(v, w);
             let gamma = -alpha * (s.sp + w * s.se) / s.m;
-            for (j, (t, n)) in theta.iter().zip(next.iter_mut()).enumerate() {
-                let (p, e, dp, de) = table.with_slope(*t);
+            for (j, ((t, n), &(p, e, dp, de))) in
+                theta.iter().zip(next.iter_mut()).zip(&at).enumerate()
+            {
                 let c = alpha * (p + w * e) + gamma;
                 let d = alpha * (dp + w * de);
                 let d2 = d.norm_sqr();
@@ -530,7 +731,10 @@ impl OpenQuery {
                     *t
                 };
             }
-            let trial = Sums::of(table, next.iter().copied(), &self.y, hyp.mirror);
+            for (a, &n) in trial_at.iter_mut().zip(&next) {
+                *a = table.with_slope(n);
+            }
+            let trial = Sums::of_looked_up(&trial_at, &self.y, hyp.mirror);
             let misfit = trial.at_point(v, w).0;
             if misfit.partial_cmp(&hyp.misfit) != Some(std::cmp::Ordering::Less) {
                 break;
@@ -538,13 +742,14 @@ impl OpenQuery {
             hyp.misfit = misfit;
             s = trial;
             std::mem::swap(&mut theta, &mut next);
+            std::mem::swap(&mut at, &mut trial_at);
         }
         hyp.theta = theta;
     }
 
     /// Stage 2 for one coupler point `w`: re-estimated angles (untimed) or polished start
     /// and step (timed).
-    fn polish(&self, table: &Table, w: C64, hyp: &Hypothesis) -> Hypothesis {
+    fn polish(&self, table: &Table, w: C64, hyp: &Hypothesis, dp: &mut Programme) -> Hypothesis {
         let v = usize::from(hyp.mirror);
         let mut out = hyp.clone();
         match self.layout {
@@ -552,7 +757,7 @@ impl OpenQuery {
                 let mut s = Sums::of(table, out.theta.iter().copied(), &self.y, hyp.mirror);
                 for _ in 0..REESTIMATIONS {
                     let (_, alpha) = s.at_point(v, w);
-                    let theta = self.reproject(table, &s, v, w, alpha, &out.theta);
+                    let theta = self.reproject(table, &s, v, w, alpha, &out.theta, dp);
                     let trial = Sums::of(table, theta.iter().copied(), &self.y, hyp.mirror);
                     let misfit = trial.at_point(v, w).0;
                     if misfit.partial_cmp(&out.misfit) != Some(std::cmp::Ordering::Less) {
@@ -610,7 +815,8 @@ impl OpenQuery {
     }
 
     /// Moves each point's angle to the nearest point of the fitted curve near it, keeping
-    /// the order.
+    /// the order. `dp` holds the dynamic programme's buffers between calls.
+    #[allow(clippy::too_many_arguments)]
     fn reproject(
         &self,
         table: &Table,
@@ -619,6 +825,7 @@ impl OpenQuery {
         w: C64,
         alpha: C64,
         theta: &[f64],
+        dp: &mut Programme,
     ) -> Vec<f64> {
         let m = s.m;
         // γ = −α·mean(Pa + w·e) (the target is centred).
@@ -640,26 +847,51 @@ impl OpenQuery {
             .min(0.5 * (2.0 * table.period - span));
         let from = theta[0] - sense * ext;
         let cells = (span + 2.0 * ext).ceil() as usize + 1;
-        let grid: Vec<C64> = (0..cells).map(|g| curve(from + sense * g as f64)).collect();
+        let Programme {
+            re,
+            im,
+            cost,
+            next,
+            back,
+        } = dp;
+        re.clear();
+        im.clear();
+        for g in 0..cells {
+            let c = curve(from + sense * g as f64);
+            re.push(c.re);
+            im.push(c.im);
+        }
+        // `|grid[g] − y|²` as `C64::norm_sqr` of the difference gives it.
+        let dist = |g: usize, y: C64| {
+            let (dr, di) = (re[g] - y.re, im[g] - y.im);
+            dr * dr + di * di
+        };
         // cost[g]: the least Σ|y_i − c(θ_i)|² over points 0..=j with θ_j = cell g and the
-        // cells not decreasing; best[j][g]: the cell of point j − 1 on that path.
-        let mut cost: Vec<f64> = grid.iter().map(|c| (c - target(0)).norm_sqr()).collect();
-        let mut back: Vec<Vec<u32>> = Vec::with_capacity(n);
-        back.push(Vec::new());
+        // cells not decreasing; back[j·cells + g]: the cell of point j − 1 on that path.
+        cost.clear();
+        let y0 = target(0);
+        cost.extend((0..cells).map(|g| dist(g, y0)));
+        back.clear();
+        back.resize(n * cells, 0);
         for j in 1..n {
             let yj = target(j);
+            // The distances first (a pass the compiler can vectorise), then the running
+            // least of the previous costs.
+            next.clear();
+            next.extend(re[..cells].iter().zip(&im[..cells]).map(|(&r, &i)| {
+                let (dr, di) = (r - yj.re, i - yj.im);
+                dr * dr + di * di
+            }));
+            let from_cell = &mut back[j * cells..(j + 1) * cells];
             let mut run = (f64::INFINITY, 0u32);
-            let mut from_cell = Vec::with_capacity(cells);
-            let mut next = Vec::with_capacity(cells);
-            for (g, c) in grid.iter().enumerate() {
+            for g in 0..cells {
                 if cost[g] < run.0 {
                     run = (cost[g], g as u32);
                 }
-                from_cell.push(run.1);
-                next.push(run.0 + (c - yj).norm_sqr());
+                from_cell[g] = run.1;
+                next[g] += run.0;
             }
-            back.push(from_cell);
-            cost = next;
+            std::mem::swap(cost, next);
         }
         let mut g = (0..cells)
             .min_by(|&a, &b| cost[a].total_cmp(&cost[b]))
@@ -668,7 +900,7 @@ impl OpenQuery {
         for j in (0..n).rev() {
             cell[j] = g;
             if j > 0 {
-                g = back[j][g] as usize;
+                g = back[j * cells + g] as usize;
             }
         }
         // Each angle refined by a parabola through its neighbouring cells.
@@ -680,11 +912,7 @@ impl OpenQuery {
                     return t;
                 }
                 let yj = target(j);
-                let (l, m, r) = (
-                    (grid[g - 1] - yj).norm_sqr(),
-                    (grid[g] - yj).norm_sqr(),
-                    (grid[g + 1] - yj).norm_sqr(),
-                );
+                let (l, m, r) = (dist(g - 1, yj), dist(g, yj), dist(g + 1, yj));
                 let c = l - 2.0 * m + r;
                 if c > 0.0 {
                     t + sense * (0.5 * (l - r) / c).clamp(-0.5, 0.5)
@@ -869,6 +1097,9 @@ pub(crate) struct OpenCandidate {
 /// candidates wanted).
 const STAGE2: usize = 2048;
 
+/// Curves polished by one task of stage 2.
+const STAGE2_PART: usize = 64;
+
 fn stage2_count(keep: usize) -> usize {
     STAGE2.max(2 * keep)
 }
@@ -967,30 +1198,39 @@ pub(crate) fn open_stage2(
     keep: usize,
 ) -> Vec<OpenCandidate> {
     truncate_stage1(&mut stage1, keep);
-    // Linkage by linkage (one table each).
+    // Linkage by linkage (one table each), in parts on the calling thread's rayon pool:
+    // each curve's polish is its own, and the parts are joined in order, so the result
+    // does not depend on the threads.
     stage1.sort_by_key(|x| (x.group, x.index));
-    let mut out: Vec<OpenCandidate> = Vec::new();
-    let mut table: Option<(usize, Table)> = None;
-    for s in &stage1 {
-        let Some(curve) = curves.get(s.index) else {
-            continue;
-        };
-        if table.as_ref().is_none_or(|t| t.0 != s.group) {
-            let c = &curve.curve;
-            table = Table::new(&c.linkage, c.circuit).map(|t| (s.group, t));
-        }
-        let Some((_, t)) = &table else { continue };
-        let p = query.polish(t, w_of(curve), &s.hyp);
-        out.push(OpenCandidate {
-            curve: *curve,
-            misfit: p.misfit,
-            start: Start {
-                mirrored: p.mirror,
-                theta: query.target_angles(&p),
-                score: p.misfit,
-            },
-        });
-    }
+    let mut out: Vec<OpenCandidate> = stage1
+        .par_chunks(STAGE2_PART)
+        .flat_map_iter(|part| {
+            let mut table: Option<(usize, Table)> = None;
+            let mut dp = Programme::default();
+            let mut out = Vec::with_capacity(part.len());
+            for s in part {
+                let Some(curve) = curves.get(s.index) else {
+                    continue;
+                };
+                if table.as_ref().is_none_or(|t| t.0 != s.group) {
+                    let c = &curve.curve;
+                    table = Table::new(&c.linkage, c.circuit).map(|t| (s.group, t));
+                }
+                let Some((_, t)) = &table else { continue };
+                let p = query.polish(t, w_of(curve), &s.hyp, &mut dp);
+                out.push(OpenCandidate {
+                    curve: *curve,
+                    misfit: p.misfit,
+                    start: Start {
+                        mirrored: p.mirror,
+                        theta: query.target_angles(&p),
+                        score: p.misfit,
+                    },
+                });
+            }
+            out
+        })
+        .collect();
     out.sort_by(|x, y| {
         x.misfit
             .total_cmp(&y.misfit)
@@ -1047,6 +1287,198 @@ mod tests {
             }
         }
         assert!(skipped > 10_000, "the test reaches the skip: {skipped}");
+    }
+
+    /// Random sums as a scan makes them (32 points of a table-like curve, a centred unit
+    /// target), with their Gram matrix.
+    fn random_sums(rng: &mut SplitMix64) -> (Sums, (f64, C64, f64)) {
+        let mut c = || C64::new(rng.normal(), rng.normal());
+        let (a, b, k) = (c(), c() * 0.3, c());
+        let y: Vec<C64> = (0..32).map(|_| c()).collect();
+        let mean = y.iter().sum::<C64>() / 32.0;
+        let norm = y.iter().map(|z| (z - mean).norm_sqr()).sum::<f64>().sqrt();
+        let y: Vec<C64> = y.iter().map(|z| (z - mean) / norm).collect();
+        let pe = (0..32).map(|j| {
+            let t = 0.05 * j as f64 + k.re;
+            let p = C64::new(t.cos(), t.sin());
+            let e = (a + b * C64::new((2.0 * t).cos(), (2.0 * t).sin())).unwrap_or_unit();
+            (p, e)
+        });
+        let s = Sums::accumulate::<true>(pe, &y);
+        let gram = s.gram();
+        (s, gram)
+    }
+
+    trait UnitOr {
+        fn unwrap_or_unit(self) -> C64;
+    }
+
+    impl UnitOr for C64 {
+        fn unwrap_or_unit(self) -> C64 {
+            let n = self.norm();
+            if n > 0.0 {
+                self / n
+            } else {
+                C64::new(1.0, 0.0)
+            }
+        }
+    }
+
+    /// The least misfit of a hypothesis is a lower bound of the misfit at every coupler
+    /// point, margin included, and is reached (up to rounding) at the free optimum: over
+    /// random sums and points, near and far.
+    #[test]
+    fn least_misfit_bounds_every_point() {
+        let mut rng = SplitMix64(23);
+        let mut used = 0;
+        for _ in 0..20_000 {
+            let (s, gram) = random_sums(&mut rng);
+            for v in 0..2 {
+                let lb = s.least_misfit(gram, v);
+                if lb == f64::NEG_INFINITY {
+                    continue;
+                }
+                used += 1;
+                // The optimum w = β/α of the free two-term fit attains it.
+                let (g11, g12, g22) = gram;
+                let det = g11 * g22 - g12.norm_sqr();
+                let [r1, r2] = s.r[v];
+                let alpha = (r1 * g22 - g12 * r2) / det;
+                let beta = (r2 * g11 - g12.conj() * r1) / det;
+                let best = beta / alpha;
+                let at_best = s.misfit_with(Sums::model_norm(gram, best), v, best);
+                assert!((at_best - lb).abs() < 1e-9, "{at_best} {lb}");
+                for scale in [1e-3, 0.1, 1.0, 10.0, 1e3] {
+                    for w in [
+                        best,
+                        best + C64::new(rng.normal(), rng.normal()) * scale,
+                        C64::new(rng.normal(), rng.normal()) * scale,
+                    ] {
+                        let m = s.misfit_with(Sums::model_norm(gram, w), v, w);
+                        assert!(m > lb - super::BOUND_MARGIN, "{m} {lb} {w}");
+                    }
+                }
+            }
+        }
+        assert!(used > 10_000, "the bound is usable: {used}");
+    }
+
+    /// The sieve leaves a point open for a reflection exactly when that reflection is
+    /// live and `surely_above` does not hold, bound by bound.
+    #[test]
+    fn sieve_is_surely_above_point_by_point() {
+        let mut rng = SplitMix64(29);
+        for _ in 0..2_000 {
+            let (s, gram) = random_sums(&mut rng);
+            let pts: Vec<C64> = (0..50)
+                .map(|_| C64::new(rng.normal(), rng.normal()) * 3.0)
+                .collect();
+            let worst: Vec<f64> = pts
+                .iter()
+                .enumerate()
+                .map(|(k, &w)| match k % 5 {
+                    0 => f64::INFINITY,
+                    1 => 1.5,
+                    2 => rng.uniform(),
+                    // A hair around the point's own misfit.
+                    _ => {
+                        let m = s.misfit_with(Sums::model_norm(gram, w), 0, w);
+                        m + (rng.uniform() - 0.5) * 2e-9
+                    }
+                })
+                .collect();
+            let bar: Vec<f64> = worst.iter().map(|w| 1.0 - w - 1e-9).collect();
+            let cols = super::PointColumns::new(&pts);
+            for live in [[true, true], [true, false], [false, true]] {
+                let mut open = vec![0u8; pts.len()];
+                super::sieve(&s, gram, &cols, &bar, live, &mut open);
+                for (k, &w) in pts.iter().enumerate() {
+                    let mm = Sums::model_norm(gram, w);
+                    for (v, &l) in live.iter().enumerate() {
+                        let want = l && !s.surely_above(mm, v, w, worst[k]);
+                        assert_eq!(open[k] & (1 << v) != 0, want, "{k} {v}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// `rem_period` is `rem_euclid`, bit for bit, near and far from the range it shortcuts.
+    #[test]
+    fn rem_period_is_rem_euclid() {
+        let mut rng = SplitMix64(31);
+        for period in [360.0, 720.0, 1080.0] {
+            let mut xs: Vec<f64> = (0..20_000)
+                .map(|_| (rng.uniform() - 0.5) * 6.0 * period)
+                .collect();
+            for k in -3..=3 {
+                let b = k as f64 * period;
+                xs.extend([b, b + 1e-13, b - 1e-13, -0.0, 0.0, b + 0.5, b - 0.5]);
+            }
+            for x in xs {
+                assert_eq!(
+                    super::rem_period(x, period).to_bits(),
+                    x.rem_euclid(period).to_bits(),
+                    "{x} {period}"
+                );
+            }
+        }
+    }
+
+    /// `offer` keeps the windows in the order a stable sort by misfit gives, over random
+    /// offers with many ties.
+    #[test]
+    fn offer_keeps_the_stable_sorted_order() {
+        use super::{WINDOWS, Window, offer};
+        let mut rng = SplitMix64(37);
+        for _ in 0..2_000 {
+            let mut list: Vec<Window> = Vec::new();
+            let mut reference: Vec<Window> = Vec::new();
+            for _ in 0..60 {
+                let h = Window {
+                    misfit: (rng.uniform() * 8.0).floor() / 8.0,
+                    mirror: rng.uniform() < 0.5,
+                    start: (rng.uniform() * 24.0).floor() * 15.0,
+                    span: [30.0, 36.0, 60.0, 180.0][(rng.uniform() * 4.0) as usize],
+                    sense: if rng.uniform() < 0.5 { 1.0 } else { -1.0 },
+                };
+                offer(&mut list, h, 360.0);
+                // The reference: the former form, a stable sort after each change.
+                let r = &mut reference;
+                if !(r.len() == WINDOWS && h.misfit >= r[WINDOWS - 1].misfit) {
+                    let i = r.iter().position(|x| x.alike(&h, 360.0));
+                    let changed = match i {
+                        Some(i) if h.misfit < r[i].misfit => {
+                            r[i] = h;
+                            true
+                        }
+                        Some(_) => false,
+                        None => {
+                            r.push(h);
+                            true
+                        }
+                    };
+                    if changed {
+                        r.sort_by(|a, b| a.misfit.total_cmp(&b.misfit));
+                        r.truncate(WINDOWS);
+                    }
+                }
+                let key = |l: &[Window]| -> Vec<(u64, bool, u64, u64, u64)> {
+                    l.iter()
+                        .map(|w| {
+                            (
+                                w.misfit.to_bits(),
+                                w.mirror,
+                                w.start.to_bits(),
+                                w.span.to_bits(),
+                                w.sense.to_bits(),
+                            )
+                        })
+                        .collect()
+                };
+                assert_eq!(key(&list), key(r));
+            }
+        }
     }
 
     /// The cell of an angle is the one of the floating remainder's whole part, with the
@@ -1179,5 +1611,164 @@ mod lab {
         }
         ranks.sort();
         println!("(coarse rank, first as close) per case: {ranks:?}");
+    }
+}
+
+#[cfg(test)]
+mod stage_times {
+    //! Where an open query's time goes, stage by stage, on an atlas on disk (ignored; run
+    //! with `OPEN_ATLAS=/tmp/hn OPEN_TARGET=cheb.csv cargo test --release -p coupler-shape
+    //! open_stage_times -- --ignored --nocapture`). One thread; each stage's least time
+    //! over the repetitions (`OPEN_REPS`, default 5), so that other work on the machine
+    //! weighs little.
+    use super::*;
+    use crate::fit::{FitOptions, fit_untimed, fit_with};
+    use std::time::Instant;
+
+    fn least(reps: usize, f: &mut dyn FnMut()) -> f64 {
+        (0..reps)
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    #[ignore]
+    fn open_stage_times() {
+        let dir = std::env::var("OPEN_ATLAS").expect("OPEN_ATLAS");
+        let csv = std::env::var("OPEN_TARGET").expect("OPEN_TARGET");
+        let reps: usize = std::env::var("OPEN_REPS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(5);
+        let bytes = std::fs::read(format!("{dir}/shapes.bin")).unwrap();
+        let atlas = crate::decode_sidecar(&bytes).unwrap();
+        let pts: Vec<[f64; 2]> = std::fs::read_to_string(&csv)
+            .unwrap()
+            .lines()
+            .filter_map(|l| {
+                let mut it = l.split(',').map(|s| s.trim().parse::<f64>());
+                Some([it.next()?.ok()?, it.next()?.ok()?])
+            })
+            .collect();
+        let t = Target::new(pts, false, Timing::Untimed).unwrap();
+        // As `match` without `--mirror` (OPEN_MIRROR=1: with it).
+        let mirror = std::env::var("OPEN_MIRROR").is_ok();
+        let keep = 1024;
+        let curves = &atlas.curves;
+        let groups = linkage_groups(curves);
+        let q = OpenQuery::new(&t, mirror).unwrap();
+        let tables: Vec<(Table, Vec<C64>)> = groups
+            .iter()
+            .map(|g| {
+                let c = &curves[g.start].curve;
+                let table = Table::new(&c.linkage, c.circuit).unwrap();
+                (table, g.clone().map(|k| w_of(&curves[k])).collect())
+            })
+            .collect();
+        // OPEN_STAGES=scan,one,stage1,stage2,quick,robust: only those (e.g. to count
+        // instructions of one stage under callgrind).
+        let stages = std::env::var("OPEN_STAGES")
+            .unwrap_or_else(|_| "scan,one,stage1,stage2,quick,robust".into());
+        let on = |name: &str| stages.split(',').any(|s| s == name);
+        let least = |name: &str, reps: usize, f: &mut dyn FnMut()| {
+            if on(name) { least(reps, f) } else { f64::NAN }
+        };
+        let scan = least("scan", reps, &mut || {
+            for (table, pts) in &tables {
+                std::hint::black_box(q.scan(table, pts));
+            }
+        });
+        let one = least("one", reps, &mut || {
+            for (table, pts) in &tables {
+                std::hint::black_box(q.scan(table, &pts[..1]));
+            }
+        });
+        let stage1 = least("stage1", reps, &mut || {
+            std::hint::black_box(open_stage1(&q, curves, &groups, keep));
+        });
+        if !(on("stage2") || on("quick") || on("robust")) {
+            println!(
+                "least of {reps}: scan {scan:.1} ms (one point per linkage {one:.1} ms), stage 1 with projection {stage1:.1} ms"
+            );
+            return;
+        }
+        let s1 = open_stage1(&q, curves, &groups, keep);
+        let stage2 = least("stage2", reps, &mut || {
+            std::hint::black_box(open_stage2(&q, curves, s1.clone(), keep));
+        });
+        let cands = open_stage2(&q, curves, s1.clone(), keep);
+        let p = t.complex_points();
+        let full = FitOptions {
+            allow_mirror: mirror,
+            ..FitOptions::DEFAULT
+        };
+        let quick = FitOptions {
+            max_iterations: 30,
+            ..full
+        };
+        let quick_fits = least("quick", reps.min(3), &mut || {
+            for c in &cands {
+                std::hint::black_box(fit_untimed(&p, &c.curve.curve, &c.start, &quick));
+            }
+        });
+        let robust = least("robust", reps.min(3), &mut || {
+            for c in cands.iter().take(64) {
+                let traced = crate::traced::Traced::new(&c.curve.curve, 720).unwrap();
+                std::hint::black_box(fit_with(&t, &c.curve.curve, &traced, &full));
+            }
+        });
+        println!(
+            "least of {reps}: scan {scan:.1} ms (one point per linkage {one:.1} ms), stage 1 with projection {stage1:.1} ms, stage 2 {stage2:.1} ms, {} quick fits {quick_fits:.1} ms, 64 robust starts {robust:.1} ms",
+            cands.len()
+        );
+    }
+}
+
+#[cfg(test)]
+mod fingerprint {
+    //! The open coarse stage's candidates, hashed bit for bit, on the first retrieval cases
+    //! of an atlas on disk (ignored; a lab check that a faster scan proposes exactly the
+    //! same candidates: `OPEN_ATLAS=/tmp/hn cargo test --release -p coupler-shape
+    //! open_candidates_fingerprint -- --ignored --nocapture`).
+    use super::*;
+    use crate::cases::retrieval_cases;
+    use std::hash::{Hash, Hasher};
+
+    #[test]
+    #[ignore]
+    fn open_candidates_fingerprint() {
+        let dir = std::env::var("OPEN_ATLAS").expect("OPEN_ATLAS");
+        let count: usize = std::env::var("OPEN_CASES")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(12);
+        let bytes = std::fs::read(format!("{dir}/shapes.bin")).unwrap();
+        let atlas = crate::decode_sidecar(&bytes).unwrap();
+        let curves = &atlas.curves;
+        let groups = linkage_groups(curves);
+        let mut all = std::collections::hash_map::DefaultHasher::new();
+        for (i, case) in retrieval_cases(curves, false, 77, count).iter().enumerate() {
+            for mirror in [true, false] {
+                let q = OpenQuery::new(&case.target, mirror).unwrap();
+                let c = open_candidates(&q, curves, &groups, 1024);
+                let mut h = std::collections::hash_map::DefaultHasher::new();
+                for x in &c {
+                    x.curve.id.hash(&mut h);
+                    x.misfit.to_bits().hash(&mut h);
+                    x.start.mirrored.hash(&mut h);
+                    for t in &x.start.theta {
+                        t.to_bits().hash(&mut h);
+                    }
+                }
+                let v = h.finish();
+                v.hash(&mut all);
+                println!("case {i} mirror {mirror}: {} candidates, {v:016x}", c.len());
+            }
+        }
+        println!("all: {:016x}", all.finish());
     }
 }
