@@ -427,11 +427,11 @@ impl RasterPage {
         }
     }
 
-    /// The page as a target of the stroke scan converter, in the current ink: gray
-    /// into the layer (composited first if it holds another gray), paper once the
-    /// layer is composited.
-    fn target(&mut self) -> (&mut Capsules, Target<'_>) {
-        match self.ink {
+    /// Readies the gray layer for drawing in `ink`: a gray other than the layer's
+    /// composites the layer first and becomes its level; paper composites it (paper
+    /// erases what is below, the layer's gray included); black draws on the page as is.
+    fn prepare_ink(&mut self, ink: Ink) {
+        match ink {
             Ink::Gray(level) => {
                 if self.gray.level != level {
                     self.flush_gray();
@@ -441,6 +441,13 @@ impl RasterPage {
             Ink::Paper => self.flush_gray(),
             Ink::Black => {}
         }
+    }
+
+    /// The page as a target of the stroke scan converter, in the current ink: gray
+    /// into the layer (composited first if it holds another gray), paper once the
+    /// layer is composited.
+    fn target(&mut self) -> (&mut Capsules, Target<'_>) {
+        self.prepare_ink(self.ink);
         let (width, height) = (self.width() as usize, self.height() as usize);
         let layer = matches!(self.ink, Ink::Gray(_)).then_some(&mut self.gray);
         (
@@ -502,16 +509,7 @@ impl RasterPage {
     /// tiny-skia's mask fill blends it ([`lerp_white`]), a gray merged into the gray
     /// layer, paper erasing.
     fn apply_cover(&mut self, cover: &Cover, ink: Ink) {
-        match ink {
-            Ink::Gray(level) => {
-                if self.gray.level != level {
-                    self.flush_gray();
-                    self.gray.level = level;
-                }
-            }
-            Ink::Paper => self.flush_gray(),
-            Ink::Black => {}
-        }
+        self.prepare_ink(ink);
         let (sw, stride) = (cover.w, self.width() as usize);
         let h = cover.cov.len() / sw.max(1);
         let j0 = cover.y0.max(self.rows.0);
