@@ -160,6 +160,141 @@ fn libm_sin_cos(x: f64) -> (f64, f64) {
     (sin, cos)
 }
 
+/// How many crank angles [`Pose::finite_points_with`] evaluates at once.
+pub const POINT_LANES: usize = 4;
+
+/// `x < 2⁻²⁶` for `x ≥ 0`: libm's sine kernel returns `x` itself (its high-word test
+/// `ix < 0x3e50_0000`, as a comparison of the value).
+const SIN_TINY: f64 = f64::from_bits(0x3e50_0000_0000_0000);
+/// `x < 2⁻²⁷·√2`: libm's cosine kernel returns 1 (`ix < 0x3e46_a09e`).
+const COS_TINY: f64 = f64::from_bits(0x3e46_a09e_0000_0000);
+
+/// [`sincos_deg`] for `|degrees| < 720` (the caller's test), without branches: every
+/// fold and kernel computed and selected, the same operations in the same order, so the
+/// same bits (a test compares them), and lanes of these run side by side.
+#[inline(always)]
+#[allow(clippy::excessive_precision)] // libm's literals, digit for digit
+fn sincos_deg_select(degrees: f64) -> (f64, f64) {
+    const S1: f64 = -1.666_666_666_666_663_243_48e-1;
+    const S2: f64 = 8.333_333_333_322_489_461_24e-3;
+    const S3: f64 = -1.984_126_982_985_794_931_34e-4;
+    const S4: f64 = 2.755_731_370_707_006_767_89e-6;
+    const S5: f64 = -2.505_076_025_340_686_341_95e-8;
+    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
+    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
+    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
+    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
+    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
+    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
+    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
+    let a = degrees.abs();
+    let r = if a < 360.0 { a } else { a - 360.0 };
+    let sin_sign = if degrees < 0.0 { -1.0 } else { 1.0 };
+    let over_half = r > 180.0;
+    let r = if over_half { 360.0 - r } else { r };
+    let sin_sign = if over_half { -sin_sign } else { sin_sign };
+    let over_quarter = r > 90.0;
+    let r = if over_quarter { 180.0 - r } else { r };
+    let cos_sign = if over_quarter { -1.0 } else { 1.0 };
+    let swap = r > 45.0;
+    let r = if swap { 90.0 - r } else { r };
+    let x = r * (std::f64::consts::PI / 180.0);
+    // `r == 0` gives x = 0, where both kernels take their tiny branch: (0, 1), as
+    // `sincos_deg` has it.
+    let z = x * x;
+    let w = z * z;
+    let sr = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
+    let v = z * x;
+    let sin_k = x + v * (S1 + z * sr);
+    let s = if x < SIN_TINY { x } else { sin_k };
+    let cr = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    let hz = 0.5 * z;
+    let cw = 1.0 - hz;
+    let cos_k = cw + (((1.0 - cw) - hz) + (z * cr - x * 0.0));
+    let c = if x < COS_TINY { 1.0 } else { cos_k };
+    let (s, c) = if swap { (c, s) } else { (s, c) };
+    (sin_sign * s + 0.0, cos_sign * c + 0.0)
+}
+
+impl Pose {
+    /// The coupler point and its velocity (unit crank speed) at [`POINT_LANES`] crank
+    /// angles at once: lane `i` is, bit for bit,
+    /// `Pose::finite_frame_with(linkage, gaps, circuit, &CrankAngle::from_degrees(degrees[i]))
+    /// .map(|f| (f.point(point), f.velocity(point)))`. The lanes run the same operations
+    /// without branches (each test a selection), so the compiler can run them side by
+    /// side; a lane outside `|θ| < 720°` (or NaN) takes the scalar path.
+    #[inline]
+    pub fn finite_points_with(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        point: CouplerPoint,
+        degrees: &[f64; POINT_LANES],
+    ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
+        const L: usize = POINT_LANES;
+        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
+        let sign = circuit.sign();
+        let (u, v) = (point.u, point.v);
+        let mut out = [[0.0f64; 4]; L];
+        let mut ok = [false; L];
+        for i in 0..L {
+            let deg = degrees[i];
+            let (sin, cos) = sincos_deg_select(deg);
+            let (sin_half, cos_half) = sincos_deg_select(0.5 * deg);
+            // PoseCore::solve.
+            let sh2 = sin_half * sin_half;
+            let ch2 = cos_half * cos_half;
+            let (wx, wy) = ((c_len - 1.0) + 2.0 * sh2, -sin);
+            let d2 = (c_len - 1.0) * (c_len - 1.0) + 4.0 * c_len * sh2;
+            let px = gaps.outer + 4.0 * c_len * ch2;
+            let p_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.outer_scale + 4.0 * c_len * ch2);
+            let qx = gaps.inner + 4.0 * c_len * sh2;
+            let q_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.inner_scale + 4.0 * c_len * sh2);
+            let p = if px >= 0.0 { px } else { 0.0 };
+            let q = if qx >= 0.0 { qx } else { 0.0 };
+            let assembles = (px >= 0.0 || px >= p_tol) && (qx >= 0.0 || qx >= q_tol);
+            let area4 = (p * q).sqrt();
+            let inv_d2 = 1.0 / d2;
+            let along = 0.5 * ((a_len - b_len) * (a_len + b_len) + d2) * inv_d2;
+            let across = sign * 0.5 * area4 * inv_d2;
+            let (cx, cy) = (wx * along - wy * across, wy * along + wx * across);
+            let pb_x = cos + cx;
+            let pb_y = sin + cy;
+            let inv_a = 1.0 / a_len;
+            let va_dot = -sin * (pb_x - c_len) + cos * pb_y;
+            let omega = -2.0 * va_dot / (sign * area4);
+            let (e_x, e_y) = (cx * inv_a, cy * inv_a);
+            // finite_frame_with.
+            let cross34 = sign * 0.5 * area4 / (a_len * b_len);
+            let rocker_omega = -(-sin * e_x + cos * e_y) / (b_len * cross34);
+            let finite = pb_x.is_finite()
+                && pb_y.is_finite()
+                && omega.is_finite()
+                && rocker_omega.is_finite();
+            ok[i] = deg.abs() < 720.0 && d2 != 0.0 && assembles && finite;
+            // CouplerFrame::point and ::velocity.
+            out[i] = [
+                cos + u * e_x - v * e_y,
+                sin + u * e_y + v * e_x,
+                -sin + omega * (-u * e_y - v * e_x),
+                cos + omega * (u * e_x - v * e_y),
+            ];
+        }
+        std::array::from_fn(|i| {
+            if ok[i] {
+                let o = out[i];
+                Some((Point2::new(o[0], o[1]), Vector2::new(o[2], o[3])))
+            } else if degrees[i].abs() < 720.0 {
+                None
+            } else {
+                let angle = CrankAngle::from_degrees(degrees[i]);
+                Pose::finite_frame_with(linkage, gaps, circuit, &angle)
+                    .map(|f| (f.point(point), f.velocity(point)))
+            }
+        })
+    }
+}
+
 /// How far (in ulps of the longest side) the triangle inequality may fail by rounding
 /// and still count as a flat triangle (a toggle).
 pub const TOGGLE_ULPS: f64 = 4.0;

@@ -13,6 +13,7 @@
 
 use crate::geom::{C64, abs, fit_similarity, mean};
 use crate::kin::{CouplerCurve, PointAt};
+use coupler_kinematics::POINT_LANES;
 use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve, solve_from};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
@@ -422,7 +423,19 @@ pub(crate) fn fit_untimed(
     let (a, b, _) = fit_similarity(&m0, p)?;
     let eval = |g: &[f64], l: &[f64], ask: Ask| -> Option<Eval> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
-        residuals(p, mir, a, b, |k| curve.at_with(&gaps, l[k]), ask)
+        // The points a lane group at a time (`POINT_LANES` angles side by side): a trial
+        // given up part-way has evaluated at most a group's worth more.
+        let mut group = [None; POINT_LANES];
+        let at = |k: usize| {
+            let lane = k % POINT_LANES;
+            if lane == 0 {
+                let last = l.len() - 1;
+                let degrees = std::array::from_fn(|i| l[(k + i).min(last)]);
+                group = curve.at_lanes_with(&gaps, &degrees);
+            }
+            group[lane]
+        };
+        residuals(p, mir, a, b, at, ask)
     };
     let g0 = vec![a.re, a.im, b.re, b.im];
     let first = residuals(

@@ -6,7 +6,7 @@
 use crate::geom::C64;
 use coupler_kinematics::{
     Circuit, CouplerPoint, CrankAngle, FourBar, GearedFiveBar, GearedGaps, Linkage, Mechanism,
-    Pose, ToggleGaps,
+    POINT_LANES, Pose, ToggleGaps,
 };
 
 /// A curve a search can return: its id (in the atlas) and what traces it.
@@ -119,6 +119,32 @@ impl CouplerCurve {
             m: C64::new(m.x, m.y),
             dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
         })
+    }
+
+    /// [`CouplerCurve::at_with`] at [`POINT_LANES`] angles at once, the same values bit
+    /// for bit; a four-bar's lanes run side by side ([`Pose::finite_points_with`]).
+    pub fn at_lanes_with(
+        &self,
+        gaps: &CurveGaps,
+        degrees: &[f64; POINT_LANES],
+    ) -> [Option<PointAt>; POINT_LANES] {
+        match (&self.linkage, gaps) {
+            (Linkage::FourBar(l), CurveGaps::FourBar(g)) => {
+                let lanes = Pose::finite_points_with(l, g, self.circuit, self.point, degrees);
+                lanes.map(|lane| {
+                    let (m, v) = lane?;
+                    if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite())
+                    {
+                        return None;
+                    }
+                    Some(PointAt {
+                        m: C64::new(m.x, m.y),
+                        dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
+                    })
+                })
+            }
+            _ => degrees.map(|d| self.at_with(gaps, d)),
+        }
     }
 
     /// The curve's continuous parameters, as refinement moves them: a four-bar's
