@@ -414,11 +414,7 @@ pub(crate) fn fit_untimed(
         Some(e)
     }
     // The start's points serve both its similarity and LM's first evaluation.
-    let at0: Vec<PointAt> = start
-        .theta
-        .iter()
-        .map(|&t| curve.at_with(&gaps, t))
-        .collect::<Option<_>>()?;
+    let at0: Vec<PointAt> = curve.points_with(&gaps, &start.theta)?;
     let m0: Vec<C64> = at0.iter().map(|x| tilde(mir, x.m)).collect();
     let (a, b, _) = fit_similarity(&m0, p)?;
     let eval = |g: &[f64], l: &[f64], ask: Ask| -> Option<Eval> {

@@ -147,6 +147,20 @@ impl CouplerCurve {
         }
     }
 
+    /// [`CouplerCurve::at_with`] at each of `degrees`, [`POINT_LANES`] at a time (the same
+    /// values); `None` if any is.
+    pub fn points_with(&self, gaps: &CurveGaps, degrees: &[f64]) -> Option<Vec<PointAt>> {
+        let mut out = Vec::with_capacity(degrees.len());
+        for chunk in degrees.chunks(POINT_LANES) {
+            let lanes = std::array::from_fn(|i| chunk[i.min(chunk.len() - 1)]);
+            let got = self.at_lanes_with(gaps, &lanes);
+            for x in &got[..chunk.len()] {
+                out.push((*x)?);
+            }
+        }
+        Some(out)
+    }
+
     /// The curve's continuous parameters, as refinement moves them: a four-bar's
     /// `[A, B, C, u, v]`; a geared five-bar's `[L1, L3, L4, L5, φ (degrees), u, v]` (its
     /// gear ratio λ is discrete: it sets the period and the curve's family, and is held).
