@@ -614,8 +614,16 @@ fn timed_lm(
             jl: Vec::new(),
         };
         let mut cost = RunningCost::new(ask);
+        // The points a lane group at a time, as in the untimed fit.
+        let mut group = [None; POINT_LANES];
+        let last = o.len().saturating_sub(1);
         for (k, &pk) in p.iter().enumerate() {
-            let at = curve.at_with(&gaps, t0 + s * o[k])?;
+            let lane = k % POINT_LANES;
+            if lane == 0 {
+                let degrees = std::array::from_fn(|i| t0 + s * o[(k + i).min(last)]);
+                group = curve.at_lanes_with(&gaps, &degrees);
+            }
+            let at = group[lane]?;
             let m = tilde(mir, at.m);
             let r = a * m + b - pk;
             if !cost.add(r) {
