@@ -686,6 +686,95 @@ mod tests {
         assert!(s.is_nan() && c.is_nan());
     }
 
+    /// The branch-free sine and cosine of the lanes are [`sincos_deg`]'s, bit for bit, below
+    /// 720° (every fold, the kernels' tiny branches, zeros and multiples of 45°).
+    #[test]
+    fn selected_sincos_is_sincos_deg() {
+        let check = |d: f64| {
+            let (s, c) = sincos_deg(d);
+            let (s2, c2) = sincos_deg_select(d);
+            assert_eq!(
+                (s.to_bits(), c.to_bits()),
+                (s2.to_bits(), c2.to_bits()),
+                "{d:e}"
+            );
+        };
+        for k in -7_200_000i32..7_200_000 {
+            check(k as f64 * 1e-4);
+        }
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for _ in 0..2_000_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let u = (state >> 11) as f64 / (1u64 << 53) as f64;
+            check(1440.0 * u - 720.0);
+            check(u * 1e-5);
+        }
+        for d in [
+            0.0f64,
+            -0.0,
+            5e-324,
+            1e-300,
+            1e-9,
+            45.0,
+            90.0,
+            180.0,
+            359.999_999_999_999_94,
+        ] {
+            for x in [d, -d, d.next_up(), d.next_down(), 360.0 + d, 360.0 - d] {
+                check(x);
+            }
+        }
+        for hi in [0x3e50_0000u64, 0x3e46_a09e] {
+            for lo in [0u64, 1, 0xffff_ffff] {
+                let r = f64::from_bits((hi << 32) | lo) / (std::f64::consts::PI / 180.0);
+                for x in [r, r.next_up(), r.next_down(), 90.0 - r, 180.0 + r] {
+                    check(x);
+                }
+            }
+        }
+    }
+
+    /// Every lane of [`Pose::finite_points_with`] is the scalar path's point and velocity,
+    /// bit for bit, and `None` where it is: both circuits, across toggles and unassembled
+    /// angles (a non-Grashof linkage), beyond 720° and NaN.
+    #[test]
+    fn lanes_are_the_scalar_points() {
+        let point = CouplerPoint::new(1.3, -0.8);
+        let mut lanes = 0;
+        let mut none = 0;
+        for (a, b, c) in [
+            (2.37, 3.1, 3.4),
+            (3.0, 3.0, 3.0),
+            (1.2, 1.5, 1.1),
+            (2.0, 2.5, 3.5),
+        ] {
+            let l = FourBar::new(a, b, c).unwrap();
+            let g = ToggleGaps::of(&l);
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                let mut degs: Vec<f64> = (-3000..3000).map(|k| k as f64 * 0.37).collect();
+                degs.extend([0.0, 180.0, -180.0, 720.0, -720.0, 1e6, f64::NAN, 5e-324]);
+                for chunk in degs.chunks_exact(POINT_LANES) {
+                    let d: [f64; POINT_LANES] = chunk.try_into().unwrap();
+                    let got = Pose::finite_points_with(&l, &g, circuit, point, &d);
+                    for (i, lane) in got.iter().enumerate() {
+                        let angle = CrankAngle::from_degrees(d[i]);
+                        let want = Pose::finite_frame_with(&l, &g, circuit, &angle)
+                            .map(|f| (f.point(point), f.velocity(point)));
+                        let bits = |x: Option<(Point2<f64>, Vector2<f64>)>| {
+                            x.map(|(m, v)| [m.x, m.y, v.x, v.y].map(f64::to_bits))
+                        };
+                        assert_eq!(bits(*lane), bits(want), "{l} {circuit} {}", d[i]);
+                        lanes += 1;
+                        none += usize::from(want.is_none());
+                    }
+                }
+            }
+        }
+        assert!(none > 1000 && lanes - none > 20_000, "{none} of {lanes}");
+    }
+
     /// The fast reduction is `%` to the bit, at the edges and far out.
     #[test]
     fn turn_remainder_is_the_remainder() {

@@ -13,10 +13,10 @@
 
 use crate::geom::{C64, abs, fit_similarity, mean};
 use crate::kin::{CouplerCurve, PointAt};
-use coupler_kinematics::POINT_LANES;
 use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve, solve_from};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
+use coupler_kinematics::POINT_LANES;
 use rayon::prelude::*;
 
 /// How a target's points sit on a curve: what the fit found.

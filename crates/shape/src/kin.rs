@@ -133,8 +133,7 @@ impl CouplerCurve {
                 let lanes = Pose::finite_points_with(l, g, self.circuit, self.point, degrees);
                 lanes.map(|lane| {
                     let (m, v) = lane?;
-                    if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite())
-                    {
+                    if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()) {
                         return None;
                     }
                     Some(PointAt {
