@@ -103,6 +103,41 @@ fn turn_remainder(x: f64) -> f64 {
     }
 }
 
+/// FreeBSD's `__kernel_sin(x, 0, 0)` for `2⁻²⁶ ≤ x ≤ π/4`, given `z = x²` and `w = z²`
+/// (the notice is at [`libm_sin_cos`]): the expressions of `libm`'s `k_sin.rs`, inlined
+/// so that the scalar path and the lanes of [`Pose::finite_points_with`] compute them
+/// alike.
+#[inline(always)]
+#[allow(clippy::excessive_precision)] // libm's literals, digit for digit
+fn kernel_sin(x: f64, z: f64, w: f64) -> f64 {
+    const S1: f64 = -1.666_666_666_666_663_243_48e-1;
+    const S2: f64 = 8.333_333_333_322_489_461_24e-3;
+    const S3: f64 = -1.984_126_982_985_794_931_34e-4;
+    const S4: f64 = 2.755_731_370_707_006_767_89e-6;
+    const S5: f64 = -2.505_076_025_340_686_341_95e-8;
+    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
+    let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
+    let v = z * x;
+    x + v * (S1 + z * r)
+}
+
+/// FreeBSD's `__kernel_cos(x, 0)` for `2⁻²⁷·√2 ≤ x ≤ π/4`, given `z = x²` and `w = z²`
+/// (the notice is at [`libm_sin_cos`]): the expressions of `libm`'s `k_cos.rs`.
+#[inline(always)]
+#[allow(clippy::excessive_precision)] // libm's literals, digit for digit
+fn kernel_cos(x: f64, z: f64, w: f64) -> f64 {
+    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
+    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
+    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
+    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
+    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
+    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
+    let r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    let hz = 0.5 * z;
+    let hw = 1.0 - hz;
+    hw + (((1.0 - hw) - hz) + (z * r - x * 0.0))
+}
+
 /// `(libm::sin(x), libm::cos(x))`, the same bits, for the folded angles of
 /// [`sincos_deg`] (`0 < x ≤ π/4`) with `libm`'s own kernels written out here, so that
 /// they inline and the sine and cosine of a crank angle and of its half (four kernels)
@@ -119,20 +154,7 @@ fn turn_remainder(x: f64) -> f64 {
 /// > modify, and distribute this software is freely granted, provided that this notice
 /// > is preserved.
 #[inline(always)]
-#[allow(clippy::excessive_precision)] // libm's literals, digit for digit
 fn libm_sin_cos(x: f64) -> (f64, f64) {
-    const S1: f64 = -1.666_666_666_666_663_243_48e-1;
-    const S2: f64 = 8.333_333_333_322_489_461_24e-3;
-    const S3: f64 = -1.984_126_982_985_794_931_34e-4;
-    const S4: f64 = 2.755_731_370_707_006_767_89e-6;
-    const S5: f64 = -2.505_076_025_340_686_341_95e-8;
-    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
-    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
-    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
-    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
-    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
-    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
-    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
     // The high word of |x|, as libm tests it.
     let ix = (x.to_bits() >> 32) as u32 & 0x7fff_ffff;
     if !(x > 0.0 && ix <= 0x3fe9_21fb) {
@@ -144,18 +166,13 @@ fn libm_sin_cos(x: f64) -> (f64, f64) {
     let sin = if ix < 0x3e50_0000 {
         x
     } else {
-        let r = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
-        let v = z * x;
-        x + v * (S1 + z * r)
+        kernel_sin(x, z, w)
     };
     // cos: 1 below 2⁻²⁷·√2, else __kernel_cos(x, 0).
     let cos = if ix < 0x3e46_a09e {
         1.0
     } else {
-        let r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
-        let hz = 0.5 * z;
-        let w = 1.0 - hz;
-        w + (((1.0 - w) - hz) + (z * r - x * 0.0))
+        kernel_cos(x, z, w)
     };
     (sin, cos)
 }
@@ -173,20 +190,7 @@ const COS_TINY: f64 = f64::from_bits(0x3e46_a09e_0000_0000);
 /// fold and kernel computed and selected, the same operations in the same order, so the
 /// same bits (a test compares them), and lanes of these run side by side.
 #[inline(always)]
-#[allow(clippy::excessive_precision)] // libm's literals, digit for digit
 fn sincos_deg_select(degrees: f64) -> (f64, f64) {
-    const S1: f64 = -1.666_666_666_666_663_243_48e-1;
-    const S2: f64 = 8.333_333_333_322_489_461_24e-3;
-    const S3: f64 = -1.984_126_982_985_794_931_34e-4;
-    const S4: f64 = 2.755_731_370_707_006_767_89e-6;
-    const S5: f64 = -2.505_076_025_340_686_341_95e-8;
-    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
-    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
-    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
-    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
-    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
-    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
-    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
     let a = degrees.abs();
     let r = if a < 360.0 { a } else { a - 360.0 };
     let sin_sign = if degrees < 0.0 { -1.0 } else { 1.0 };
@@ -203,14 +207,9 @@ fn sincos_deg_select(degrees: f64) -> (f64, f64) {
     // `sincos_deg` has it.
     let z = x * x;
     let w = z * z;
-    let sr = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
-    let v = z * x;
-    let sin_k = x + v * (S1 + z * sr);
+    let sin_k = kernel_sin(x, z, w);
     let s = if x < SIN_TINY { x } else { sin_k };
-    let cr = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
-    let hz = 0.5 * z;
-    let cw = 1.0 - hz;
-    let cos_k = cw + (((1.0 - cw) - hz) + (z * cr - x * 0.0));
+    let cos_k = kernel_cos(x, z, w);
     let c = if x < COS_TINY { 1.0 } else { cos_k };
     let (s, c) = if swap { (c, s) } else { (s, c) };
     (sin_sign * s + 0.0, cos_sign * c + 0.0)
