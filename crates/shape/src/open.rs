@@ -1772,3 +1772,87 @@ mod fingerprint {
         println!("all: {:016x}", all.finish());
     }
 }
+
+#[cfg(test)]
+mod fits_fingerprint {
+    //! The open exact stage's fits, hashed bit for bit (ignored; a lab check that a
+    //! cheaper fit computes exactly the same values: `OPEN_ATLAS=/tmp/hn cargo test
+    //! --release -p coupler-shape open_fits_fingerprint -- --ignored --nocapture`). For the
+    //! first `OPEN_CASES` (default 3) open retrieval cases, both reflections: every
+    //! candidate's quick fit (30 iterations from its scan start), the exact fit's robust
+    //! start (window scan, race, final fits) of the best 64, and the ranked matches.
+    use super::*;
+    use crate::cases::retrieval_cases;
+    use crate::fit::{CurveFit, FitOptions, fit_untimed, fit_with};
+    use crate::matching::{MatchOptions, find_matches};
+    use std::hash::{Hash, Hasher};
+
+    fn hash_fit(f: &Option<CurveFit>, h: &mut impl Hasher) {
+        let Some(f) = f else {
+            0u8.hash(h);
+            return;
+        };
+        f.mirrored.hash(h);
+        for x in f.a.iter().chain(&f.b).chain(&f.theta_deg) {
+            x.to_bits().hash(h);
+        }
+        f.rms.to_bits().hash(h);
+        f.max.to_bits().hash(h);
+    }
+
+    #[test]
+    #[ignore]
+    fn open_fits_fingerprint() {
+        let dir = std::env::var("OPEN_ATLAS").expect("OPEN_ATLAS");
+        let count: usize = std::env::var("OPEN_CASES")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(3);
+        let bytes = std::fs::read(format!("{dir}/shapes.bin")).unwrap();
+        let atlas = crate::decode_sidecar(&bytes).unwrap();
+        let curves = &atlas.curves;
+        let groups = linkage_groups(curves);
+        let mut all = std::collections::hash_map::DefaultHasher::new();
+        for (i, case) in retrieval_cases(curves, false, 77, count).iter().enumerate() {
+            let t = &case.target;
+            let p = t.complex_points();
+            for mirror in [true, false] {
+                let q = OpenQuery::new(t, mirror).unwrap();
+                let c = open_candidates(&q, curves, &groups, 1024);
+                let full = FitOptions {
+                    allow_mirror: mirror,
+                    ..FitOptions::DEFAULT
+                };
+                let quick = FitOptions {
+                    max_iterations: 30,
+                    ..full
+                };
+                let mut hq = std::collections::hash_map::DefaultHasher::new();
+                for x in &c {
+                    hash_fit(&fit_untimed(&p, &x.curve.curve, &x.start, &quick), &mut hq);
+                }
+                let mut hr = std::collections::hash_map::DefaultHasher::new();
+                for x in c.iter().take(64) {
+                    let traced = crate::traced::Traced::new(&x.curve.curve, 720);
+                    let f = traced.and_then(|tr| fit_with(t, &x.curve.curve, &tr, &full));
+                    hash_fit(&f, &mut hr);
+                }
+                let options = MatchOptions {
+                    allow_mirror: mirror,
+                    ..MatchOptions::DEFAULT
+                };
+                let mut hm = std::collections::hash_map::DefaultHasher::new();
+                for m in find_matches(t, curves, &[], &options).unwrap() {
+                    m.id.hash(&mut hm);
+                    hash_fit(&Some(m.fit), &mut hm);
+                }
+                let (a, b, d) = (hq.finish(), hr.finish(), hm.finish());
+                (a, b, d).hash(&mut all);
+                println!(
+                    "case {i} mirror {mirror}: quick {a:016x} robust {b:016x} matches {d:016x}"
+                );
+            }
+        }
+        println!("all: {:016x}", all.finish());
+    }
+}
