@@ -439,8 +439,9 @@ pub(crate) fn fit_untimed(
         let jac = ask.jacobian;
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
-            jg: Vec::with_capacity(if jac { 4 * p.len() } else { 0 }),
+            jg: Vec::new(),
             jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
+            sim: Vec::with_capacity(if jac { p.len() } else { 0 }),
         };
         let mut cost = RunningCost::new(ask);
         for (k, &pk) in p.iter().enumerate() {
@@ -452,12 +453,8 @@ pub(crate) fn fit_untimed(
             }
             e.r.push(r);
             if jac {
-                e.jg.extend_from_slice(&[
-                    m,
-                    C64::new(0.0, 1.0) * m,
-                    C64::new(1.0, 0.0),
-                    C64::new(0.0, 1.0),
-                ]);
+                // The row `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
+                e.sim.push(m);
                 e.jl.push(a * tilde(mir, at.dm_dtheta));
             }
         }
@@ -660,8 +657,7 @@ fn timed_lm(
         let (t0, s) = (g[4], if free_step { g[5] } else { step });
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
-            jg: Vec::new(),
-            jl: Vec::new(),
+            ..Eval::default()
         };
         let mut cost = RunningCost::new(ask);
         // The points a lane group at a time, as in the untimed fit.
