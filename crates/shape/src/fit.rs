@@ -225,18 +225,19 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     let len = traced.length();
     let big = 512;
     let zc = traced.resample_closed(big);
-    let window = |c: f64, f: f64| -> Option<Vec<C64>> {
+    // The window of centre `c` and length `f`, centred and scaled to unit norm ([`unit`]'s
+    // values, bit for bit) into `w`; `false` if it is a single point.
+    let window = |c: f64, f: f64, w: &mut [C64; M]| -> bool {
         let s0 = c - 0.5 * f;
-        let w: Vec<C64> = (0..M)
-            .map(|j| {
-                let s = (s0 + f * j as f64 / (M - 1) as f64).rem_euclid(1.0) * big as f64;
-                let k = (s.floor() as usize).min(big - 1);
-                let u = s - k as f64;
-                let (a, b) = (zc[k], zc[(k + 1) % big]);
-                a + (b - a) * u
-            })
-            .collect();
-        unit(w)
+        for (j, z) in w.iter_mut().enumerate() {
+            let s = frac(s0 + f * j as f64 / (M - 1) as f64) * big as f64;
+            // `s ≥ 0` (or NaN): the cast is `floor`'s.
+            let k = (s as usize).min(big - 1);
+            let u = s - k as f64;
+            let (a, b) = (zc[k], zc[(k + 1) % big]);
+            *z = a + (b - a) * u;
+        }
+        unit_in_place(w)
     };
     let vars = target_variants(&t, allow_mirror, false);
     let score = |w: &[C64], v: &[C64]| -> f64 {
@@ -246,18 +247,30 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
         }
         1.0 - s.norm_sqr()
     };
+    let score_at = |c: f64, f: f64, v: &[C64]| -> Option<f64> {
+        let mut w = [C64::new(0.0, 0.0); M];
+        window(c, f, &mut w).then(|| score(&w, v))
+    };
     // Refined local minima along the centres of each length: (misfit, variant, c, f).
     let mut minima: Vec<(f64, usize, f64, f64)> = Vec::new();
+    // One length's windows (`None`: a single point) and one variant's misfits along them.
+    let mut wins: Vec<Option<[C64; M]>> = Vec::new();
+    let mut m: Vec<f64> = Vec::new();
     let mut f: f64 = 0.02;
     while f <= 1.0 + 1e-9 {
         let count = ((6.0 / f).ceil() as usize).clamp(12, 192);
         let h = 1.0 / count as f64;
-        let wins: Vec<Option<Vec<C64>>> = (0..count).map(|i| window(i as f64 * h, f)).collect();
+        wins.clear();
+        wins.extend((0..count).map(|i| {
+            let mut w = [C64::new(0.0, 0.0); M];
+            window(i as f64 * h, f, &mut w).then_some(w)
+        }));
         for (vi, (_, _, v)) in vars.iter().enumerate() {
-            let m: Vec<f64> = wins
-                .iter()
-                .map(|w| w.as_ref().map_or(f64::INFINITY, |w| score(w, v)))
-                .collect();
+            m.clear();
+            m.extend(
+                wins.iter()
+                    .map(|w| w.as_ref().map_or(f64::INFINITY, |w| score(w, v))),
+            );
             for i in 0..count {
                 let (l, r) = (m[(i + count - 1) % count], m[(i + 1) % count]);
                 if !(m[i] <= l && m[i] < r && m[i].is_finite()) {
@@ -270,7 +283,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
                     0.0
                 };
                 let c = (i as f64 + shift) * h;
-                let refined = window(c, f).map_or(f64::INFINITY, |w| score(&w, v));
+                let refined = score_at(c, f, v).unwrap_or(f64::INFINITY);
                 let (best, c) = if refined < m[i] {
                     (refined, c)
                 } else {
@@ -318,8 +331,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
                 if !(f1 > 0.0 && f1 <= 1.0) {
                     continue;
                 }
-                if let Some(w) = window(c1, f1) {
-                    let m1 = score(&w, v);
+                if let Some(m1) = score_at(c1, f1, v) {
                     if m1 < m {
                         (m, c, f) = (m1, c1, f1);
                         moved = true;
@@ -350,6 +362,44 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     }
     out.sort_by(|a, b| a.score.total_cmp(&b.score));
     out
+}
+
+/// `x.rem_euclid(1.0)` without the floating-point remainder's call for `x` in
+/// `(−1, 2)`, where the open scan's window positions lie: there the remainder is `x`,
+/// `x − 1` (exact, Sterbenz's lemma, as the remainder is) or `x + 1` (the sum
+/// `rem_euclid` itself rounds), so the same bits.
+#[inline(always)]
+fn frac(x: f64) -> f64 {
+    if (0.0..1.0).contains(&x) {
+        x
+    } else if (1.0..2.0).contains(&x) {
+        x - 1.0
+    } else if x > -1.0 && x < 0.0 {
+        x + 1.0
+    } else {
+        x.rem_euclid(1.0)
+    }
+}
+
+/// [`unit`] in place, on a fixed number of points: the same operations in the same order
+/// (the mean summed in order, then the centred norm), so the same bits; `false` (and `w`
+/// left centred) if it is a single point.
+#[inline]
+fn unit_in_place<const N: usize>(w: &mut [C64; N]) -> bool {
+    let m = mean(w);
+    let mut n2 = 0.0;
+    for z in w.iter_mut() {
+        *z -= m;
+        n2 += z.norm_sqr();
+    }
+    if n2 <= 0.0 {
+        return false;
+    }
+    let s = 1.0 / n2.sqrt();
+    for z in w.iter_mut() {
+        *z *= s;
+    }
+    true
 }
 
 /// Ratio between consecutive window lengths of the open scan.
@@ -389,8 +439,9 @@ pub(crate) fn fit_untimed(
         let jac = ask.jacobian;
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
-            jg: Vec::with_capacity(if jac { 4 * p.len() } else { 0 }),
+            jg: Vec::new(),
             jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
+            sim: Vec::with_capacity(if jac { p.len() } else { 0 }),
         };
         let mut cost = RunningCost::new(ask);
         for (k, &pk) in p.iter().enumerate() {
@@ -402,12 +453,8 @@ pub(crate) fn fit_untimed(
             }
             e.r.push(r);
             if jac {
-                e.jg.extend_from_slice(&[
-                    m,
-                    C64::new(0.0, 1.0) * m,
-                    C64::new(1.0, 0.0),
-                    C64::new(0.0, 1.0),
-                ]);
+                // The row `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
+                e.sim.push(m);
                 e.jl.push(a * tilde(mir, at.dm_dtheta));
             }
         }
@@ -610,8 +657,7 @@ fn timed_lm(
         let (t0, s) = (g[4], if free_step { g[5] } else { step });
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
-            jg: Vec::new(),
-            jl: Vec::new(),
+            ..Eval::default()
         };
         let mut cost = RunningCost::new(ask);
         // The points a lane group at a time, as in the untimed fit.
@@ -743,6 +789,33 @@ mod tests {
                 [z.re, z.im]
             })
             .collect()
+    }
+
+    /// `frac` is `rem_euclid(1.0)` bit for bit: edges, neighbours of the edges and random
+    /// values in and around its fast range.
+    #[test]
+    fn frac_is_rem_euclid() {
+        let mut xs = vec![-3.0, -2.0, -1.0, -0.5, -0.0, 0.0, 0.5, 1.0, 1.5, 2.0, 3.0];
+        for &e in &[-2.0f64, -1.0, 0.0, 1.0, 2.0] {
+            let mut lo = e;
+            let mut hi = e;
+            for _ in 0..4 {
+                lo = lo.next_down();
+                hi = hi.next_up();
+                xs.extend([lo, hi]);
+            }
+        }
+        xs.extend([f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e-300, -1e-300]);
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        for _ in 0..2_000_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            xs.push((state >> 11) as f64 / (1u64 << 53) as f64 * 6.0 - 3.0);
+        }
+        for x in xs {
+            assert_eq!(frac(x).to_bits(), x.rem_euclid(1.0).to_bits(), "{x:e}");
+        }
     }
 
     #[test]

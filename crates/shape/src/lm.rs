@@ -10,14 +10,31 @@ use crate::geom::C64;
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
 
 /// Residuals and Jacobian at a parameter vector.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub(crate) struct Eval {
     /// `r_j`, one per point.
     pub r: Vec<C64>,
-    /// `∂r_j/∂g_p` row-major, `n × G` (empty when only the cost was asked for).
+    /// `∂r_j/∂g_p` row-major, `n × G` (empty when only the cost was asked for, or when
+    /// the rows are given by `sim`).
     pub jg: Vec<C64>,
     /// `∂r_j/∂l_j` (empty when there are no locals or only the cost was asked for).
     pub jl: Vec<C64>,
+    /// The rows of a similarity fit `r_j = a·m_j + b − p_j` over `g = (a, b)` (four
+    /// globals), given by their `m_j` instead of in `jg`: row `j` is
+    /// [`similarity_row`]`(m_j)`, the same values (empty when `jg` holds the rows).
+    pub sim: Vec<C64>,
+}
+
+/// The Jacobian row `∂r/∂(Re a, Im a, Re b, Im b)` of a residual `a·m + b − p`:
+/// `[m, i·m, 1, i]`.
+#[inline(always)]
+pub(crate) fn similarity_row(m: C64) -> [C64; 4] {
+    [
+        m,
+        C64::new(0.0, 1.0) * m,
+        C64::new(1.0, 0.0),
+        C64::new(0.0, 1.0),
+    ]
 }
 
 impl Eval {
@@ -194,6 +211,9 @@ where
             grad_l: &mut grad_l,
         };
         match ng {
+            4 if !e.sim.is_empty() => {
+                normal.sum_rows::<4>(e.sim.iter().map(|&m| similarity_row(m)), &e, has_locals)
+            }
             4 => normal.sum_fixed::<4>(&e, has_locals),
             _ => normal.sum(ng, &e, has_locals),
         }
@@ -364,6 +384,21 @@ impl Normal<'_> {
     /// sums held in registers instead of memory, each summed in the same order from the
     /// same zero, so the same bits.
     fn sum_fixed<const G: usize>(self, e: &Eval, has_locals: bool) {
+        let rows =
+            e.jg.chunks_exact(G)
+                .map(|row| <[C64; G]>::try_from(row).expect("rows of G"));
+        self.sum_rows::<G>(rows, e, has_locals);
+    }
+
+    /// [`Normal::sum_fixed`] with the rows given one by one (from `jg`, or made from
+    /// `sim` in registers: the same values, so the same sums).
+    #[inline(always)]
+    fn sum_rows<const G: usize>(
+        self,
+        rows: impl Iterator<Item = [C64; G]>,
+        e: &Eval,
+        has_locals: bool,
+    ) {
         let Normal {
             hgg,
             grad_g,
@@ -373,8 +408,8 @@ impl Normal<'_> {
         } = self;
         let mut m = [[0.0; G]; G];
         let mut gr = [0.0; G];
-        for (j, (row, &rj)) in e.jg.chunks_exact(G).zip(&e.r).enumerate() {
-            let row: &[C64; G] = row.try_into().expect("rows of G");
+        for (j, (row, &rj)) in rows.zip(&e.r).enumerate() {
+            let row = &row;
             for p in 0..G {
                 gr[p] += dot(row[p], rj);
                 for q in p..G {
@@ -559,11 +594,7 @@ mod tests {
             .collect();
         let eval = |g: &[f64], l: &[f64], ask: Ask| {
             let c = C64::new(g[0], g[1]);
-            let mut e = Eval {
-                r: Vec::new(),
-                jg: Vec::new(),
-                jl: Vec::new(),
-            };
+            let mut e = Eval::default();
             for (j, p) in pts.iter().enumerate() {
                 let u = super::super::geom::cis(l[j]);
                 e.r.push(c + u * g[2] - p);
@@ -612,6 +643,65 @@ mod tests {
             .sum();
         assert!(cost < 1e-24, "{res:?}");
         assert!((res.global[2] - r0).abs() < 1e-12);
+    }
+
+    /// The normal equations of a similarity fit summed from `sim` (rows made in registers)
+    /// are those the generic loops sum from the rows `[m, i·m, 1, i]` stored in `jg` (as
+    /// the untimed fit stored them before), bit for bit.
+    #[test]
+    fn similarity_rows_sum_as_stored_rows() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for case in 0..200 {
+            let n = 1 + case % 70;
+            let mut stored = Eval::default();
+            let mut given = Eval::default();
+            for j in 0..n {
+                // Some exact zeros among the values, as in fits that start on the curve.
+                let zero = |x: f64| if (case + j) % 7 == 0 { 0.0 } else { x };
+                let m = C64::new(zero(next()) * 10.0, next() * 10.0);
+                let r = C64::new(next(), zero(next()));
+                let jl = C64::new(next() * 3.0, zero(next()) * 3.0);
+                stored.r.push(r);
+                stored.jl.push(jl);
+                stored.jg.extend_from_slice(&[
+                    m,
+                    C64::new(0.0, 1.0) * m,
+                    C64::new(1.0, 0.0),
+                    C64::new(0.0, 1.0),
+                ]);
+                given.r.push(r);
+                given.jl.push(jl);
+                given.sim.push(m);
+            }
+            let sums = |e: &Eval| {
+                let (mut hgg, mut grad_g) = (vec![0.0; 16], vec![0.0; 4]);
+                let (mut hgl, mut hll, mut grad_l) = (vec![0.0; 4 * n], vec![0.0; n], vec![0.0; n]);
+                let normal = Normal {
+                    hgg: &mut hgg,
+                    grad_g: &mut grad_g,
+                    hgl: &mut hgl,
+                    hll: &mut hll,
+                    grad_l: &mut grad_l,
+                };
+                if e.sim.is_empty() {
+                    normal.sum(4, e, true);
+                } else {
+                    normal.sum_rows::<4>(e.sim.iter().map(|&m| similarity_row(m)), e, true);
+                }
+                [hgg, grad_g, hgl, hll, grad_l]
+                    .iter()
+                    .flatten()
+                    .map(|x| x.to_bits())
+                    .collect::<Vec<u64>>()
+            };
+            assert_eq!(sums(&given), sums(&stored), "case {case}");
+        }
     }
 
     /// The 4 × 4 solve on the stack is the heap one, bit for bit: positive definite
@@ -674,11 +764,7 @@ mod tests {
             let (pts, points, gave_up) = (&pts, &points, &gave_up);
             move |g: &[f64], l: &[f64], ask: Ask| {
                 let c = C64::new(g[0], g[1]);
-                let mut e = Eval {
-                    r: Vec::new(),
-                    jg: Vec::new(),
-                    jl: Vec::new(),
-                };
+                let mut e = Eval::default();
                 let mut cost = RunningCost::new(if bounded {
                     ask
                 } else {

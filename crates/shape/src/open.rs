@@ -309,31 +309,53 @@ impl PointColumns {
 #[inline(always)]
 fn sieve(
     sums: &Sums,
-    (g11, g12, g22): (f64, C64, f64),
+    gram: (f64, C64, f64),
     pts: &PointColumns,
     bar: &[f64],
     live: [bool; 2],
     open: &mut [u8],
 ) {
+    // Only the live reflections' tests are computed (a query without reflection has one).
+    match live {
+        [true, false] => sieve_with::<true, false>(sums, gram, pts, bar, open),
+        [false, true] => sieve_with::<false, true>(sums, gram, pts, bar, open),
+        [true, true] => sieve_with::<true, true>(sums, gram, pts, bar, open),
+        [false, false] => open.fill(0),
+    }
+}
+
+/// [`sieve`] for the live reflections `R0` and `R1`, known at compile time.
+#[inline(always)]
+fn sieve_with<const R0: bool, const R1: bool>(
+    sums: &Sums,
+    (g11, g12, g22): (f64, C64, f64),
+    pts: &PointColumns,
+    bar: &[f64],
+    open: &mut [u8],
+) {
     let n = open.len();
     let (re, im, norm, bar) = (&pts.re[..n], &pts.im[..n], &pts.norm[..n], &bar[..n]);
     let [[a0, b0], [a1, b1]] = sums.r;
-    let (l0, l1) = (u8::from(live[0]), u8::from(live[1]) << 1);
     for k in 0..n {
         let (wr, wi) = (re[k], im[k]);
         let mm = g11 + 2.0 * (wr * g12.re - wi * g12.im) + norm[k] * g22;
         let t = bar[k] * mm;
-        // `my = r[v][0] + conj(w)·r[v][1]`: `conj(w) = (wr, −wi)`.
-        let m0r = a0.re + (wr * b0.re - -wi * b0.im);
-        let m0i = a0.im + (wr * b0.im + -wi * b0.re);
-        let m1r = a1.re + (wr * b1.re - -wi * b1.im);
-        let m1i = a1.im + (wr * b1.im + -wi * b1.re);
-        let q0 = m0r * m0r + m0i * m0i;
-        let q1 = m1r * m1r + m1i * m1i;
         let pos = mm > 0.0;
-        let s0 = u8::from(!(pos && q0 < t));
-        let s1 = u8::from(!(pos && q1 < t)) << 1;
-        open[k] = (s0 & l0) | (s1 & l1);
+        let mut o = 0u8;
+        // `my = r[v][0] + conj(w)·r[v][1]`: `conj(w) = (wr, −wi)`.
+        if R0 {
+            let m0r = a0.re + (wr * b0.re - -wi * b0.im);
+            let m0i = a0.im + (wr * b0.im + -wi * b0.re);
+            let q0 = m0r * m0r + m0i * m0i;
+            o |= u8::from(!(pos && q0 < t));
+        }
+        if R1 {
+            let m1r = a1.re + (wr * b1.re - -wi * b1.im);
+            let m1i = a1.im + (wr * b1.im + -wi * b1.re);
+            let q1 = m1r * m1r + m1i * m1i;
+            o |= u8::from(!(pos && q1 < t)) << 1;
+        }
+        open[k] = o;
     }
 }
 
@@ -871,8 +893,11 @@ impl OpenQuery {
         cost.clear();
         let y0 = target(0);
         cost.extend((0..cells).map(|g| dist(g, y0)));
-        back.clear();
-        back.resize(n * cells, 0);
+        // Every entry read below (rows 1 to n − 1) is written first: the buffer is only
+        // grown, never cleared.
+        if back.len() < n * cells {
+            back.resize(n * cells, 0);
+        }
         for j in 1..n {
             let yj = target(j);
             // The distances first (a pass the compiler can vectorise), then the running
@@ -1767,6 +1792,90 @@ mod fingerprint {
                 let v = h.finish();
                 v.hash(&mut all);
                 println!("case {i} mirror {mirror}: {} candidates, {v:016x}", c.len());
+            }
+        }
+        println!("all: {:016x}", all.finish());
+    }
+}
+
+#[cfg(test)]
+mod fits_fingerprint {
+    //! The open exact stage's fits, hashed bit for bit (ignored; a lab check that a
+    //! cheaper fit computes exactly the same values: `OPEN_ATLAS=/tmp/hn cargo test
+    //! --release -p coupler-shape open_fits_fingerprint -- --ignored --nocapture`). For the
+    //! first `OPEN_CASES` (default 3) open retrieval cases, both reflections: every
+    //! candidate's quick fit (30 iterations from its scan start), the exact fit's robust
+    //! start (window scan, race, final fits) of the best 64, and the ranked matches.
+    use super::*;
+    use crate::cases::retrieval_cases;
+    use crate::fit::{CurveFit, FitOptions, fit_untimed, fit_with};
+    use crate::matching::{MatchOptions, find_matches};
+    use std::hash::{Hash, Hasher};
+
+    fn hash_fit(f: &Option<CurveFit>, h: &mut impl Hasher) {
+        let Some(f) = f else {
+            0u8.hash(h);
+            return;
+        };
+        f.mirrored.hash(h);
+        for x in f.a.iter().chain(&f.b).chain(&f.theta_deg) {
+            x.to_bits().hash(h);
+        }
+        f.rms.to_bits().hash(h);
+        f.max.to_bits().hash(h);
+    }
+
+    #[test]
+    #[ignore]
+    fn open_fits_fingerprint() {
+        let dir = std::env::var("OPEN_ATLAS").expect("OPEN_ATLAS");
+        let count: usize = std::env::var("OPEN_CASES")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(3);
+        let bytes = std::fs::read(format!("{dir}/shapes.bin")).unwrap();
+        let atlas = crate::decode_sidecar(&bytes).unwrap();
+        let curves = &atlas.curves;
+        let groups = linkage_groups(curves);
+        let mut all = std::collections::hash_map::DefaultHasher::new();
+        for (i, case) in retrieval_cases(curves, false, 77, count).iter().enumerate() {
+            let t = &case.target;
+            let p = t.complex_points();
+            for mirror in [true, false] {
+                let q = OpenQuery::new(t, mirror).unwrap();
+                let c = open_candidates(&q, curves, &groups, 1024);
+                let full = FitOptions {
+                    allow_mirror: mirror,
+                    ..FitOptions::DEFAULT
+                };
+                let quick = FitOptions {
+                    max_iterations: 30,
+                    ..full
+                };
+                let mut hq = std::collections::hash_map::DefaultHasher::new();
+                for x in &c {
+                    hash_fit(&fit_untimed(&p, &x.curve.curve, &x.start, &quick), &mut hq);
+                }
+                let mut hr = std::collections::hash_map::DefaultHasher::new();
+                for x in c.iter().take(64) {
+                    let traced = crate::traced::Traced::new(&x.curve.curve, 720);
+                    let f = traced.and_then(|tr| fit_with(t, &x.curve.curve, &tr, &full));
+                    hash_fit(&f, &mut hr);
+                }
+                let options = MatchOptions {
+                    allow_mirror: mirror,
+                    ..MatchOptions::DEFAULT
+                };
+                let mut hm = std::collections::hash_map::DefaultHasher::new();
+                for m in find_matches(t, curves, &[], &options).unwrap() {
+                    m.id.hash(&mut hm);
+                    hash_fit(&Some(m.fit), &mut hm);
+                }
+                let (a, b, d) = (hq.finish(), hr.finish(), hm.finish());
+                (a, b, d).hash(&mut all);
+                println!(
+                    "case {i} mirror {mirror}: quick {a:016x} robust {b:016x} matches {d:016x}"
+                );
             }
         }
         println!("all: {:016x}", all.finish());

@@ -117,8 +117,7 @@ pub fn refine(target: &Target, start: &Match, options: &FitOptions) -> Option<Re
         let (a, b) = (C64::new(g[nd], g[nd + 1]), C64::new(g[nd + 2], g[nd + 3]));
         let mut e = Eval {
             r: Vec::with_capacity(p.len()),
-            jg: Vec::new(),
-            jl: Vec::new(),
+            ..Eval::default()
         };
         for (k, &pk) in p.iter().enumerate() {
             let t = theta_of(g, l, k);
