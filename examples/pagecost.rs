@@ -220,6 +220,35 @@ fn main() {
         cpu.push((thread_cpu_seconds().unwrap_or(0.0) - c0) * 1e3 / n);
         runs.push(ns);
     }
+    if std::env::var_os("PAGE_WIDTHS").is_some() {
+        // Stroke widths over the pages: segments and items per width.
+        let mut by: std::collections::BTreeMap<String, (usize, usize)> = Default::default();
+        for (_, display) in &pages {
+            let mut ink = Ink::Black;
+            for item in &display.items {
+                let (n, w) = match item {
+                    coupler_atlas::layout::Primitive::Ink(k) => {
+                        ink = *k;
+                        continue;
+                    }
+                    coupler_atlas::layout::Primitive::Polyline { points, width } => {
+                        (points.len().saturating_sub(1), *width)
+                    }
+                    coupler_atlas::layout::Primitive::Polylines { lines, width } => (
+                        lines.iter().map(|l| l.len().saturating_sub(1)).sum(),
+                        *width,
+                    ),
+                    _ => continue,
+                };
+                let e = by.entry(format!("{w:5.2} {ink:?}")).or_default();
+                e.0 += n;
+                e.1 += 1;
+            }
+        }
+        for (k, (segs, items)) in by {
+            println!("width {k}: {segs} segments in {items} items");
+        }
+    }
     if let Ok(k) = std::env::var("PAGE_DUMP") {
         let k: u64 = k.parse().expect("PAGE_DUMP");
         for (number, display) in &pages {

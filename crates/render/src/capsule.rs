@@ -21,6 +21,7 @@
 use crate::dirty::Dirty;
 use crate::layer::GrayLayer;
 use coupler_layout::Ink;
+use wide::f32x4;
 
 /// One segment of a stroke, in pixels, with the rows it may reach.
 #[derive(Clone, Copy, Debug)]
@@ -33,6 +34,100 @@ struct Seg {
     l: f32,
     /// First row reached and one past the last.
     rows: (u32, u32),
+    /// How a row's coverage is made ([`Seg::prepare`]): in [`Mode::Lanes`] every pixel
+    /// the segment may reach is measured; in [`Mode::Exact`] the reach is the row's exact
+    /// interval, the pixels within `r − ½` are filled (255) and only the edges are
+    /// measured. The bytes are the same either way; only the work differs.
+    mode: Mode,
+    /// `1 / d.y`, or 0 when the segment is (nearly) along a row (for [`Mode::Lanes`]).
+    rdy: f32,
+}
+
+/// See [`Seg::mode`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Mode {
+    Lanes,
+    /// A wide stroke's segment ([`Mode::Exact`] but for rows already covered whole over
+    /// its reach, which it leaves as they are: 255 is the most coverage).
+    Wide,
+    Exact,
+}
+
+/// Page coordinates below which a pixel's centre is placed to a few ten-thousandths of a
+/// pixel (an f32's ulp is below 1/2000 px there), far within the `½/255` of coverage that
+/// rounding to a level forgives: the ways of [`Seg::mode`] give the same bytes. Beyond
+/// (pages wider than 8192 px), the one way rows were always made.
+const MODEST: f32 = 8192.0;
+
+/// Thin strokes (half width in pixels) are measured in lanes; wider ones fill their
+/// interiors, wider than [`LANES_MAX_R`]` − ½` pixels each side of the segment.
+const LANES_MAX_R: f32 = 3.0;
+
+impl Seg {
+    /// Decides [`Seg::mode`] for half width `r`: a thin stroke's segment ([`LANES_MAX_R`])
+    /// is measured in lanes over a conservative span (the x-range of its part within
+    /// `reach` of the row, widened by `reach` and a pixel each side). The bytes are those
+    /// of the exact interval with its interior filled:
+    ///
+    /// - the pixels beyond the exact interval are at least `reach` from the segment (up to
+    ///   the rounding of the interval, a few ulps of a page coordinate), where
+    ///   [`coverage`] is below a thousandth and rounds to level 0;
+    /// - an interior pixel's centre is within `r − ½` of the segment (up to that rounding),
+    ///   so the pixel lies across the stroke whole: [`coverage`] is `(d + ½) − (d − ½)`,
+    ///   or `1 − δ` with `δ` far below the `½/255` that rounding to level 255 forgives.
+    ///
+    /// Both need the coordinates below [`MODEST`]; beyond, rows are made the exact way.
+    /// Tested against it pixel for pixel: `rows_made_every_way_are_the_same_bytes`.
+    fn prepare(&mut self, r: f32) {
+        let [ax, ay] = self.a;
+        let (bx, by) = (ax + self.d[0], ay + self.d[1]);
+        let modest = ax.abs().max(ay.abs()).max(bx.abs()).max(by.abs()) < MODEST;
+        self.rdy = if self.d[1].abs() > 1e-6 {
+            1.0 / self.d[1]
+        } else {
+            0.0
+        };
+        self.mode = match (modest, r <= LANES_MAX_R) {
+            (true, true) => Mode::Lanes,
+            (true, false) => Mode::Wide,
+            (false, _) => Mode::Exact,
+        };
+    }
+
+    /// Whether the row's pixels within the segment's conservative span ([`Seg::reach_x`],
+    /// a pixel more each side) are all covered whole already (or there are none).
+    #[inline]
+    fn covered(&self, cy: f32, reach: f32, row: &[u8]) -> bool {
+        let Some((lo, hi)) = self.reach_x(cy, reach) else {
+            return true;
+        };
+        let w = row.len() as f32;
+        let x0 = floor(lo - 0.5).clamp(0.0, w) as usize;
+        let x1 = (floor(hi - 0.5) + 2.0).clamp(0.0, w) as usize;
+        let span = &row[x0..x1.max(x0)];
+        let mut words = span.chunks_exact(8);
+        words.all(|c| c == [255; 8]) && words.remainder().iter().all(|&v| v == 255)
+    }
+
+    /// The x-range `[lo, hi]` holding every point of the capsule of half width `reach`
+    /// on the row line `y = cy`, or `None` when the segment stays farther than `reach`
+    /// from the line: the x-range of the segment's part within `reach` of it, widened
+    /// by `reach`.
+    #[inline(always)]
+    fn reach_x(&self, cy: f32, reach: f32) -> Option<(f32, f32)> {
+        let (t0, t1) = if self.rdy != 0.0 {
+            let u0 = (cy - reach - self.a[1]) * self.rdy;
+            let u1 = (cy + reach - self.a[1]) * self.rdy;
+            (u0.min(u1).max(0.0), u0.max(u1).min(1.0))
+        } else {
+            (0.0, 1.0)
+        };
+        if t0 > t1 {
+            return None;
+        }
+        let (xa, xb) = (self.a[0] + t0 * self.d[0], self.a[0] + t1 * self.d[0]);
+        Some((xa.min(xb) - reach, xa.max(xb) + reach))
+    }
 }
 
 /// A page's ink buffer, seen by the scan converter.
@@ -111,6 +206,8 @@ impl Capsules {
             inv: if len2 > 0.0 { 1.0 / len2 } else { 0.0 },
             l: len2.sqrt(),
             rows: (0, 0),
+            mode: Mode::Exact,
+            rdy: 0.0,
         });
     }
 
@@ -136,6 +233,7 @@ impl Capsules {
                 continue; // off the page, or not a number
             }
             s.rows = (lo as u32, hi as u32);
+            s.prepare(r);
             self.order.push(k as u32);
         }
         self.order
@@ -158,7 +256,12 @@ impl Capsules {
             let cy = j as f32 + 0.5;
             for &k in &self.active {
                 let s = &segs[k as usize];
-                if let Some(span) = seg_row(s, cy, r, reach, &mut self.row) {
+                let span = match s.mode {
+                    Mode::Lanes => seg_row_lanes(s, cy, r, reach, &mut self.row),
+                    Mode::Wide if s.covered(cy, reach, &self.row) => None,
+                    Mode::Wide | Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
+                };
+                if let Some(span) = span {
                     self.spans.push(span);
                 }
             }
@@ -297,21 +400,114 @@ fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32,
         i1 = ((floor(b - 0.5) + 1.0).clamp(0.0, w) as usize).clamp(i0, x1);
         row[i0..i1].fill(255);
     }
-    let py = cy - s.a[1];
-    let (dx, dy, inv) = (s.d[0], s.d[1], s.inv);
-    let ax = s.a[0] - 0.5;
-    let mut edge = |from: usize, to: usize| {
-        for (i, px) in row[from..to].iter_mut().enumerate() {
-            let qx = (from + i) as f32 - ax;
-            let t = ((qx * dx + py * dy) * inv).clamp(0.0, 1.0);
+    // Edges of a pixel or two: measured one by one.
+    let edge = Edge::new(s, cy, r);
+    for i in (x0..i0).chain(i1..x1) {
+        row[i] = row[i].max(edge.pixel(i));
+    }
+    Some((x0 as u32, x1 as u32))
+}
+
+/// [`seg_row`] in [`Mode::Lanes`]: every pixel of a conservative span measured, four at
+/// a time; gives the span of the pixels it inked (the others it left as they were).
+#[inline]
+fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32, u32)> {
+    let (lo, hi) = s.reach_x(cy, reach)?;
+    let w = row.len() as f32;
+    // A pixel more on each side than the centres within [lo, hi].
+    let x0 = floor(lo - 0.5).clamp(0.0, w) as usize;
+    let x1 = (floor(hi - 0.5) + 2.0).clamp(0.0, w) as usize;
+    if x0 >= x1 {
+        return None;
+    }
+    Edge::new(s, cy, r).measure(row, x0, x1)
+}
+
+/// Measures a segment's coverage of a row's pixels, four at a time: per lane the f32
+/// operations of [`Edge::pixel`] in its order (IEEE operations, the same bits; `min`,
+/// `max` and `clamp` as `f32`'s, NaN included), so the bytes are the pixel by pixel ones.
+struct Edge {
+    ax: f32,
+    py: f32,
+    dx: f32,
+    dy: f32,
+    inv: f32,
+    r: f32,
+}
+
+/// `x.clamp(0.0, 1.0)` in lanes, NaN kept as `f32::clamp` keeps it.
+#[inline(always)]
+fn clamp01(x: f32x4) -> f32x4 {
+    let c = x.fast_max(f32x4::ZERO).fast_min(f32x4::ONE);
+    x.is_nan().bitselect(x, c)
+}
+
+impl Edge {
+    #[inline(always)]
+    fn new(s: &Seg, cy: f32, r: f32) -> Edge {
+        Edge {
+            ax: s.a[0] - 0.5,
+            py: cy - s.a[1],
+            dx: s.d[0],
+            dy: s.d[1],
+            inv: s.inv,
+            r,
+        }
+    }
+
+    /// Pixel `i`'s coverage (the reference the lanes follow).
+    #[inline(always)]
+    fn pixel(&self, i: usize) -> u8 {
+        let (dx, dy, py) = (self.dx, self.dy, self.py);
+        let qx = i as f32 - self.ax;
+        let t = ((qx * dx + py * dy) * self.inv).clamp(0.0, 1.0);
+        let (ex, ey) = (qx - t * dx, py - t * dy);
+        let d = (ex * ex + ey * ey).sqrt();
+        coverage(d, self.r)
+    }
+
+    /// Pixels `[from, to)` of `row` ← the maximum of theirs and the segment's coverage;
+    /// gives the span of the pixels the segment covers (not 0).
+    #[inline]
+    fn measure(&self, row: &mut [u8], from: usize, to: usize) -> Option<(u32, u32)> {
+        if from >= to {
+            return None;
+        }
+        let (mut first, mut last) = (usize::MAX, 0);
+        let dx = f32x4::splat(self.dx);
+        let dy = f32x4::splat(self.dy);
+        let py = f32x4::splat(self.py);
+        let pdy = f32x4::splat(self.py * self.dy);
+        let inv = f32x4::splat(self.inv);
+        let ax = f32x4::splat(self.ax);
+        let r = f32x4::splat(self.r);
+        let half = f32x4::splat(0.5);
+        let lanes = f32x4::new([0.0, 1.0, 2.0, 3.0]);
+        let mut i = from;
+        while i < to {
+            // i + k < 2^24 (a row's width): exact, as `(i + k) as f32`.
+            let qx = (f32x4::splat(i as f32) + lanes) - ax;
+            let t = clamp01((qx * dx + pdy) * inv);
             let (ex, ey) = (qx - t * dx, py - t * dy);
             let d = (ex * ex + ey * ey).sqrt();
-            *px = (*px).max(coverage(d, r));
+            let c = clamp01((d + half).min(r) - (d - half).max(-r));
+            let level = c * f32x4::splat(255.0) + half;
+            // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
+            let v = level.trunc_int().to_array();
+            let n = (to - i).min(4);
+            for (px, &v) in row[i..i + n].iter_mut().zip(&v) {
+                *px = (*px).max(v as u8);
+            }
+            // The lanes of level 1 or more.
+            let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << n) - 1);
+            if inked != 0 {
+                first = first.min(i + inked.trailing_zeros() as usize);
+                last = i + 32 - inked.leading_zeros() as usize;
+            }
+            i += 4;
         }
-    };
-    edge(x0, i0);
-    edge(i1, x1);
-    Some((x0 as u32, x1 as u32))
+        (first < last).then_some((first as u32, last as u32))
+    }
 }
 
 /// Composites coverage `cov` of `ink` over `dst` and clears `cov`.
@@ -478,6 +674,119 @@ mod tests {
             }
         }
         assert!(worst <= 1, "{worst}");
+    }
+
+    /// The old row coverage, pixel by pixel: the interior always found by its interval
+    /// and filled, every edge pixel measured on its own ([`Edge::pixel`]).
+    fn seg_row_reference(s: &Seg, cy: f32, r: f32, row: &mut [u8]) -> Option<(u32, u32)> {
+        let (a, b) = interval(s, cy, r + 0.5)?;
+        let w = row.len() as f32;
+        let x0 = ceil(a - 0.5).clamp(0.0, w) as usize;
+        let x1 = (floor(b - 0.5) + 1.0).clamp(0.0, w) as usize;
+        if x0 >= x1 {
+            return None;
+        }
+        let (mut i0, mut i1) = (x1, x1);
+        if let Some((a, b)) = interval(s, cy, r - 0.5).filter(|_| r > 0.5) {
+            i0 = (ceil(a - 0.5).clamp(0.0, w) as usize).clamp(x0, x1);
+            i1 = ((floor(b - 0.5) + 1.0).clamp(0.0, w) as usize).clamp(i0, x1);
+            row[i0..i1].fill(255);
+        }
+        let e = Edge::new(s, cy, r);
+        for i in (x0..i0).chain(i1..x1) {
+            row[i] = row[i].max(e.pixel(i));
+        }
+        Some((x0 as u32, x1 as u32))
+    }
+
+    /// A row made either way ([`Mode`]: measured in lanes over a conservative span, or
+    /// with the exact interval, its interior filled, its edges measured in lanes) is byte
+    /// for byte the row filled and measured pixel by pixel as it always was: segments of every slope,
+    /// length and width anywhere on a page 8192 px wide (where an f32 coordinate's ulp is
+    /// 1/2000 px), over blank rows and rows already inked; the span given holds every
+    /// pixel inked.
+    #[test]
+    fn rows_made_every_way_are_the_same_bytes() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let w = 8192;
+        let (mut made, mut covered) = ([0u64; 2], 0);
+        let unders: [Vec<u8>; 2] = [
+            vec![0; w],
+            (0..w).map(|i| ((i * 37) % 7 * 40) as u8).collect(),
+        ];
+        for n in 0..40_000 {
+            let len = [0.0, 0.02, 0.7, 3.0, 9.0, 60.0][n % 6];
+            let a = [
+                -40.0 + (MODEST - 30.0) * rand(),
+                -40.0 + (MODEST - 30.0) * rand(),
+            ];
+            let ang = if n % 7 == 0 {
+                // Along a row or a column, and nearly.
+                [0.0, 0.5, 1e-4, 0.499_97, 3.0e-6][(rand() * 5.0) as usize % 5]
+                    * std::f32::consts::PI
+            } else {
+                rand() * std::f32::consts::TAU
+            };
+            let b = [a[0] + len * ang.cos(), a[1] + len * ang.sin()];
+            let r = [0.2, 0.5, 0.52, 0.8, 1.04, 1.56, 2.6, 3.0, 4.1, 6.7, 12.0]
+                [(rand() * 11.0) as usize % 11];
+            let mut c = Capsules::default();
+            c.push(a, b);
+            let mut s = c.segs[0];
+            s.prepare(r);
+            let prepared = s.mode;
+            for j in 0..4 {
+                let cy = (a[1] + (j as f32 - 1.5) * (r + 1.0)).floor() + 0.5;
+                // A row already covered whole about the segment (by a wider stroke's
+                // neighbours), and partly.
+                let x = (a[0] as i64).clamp(0, w as i64) as usize;
+                let mut whole = unders[1].clone();
+                whole[x.saturating_sub(40)..(x + 40).min(w)].fill(255);
+                let mut part = unders[1].clone();
+                part[x.saturating_sub(40)..(x + 3).min(w)].fill(255);
+                for under in unders.iter().chain([&whole, &part]) {
+                    let mut want = under.clone();
+                    let span = seg_row_reference(&s, cy, r, &mut want);
+                    for mode in [Mode::Exact, Mode::Lanes, Mode::Wide] {
+                        s.mode = mode;
+                        let mut got = under.clone();
+                        let got_span = match mode {
+                            Mode::Lanes => seg_row_lanes(&s, cy, r, r + 0.5, &mut got),
+                            Mode::Wide if s.covered(cy, r + 0.5, &got) => {
+                                covered += 1;
+                                span
+                            }
+                            Mode::Exact | Mode::Wide => seg_row(&s, cy, r, r + 0.5, &mut got),
+                        };
+                        assert!(got == want, "{a:?} {b:?} r {r} row {cy} {mode:?}");
+                        if mode == Mode::Lanes {
+                            let (x0, x1) = got_span.unwrap_or((0, 0));
+                            let inked = (0..w).filter(|&i| got[i] != under[i]);
+                            assert!(inked.clone().all(|i| x0 as usize <= i && i < x1 as usize));
+                            if got_span.is_some() && under[0] == 0 {
+                                assert!(got[x0 as usize] != 0 && got[x1 as usize - 1] != 0);
+                            }
+                        } else {
+                            assert_eq!(got_span, span);
+                        }
+                    }
+                    if span.is_some() {
+                        made[usize::from(prepared == Mode::Wide)] += 1;
+                    }
+                    s.mode = prepared;
+                }
+            }
+        }
+        assert!(
+            made.iter().all(|&m| m > 1000) && covered > 1000,
+            "{made:?} {covered}"
+        );
     }
 
     #[test]

@@ -36,10 +36,10 @@ pub struct RasterPage {
     /// The stroke scan converter's scratch.
     capsules: Capsules,
     /// Glyphs and glyph halos made so far (`None`: a glyph without outline).
-    halos: HashMap<HaloKey, Option<HaloTile>>,
+    halos: HashMap<HaloKey, Option<HaloTile>, KeyHash>,
     halo_scratch: HaloScratch,
     /// Glyph outlines read from the font so far, by glyph id (the font never changes).
-    outlines: HashMap<u16, Option<Outline>>,
+    outlines: HashMap<u16, Option<Outline>, KeyHash>,
     /// Size of the last PNG encoded, to size the next one's buffer.
     last_png: usize,
     /// Rows `[lo, hi)` drawn into: the whole page, but while it is drawn band by band
@@ -110,9 +110,9 @@ impl RasterPage {
             gray: GrayLayer::new(width_px as usize, height_px as usize),
             dirty: Dirty::new(width_px as usize, height_px as usize),
             capsules: Capsules::default(),
-            halos: HashMap::new(),
+            halos: HashMap::default(),
             halo_scratch: HaloScratch::default(),
-            outlines: HashMap::new(),
+            outlines: HashMap::default(),
             last_png: 0,
             rows: (0, height_px as usize),
             bands: band::Bands::default(),
@@ -1020,6 +1020,55 @@ impl RasterPage {
 /// Glyphs and glyph halos kept from page to page at most (a few kilobytes each); the
 /// cache is emptied between pages when full.
 const MAX_HALO_TILES: usize = 4096;
+
+/// The glyph and halo caches' hasher: a multiply-rotate of the key's few integers (the
+/// standard SipHash was 1.4 % of a page's CPU, looking tiles up glyph after glyph). The
+/// keys are the program's own, not an adversary's; only lookups use it (no order).
+#[derive(Clone, Copy, Default)]
+struct KeyHash;
+
+impl std::hash::BuildHasher for KeyHash {
+    type Hasher = KeyHasher;
+    fn build_hasher(&self) -> KeyHasher {
+        KeyHasher(0)
+    }
+}
+
+struct KeyHasher(u64);
+
+impl std::hash::Hasher for KeyHasher {
+    #[inline]
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(u64::from(b));
+        }
+    }
+    #[inline]
+    fn write_u8(&mut self, v: u8) {
+        self.write_u64(u64::from(v));
+    }
+    #[inline]
+    fn write_u16(&mut self, v: u16) {
+        self.write_u64(u64::from(v));
+    }
+    #[inline]
+    fn write_u32(&mut self, v: u32) {
+        self.write_u64(u64::from(v));
+    }
+    #[inline]
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    #[inline]
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+    #[inline]
+    fn finish(&self) -> u64 {
+        // The high bits are the mixed ones; the table indexes with the low bits.
+        self.0.rotate_left(26)
+    }
+}
 
 /// A glyph's halo: its glyph id, em size and halo half width in pixels (bits of the
 /// f32s), and the glyph origin's quarter-pixel offset from a whole pixel.
