@@ -51,7 +51,11 @@ pub fn crunodes<M: Mechanism>(
     if n < 4 || (0..n).any(|k| !c.is_valid(k)) {
         return Vec::new();
     }
-    let pt = |k: usize| [c.x[k % n], c.y[k % n]];
+    // `k ≤ n` (a segment's end): wrapped without a division.
+    let pt = |k: usize| {
+        let k = if k < n { k } else { k - n };
+        [c.x[k], c.y[k]]
+    };
     // The segments' bounding boxes, one array per side (so that a segment's test against
     // all later ones is vectorised).
     let side = |f: fn(f64, f64) -> f64, axis: usize| -> Vec<f64> {
