@@ -109,6 +109,10 @@ impl Candidates {
                         used: &mut Vec<bool>,
                         count: &mut Vec<u32>,
                         bound: f64| {
+            if pending.is_empty() {
+                // (Most lengths: nothing to choose.)
+                return;
+            }
             // Windows travelling more than `bound` cannot be beaten or tied by a window
             // still to be tested: choose among them, longest first.
             pending.sort_by(|a, b| {

@@ -210,6 +210,18 @@ fn grow(st: &mut Lanes, l: usize, far: f64, tol: f64, at: Inputs, pass: &mut [u6
     any
 }
 
+/// The first `len` entries of `v` repeated (none if `v` is empty): what `cycle().take(len)`
+/// gives, copied a turn at a time (the iterator's per-entry branch cost more than the
+/// filter's setup does otherwise).
+fn cycled(v: &[f64], len: usize) -> Vec<f64> {
+    let mut out = Vec::with_capacity(len);
+    while out.len() < len && !v.is_empty() {
+        let k = (len - out.len()).min(v.len());
+        out.extend_from_slice(&v[..k]);
+    }
+    out
+}
+
 /// A condition as a lane mask: all ones if it holds, else zero.
 #[inline(always)]
 fn mask(c: bool) -> u64 {
@@ -389,8 +401,7 @@ impl Track<'_> {
         // Twice round plus a block, so that every lane reads in bounds; what a lane reads
         // past its last window is masked.
         let len = 2 * n + BLOCK;
-        let wrap = |v: &[f64]| -> Vec<f64> { v.iter().copied().cycle().take(len).collect() };
-        let (x2, y2) = (wrap(self.x), wrap(self.y));
+        let (x2, y2) = (cycled(self.x, len), cycled(self.y, len));
         let finite: Vec<u64> = x2
             .iter()
             .zip(&y2)
@@ -402,14 +413,14 @@ impl Track<'_> {
         // a step of zero length moves along no line and is ignored).
         let velocity = self.velocity.is_some();
         let angle = |a: &Option<f64>| a.unwrap_or(f64::NAN);
+        let angles: Vec<f64> = angles.iter().map(angle).collect();
         let dir: Vec<f64> = if velocity {
-            angles.iter().map(angle).cycle().take(len).collect()
+            cycled(&angles, len)
         } else {
-            let last = angles.last().map_or(f64::NAN, angle);
-            std::iter::once(last)
-                .chain(angles.iter().map(angle).cycle())
-                .take(len)
-                .collect()
+            let mut dir = Vec::with_capacity(len);
+            dir.push(angles.last().copied().unwrap_or(f64::NAN));
+            dir.extend_from_slice(&cycled(&angles, len - 1));
+            dir
         };
         // The half-plane's reference of a start: its velocity's direction, or the first
         // step direction there is from it on (the first direction the one-start loop adds).
