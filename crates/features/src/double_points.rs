@@ -51,18 +51,28 @@ pub fn crunodes<M: Mechanism>(
     if n < 4 || (0..n).any(|k| !c.is_valid(k)) {
         return Vec::new();
     }
-    let pt = |k: usize| [c.x[k % n], c.y[k % n]];
+    // `k ≤ n` (a segment's end): wrapped without a division.
+    let pt = |k: usize| {
+        let k = if k < n { k } else { k - n };
+        [c.x[k], c.y[k]]
+    };
     // The segments' bounding boxes, one array per side (so that a segment's test against
     // all later ones is vectorised).
-    let side = |f: fn(f64, f64) -> f64, axis: usize| -> Vec<f64> {
-        (0..n).map(|k| f(pt(k)[axis], pt(k + 1)[axis])).collect()
-    };
-    let (x0, y0, x1, y1) = (
-        side(f64::min, 0),
-        side(f64::min, 1),
-        side(f64::max, 0),
-        side(f64::max, 1),
+    // (One loop with `min` and `max` inlined: through a function pointer, one call per
+    // side and segment, they cost more than the boxes' test.)
+    let (mut x0, mut y0, mut x1, mut y1) = (
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
+        Vec::with_capacity(n),
     );
+    for k in 0..n {
+        let (p, q) = (pt(k), pt(k + 1));
+        x0.push(p[0].min(q[0]));
+        y0.push(p[1].min(q[1]));
+        x1.push(p[0].max(q[0]));
+        y1.push(p[1].max(q[1]));
+    }
     let mut meets = vec![false; n];
     let size = (c.x.iter().cloned().fold(f64::MIN, f64::max)
         - c.x.iter().cloned().fold(f64::MAX, f64::min))

@@ -109,6 +109,10 @@ impl Candidates {
                         used: &mut Vec<bool>,
                         count: &mut Vec<u32>,
                         bound: f64| {
+            if pending.is_empty() {
+                // (Most lengths: nothing to choose.)
+                return;
+            }
             // Windows travelling more than `bound` cannot be beaten or tied by a window
             // still to be tested: choose among them, longest first.
             pending.sort_by(|a, b| {
@@ -126,11 +130,15 @@ impl Candidates {
                     end: j,
                     error,
                 });
+                // (`i < edges` and `j < 2·edges`: no modulo, whose division was most of
+                // this loop's time.)
                 for k in i..j {
-                    used[k % edges] = true;
+                    used[if k < edges { k } else { k - edges }] = true;
                 }
-                for k in 0..2 * edges {
-                    count[k + 1] = count[k] + used[k % edges] as u32;
+                let mut run = 0;
+                for (c, &u) in count[1..].iter_mut().zip(used.iter().chain(used.iter())) {
+                    run += u32::from(u);
+                    *c = run;
                 }
             }
             pending.drain(..ready);

@@ -160,46 +160,14 @@ struct Inputs<'a> {
 /// Grows the windows of the [`BLOCK`] starts by one sample (to `l` steps): a lane whose
 /// window fails the half-plane test or the far bound, meets a sample that is not finite or
 /// passes its start's last window stops growing. `pass` gets the growing lanes whose
-/// window passes the near bound. Returns whether any lane still grows.
-fn grow(st: &mut Lanes, l: usize, far: f64, tol: f64, at: Inputs, pass: &mut [u64; BLOCK]) -> u64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: `grow_avx2` needs AVX2, which the processor was just found to have; it
-        // has no other requirement (it is the safe `grow_body` compiled for AVX2).
-        #[allow(unsafe_code)]
-        return unsafe { grow_avx2(st, l, far, tol, at, pass) };
-    }
-    grow_body(st, l, far, tol, at, pass)
-}
-
-/// [`grow_body`] compiled for AVX2 (called only where the processor has it).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn grow_avx2(
-    st: &mut Lanes,
-    l: usize,
-    far: f64,
-    tol: f64,
-    at: Inputs,
-    pass: &mut [u64; BLOCK],
-) -> u64 {
-    grow_body(st, l, far, tol, at, pass)
-}
-
-/// [`grow`] itself, branch-free per lane: the same operations, in the same order, as
+/// window passes the near bound. Returns whether any lane still grows. Branch-free per
+/// lane: the same operations, in the same order, as
 /// `Sliding::add`, `Sliding::spread_exceeds` and `HalfPlane::add` (with
 /// `wrap_pi` as two selects; a NaN direction leaves the bounds as
 /// they are, as an ignored step does).
 #[inline(always)]
 #[allow(clippy::needless_range_loop)] // one lane index into a dozen arrays
-fn grow_body(
-    st: &mut Lanes,
-    l: usize,
-    far: f64,
-    tol: f64,
-    at: Inputs,
-    pass: &mut [u64; BLOCK],
-) -> u64 {
+fn grow(st: &mut Lanes, l: usize, far: f64, tol: f64, at: Inputs, pass: &mut [u64; BLOCK]) -> u64 {
     use std::f64::consts::{PI, TAU};
     let m = (l + 1) as f64;
     let lf = l as f64;
@@ -240,6 +208,18 @@ fn grow_body(
         any |= alive;
     }
     any
+}
+
+/// The first `len` entries of `v` repeated (none if `v` is empty): what `cycle().take(len)`
+/// gives, copied a turn at a time (the iterator's per-entry branch cost more than the
+/// filter's setup does otherwise).
+fn cycled(v: &[f64], len: usize) -> Vec<f64> {
+    let mut out = Vec::with_capacity(len);
+    while out.len() < len && !v.is_empty() {
+        let k = (len - out.len()).min(v.len());
+        out.extend_from_slice(&v[..k]);
+    }
+    out
 }
 
 /// A condition as a lane mask: all ones if it holds, else zero.
@@ -356,8 +336,58 @@ impl Track<'_> {
     /// lane keeping whether its start is still growing as a lane mask, until none is.
     /// Every lane does the same IEEE-754 operations in the same order as the one-start
     /// loop it replaces, so the same windows pass.
+    ///
+    /// **Four lanes where the processor has them.** On x86-64 with AVX2 (checked at run
+    /// time, once per track) the whole filter is compiled for AVX2 and run instead, the
+    /// lanes' step ([`grow`]) inlined into its loop; the same operations in the same
+    /// order, so the same windows pass.
     #[allow(clippy::too_many_arguments)]
     fn filter(
+        &self,
+        angles: &[Option<f64>],
+        chord: &[f64],
+        far: f64,
+        tol: f64,
+        travel: &impl Fn(usize, usize) -> f64,
+        min_travel: f64,
+        cand: &mut Candidates,
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `filter_avx2` needs AVX2, which the processor was just found to
+            // have; it has no other requirement (it is the safe `filter_body` compiled
+            // for AVX2).
+            #[allow(unsafe_code)]
+            unsafe {
+                self.filter_avx2(angles, chord, far, tol, travel, min_travel, cand)
+            };
+            return;
+        }
+        self.filter_body(angles, chord, far, tol, travel, min_travel, cand)
+    }
+
+    /// [`Track::filter_body`] compiled for AVX2 (called only where the processor has it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[allow(clippy::too_many_arguments)]
+    fn filter_avx2(
+        &self,
+        angles: &[Option<f64>],
+        chord: &[f64],
+        far: f64,
+        tol: f64,
+        travel: &impl Fn(usize, usize) -> f64,
+        min_travel: f64,
+        cand: &mut Candidates,
+    ) {
+        self.filter_body(angles, chord, far, tol, travel, min_travel, cand)
+    }
+
+    /// The filter itself ([`Track::filter`]); inlined into each of its two callers so that
+    /// each is compiled for its own instruction set.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn filter_body(
         &self,
         angles: &[Option<f64>],
         chord: &[f64],
@@ -371,8 +401,7 @@ impl Track<'_> {
         // Twice round plus a block, so that every lane reads in bounds; what a lane reads
         // past its last window is masked.
         let len = 2 * n + BLOCK;
-        let wrap = |v: &[f64]| -> Vec<f64> { v.iter().copied().cycle().take(len).collect() };
-        let (x2, y2) = (wrap(self.x), wrap(self.y));
+        let (x2, y2) = (cycled(self.x, len), cycled(self.y, len));
         let finite: Vec<u64> = x2
             .iter()
             .zip(&y2)
@@ -384,14 +413,14 @@ impl Track<'_> {
         // a step of zero length moves along no line and is ignored).
         let velocity = self.velocity.is_some();
         let angle = |a: &Option<f64>| a.unwrap_or(f64::NAN);
+        let angles: Vec<f64> = angles.iter().map(angle).collect();
         let dir: Vec<f64> = if velocity {
-            angles.iter().map(angle).cycle().take(len).collect()
+            cycled(&angles, len)
         } else {
-            let last = angles.last().map_or(f64::NAN, angle);
-            std::iter::once(last)
-                .chain(angles.iter().map(angle).cycle())
-                .take(len)
-                .collect()
+            let mut dir = Vec::with_capacity(len);
+            dir.push(angles.last().copied().unwrap_or(f64::NAN));
+            dir.extend_from_slice(&cycled(&angles, len - 1));
+            dir
         };
         // The half-plane's reference of a start: its velocity's direction, or the first
         // step direction there is from it on (the first direction the one-start loop adds).

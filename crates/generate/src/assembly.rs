@@ -239,6 +239,11 @@ pub(crate) struct Assembled {
 }
 
 impl Assembled {
+    /// The files' entries (names, sizes and hashes), as [`Assembled::commit`] returns them.
+    pub(crate) fn entries(&self) -> Vec<FileEntry> {
+        self.files.iter().map(|(_, e)| e.clone()).collect()
+    }
+
     /// Renames the files into place (durably: one fsync of the folder for all three)
     /// and returns their entries.
     pub(crate) fn commit(self, out: &std::path::Path) -> Result<Vec<FileEntry>, GenerateError> {

@@ -210,6 +210,11 @@ pub(crate) fn sync_files<'a>(
 ) -> Result<(), GenerateError> {
     use rayon::prelude::*;
     let names: Vec<&str> = names.into_iter().collect();
+    if names.is_empty() {
+        // (Nothing to sync: an index-only chunk. Returning here also keeps such a run
+        // from starting rayon's global pool, two more threads, for an empty job.)
+        return Ok(());
+    }
     names.par_iter().try_for_each(|n| {
         let path = dir.join(n);
         std::fs::File::open(&path)
@@ -238,20 +243,40 @@ pub(crate) fn sync_files<'a>(
 pub(crate) fn write_manifest(
     dir: &Path,
     key: &str,
-    mut files: Vec<FileEntry>,
+    files: Vec<FileEntry>,
 ) -> Result<(), GenerateError> {
+    let path = dir.join("manifest.json");
+    manifest_file(dir, key, files)?
+        .commit(true)
+        .map_err(io_err(&path))
+}
+
+/// [`write_manifest`]'s file, written and made durable under its temporary name, not yet
+/// in place: [`Temporary::commit`] (durable) puts it there. So it can be written while
+/// the files it lists are being put in place, and renamed after them.
+pub(crate) fn manifest_file(
+    dir: &Path,
+    key: &str,
+    mut files: Vec<FileEntry>,
+) -> Result<Temporary, GenerateError> {
     files.sort_by(|a, b| a.name.cmp(&b.name));
-    write_atomically(&dir.join("manifest.json"), |w| {
-        write!(
-            w,
-            "{{\"schema_version\":1,\"run_key\":\"{key}\",\"files\":["
-        )?;
+    let path = dir.join("manifest.json");
+    let mut t = Temporary::create(&path).map_err(io_err(&path))?;
+    let w = t.buffer();
+    write!(
+        w,
+        "{{\"schema_version\":1,\"run_key\":\"{key}\",\"files\":["
+    )
+    .and_then(|()| {
         for (i, f) in files.iter().enumerate() {
             w.write_all(if i == 0 { b"\n" } else { b",\n" })?;
             serde_json::to_writer(&mut *w, f)?;
         }
         w.write_all(b"\n]}\n")
     })
+    .and_then(|()| t.close(true))
+    .map_err(io_err(&path))?;
+    Ok(t)
 }
 
 /// The manifest as read back.

@@ -11,8 +11,8 @@ use crate::assembly::{Assembly, ChunkParts};
 use crate::chunk::{self, CHUNK_GROUPS, ChunkProblem, chunk_path, read_chunk};
 use crate::error::io_err;
 use crate::files::{
-    PAGES_DIR, check_out_dir, check_subfolders, hash_reader, open_regular, read_manifest,
-    remove_stale_temporaries, sync_files, write_artifact, write_file, write_manifest,
+    PAGES_DIR, check_out_dir, check_subfolders, hash_reader, manifest_file, open_regular,
+    read_manifest, remove_stale_temporaries, sync_files, write_artifact, write_file,
 };
 use crate::lock::FolderLock;
 use crate::plan::{Limits, Plan};
@@ -523,15 +523,26 @@ pub fn run(
             for f in pending {
                 match f {
                     Finished::Computed(c) => {
-                        write_chunk(&job.out, record_key, &c)?;
-                        if let Some(a) = assembly.as_mut() {
-                            a.push(ChunkParts {
-                                lines: &c.lines,
-                                curves: &c.records,
-                                shapes: &c.shapes,
-                            })?;
-                            a.sync_written()?;
-                        }
+                        // The record (written and made durable) and the assembly's part
+                        // side by side: neither needs the other, and after the last chunk
+                        // both are on the run's critical path.
+                        std::thread::scope(|s| -> Result<(), GenerateError> {
+                            let record = s.spawn(|| write_chunk(&job.out, record_key, &c));
+                            let assembled = match assembly.as_mut() {
+                                Some(a) => a
+                                    .push(ChunkParts {
+                                        lines: &c.lines,
+                                        curves: &c.records,
+                                        shapes: &c.shapes,
+                                    })
+                                    .and_then(|()| a.sync_written()),
+                                None => Ok(()),
+                            };
+                            let recorded = record
+                                .join()
+                                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                            recorded.and(assembled)
+                        })?;
                     }
                     Finished::Reused(c, units) => {
                         if let Some(a) = assembly.as_mut() {
@@ -744,8 +755,18 @@ fn assemble(
             }
         }
     }
-    let assembled = assembly.finish()?;
-    ledger.add(ROOT_FILES)?;
+    // The index's, columns' and sidecar's closing fsyncs and the ledger's record of the
+    // root files side by side: both must be durable before anything is put in place.
+    let (assembled, recorded) = std::thread::scope(|s| {
+        let record = s.spawn(|| ledger.add(ROOT_FILES));
+        let assembled = assembly.finish();
+        let recorded = record
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (assembled, recorded)
+    });
+    let assembled = assembled?;
+    recorded?;
     let (atlas_files, failed) = write_rendered(&job.out, renderer.render_atlas(job), ledger);
     if !failed.is_empty() {
         return Err(GenerateError::PagesFailed {
@@ -755,8 +776,20 @@ fn assemble(
     }
     sync_files(&job.out, atlas_files.iter().map(|f| f.name.as_str()))?;
     files.extend(atlas_files);
-    files.extend(assembled.commit(&job.out)?);
-    write_manifest(&job.out, key, files.clone())?;
+    files.extend(assembled.entries());
+    // The manifest is written and made durable (under its temporary name) while the
+    // files it lists are put in place; it is put in place after them.
+    let (committed, manifest) = std::thread::scope(|s| {
+        let manifest = s.spawn(|| manifest_file(&job.out, key, files.clone()));
+        let committed = assembled.commit(&job.out);
+        let manifest = manifest
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (committed, manifest)
+    });
+    committed?;
+    let manifest_path = job.out.join("manifest.json");
+    manifest?.commit(true).map_err(io_err(&manifest_path))?;
     let mut keep: Vec<String> = files.into_iter().map(|f| f.name).collect();
     keep.push("manifest.json".into());
     let removed = prune(&job.out, ledger, &keep)?;
