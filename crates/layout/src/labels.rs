@@ -191,12 +191,22 @@ fn place_all(
         let mut best: Option<(f64, [f64; 4])> = None;
         let mut fallback: Option<(f64, [f64; 4])> = None;
         for (gi, c, r) in candidates(p, hw, hh, &LABEL_GAPS, frame) {
-            let clash = placed.iter().any(|q| rects_overlap(*q, grow(r, 0.5)));
+            // Every cost below is at least the gap's (gaps come nearest first): once a
+            // box that keeps the rule costs no more than that, no later box can win.
+            if best.is_some_and(|b| b.0 <= gi as f64 * 3.0) {
+                break;
+            }
             // Prefer little ink, then a leader over little ink, then a small gap, then
             // labels right of or above their dot (the way one reads). The leader's
             // cost is added only where the box could still win.
             let base =
                 CURVE_LABEL.label(occ, r) + gi as f64 * 3.0 + if c < -0.1 { 1.0 } else { 0.0 };
+            // Once a box keeps the rule, only a cheaper one matters (the fallback is
+            // no longer looked at): skip the rule and clash tests for the others.
+            if best.is_some_and(|b| base >= b.0) {
+                continue;
+            }
+            let clash = placed.iter().any(|q| rects_overlap(*q, grow(r, 0.5)));
             let rule = own_dot_is_nearest(r, i, dots);
             let with_leader =
                 |base: f64| base + CURVE_LABEL.leader(occ, p, r, LEADER_MIN_GAP, LEADER_START);
@@ -244,17 +254,28 @@ fn candidates(
     gaps: &[f64],
     frame: [f64; 4],
 ) -> impl Iterator<Item = (usize, f64, [f64; 4])> + '_ {
+    let dirs = directions();
+    let corner = hw.hypot(hh);
     gaps.iter().enumerate().flat_map(move |(gi, &gap)| {
-        (0..LABEL_DIRECTIONS).filter_map(move |k| {
-            let phi = std::f64::consts::TAU * k as f64 / LABEL_DIRECTIONS as f64;
-            let (s, c) = (libm::sin(phi), libm::cos(phi));
+        dirs.iter().filter_map(move |&(s, c)| {
             // Centre so that the box's near side is `gap` from the point along (c, s).
-            let t = gap + (hw * c.abs()).max(hh * s.abs()).min(hw.hypot(hh));
+            let t = gap + (hw * c.abs()).max(hh * s.abs()).min(corner);
             let ctr = [p[0] + c * t, p[1] + s * t];
             let r = [ctr[0] - hw, ctr[1] - hh, ctr[0] + hw, ctr[1] + hh];
             let inside =
                 r[0] >= frame[0] && r[1] >= frame[1] && r[2] <= frame[2] && r[3] <= frame[3];
             inside.then_some((gi, c, r))
+        })
+    })
+}
+
+/// The (sine, cosine) of each of the [`LABEL_DIRECTIONS`] directions, computed once.
+fn directions() -> &'static [(f64, f64); LABEL_DIRECTIONS] {
+    static DIRS: std::sync::OnceLock<[(f64, f64); LABEL_DIRECTIONS]> = std::sync::OnceLock::new();
+    DIRS.get_or_init(|| {
+        std::array::from_fn(|k| {
+            let phi = std::f64::consts::TAU * k as f64 / LABEL_DIRECTIONS as f64;
+            (libm::sin(phi), libm::cos(phi))
         })
     })
 }
@@ -378,15 +399,21 @@ pub(crate) fn place_marks(
             let (hw, hh) = (0.5 * font::text_width(size, text), 0.5 * (asc + desc));
             let mut best: Option<(f64, [f64; 4])> = None;
             for (gi, _, r) in candidates(p, hw, hh, &MARK_GAPS, frame) {
-                if taken.iter().any(|q| rects_overlap(*q, grow(r, 0.5)))
-                    || dots.iter().any(|d| rect_distance(r, *d) < MARK_DOT_CLEAR)
-                {
-                    continue;
+                // Every cost is at least the gap's (gaps come nearest first): once the
+                // best costs no more than that, no later box can win.
+                if best.is_some_and(|b| b.0 <= gi as f64 * 3.0) {
+                    break;
                 }
                 // The text's ink reaches a little past its box: count the ink 1 pt round.
+                // The cheap test first: a box that cannot win needs no clash tests.
                 let g = grow(r, 1.0);
                 let base = MARK_LABEL.label(occ, g) + gi as f64 * 3.0;
                 if best.is_some_and(|b| base >= b.0) {
+                    continue;
+                }
+                if taken.iter().any(|q| rects_overlap(*q, grow(r, 0.5)))
+                    || dots.iter().any(|d| near_dot(r, *d))
+                {
                     continue;
                 }
                 let cost = base
@@ -402,6 +429,15 @@ pub(crate) fn place_marks(
         .collect()
 }
 
+/// Whether the box `r` is nearer than [`MARK_DOT_CLEAR`] to the dot `d`: the distance
+/// is at least each of its components, so only a dot within that of the box in both
+/// directions needs it measured.
+fn near_dot(r: [f64; 4], d: PagePoint) -> bool {
+    let dx = (r[0] - d[0]).max(0.0).max(d[0] - r[2]);
+    let dy = (r[1] - d[1]).max(0.0).max(d[1] - r[3]);
+    dx < MARK_DOT_CLEAR && dy < MARK_DOT_CLEAR && rect_distance(r, d) < MARK_DOT_CLEAR
+}
+
 pub(crate) fn grow(r: [f64; 4], d: f64) -> [f64; 4] {
     [r[0] - d, r[1] - d, r[2] + d, r[3] + d]
 }
@@ -409,6 +445,128 @@ pub(crate) fn grow(r: [f64; 4], d: f64) -> [f64; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The search before the early outs (every candidate weighed): greedy placement of `texts` at `dots`, the most crowded first: (boxes, failures).
+    fn place_all_reference(
+        dots: &[PagePoint],
+        texts: &[String],
+        size: f64,
+        occ: &Occupancy,
+        taken: &[[f64; 4]],
+        frame: [f64; 4],
+    ) -> (Vec<[f64; 4]>, usize) {
+        let n = dots.len();
+        let asc = font::ascent(size);
+        let desc = font::descent(size);
+        // Crowdedness: distance to the nearest other dot.
+        let nearest = |i: usize| {
+            dots.iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, q)| libm::hypot(q[0] - dots[i][0], q[1] - dots[i][1]))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| nearest(a).total_cmp(&nearest(b)).then(a.cmp(&b)));
+        let mut boxes = vec![[0.0; 4]; n];
+        let mut placed: Vec<[f64; 4]> = taken.to_vec();
+        let mut failed = 0;
+        for i in order {
+            let tw = font::text_width(size, &texts[i]);
+            let (hw, hh) = (0.5 * tw + LABEL_PAD, 0.5 * (asc + desc) + LABEL_PAD);
+            let p = dots[i];
+            let mut best: Option<(f64, [f64; 4])> = None;
+            let mut fallback: Option<(f64, [f64; 4])> = None;
+            for (gi, c, r) in candidates(p, hw, hh, &LABEL_GAPS, frame) {
+                let clash = placed.iter().any(|q| rects_overlap(*q, grow(r, 0.5)));
+                // Prefer little ink, then a leader over little ink, then a small gap, then
+                // labels right of or above their dot (the way one reads). The leader's
+                // cost is added only where the box could still win.
+                let base =
+                    CURVE_LABEL.label(occ, r) + gi as f64 * 3.0 + if c < -0.1 { 1.0 } else { 0.0 };
+                let rule = own_dot_is_nearest(r, i, dots);
+                let with_leader =
+                    |base: f64| base + CURVE_LABEL.leader(occ, p, r, LEADER_MIN_GAP, LEADER_START);
+                if rule && !clash {
+                    if best.is_none_or(|b| base < b.0) {
+                        let cost = with_leader(base);
+                        if best.is_none_or(|b| cost < b.0) {
+                            best = Some((cost, r));
+                        }
+                    }
+                } else if best.is_none() {
+                    let penalty = if rule { 0.0 } else { 1e6 } + if clash { 1e7 } else { 0.0 };
+                    if fallback.is_none_or(|b| base + penalty < b.0) {
+                        let cost = with_leader(base + penalty);
+                        if fallback.is_none_or(|b| cost < b.0) {
+                            fallback = Some((cost, r));
+                        }
+                    }
+                }
+            }
+            let r = match (best, fallback) {
+                (Some((_, r)), _) => r,
+                (None, Some((_, r))) => {
+                    failed += 1;
+                    r
+                }
+                (None, None) => {
+                    failed += 1;
+                    [p[0], p[1] - 2.0 * hh, p[0] + 2.0 * hw, p[1]]
+                }
+            };
+            boxes[i] = r;
+            placed.push(r);
+        }
+        (boxes, failed)
+    }
+
+    fn place_marks_reference(
+        anchors: &[PagePoint],
+        texts: &[String],
+        size: f64,
+        occ: &Occupancy,
+        taken: &mut Vec<[f64; 4]>,
+        dots: &[PagePoint],
+        frame: [f64; 4],
+    ) -> Vec<Option<[f64; 4]>> {
+        let (asc, desc) = (font::ascent(size), font::descent(size));
+        anchors
+            .iter()
+            .zip(texts)
+            .map(|(&p, text)| {
+                let (hw, hh) = (0.5 * font::text_width(size, text), 0.5 * (asc + desc));
+                let mut best: Option<(f64, [f64; 4])> = None;
+                for (gi, _, r) in candidates(p, hw, hh, &MARK_GAPS, frame) {
+                    if taken.iter().any(|q| rects_overlap(*q, grow(r, 0.5)))
+                        || dots.iter().any(|d| rect_distance(r, *d) < MARK_DOT_CLEAR)
+                    {
+                        continue;
+                    }
+                    // The text's ink reaches a little past its box: count the ink 1 pt round.
+                    let g = grow(r, 1.0);
+                    let base = MARK_LABEL.label(occ, g) + gi as f64 * 3.0;
+                    if best.is_some_and(|b| base >= b.0) {
+                        continue;
+                    }
+                    let cost = base
+                        + MARK_LABEL.leader(
+                            occ,
+                            p,
+                            g,
+                            MARK_LEADER_MIN_GAP - 1.0,
+                            MARK_LEADER_START,
+                        );
+                    if best.is_none_or(|b| cost < b.0) {
+                        best = Some((cost, r));
+                    }
+                }
+                let r = best.map(|b| b.1);
+                taken.extend(r);
+                r
+            })
+            .collect()
+    }
 
     #[test]
     fn distance_to_a_box() {
@@ -439,5 +597,85 @@ mod tests {
                 assert!(!rects_overlap(*a, *b));
             }
         }
+    }
+
+    /// Pseudo-random pages (a linear congruential generator: the same every run) with
+    /// crowded dots, ink strokes and boxes already taken.
+    fn random_pages() -> impl Iterator<Item = (Occupancy, Vec<PagePoint>, Vec<[f64; 4]>)> {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let frame = [0.0, 0.0, 400.0, 300.0];
+        (0..60).map(move |page| {
+            let mut occ = Occupancy::new(frame, 3.0);
+            let strokes = 20 + page % 7 * 30;
+            for _ in 0..strokes {
+                let a = [400.0 * next(), 300.0 * next()];
+                let b = [a[0] + 80.0 * (next() - 0.5), a[1] + 80.0 * (next() - 0.5)];
+                occ.mark_segment(a, b, 1 + (next() * 3.0) as u32);
+            }
+            occ.build();
+            // Some pages crowd their dots into a corner, where the rule bites.
+            let spread = if page % 3 == 0 { 60.0 } else { 350.0 };
+            let n = 3 + page % 11;
+            let dots: Vec<PagePoint> = (0..n)
+                .map(|_| [20.0 + spread * next(), 20.0 + spread * 0.7 * next()])
+                .collect();
+            let mut taken: Vec<[f64; 4]> = (0..page % 4)
+                .map(|_| {
+                    let (x, y) = (380.0 * next(), 280.0 * next());
+                    [x, y, x + 20.0, y + 8.0]
+                })
+                .collect();
+            // And a few leave no room but a strip along the left edge.
+            if page % 10 == 9 {
+                taken.push([60.0, 0.0, 400.0, 300.0]);
+            }
+            (occ, dots, taken)
+        })
+    }
+
+    #[test]
+    fn early_outs_place_every_label_where_the_full_search_does() {
+        let frame = [0.0, 0.0, 400.0, 300.0];
+        let (mut keyed, mut failed, mut marks_placed, mut marks_none) = (0, 0, 0, 0);
+        for (occ, dots, taken) in random_pages() {
+            let full: Vec<String> = (0..dots.len())
+                .map(|i| format!("({i}.25, -1.{i})"))
+                .collect();
+            let nums: Vec<String> = (1..=dots.len()).map(|i| i.to_string()).collect();
+            for texts in [&full, &nums] {
+                let new = place_all(&dots, texts, 7.5, &occ, &taken, frame);
+                let old = place_all_reference(&dots, texts, 7.5, &occ, &taken, frame);
+                assert_eq!(new, old);
+                failed += usize::from(new.1 > 0);
+            }
+            keyed += usize::from(place_labels(&dots, &full, &nums, 7.5, &occ, &taken, frame).keyed);
+            // Feature labels around points along the page, with the curve labels taken.
+            let anchors: Vec<PagePoint> = dots
+                .iter()
+                .flat_map(|d| [[d[0] + 12.0, d[1] + 5.0], [d[0] - 9.0, d[1] + 14.0]])
+                .collect();
+            let texts: Vec<String> = (0..anchors.len())
+                .map(|i| format!("S {}°", 40 + i))
+                .collect();
+            let mut t_new = taken.clone();
+            let mut t_old = taken.clone();
+            let new = place_marks(&anchors, &texts, 6.0, &occ, &mut t_new, &dots, frame);
+            let old = place_marks_reference(&anchors, &texts, 6.0, &occ, &mut t_old, &dots, frame);
+            assert_eq!(new, old);
+            assert_eq!(t_new, t_old);
+            marks_placed += new.iter().filter(|b| b.is_some()).count();
+            marks_none += new.iter().filter(|b| b.is_none()).count();
+        }
+        // The pages reach every branch: keyed pages, failures, marks placed and not.
+        assert!(
+            keyed > 0 && failed > 0 && marks_placed > 0 && marks_none > 0,
+            "keyed {keyed}, failed {failed}, marks placed {marks_placed}, unplaced {marks_none}"
+        );
     }
 }
