@@ -1763,16 +1763,22 @@ mod fingerprint {
     use crate::cases::retrieval_cases;
     use std::hash::{Hash, Hasher};
 
+    /// The lab tests' atlas (`OPEN_ATLAS`, a folder made by `generate`) and number of
+    /// cases (`OPEN_CASES`, else `default`).
+    pub(super) fn lab_atlas(default: usize) -> (crate::ShapeAtlas, usize) {
+        let dir = std::env::var("OPEN_ATLAS").expect("OPEN_ATLAS");
+        let count = std::env::var("OPEN_CASES")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(default);
+        let bytes = std::fs::read(format!("{dir}/shapes.bin")).unwrap();
+        (crate::decode_sidecar(&bytes).unwrap(), count)
+    }
+
     #[test]
     #[ignore]
     fn open_candidates_fingerprint() {
-        let dir = std::env::var("OPEN_ATLAS").expect("OPEN_ATLAS");
-        let count: usize = std::env::var("OPEN_CASES")
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(12);
-        let bytes = std::fs::read(format!("{dir}/shapes.bin")).unwrap();
-        let atlas = crate::decode_sidecar(&bytes).unwrap();
+        let (atlas, count) = lab_atlas(12);
         let curves = &atlas.curves;
         let groups = linkage_groups(curves);
         let mut all = std::collections::hash_map::DefaultHasher::new();
@@ -1806,6 +1812,7 @@ mod fits_fingerprint {
     //! first `OPEN_CASES` (default 3) open retrieval cases, both reflections: every
     //! candidate's quick fit (30 iterations from its scan start), the exact fit's robust
     //! start (window scan, race, final fits) of the best 64, and the ranked matches.
+    use super::fingerprint::lab_atlas;
     use super::*;
     use crate::cases::retrieval_cases;
     use crate::fit::{CurveFit, FitOptions, fit_untimed, fit_with};
@@ -1828,13 +1835,7 @@ mod fits_fingerprint {
     #[test]
     #[ignore]
     fn open_fits_fingerprint() {
-        let dir = std::env::var("OPEN_ATLAS").expect("OPEN_ATLAS");
-        let count: usize = std::env::var("OPEN_CASES")
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(3);
-        let bytes = std::fs::read(format!("{dir}/shapes.bin")).unwrap();
-        let atlas = crate::decode_sidecar(&bytes).unwrap();
+        let (atlas, count) = lab_atlas(3);
         let curves = &atlas.curves;
         let groups = linkage_groups(curves);
         let mut all = std::collections::hash_map::DefaultHasher::new();
