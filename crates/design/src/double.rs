@@ -103,7 +103,7 @@ pub enum NoDoubleDwell {
         best_deg: f64,
     },
     /// The best admissible design's worse dwell jitters more than
-    /// [`DoubleArcOptions::max_relative_jitter`] of its swing between the dwells.
+    /// [`crate::Limits::max_jitter_pct`] of its swing between the dwells.
     #[error(
         "the best design's worse dwell jitters {jitter_deg:.3}° on a {swing_deg:.3}° swing ({:.1} % > {:.1} %): the arcs deviate too much for their centres' separation",
         100.0 * jitter_deg / swing_deg,
@@ -130,7 +130,7 @@ pub enum NoDoubleDwell {
         /// The least ratio found.
         best: f64,
     },
-    /// [`best_double_dwell_arcs`] found no pair of pseudo-arc windows on the curve that
+    /// [`best_double_dwell`] found no pair of pseudo-arc windows on the curve that
     /// admits a design.
     #[error(
         "no pair of pseudo-arc windows on this curve ({pairs} candidate pairs tried) admits a double dwell"
@@ -364,7 +364,7 @@ fn evaluate(
 ///
 /// **Admissible designs.** At every crank step the dyad must assemble with its
 /// transmission angle μ at D, `cos μ = (R² + L6² − |M − O6|²)/(2·R·L6)`, within
-/// `[limit, 180° − limit]` ([`DoubleArcOptions::min_transmission_deg`]). Then M, D, O6
+/// `[limit, 180° − limit]` ([`crate::Limits::min_transmission_deg`]). Then M, D, O6
 /// are never collinear, so the dyad keeps one branch, the sign of (O6 − M) × (D − M),
 /// all the way round (it is simulated on that fixed branch); D reaches D1 and D2 only if
 /// both lie on it: the sign of (O6 − M) × (D_i − M) must be the same for every sample M

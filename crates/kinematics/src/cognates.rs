@@ -30,7 +30,7 @@ pub struct Cognate {
     pub coupler: f64,
     /// Length of the link at `pivots[1]`.
     pub rocker: f64,
-    /// Ground length |pivots[1] − pivots[0]|.
+    /// Ground length `|pivots[1] − pivots[0]|`.
     pub ground: f64,
     /// The tracing point in its own coupler frame (docs/conventions.md §1: origin at its crank pin,
     /// +u towards its rocker pin), original's units.
@@ -74,7 +74,7 @@ impl Cognate {
     }
 
     /// The tracing point, in the original's frame, when its input link is at `deg`
-    /// degrees in its own frame (from pivots[0] towards pivots[1]).
+    /// degrees in its own frame (from `pivots[0]` towards `pivots[1]`).
     pub fn point_at(&self, deg: f64) -> Option<[f64; 2]> {
         let (l, p) = self.normalized()?;
         let pose = Pose::solve(&l, self.circuit, &CrankAngle::from_degrees(deg))?;

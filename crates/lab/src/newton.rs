@@ -113,7 +113,7 @@ pub(crate) fn pose_angles(pose: &Pose) -> [f64; 2] {
     ]
 }
 
-/// Newton–Raphson on [`LoopClosure`], each crank step started from the previous step's
+/// Newton–Raphson on `LoopClosure`, each crank step started from the previous step's
 /// solution (zeroth-order continuation) or, with `predictor`, from the previous solution
 /// advanced along its velocity (`φ + ω·Δθ`, first-order continuation), the first from the
 /// closed-form assembly (a solver is handed an assembled mechanism). This is what general

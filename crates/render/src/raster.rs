@@ -18,9 +18,9 @@ mod band;
 
 /// A page being drawn: an 8-bit ink-coverage buffer (0 = paper, 255 = full ink) at a
 /// given DPI. Ink of gray level `g` with coverage `c` overprints in integers
-/// (`ink ← ink + (255 − ink)·c·g`, see [`overprint`]), paper erases. Black is composited
+/// (`ink ← ink + (255 − ink)·c·g`, see `overprint`), paper erases. Black is composited
 /// as it is drawn; the strokes and polygons of one gray merge in a sparse layer
-/// ([`GrayLayer`]) composited when the gray changes, before paper and when the page is
+/// (`GrayLayer`) composited when the gray changes, before paper and when the page is
 /// read. One buffer per worker, cleared and reused for every page, keeps memory bounded
 /// (tabloid at 300 dpi: 16.8 MB).
 pub struct RasterPage {

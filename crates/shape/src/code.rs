@@ -146,7 +146,7 @@ fn quantize(z: &[C64]) -> ShapeCode {
 /// The query side of a closed target: its normalised coefficients for every variant the
 /// search allows (the order reversed: the crank driven the other way; reflected, if
 /// allowed), each with both Kuhl–Giardina solutions, and for several smoothings of the
-/// points (see [`super::smooth`]): the coarse distance to a code is the least over them.
+/// points (see the `smooth` module): the coarse distance to a code is the least over them.
 #[derive(Clone, Debug)]
 pub struct ClosedQuery {
     pub(crate) vectors: Vec<[f64; CODE_LEN]>,

@@ -990,7 +990,7 @@ const SCREEN_POINTS: usize = 12;
 /// allowed, reflections). For each, the coupler point is left free: the two-term
 /// least-squares fit `y ≈ α·Pa + β·e + γ` gives `w = β/α`, which is clamped to the box of
 /// the linkage's coupler points in the atlas and scored there exactly
-/// ([`Sums::at_point`]). The score is the least over the hypotheses: an estimate, not a
+/// (`Sums::at_point`). The score is the least over the hypotheses: an estimate, not a
 /// bound (the even-crank layout is not re-estimated here). Measured on the dense atlas it
 /// ranks the source's linkage no better than chance, so a screened scan is a sample of
 /// the atlas (`docs/shape-search.md`, "Open targets").

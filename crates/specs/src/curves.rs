@@ -7,7 +7,7 @@ use coupler_features::NamedCurve;
 
 /// A parsed full-curve page set: the `[atlas]`, `[sampling]` and `[pages]` sections of a
 /// spec with a list of `[[curve]]` entries instead of the grid. Parsed by
-/// [`AtlasSpec::parse`] (errors are located like every spec error).
+/// [`crate::AtlasSpec::parse`] (errors are located like every spec error).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CurveList {
     /// `[atlas] name`.
