@@ -119,14 +119,12 @@ fn cell(deg: f64, period: usize) -> (usize, f64) {
         whole -= 1;
     }
     // The scan's angles lie within a period or two of [0, period): a subtraction or an
-    // addition instead of an integer division (the same cell as `rem_euclid`).
+    // addition instead of an integer division (the same cell as `rem_euclid`), chosen
+    // without a branch.
     let p = period as i64;
-    let k = if (0..p).contains(&whole) {
-        whole
-    } else if (p..2 * p).contains(&whole) {
-        whole - p
-    } else if (-p..0).contains(&whole) {
-        whole + p
+    let k = whole + p * i64::from(whole < 0) - p * i64::from(whole >= p);
+    let k = if (0..p).contains(&k) {
+        k
     } else {
         whole.rem_euclid(p)
     };
@@ -176,8 +174,10 @@ impl Sums {
             spe: zero,
             r: [[zero; 2]; 2],
         };
+        // The count kept as an integer: `m` is then what adding 1.0 once a point gives.
+        let mut count = 0u32;
         for ((p, e), &yj) in pe.zip(y) {
-            s.m += 1.0;
+            count += 1;
             s.sp += p;
             s.se += e;
             s.spe += p.conj() * e;
@@ -189,6 +189,7 @@ impl Sums {
                 s.r[1][1] += e.conj() * yc;
             }
         }
+        s.m = f64::from(count);
         s
     }
 
@@ -347,13 +348,13 @@ fn sieve_with<const R0: bool, const R1: bool>(
             let m0r = a0.re + (wr * b0.re - -wi * b0.im);
             let m0i = a0.im + (wr * b0.im + -wi * b0.re);
             let q0 = m0r * m0r + m0i * m0i;
-            o |= u8::from(!(pos && q0 < t));
+            o |= u8::from(!(pos & (q0 < t)));
         }
         if R1 {
             let m1r = a1.re + (wr * b1.re - -wi * b1.im);
             let m1i = a1.im + (wr * b1.im + -wi * b1.re);
             let q1 = m1r * m1r + m1i * m1i;
-            o |= u8::from(!(pos && q1 < t)) << 1;
+            o |= u8::from(!(pos & (q1 < t))) << 1;
         }
         open[k] = o;
     }
