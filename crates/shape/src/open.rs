@@ -193,18 +193,6 @@ impl Sums {
         s
     }
 
-    /// [`Sums::of`] from the table's values already looked up at the angles
-    /// ([`Table::with_slope`] gives the same `Pa` and `e` as [`Table::at`]): the same sums,
-    /// bit for bit.
-    fn of_looked_up(at: &[Slope], y: &[C64], mirror: bool) -> Sums {
-        let pe = at.iter().map(|&(p, e, _, _)| (p, e));
-        if mirror {
-            Sums::accumulate::<true>(pe, y)
-        } else {
-            Sums::accumulate::<false>(pe, y)
-        }
-    }
-
     /// The centred Gram matrix `[[g11, g12], [conj g12, g22]]`.
     fn gram(&self) -> (f64, C64, f64) {
         let g11 = self.m - self.sp.norm_sqr() / self.m;
@@ -472,6 +460,15 @@ struct Programme {
     back: Vec<u32>,
 }
 
+/// The buffers of [`OpenQuery::project`], kept between windows: the trial angles and the
+/// table's values at the current and trial angles.
+#[derive(Default)]
+struct Projection {
+    next: Vec<f64>,
+    at: Vec<Slope>,
+    trial_at: Vec<Slope>,
+}
+
 /// How the query's crank angles are laid out.
 #[derive(Clone, Debug)]
 enum Layout {
@@ -725,47 +722,74 @@ impl OpenQuery {
     /// coupler's speed along its curve is far from even, so the source's misfit there is
     /// dominated by that timing error (a slide along the curve), not by its shape. This
     /// removes most of it at `O(M)` a step, cheap enough for every curve of the atlas.
-    fn project(&self, table: &Table, w: C64, hyp: &mut Hypothesis) {
+    fn project(&self, table: &Table, w: C64, hyp: &mut Hypothesis, buf: &mut Projection) {
         if !matches!(self.layout, Layout::Untimed) || hyp.theta.is_empty() {
             return;
         }
-        let v = usize::from(hyp.mirror);
+        if hyp.mirror {
+            self.project_with::<true>(table, w, hyp, buf);
+        } else {
+            self.project_with::<false>(table, w, hyp, buf);
+        }
+    }
+
+    /// [`OpenQuery::project`] for a reflected match (`MIRROR`) or not, decided at compile
+    /// time. Each step's new angles, their lookups and the sums from them are made in one
+    /// pass (each sum adds the points in the same order as in separate passes: the same
+    /// values, bit for bit).
+    fn project_with<const MIRROR: bool>(
+        &self,
+        table: &Table,
+        w: C64,
+        hyp: &mut Hypothesis,
+        buf: &mut Projection,
+    ) {
+        let v = usize::from(MIRROR);
         let limit = (hyp.span / 8.0).max(2.0);
         let mut theta = std::mem::take(&mut hyp.theta);
-        let mut next = theta.clone();
+        let Projection { next, at, trial_at } = buf;
+        next.clear();
+        next.extend_from_slice(&theta);
         // The table at `theta` (each step's trial lookups become the next step's), and
-        // the sums from it: every angle is looked up once.
-        let mut at: Vec<Slope> = theta.iter().map(|&t| table.with_slope(t)).collect();
-        let mut trial_at = at.clone();
-        let mut s = Sums::of_looked_up(&at, &self.y, hyp.mirror);
+        // the sums from it: every angle is looked up once ([`Table::with_slope`] gives the
+        // same `Pa` and `e` as [`Table::at`], so the same sums as [`Sums::of`]).
+        at.clear();
+        at.extend(theta.iter().map(|&t| table.with_slope(t)));
+        trial_at.clear();
+        trial_at.extend_from_slice(at);
+        let y = &self.y;
+        let mut s = Sums::accumulate::<MIRROR>(at.iter().map(|&(p, e, _, _)| (p, e)), y);
         for _ in 0..PROJECTIONS {
             let (_, alpha) = s.at_point(v, w);
             let gamma = -alpha * (s.sp + w * s.se) / s.m;
-            for (j, ((t, n), &(p, e, dp, de))) in
-                theta.iter().zip(next.iter_mut()).zip(&at).enumerate()
-            {
-                let c = alpha * (p + w * e) + gamma;
-                let d = alpha * (dp + w * de);
-                let d2 = d.norm_sqr();
-                let y = if v == 1 { self.y[j].conj() } else { self.y[j] };
-                *n = if d2 > 0.0 {
-                    *t + (((y - c) * d.conj()).re / d2).clamp(-limit, limit)
-                } else {
-                    *t
-                };
-            }
-            for (a, &n) in trial_at.iter_mut().zip(&next) {
-                *a = table.with_slope(n);
-            }
-            let trial = Sums::of_looked_up(&trial_at, &self.y, hyp.mirror);
+            let moved = theta
+                .iter()
+                .zip(next.iter_mut())
+                .zip(at.iter())
+                .zip(trial_at.iter_mut())
+                .zip(y)
+                .map(|((((t, n), &(p, e, dp, de)), a), &yj)| {
+                    let c = alpha * (p + w * e) + gamma;
+                    let d = alpha * (dp + w * de);
+                    let d2 = d.norm_sqr();
+                    let yj = if MIRROR { yj.conj() } else { yj };
+                    *n = if d2 > 0.0 {
+                        *t + (((yj - c) * d.conj()).re / d2).clamp(-limit, limit)
+                    } else {
+                        *t
+                    };
+                    *a = table.with_slope(*n);
+                    (a.0, a.1)
+                });
+            let trial = Sums::accumulate::<MIRROR>(moved, y);
             let misfit = trial.at_point(v, w).0;
             if misfit.partial_cmp(&hyp.misfit) != Some(std::cmp::Ordering::Less) {
                 break;
             }
             hyp.misfit = misfit;
             s = trial;
-            std::mem::swap(&mut theta, &mut next);
-            std::mem::swap(&mut at, &mut trial_at);
+            std::mem::swap(&mut theta, next);
+            std::mem::swap(at, trial_at);
         }
         hyp.theta = theta;
     }
@@ -1167,6 +1191,7 @@ pub(crate) fn open_stage1(
     keep: usize,
 ) -> Vec<Stage1> {
     let mut stage1: Vec<Stage1> = Vec::new();
+    let mut buf = Projection::default();
     for g in groups {
         let (a, b) = (g.start, g.end);
         let Some(first) = curves.get(a) else {
@@ -1181,7 +1206,7 @@ pub(crate) fn open_stage1(
             let Some(h) = hs
                 .into_iter()
                 .map(|mut h| {
-                    query.project(&table, pts[k], &mut h);
+                    query.project(&table, pts[k], &mut h, &mut buf);
                     h
                 })
                 .min_by(|a, b| a.misfit.total_cmp(&b.misfit))
