@@ -734,9 +734,8 @@ impl OpenQuery {
     }
 
     /// [`OpenQuery::project`] for a reflected match (`MIRROR`) or not, decided at compile
-    /// time. Each step's new angles, their lookups and the sums from them are made in one
-    /// pass (each sum adds the points in the same order as in separate passes: the same
-    /// values, bit for bit).
+    /// time. Each step's trial angles are looked up and summed in one pass (each sum adds
+    /// the points in the same order as in separate passes: the same values, bit for bit).
     fn project_with<const MIRROR: bool>(
         &self,
         table: &Table,
@@ -762,25 +761,24 @@ impl OpenQuery {
         for _ in 0..PROJECTIONS {
             let (_, alpha) = s.at_point(v, w);
             let gamma = -alpha * (s.sp + w * s.se) / s.m;
-            let moved = theta
-                .iter()
-                .zip(next.iter_mut())
-                .zip(at.iter())
-                .zip(trial_at.iter_mut())
-                .zip(y)
-                .map(|((((t, n), &(p, e, dp, de)), a), &yj)| {
-                    let c = alpha * (p + w * e) + gamma;
-                    let d = alpha * (dp + w * de);
-                    let d2 = d.norm_sqr();
-                    let yj = if MIRROR { yj.conj() } else { yj };
-                    *n = if d2 > 0.0 {
-                        *t + (((yj - c) * d.conj()).re / d2).clamp(-limit, limit)
-                    } else {
-                        *t
-                    };
-                    *a = table.with_slope(*n);
-                    (a.0, a.1)
-                });
+            for (((t, n), &(p, e, dp, de)), &yj) in
+                theta.iter().zip(next.iter_mut()).zip(at.iter()).zip(y)
+            {
+                let c = alpha * (p + w * e) + gamma;
+                let d = alpha * (dp + w * de);
+                let d2 = d.norm_sqr();
+                let yj = if MIRROR { yj.conj() } else { yj };
+                *n = if d2 > 0.0 {
+                    *t + (((yj - c) * d.conj()).re / d2).clamp(-limit, limit)
+                } else {
+                    *t
+                };
+            }
+            // The trial angles' lookups and the sums from them in one pass.
+            let moved = next.iter().zip(trial_at.iter_mut()).map(|(&n, a)| {
+                *a = table.with_slope(n);
+                (a.0, a.1)
+            });
             let trial = Sums::accumulate::<MIRROR>(moved, y);
             let misfit = trial.at_point(v, w).0;
             if misfit.partial_cmp(&hyp.misfit) != Some(std::cmp::Ordering::Less) {
