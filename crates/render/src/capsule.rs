@@ -553,9 +553,9 @@ fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: 
 fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32, u32)> {
     let (lo, hi) = s.reach_x(cy, reach)?;
     let w = row.len() as f32;
-    // A pixel more on each side than the centres within [lo, hi].
-    let x0 = floor(lo - 0.5).clamp(0.0, w) as usize;
-    let x1 = (floor(hi - 0.5) + 2.0).clamp(0.0, w) as usize;
+    // The pixels whose centre i + ½ lies within [lo − ⅛, hi + ⅛].
+    let x0 = ceil(lo - 0.625).clamp(0.0, w) as usize;
+    let x1 = (floor(hi - 0.375) + 1.0).clamp(0.0, w) as usize;
     if x0 >= x1 {
         return None;
     }
@@ -622,11 +622,13 @@ impl Edge {
         let ax = f32x4::splat(self.ax);
         let r = f32x4::splat(self.r);
         let half = f32x4::splat(0.5);
-        let lanes = f32x4::new([0.0, 1.0, 2.0, 3.0]);
-        let mut i = from;
-        while i < to {
-            // i + k < 2^24 (a row's width): exact, as `(i + k) as f32`.
-            let qx = (f32x4::splat(i as f32) + lanes) - ax;
+        // Pixel centres less ax: from + k (k < 4) to begin with, four more each time;
+        // below 2^24 (a row's width) exact, as `(i + k) as f32`.
+        let mut x = f32x4::splat(from as f32) + f32x4::new([0.0, 1.0, 2.0, 3.0]);
+        let four = f32x4::splat(4.0);
+        for (q, px4) in row[from..to].chunks_mut(4).enumerate() {
+            let qx = x - ax;
+            x += four;
             let t = clamp01((qx * dx + pdy) * inv);
             let (ex, ey) = (qx - t * dx, py - t * dy);
             let d = (ex * ex + ey * ey).sqrt();
@@ -634,17 +636,17 @@ impl Edge {
             let level = c * f32x4::splat(255.0) + half;
             // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
             let v = level.trunc_int().to_array();
-            let n = (to - i).min(4);
-            for (px, &v) in row[i..i + n].iter_mut().zip(&v) {
+            let n = px4.len();
+            for (px, &v) in px4.iter_mut().zip(&v) {
                 *px = (*px).max(v as u8);
             }
             // The lanes of level 1 or more.
             let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << n) - 1);
             if inked != 0 {
+                let i = from + 4 * q;
                 first = first.min(i + inked.trailing_zeros() as usize);
                 last = i + 32 - inked.leading_zeros() as usize;
             }
-            i += 4;
         }
         (first < last).then_some((first as u32, last as u32))
     }
