@@ -66,13 +66,15 @@ const LANES_MAX_R: f32 = 3.0;
 
 impl Seg {
     /// Decides [`Seg::mode`] for half width `r`: a thin stroke's segment ([`LANES_MAX_R`])
-    /// is measured in lanes over a conservative span (the x-range of its part within
-    /// `reach` of the row, widened by `reach` and a pixel each side). The bytes are those
-    /// of the exact interval with its interior filled:
+    /// is measured in lanes over a conservative span (the pixels whose centre lies within
+    /// the x-range of its part within `reach` of the row, widened by `reach` and an
+    /// eighth of a pixel each side). The bytes are those of the exact interval with its
+    /// interior filled:
     ///
     /// - the pixels beyond the exact interval are at least `reach` from the segment (up to
     ///   the rounding of the interval, a few ulps of a page coordinate), where
-    ///   [`coverage`] is below a thousandth and rounds to level 0;
+    ///   [`coverage`] is below a thousandth and rounds to level 0; so are those beyond
+    ///   the span, by more than an eighth of a pixel (far beyond that rounding);
     /// - an interior pixel's centre is within `r − ½` of the segment (up to that rounding),
     ///   so the pixel lies across the stroke whole: [`coverage`] is `(d + ½) − (d − ½)`,
     ///   or `1 − δ` with `δ` far below the `½/255` that rounding to level 255 forgives.
@@ -509,15 +511,17 @@ fn seg_row_fill(
     let [outer, inner] = intervals(s, cy, reach, r - 0.5);
     let (a, b) = outer?;
     let w = row.len() as f32;
-    let x0 = ceil(a - 0.5).clamp(0.0, w) as usize;
-    let x1 = (floor(b - 0.5) + 1.0).clamp(0.0, w) as usize;
+    let inner = inner.filter(|_| r > 0.5);
+    let (ia, ib) = inner.unwrap_or((a, b));
+    // Pixel i's centre is i + ½: both intervals' pixels at once, as `seg_row` makes them.
+    let [x0, x1, j0, j1] = pixel_spans([a, b, ia, ib], [0.5; 4], w);
     if x0 >= x1 {
         return None;
     }
     let (mut i0, mut i1) = (x1, x1);
-    if let Some((a, b)) = inner.filter(|_| r > 0.5) {
-        i0 = (ceil(a - 0.5).clamp(0.0, w) as usize).clamp(x0, x1);
-        i1 = ((floor(b - 0.5) + 1.0).clamp(0.0, w) as usize).clamp(i0, x1);
+    if inner.is_some() {
+        i0 = j0.clamp(x0, x1);
+        i1 = j1.clamp(i0, x1);
         row[i0..i1].fill(255);
     }
     for (from, to) in [(x0, i0), (i1, x1)] {
@@ -526,6 +530,35 @@ fn seg_row_fill(
         }
     }
     Some((x0 as u32, x1 as u32))
+}
+
+/// Two pixel spans at once, as [`seg_row`] makes them from intervals `[a, b]` and
+/// `[c, e]` (`v = [a, b, c, e]`, `o` what is taken off each bound first, ½ for the pixels
+/// whose centre lies in the interval): `[ceil(a − o₀), floor(b − o₁) + 1]` and the same
+/// for `[c, e]`, each bound clamped to `[0, w]`, in lanes. The same values: `ceil(x)` is
+/// `−floor(−x)` exactly, and [`floor`]'s `x as i32 as f32` is the lanes' truncation and
+/// conversion back, both exact below 2^23 (beyond, or for NaN, [`floor`] and [`ceil`]
+/// one by one).
+#[inline(always)]
+fn pixel_spans(v: [f32; 4], o: [f32; 4], w: f32) -> [usize; 4] {
+    let x = f32x4::new(v) - f32x4::new(o);
+    let x = x ^ f32x4::new([-0.0, 0.0, -0.0, 0.0]);
+    if x.abs().simd_lt(f32x4::splat(8_388_608.0)).to_bitmask() == 0b1111 {
+        let t = x.trunc_int().round_float();
+        let fl = t - (t.simd_gt(x) & f32x4::ONE);
+        let p = (fl ^ f32x4::new([-0.0, 0.0, -0.0, 0.0])) + f32x4::new([0.0, 1.0, 0.0, 1.0]);
+        // Whole numbers, not NaN: `clamp` is max then min.
+        let p = p.fast_max(f32x4::ZERO).fast_min(f32x4::splat(w));
+        p.trunc_int().to_array().map(|p| p as usize)
+    } else {
+        [
+            ceil(v[0] - o[0]),
+            floor(v[1] - o[1]) + 1.0,
+            ceil(v[2] - o[2]),
+            floor(v[3] - o[3]) + 1.0,
+        ]
+        .map(|p| p.clamp(0.0, w) as usize)
+    }
 }
 
 /// [`seg_row`] in [`Mode::Wide`], its second half: measures the edges the segments left
@@ -554,8 +587,7 @@ fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option
     let (lo, hi) = s.reach_x(cy, reach)?;
     let w = row.len() as f32;
     // The pixels whose centre i + ½ lies within [lo − ⅛, hi + ⅛].
-    let x0 = ceil(lo - 0.625).clamp(0.0, w) as usize;
-    let x1 = (floor(hi - 0.375) + 1.0).clamp(0.0, w) as usize;
+    let [x0, x1, _, _] = pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
     if x0 >= x1 {
         return None;
     }
@@ -730,6 +762,68 @@ mod tests {
         for x in xs {
             assert!(same(floor(x), x.floor()), "floor {x:e}");
             assert!(same(ceil(x), x.ceil()), "ceil {x:e}");
+        }
+    }
+
+    /// Pixel spans made in lanes are those made one bound at a time with [`ceil`],
+    /// [`floor`] and `clamp`: around every half pixel, at the page's edges and far
+    /// beyond, past 2^23, for infinities and NaN.
+    #[test]
+    fn pixel_spans_match_one_by_one() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let special = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            0.625,
+            0.375,
+            8_388_607.5,
+            8_388_608.0,
+            -8_388_609.0,
+            3e9,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for n in 0..400_000 {
+            let pick = |k: u64| -> f32 {
+                match k % 4 {
+                    0 => special[(k >> 8) as usize % special.len()],
+                    1 => f32::from_bits((k >> 16) as u32),
+                    // Near a half pixel, on and off a page 3300 px wide.
+                    _ => {
+                        let x = ((k >> 8) % 8000) as f32 * 0.5 - 400.0;
+                        [
+                            x,
+                            x.next_up(),
+                            x.next_down(),
+                            x + (k >> 40) as f32 / 65536.0,
+                        ][(k >> 4) as usize % 4]
+                    }
+                }
+            };
+            let v = [pick(rand()), pick(rand()), pick(rand()), pick(rand())];
+            let o = if n % 2 == 0 {
+                [0.5; 4]
+            } else {
+                [0.625, 0.375, 0.625, 0.375]
+            };
+            let w = [0.0, 1.0, 3300.0, 8192.0][n % 4];
+            let want = [
+                ceil(v[0] - o[0]),
+                floor(v[1] - o[1]) + 1.0,
+                ceil(v[2] - o[2]),
+                floor(v[3] - o[3]) + 1.0,
+            ]
+            .map(|p| p.clamp(0.0, w) as usize);
+            assert_eq!(pixel_spans(v, o, w), want, "{v:?} {o:?} {w}");
         }
     }
 
