@@ -488,8 +488,8 @@ fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32,
     }
     // Edges of a pixel or a few, in lanes (the spans they give are within [x0, x1)).
     let edge = Edge::new(s, cy, r);
-    edge.measure(row, x0, i0);
-    edge.measure(row, i1, x1);
+    edge.measure::<false>(row, x0, i0);
+    edge.measure::<false>(row, i1, x1);
     Some((x0 as u32, x1 as u32))
 }
 
@@ -575,7 +575,7 @@ fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: 
             to -= 1;
         }
         if from < to {
-            Edge::new(&segs[k as usize], cy, r).measure(row, from, to);
+            Edge::new(&segs[k as usize], cy, r).measure::<true>(row, from, to);
         }
     }
 }
@@ -591,7 +591,7 @@ fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option
     if x0 >= x1 {
         return None;
     }
-    Edge::new(s, cy, r).measure(row, x0, x1)
+    Edge::new(s, cy, r).measure::<true>(row, x0, x1)
 }
 
 /// Measures a segment's coverage of a row's pixels, four at a time: per lane the f32
@@ -640,8 +640,19 @@ impl Edge {
 
     /// Pixels `[from, to)` of `row` ← the maximum of theirs and the segment's coverage;
     /// gives the span of the pixels the segment covers (not 0).
+    ///
+    /// `FINITE` for a segment within [`MODEST`] coordinates ([`Mode::Lanes`] and
+    /// [`Mode::Wide`]): every value is then finite (below 2^24 · 2^15 before the clamps),
+    /// no lane is NaN, and `min`, `max`, the clamps and the conversion to an integer are
+    /// made without their NaN cases, the same values. Else (coordinates of any size,
+    /// whose products may be infinite and NaN) as `f32`'s, NaN included.
     #[inline]
-    fn measure(&self, row: &mut [u8], from: usize, to: usize) -> Option<(u32, u32)> {
+    fn measure<const FINITE: bool>(
+        &self,
+        row: &mut [u8],
+        from: usize,
+        to: usize,
+    ) -> Option<(u32, u32)> {
         if from >= to {
             return None;
         }
@@ -661,13 +672,27 @@ impl Edge {
         for (q, px4) in row[from..to].chunks_mut(4).enumerate() {
             let qx = x - ax;
             x += four;
-            let t = clamp01((qx * dx + pdy) * inv);
-            let (ex, ey) = (qx - t * dx, py - t * dy);
-            let d = (ex * ex + ey * ey).sqrt();
-            let c = clamp01((d + half).min(r) - (d - half).max(-r));
-            let level = c * f32x4::splat(255.0) + half;
-            // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
-            let v = level.trunc_int().to_array();
+            let (level, v) = if FINITE {
+                let t = ((qx * dx + pdy) * inv)
+                    .fast_max(f32x4::ZERO)
+                    .fast_min(f32x4::ONE);
+                let (ex, ey) = (qx - t * dx, py - t * dy);
+                let d = (ex * ex + ey * ey).sqrt();
+                let c = ((d + half).fast_min(r) - (d - half).fast_max(-r))
+                    .fast_max(f32x4::ZERO)
+                    .fast_min(f32x4::ONE);
+                let level = c * f32x4::splat(255.0) + half;
+                // c·255 + ½ in [½, 255.5]: its `as u8`.
+                (level, level.fast_trunc_int().to_array())
+            } else {
+                let t = clamp01((qx * dx + pdy) * inv);
+                let (ex, ey) = (qx - t * dx, py - t * dy);
+                let d = (ex * ex + ey * ey).sqrt();
+                let c = clamp01((d + half).min(r) - (d - half).max(-r));
+                let level = c * f32x4::splat(255.0) + half;
+                // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
+                (level, level.trunc_int().to_array())
+            };
             let n = px4.len();
             for (px, &v) in px4.iter_mut().zip(&v) {
                 *px = (*px).max(v as u8);
