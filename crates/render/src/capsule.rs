@@ -160,6 +160,8 @@ pub(crate) struct Capsules {
     spans: Vec<(u32, u32)>,
     /// A row's edges left to measure in [`Mode::Wide`]: `(segment, from, to)`.
     edges: Vec<(u32, u32, u32)>,
+    /// A row's segments in [`Mode::Wide`].
+    wide: Vec<u32>,
 }
 
 /// `x.floor()` without a call into libm (which the baseline x86-64 target makes of it),
@@ -261,15 +263,31 @@ impl Capsules {
             self.spans.clear();
             self.edges.clear();
             let cy = j as f32 + 0.5;
+            self.wide.clear();
             for &k in &self.active {
                 let s = &segs[k as usize];
                 let span = match s.mode {
                     Mode::Lanes => seg_row_lanes(s, cy, r, reach, &mut self.row),
-                    Mode::Wide => seg_row_fill(s, k, cy, r, reach, &mut self.row, &mut self.edges),
+                    Mode::Wide => {
+                        self.wide.push(k);
+                        None
+                    }
                     Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
                 };
                 if let Some(span) = span {
                     self.spans.push(span);
+                }
+            }
+            // Four wide segments' intervals at once (the spans are sorted before they
+            // are composited: their order does not matter).
+            for four in self.wide.chunks(4) {
+                let group = [0, 1, 2, 3].map(|m| &segs[four[m.min(four.len() - 1)] as usize]);
+                let ivs = intervals4(group, cy, reach, r - 0.5);
+                for (&k, [outer, inner]) in four.iter().zip(ivs) {
+                    let span = seg_row_fill(k, outer, inner, r, &mut self.row, &mut self.edges);
+                    if let Some(span) = span {
+                        self.spans.push(span);
+                    }
                 }
             }
             if !self.edges.is_empty() {
@@ -466,6 +484,65 @@ fn intervals(s: &Seg, cy: f32, reach: f32, inner: f32) -> [Option<(f32, f32)>; 2
     out
 }
 
+/// [`intervals`] of four segments at once, a segment a lane: per lane the f32 operations
+/// of `interval` (the tests' reference) in its order, each branch made in every lane and
+/// chosen by a mask. Only for segments within [`MODEST`] coordinates, whose values are
+/// finite: `min` and `max` then without their NaN cases (the lanes a branch does not
+/// choose, which may be NaN, are dropped). Their bounds may differ from `interval`'s in
+/// the sign of a zero only, which no pixel span made of them tells apart.
+#[inline]
+fn intervals4(s: [&Seg; 4], cy: f32, reach: f32, inner: f32) -> [[Option<(f32, f32)>; 2]; 4] {
+    let lane = |f: &dyn Fn(&Seg) -> f32| f32x4::new(s.map(f));
+    let ax = lane(&|s| s.a[0]);
+    let ey = f32x4::splat(cy) - lane(&|s| s.a[1]);
+    let dx = lane(&|s| s.d[0]);
+    let dy = lane(&|s| s.d[1]);
+    let l = lane(&|s| s.l);
+    let body = lane(&|s| s.inv).simd_gt(f32x4::ZERO);
+    let (ninf, inf) = (f32x4::splat(f32::NEG_INFINITY), f32x4::INFINITY);
+    let ends = [(ax, ey), (ax + dx, ey - dy)];
+    // The body's bounds on u = x − ax along the segment, for both distances.
+    let (b0, b1) = {
+        let (c0, c1) = (-ey * dy, l * l - ey * dy);
+        let (a, b) = (c0 / dx, c1 / dx);
+        let along = dx.simd_ne(f32x4::ZERO);
+        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+        (
+            along.bitselect(ninf.fast_max(a.fast_min(b)), ninf),
+            along.bitselect(inf.fast_min(a.fast_max(b)), within.bitselect(inf, ninf)),
+        )
+    };
+    let k = -dy;
+    let across = k.simd_ne(f32x4::ZERO);
+    let mut out = [[None; 2]; 4];
+    for (m, rho) in [reach, inner].into_iter().enumerate() {
+        let (mut lo, mut hi) = (inf, ninf);
+        let mut add = |ok: f32x4, a: f32x4, b: f32x4| {
+            let ok = ok & a.simd_le(b);
+            lo = ok.bitselect(lo.fast_min(a), lo);
+            hi = ok.bitselect(hi.fast_max(b), hi);
+        };
+        for &(x, y) in &ends {
+            let q = f32x4::splat(rho * rho) - y * y;
+            let h = q.sqrt();
+            add(q.simd_ge(f32x4::ZERO), x - h, x + h);
+        }
+        // Across the segment, within the distance.
+        let c0 = f32x4::splat(-rho) * l - ey * dx;
+        let c1 = f32x4::splat(rho) * l - ey * dx;
+        let (a, b) = (c0 / k, c1 / k);
+        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+        let u0 = across.bitselect(b0.fast_max(a.fast_min(b)), b0);
+        let u1 = across.bitselect(b1.fast_min(a.fast_max(b)), within.bitselect(b1, ninf));
+        add(body, ax + u0, ax + u1);
+        let (lo, hi) = (lo.to_array(), hi.to_array());
+        for (j, out) in out.iter_mut().enumerate() {
+            out[m] = (lo[j] <= hi[j]).then_some((lo[j], hi[j]));
+        }
+    }
+    out
+}
+
 /// Gathers segment `s`'s coverage of the row whose centre is at `cy` into `row`
 /// (maximum), and gives the pixel span it reached: pixels within `r − ½` of the segment
 /// are covered whole, only those on its edges are measured (four at a time).
@@ -500,15 +577,13 @@ fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32,
 /// order, and 255 (filled) is the most.
 #[inline]
 fn seg_row_fill(
-    s: &Seg,
     k: u32,
-    cy: f32,
+    outer: Option<(f32, f32)>,
+    inner: Option<(f32, f32)>,
     r: f32,
-    reach: f32,
     row: &mut [u8],
     edges: &mut Vec<(u32, u32, u32)>,
 ) -> Option<(u32, u32)> {
-    let [outer, inner] = intervals(s, cy, reach, r - 0.5);
     let (a, b) = outer?;
     let w = row.len() as f32;
     let inner = inner.filter(|_| r > 0.5);
@@ -788,6 +863,62 @@ mod tests {
             assert!(same(floor(x), x.floor()), "floor {x:e}");
             assert!(same(ceil(x), x.ceil()), "ceil {x:e}");
         }
+    }
+
+    /// Four segments' intervals made at once are each segment's [`intervals`] (up to the
+    /// sign of a zero, which `==` does not tell apart): segments of every slope and
+    /// length within [`MODEST`] coordinates, dots, segments exactly along a row or a
+    /// column, rows through them, at their ends and beyond their reach.
+    #[test]
+    fn four_segments_intervals_are_each_ones() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut found = [0; 2];
+        for n in 0..60_000 {
+            let r = [0.2, 0.5, 1.56, 3.2, 4.1, 10.41, 40.0][n % 7];
+            let mut c = Capsules::default();
+            for m in 0..4 {
+                let a = [
+                    -40.0 + (MODEST - 30.0) * rand(),
+                    -40.0 + (MODEST - 30.0) * rand(),
+                ];
+                let len = [0.0, 0.02, 0.7, 3.0, 9.0, 60.0][(n + m) % 6];
+                let ang = rand() * std::f32::consts::TAU;
+                let mut b = [a[0] + len * ang.cos(), a[1] + len * ang.sin()];
+                match (n / 7 + m) % 5 {
+                    0 => b[0] = a[0],
+                    1 => b[1] = a[1],
+                    _ => {}
+                }
+                c.push(a, b);
+            }
+            let base = c.segs[(n / 3) % 4];
+            let cy = if n % 3 == 0 {
+                base.a[1] + base.d[1]
+            } else {
+                (base.a[1] + (rand() - 0.5) * 3.0 * (r + 1.0)).floor() + 0.5
+            };
+            let (reach, inner) = (r + 0.5, r - 0.5);
+            let group = [0, 1, 2, 3].map(|m| &c.segs[m]);
+            let got = intervals4(group, cy, reach, inner);
+            for (m, got) in got.iter().enumerate() {
+                let want = intervals(&c.segs[m], cy, reach, inner);
+                assert!(
+                    *got == want,
+                    "{:?} cy {cy} r {r}: {got:?} {want:?}",
+                    c.segs[m]
+                );
+                for (f, w) in found.iter_mut().zip(want) {
+                    *f += usize::from(w.is_some());
+                }
+            }
+        }
+        assert!(found.iter().all(|&f| f > 20_000), "{found:?}");
     }
 
     /// Pixel spans made in lanes are those made one bound at a time with [`ceil`],
