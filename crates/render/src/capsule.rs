@@ -47,8 +47,9 @@ struct Seg {
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Mode {
     Lanes,
-    /// A wide stroke's segment ([`Mode::Exact`] but for rows already covered whole over
-    /// its reach, which it leaves as they are: 255 is the most coverage).
+    /// A wide stroke's segment ([`Mode::Exact`] in two halves: every segment of a row
+    /// fills its interior, then the edges are measured but where they lie in pixels
+    /// covered whole already, which stay as they are: 255 is the most coverage).
     Wide,
     Exact,
 }
@@ -65,13 +66,15 @@ const LANES_MAX_R: f32 = 3.0;
 
 impl Seg {
     /// Decides [`Seg::mode`] for half width `r`: a thin stroke's segment ([`LANES_MAX_R`])
-    /// is measured in lanes over a conservative span (the x-range of its part within
-    /// `reach` of the row, widened by `reach` and a pixel each side). The bytes are those
-    /// of the exact interval with its interior filled:
+    /// is measured in lanes over a conservative span (the pixels whose centre lies within
+    /// the x-range of its part within `reach` of the row, widened by `reach` and an
+    /// eighth of a pixel each side). The bytes are those of the exact interval with its
+    /// interior filled:
     ///
     /// - the pixels beyond the exact interval are at least `reach` from the segment (up to
     ///   the rounding of the interval, a few ulps of a page coordinate), where
-    ///   [`coverage`] is below a thousandth and rounds to level 0;
+    ///   [`coverage`] is below a thousandth and rounds to level 0; so are those beyond
+    ///   the span, by more than an eighth of a pixel (far beyond that rounding);
     /// - an interior pixel's centre is within `r − ½` of the segment (up to that rounding),
     ///   so the pixel lies across the stroke whole: [`coverage`] is `(d + ½) − (d − ½)`,
     ///   or `1 − δ` with `δ` far below the `½/255` that rounding to level 255 forgives.
@@ -95,8 +98,9 @@ impl Seg {
     }
 
     /// Whether the row's pixels within the segment's conservative span ([`Seg::reach_x`],
-    /// a pixel more each side) are all covered whole already (or there are none).
-    #[inline]
+    /// a pixel more each side) are all covered whole already (or there are none): how
+    /// [`Mode::Wide`] rows were made before [`measure_edges`] (the tests' reference).
+    #[cfg(test)]
     fn covered(&self, cy: f32, reach: f32, row: &[u8]) -> bool {
         let Some((lo, hi)) = self.reach_x(cy, reach) else {
             return true;
@@ -154,6 +158,10 @@ pub(crate) struct Capsules {
     active: Vec<u32>,
     row: Vec<u8>,
     spans: Vec<(u32, u32)>,
+    /// A row's edges left to measure in [`Mode::Wide`]: `(segment, from, to)`.
+    edges: Vec<(u32, u32, u32)>,
+    /// A row's segments in [`Mode::Wide`].
+    wide: Vec<u32>,
 }
 
 /// `x.floor()` without a call into libm (which the baseline x86-64 target makes of it),
@@ -253,17 +261,37 @@ impl Capsules {
                 next += 1;
             }
             self.spans.clear();
+            self.edges.clear();
             let cy = j as f32 + 0.5;
+            self.wide.clear();
             for &k in &self.active {
                 let s = &segs[k as usize];
                 let span = match s.mode {
                     Mode::Lanes => seg_row_lanes(s, cy, r, reach, &mut self.row),
-                    Mode::Wide if s.covered(cy, reach, &self.row) => None,
-                    Mode::Wide | Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
+                    Mode::Wide => {
+                        self.wide.push(k);
+                        None
+                    }
+                    Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
                 };
                 if let Some(span) = span {
                     self.spans.push(span);
                 }
+            }
+            // Four wide segments' intervals at once (the spans are sorted before they
+            // are composited: their order does not matter).
+            for four in self.wide.chunks(4) {
+                let group = [0, 1, 2, 3].map(|m| &segs[four[m.min(four.len() - 1)] as usize]);
+                let ivs = intervals4(group, cy, reach, r - 0.5);
+                for (&k, [outer, inner]) in four.iter().zip(ivs) {
+                    let span = seg_row_fill(k, outer, inner, r, &mut self.row, &mut self.edges);
+                    if let Some(span) = span {
+                        self.spans.push(span);
+                    }
+                }
+            }
+            if !self.edges.is_empty() {
+                measure_edges(&segs, &self.edges, cy, r, &mut self.row);
             }
             self.flush_row(j as usize, t);
             self.active.retain(|&k| segs[k as usize].rows.1 > j + 1);
@@ -456,6 +484,65 @@ fn intervals(s: &Seg, cy: f32, reach: f32, inner: f32) -> [Option<(f32, f32)>; 2
     out
 }
 
+/// [`intervals`] of four segments at once, a segment a lane: per lane the f32 operations
+/// of `interval` (the tests' reference) in its order, each branch made in every lane and
+/// chosen by a mask. Only for segments within [`MODEST`] coordinates, whose values are
+/// finite: `min` and `max` then without their NaN cases (the lanes a branch does not
+/// choose, which may be NaN, are dropped). Their bounds may differ from `interval`'s in
+/// the sign of a zero only, which no pixel span made of them tells apart.
+#[inline]
+fn intervals4(s: [&Seg; 4], cy: f32, reach: f32, inner: f32) -> [[Option<(f32, f32)>; 2]; 4] {
+    let lane = |f: &dyn Fn(&Seg) -> f32| f32x4::new(s.map(f));
+    let ax = lane(&|s| s.a[0]);
+    let ey = f32x4::splat(cy) - lane(&|s| s.a[1]);
+    let dx = lane(&|s| s.d[0]);
+    let dy = lane(&|s| s.d[1]);
+    let l = lane(&|s| s.l);
+    let body = lane(&|s| s.inv).simd_gt(f32x4::ZERO);
+    let (ninf, inf) = (f32x4::splat(f32::NEG_INFINITY), f32x4::INFINITY);
+    let ends = [(ax, ey), (ax + dx, ey - dy)];
+    // The body's bounds on u = x − ax along the segment, for both distances.
+    let (b0, b1) = {
+        let (c0, c1) = (-ey * dy, l * l - ey * dy);
+        let (a, b) = (c0 / dx, c1 / dx);
+        let along = dx.simd_ne(f32x4::ZERO);
+        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+        (
+            along.bitselect(ninf.fast_max(a.fast_min(b)), ninf),
+            along.bitselect(inf.fast_min(a.fast_max(b)), within.bitselect(inf, ninf)),
+        )
+    };
+    let k = -dy;
+    let across = k.simd_ne(f32x4::ZERO);
+    let mut out = [[None; 2]; 4];
+    for (m, rho) in [reach, inner].into_iter().enumerate() {
+        let (mut lo, mut hi) = (inf, ninf);
+        let mut add = |ok: f32x4, a: f32x4, b: f32x4| {
+            let ok = ok & a.simd_le(b);
+            lo = ok.bitselect(lo.fast_min(a), lo);
+            hi = ok.bitselect(hi.fast_max(b), hi);
+        };
+        for &(x, y) in &ends {
+            let q = f32x4::splat(rho * rho) - y * y;
+            let h = q.sqrt();
+            add(q.simd_ge(f32x4::ZERO), x - h, x + h);
+        }
+        // Across the segment, within the distance.
+        let c0 = f32x4::splat(-rho) * l - ey * dx;
+        let c1 = f32x4::splat(rho) * l - ey * dx;
+        let (a, b) = (c0 / k, c1 / k);
+        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+        let u0 = across.bitselect(b0.fast_max(a.fast_min(b)), b0);
+        let u1 = across.bitselect(b1.fast_min(a.fast_max(b)), within.bitselect(b1, ninf));
+        add(body, ax + u0, ax + u1);
+        let (lo, hi) = (lo.to_array(), hi.to_array());
+        for (j, out) in out.iter_mut().enumerate() {
+            out[m] = (lo[j] <= hi[j]).then_some((lo[j], hi[j]));
+        }
+    }
+    out
+}
+
 /// Gathers segment `s`'s coverage of the row whose centre is at `cy` into `row`
 /// (maximum), and gives the pixel span it reached: pixels within `r − ½` of the segment
 /// are covered whole, only those on its edges are measured (four at a time).
@@ -478,9 +565,94 @@ fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32,
     }
     // Edges of a pixel or a few, in lanes (the spans they give are within [x0, x1)).
     let edge = Edge::new(s, cy, r);
-    edge.measure(row, x0, i0);
-    edge.measure(row, i1, x1);
+    edge.measure::<false>(row, x0, i0);
+    edge.measure::<false>(row, i1, x1);
     Some((x0 as u32, x1 as u32))
+}
+
+/// [`seg_row`] in [`Mode::Wide`], its first half: fills the pixels within `r − ½` of
+/// segment `k` (`s`) and leaves its edges to measure in `edges`, once every segment of
+/// the row has filled its interior ([`measure_edges`]). The bytes are [`seg_row`]'s: a
+/// row's pixel is the maximum of the segments' coverage, which does not depend on their
+/// order, and 255 (filled) is the most.
+#[inline]
+fn seg_row_fill(
+    k: u32,
+    outer: Option<(f32, f32)>,
+    inner: Option<(f32, f32)>,
+    r: f32,
+    row: &mut [u8],
+    edges: &mut Vec<(u32, u32, u32)>,
+) -> Option<(u32, u32)> {
+    let (a, b) = outer?;
+    let w = row.len() as f32;
+    let inner = inner.filter(|_| r > 0.5);
+    let (ia, ib) = inner.unwrap_or((a, b));
+    // Pixel i's centre is i + ½: both intervals' pixels at once, as `seg_row` makes them.
+    let [x0, x1, j0, j1] = pixel_spans([a, b, ia, ib], [0.5; 4], w);
+    if x0 >= x1 {
+        return None;
+    }
+    let (mut i0, mut i1) = (x1, x1);
+    if inner.is_some() {
+        i0 = j0.clamp(x0, x1);
+        i1 = j1.clamp(i0, x1);
+        row[i0..i1].fill(255);
+    }
+    for (from, to) in [(x0, i0), (i1, x1)] {
+        if from < to {
+            edges.push((k, from as u32, to as u32));
+        }
+    }
+    Some((x0 as u32, x1 as u32))
+}
+
+/// Two pixel spans at once, as [`seg_row`] makes them from intervals `[a, b]` and
+/// `[c, e]` (`v = [a, b, c, e]`, `o` what is taken off each bound first, ½ for the pixels
+/// whose centre lies in the interval): `[ceil(a − o₀), floor(b − o₁) + 1]` and the same
+/// for `[c, e]`, each bound clamped to `[0, w]`, in lanes. The same values: `ceil(x)` is
+/// `−floor(−x)` exactly, and [`floor`]'s `x as i32 as f32` is the lanes' truncation and
+/// conversion back, both exact below 2^23 (beyond, or for NaN, [`floor`] and [`ceil`]
+/// one by one).
+#[inline(always)]
+fn pixel_spans(v: [f32; 4], o: [f32; 4], w: f32) -> [usize; 4] {
+    let x = f32x4::new(v) - f32x4::new(o);
+    let x = x ^ f32x4::new([-0.0, 0.0, -0.0, 0.0]);
+    if x.abs().simd_lt(f32x4::splat(8_388_608.0)).to_bitmask() == 0b1111 {
+        let t = x.trunc_int().round_float();
+        let fl = t - (t.simd_gt(x) & f32x4::ONE);
+        let p = (fl ^ f32x4::new([-0.0, 0.0, -0.0, 0.0])) + f32x4::new([0.0, 1.0, 0.0, 1.0]);
+        // Whole numbers, not NaN: `clamp` is max then min.
+        let p = p.fast_max(f32x4::ZERO).fast_min(f32x4::splat(w));
+        p.trunc_int().to_array().map(|p| p as usize)
+    } else {
+        [
+            ceil(v[0] - o[0]),
+            floor(v[1] - o[1]) + 1.0,
+            ceil(v[2] - o[2]),
+            floor(v[3] - o[3]) + 1.0,
+        ]
+        .map(|p| p.clamp(0.0, w) as usize)
+    }
+}
+
+/// [`seg_row`] in [`Mode::Wide`], its second half: measures the edges the segments left
+/// ([`seg_row_fill`]) but their ends that lie in pixels already covered whole (255, by
+/// any segment's interior: the maximum is 255 whatever the edge's coverage there).
+#[inline]
+fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: &mut [u8]) {
+    for &(k, from, to) in edges {
+        let (mut from, mut to) = (from as usize, to as usize);
+        while from < to && row[from] == 255 {
+            from += 1;
+        }
+        while from < to && row[to - 1] == 255 {
+            to -= 1;
+        }
+        if from < to {
+            Edge::new(&segs[k as usize], cy, r).measure::<true>(row, from, to);
+        }
+    }
 }
 
 /// [`seg_row`] in [`Mode::Lanes`]: every pixel of a conservative span measured, four at
@@ -489,13 +661,12 @@ fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32,
 fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32, u32)> {
     let (lo, hi) = s.reach_x(cy, reach)?;
     let w = row.len() as f32;
-    // A pixel more on each side than the centres within [lo, hi].
-    let x0 = floor(lo - 0.5).clamp(0.0, w) as usize;
-    let x1 = (floor(hi - 0.5) + 2.0).clamp(0.0, w) as usize;
+    // The pixels whose centre i + ½ lies within [lo − ⅛, hi + ⅛].
+    let [x0, x1, _, _] = pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
     if x0 >= x1 {
         return None;
     }
-    Edge::new(s, cy, r).measure(row, x0, x1)
+    Edge::new(s, cy, r).measure::<true>(row, x0, x1)
 }
 
 /// Measures a segment's coverage of a row's pixels, four at a time: per lane the f32
@@ -544,8 +715,19 @@ impl Edge {
 
     /// Pixels `[from, to)` of `row` ← the maximum of theirs and the segment's coverage;
     /// gives the span of the pixels the segment covers (not 0).
+    ///
+    /// `FINITE` for a segment within [`MODEST`] coordinates ([`Mode::Lanes`] and
+    /// [`Mode::Wide`]): every value is then finite (below 2^24 · 2^15 before the clamps),
+    /// no lane is NaN, and `min`, `max`, the clamps and the conversion to an integer are
+    /// made without their NaN cases, the same values. Else (coordinates of any size,
+    /// whose products may be infinite and NaN) as `f32`'s, NaN included.
     #[inline]
-    fn measure(&self, row: &mut [u8], from: usize, to: usize) -> Option<(u32, u32)> {
+    fn measure<const FINITE: bool>(
+        &self,
+        row: &mut [u8],
+        from: usize,
+        to: usize,
+    ) -> Option<(u32, u32)> {
         if from >= to {
             return None;
         }
@@ -558,29 +740,45 @@ impl Edge {
         let ax = f32x4::splat(self.ax);
         let r = f32x4::splat(self.r);
         let half = f32x4::splat(0.5);
-        let lanes = f32x4::new([0.0, 1.0, 2.0, 3.0]);
-        let mut i = from;
-        while i < to {
-            // i + k < 2^24 (a row's width): exact, as `(i + k) as f32`.
-            let qx = (f32x4::splat(i as f32) + lanes) - ax;
-            let t = clamp01((qx * dx + pdy) * inv);
-            let (ex, ey) = (qx - t * dx, py - t * dy);
-            let d = (ex * ex + ey * ey).sqrt();
-            let c = clamp01((d + half).min(r) - (d - half).max(-r));
-            let level = c * f32x4::splat(255.0) + half;
-            // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
-            let v = level.trunc_int().to_array();
-            let n = (to - i).min(4);
-            for (px, &v) in row[i..i + n].iter_mut().zip(&v) {
+        // Pixel centres less ax: from + k (k < 4) to begin with, four more each time;
+        // below 2^24 (a row's width) exact, as `(i + k) as f32`.
+        let mut x = f32x4::splat(from as f32) + f32x4::new([0.0, 1.0, 2.0, 3.0]);
+        let four = f32x4::splat(4.0);
+        for (q, px4) in row[from..to].chunks_mut(4).enumerate() {
+            let qx = x - ax;
+            x += four;
+            let (level, v) = if FINITE {
+                let t = ((qx * dx + pdy) * inv)
+                    .fast_max(f32x4::ZERO)
+                    .fast_min(f32x4::ONE);
+                let (ex, ey) = (qx - t * dx, py - t * dy);
+                let d = (ex * ex + ey * ey).sqrt();
+                let c = ((d + half).fast_min(r) - (d - half).fast_max(-r))
+                    .fast_max(f32x4::ZERO)
+                    .fast_min(f32x4::ONE);
+                let level = c * f32x4::splat(255.0) + half;
+                // c·255 + ½ in [½, 255.5]: its `as u8`.
+                (level, level.fast_trunc_int().to_array())
+            } else {
+                let t = clamp01((qx * dx + pdy) * inv);
+                let (ex, ey) = (qx - t * dx, py - t * dy);
+                let d = (ex * ex + ey * ey).sqrt();
+                let c = clamp01((d + half).min(r) - (d - half).max(-r));
+                let level = c * f32x4::splat(255.0) + half;
+                // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
+                (level, level.trunc_int().to_array())
+            };
+            let n = px4.len();
+            for (px, &v) in px4.iter_mut().zip(&v) {
                 *px = (*px).max(v as u8);
             }
             // The lanes of level 1 or more.
             let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << n) - 1);
             if inked != 0 {
+                let i = from + 4 * q;
                 first = first.min(i + inked.trailing_zeros() as usize);
                 last = i + 32 - inked.leading_zeros() as usize;
             }
-            i += 4;
         }
         (first < last).then_some((first as u32, last as u32))
     }
@@ -664,6 +862,124 @@ mod tests {
         for x in xs {
             assert!(same(floor(x), x.floor()), "floor {x:e}");
             assert!(same(ceil(x), x.ceil()), "ceil {x:e}");
+        }
+    }
+
+    /// Four segments' intervals made at once are each segment's [`intervals`] (up to the
+    /// sign of a zero, which `==` does not tell apart): segments of every slope and
+    /// length within [`MODEST`] coordinates, dots, segments exactly along a row or a
+    /// column, rows through them, at their ends and beyond their reach.
+    #[test]
+    fn four_segments_intervals_are_each_ones() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut found = [0; 2];
+        for n in 0..60_000 {
+            let r = [0.2, 0.5, 1.56, 3.2, 4.1, 10.41, 40.0][n % 7];
+            let mut c = Capsules::default();
+            for m in 0..4 {
+                let a = [
+                    -40.0 + (MODEST - 30.0) * rand(),
+                    -40.0 + (MODEST - 30.0) * rand(),
+                ];
+                let len = [0.0, 0.02, 0.7, 3.0, 9.0, 60.0][(n + m) % 6];
+                let ang = rand() * std::f32::consts::TAU;
+                let mut b = [a[0] + len * ang.cos(), a[1] + len * ang.sin()];
+                match (n / 7 + m) % 5 {
+                    0 => b[0] = a[0],
+                    1 => b[1] = a[1],
+                    _ => {}
+                }
+                c.push(a, b);
+            }
+            let base = c.segs[(n / 3) % 4];
+            let cy = if n % 3 == 0 {
+                base.a[1] + base.d[1]
+            } else {
+                (base.a[1] + (rand() - 0.5) * 3.0 * (r + 1.0)).floor() + 0.5
+            };
+            let (reach, inner) = (r + 0.5, r - 0.5);
+            let group = [0, 1, 2, 3].map(|m| &c.segs[m]);
+            let got = intervals4(group, cy, reach, inner);
+            for (m, got) in got.iter().enumerate() {
+                let want = intervals(&c.segs[m], cy, reach, inner);
+                assert!(
+                    *got == want,
+                    "{:?} cy {cy} r {r}: {got:?} {want:?}",
+                    c.segs[m]
+                );
+                for (f, w) in found.iter_mut().zip(want) {
+                    *f += usize::from(w.is_some());
+                }
+            }
+        }
+        assert!(found.iter().all(|&f| f > 20_000), "{found:?}");
+    }
+
+    /// Pixel spans made in lanes are those made one bound at a time with [`ceil`],
+    /// [`floor`] and `clamp`: around every half pixel, at the page's edges and far
+    /// beyond, past 2^23, for infinities and NaN.
+    #[test]
+    fn pixel_spans_match_one_by_one() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let special = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            0.625,
+            0.375,
+            8_388_607.5,
+            8_388_608.0,
+            -8_388_609.0,
+            3e9,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for n in 0..400_000 {
+            let pick = |k: u64| -> f32 {
+                match k % 4 {
+                    0 => special[(k >> 8) as usize % special.len()],
+                    1 => f32::from_bits((k >> 16) as u32),
+                    // Near a half pixel, on and off a page 3300 px wide.
+                    _ => {
+                        let x = ((k >> 8) % 8000) as f32 * 0.5 - 400.0;
+                        [
+                            x,
+                            x.next_up(),
+                            x.next_down(),
+                            x + (k >> 40) as f32 / 65536.0,
+                        ][(k >> 4) as usize % 4]
+                    }
+                }
+            };
+            let v = [pick(rand()), pick(rand()), pick(rand()), pick(rand())];
+            let o = if n % 2 == 0 {
+                [0.5; 4]
+            } else {
+                [0.625, 0.375, 0.625, 0.375]
+            };
+            let w = [0.0, 1.0, 3300.0, 8192.0][n % 4];
+            let want = [
+                ceil(v[0] - o[0]),
+                floor(v[1] - o[1]) + 1.0,
+                ceil(v[2] - o[2]),
+                floor(v[3] - o[3]) + 1.0,
+            ]
+            .map(|p| p.clamp(0.0, w) as usize);
+            assert_eq!(pixel_spans(v, o, w), want, "{v:?} {o:?} {w}");
         }
     }
 
@@ -866,6 +1182,193 @@ mod tests {
         assert!(
             made.iter().all(|&m| m > 1000) && covered > 1000,
             "{made:?} {covered}"
+        );
+    }
+
+    impl Capsules {
+        /// [`Capsules::stroke`] as it was, segment after segment, each row's coverage
+        /// made whole by each segment in turn (a [`Mode::Wide`] segment skipped where its
+        /// span is covered whole already): the reference of the row loop.
+        fn stroke_reference(&mut self, r: f32, t: &mut Target) {
+            let mut segs = std::mem::take(&mut self.segs);
+            let reach = r.max(0.0) + 0.5;
+            if !(reach.is_finite() && reach > 0.5) || t.width == 0 || t.height == 0 {
+                segs.clear();
+                self.segs = segs;
+                return;
+            }
+            let (c0, c1) = clip_rows(t);
+            self.order.clear();
+            for (k, s) in segs.iter_mut().enumerate() {
+                let (y0, y1) = (s.a[1].min(s.a[1] + s.d[1]), s.a[1].max(s.a[1] + s.d[1]));
+                let lo = floor(y0 - reach - 0.5).clamp(c0, c1);
+                let hi = ceil(y1 + reach + 0.5).clamp(c0, c1);
+                if lo.is_nan() || hi.is_nan() || lo >= hi || !(s.a[0] + s.d[0]).is_finite() {
+                    continue;
+                }
+                s.rows = (lo as u32, hi as u32);
+                s.prepare(r);
+                self.order.push(k as u32);
+            }
+            self.order
+                .sort_unstable_by_key(|&k| segs[k as usize].rows.0);
+            if self.row.len() != t.width {
+                self.row = vec![0; t.width];
+            }
+            self.active.clear();
+            let mut next = 0;
+            let mut j = 0u32;
+            while next < self.order.len() || !self.active.is_empty() {
+                if self.active.is_empty() {
+                    j = j.max(segs[self.order[next] as usize].rows.0);
+                }
+                while next < self.order.len() && segs[self.order[next] as usize].rows.0 <= j {
+                    self.active.push(self.order[next]);
+                    next += 1;
+                }
+                self.spans.clear();
+                let cy = j as f32 + 0.5;
+                for &k in &self.active {
+                    let s = &segs[k as usize];
+                    let span = match s.mode {
+                        Mode::Lanes => seg_row_lanes(s, cy, r, reach, &mut self.row),
+                        Mode::Wide if s.covered(cy, reach, &self.row) => None,
+                        Mode::Wide | Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
+                    };
+                    if let Some(span) = span {
+                        self.spans.push(span);
+                    }
+                }
+                self.flush_row(j as usize, t);
+                self.active.retain(|&k| segs[k as usize].rows.1 > j + 1);
+                j += 1;
+            }
+            segs.clear();
+            self.segs = segs;
+        }
+    }
+
+    /// Whole strokes made by the row loop are byte for byte those of the reference
+    /// ([`Capsules::stroke_reference`]), and mark the same blocks: polylines of many short
+    /// segments (many segments on a row, overlapping: a feature mark's band, a curve),
+    /// scattered segments and dots, thin ([`Mode::Lanes`]) and wide ([`Mode::Wide`]),
+    /// over blank and inked pages, drawn whole and band by band (segments entering and
+    /// leaving mid-band, rows clipped).
+    #[test]
+    fn strokes_match_the_reference_row_loop() {
+        let mut seed = 0x5851_f42d_4c95_7f2du64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (w, h) = (240, 160);
+        let (mut wide, mut thin, mut crowded) = (0, 0, 0);
+        for n in 0..1500 {
+            let r = [0.2, 0.5, 0.83, 1.56, 2.6, 3.0, 3.125, 4.8, 10.41, 14.0][n % 10];
+            let mut c = Capsules::default();
+            let mut pts = Vec::new();
+            let count = 1 + (rand() * 90.0) as usize;
+            match (n / 10) % 3 {
+                0 => {
+                    // A polyline of short steps, wandering (a curve, a mark's band).
+                    let mut p = [w as f32 * rand(), h as f32 * rand()];
+                    let mut ang = rand() * std::f32::consts::TAU;
+                    for _ in 0..count {
+                        let step = 0.3 + 6.0 * rand();
+                        ang += (rand() - 0.5) * 0.8;
+                        let q = [p[0] + step * ang.cos(), p[1] + step * ang.sin()];
+                        pts.push((p, q));
+                        p = q;
+                    }
+                }
+                1 => {
+                    // Scattered segments, dots and segments along rows and columns.
+                    for k in 0..count {
+                        let a = [
+                            -20.0 + (w as f32 + 40.0) * rand(),
+                            -20.0 + (h as f32 + 40.0) * rand(),
+                        ];
+                        let len = [0.0, 0.5, 4.0, 30.0, 200.0][k % 5] * rand();
+                        let ang = match k % 4 {
+                            0 => 0.0,
+                            1 => std::f32::consts::FRAC_PI_2,
+                            _ => rand() * std::f32::consts::TAU,
+                        };
+                        pts.push((a, [a[0] + len * ang.cos(), a[1] + len * ang.sin()]));
+                    }
+                }
+                _ => {
+                    // Many segments crossing one another on the same rows.
+                    let y = h as f32 * rand();
+                    for _ in 0..count {
+                        let a = [w as f32 * rand(), y + 8.0 * (rand() - 0.5)];
+                        let b = [w as f32 * rand(), y + 8.0 * (rand() - 0.5)];
+                        pts.push((a, b));
+                    }
+                }
+            }
+            let under: Vec<u8> = if n % 2 == 0 {
+                vec![0; w * h]
+            } else {
+                (0..w * h).map(|i| ((i * 37) % 11 * 25) as u8).collect()
+            };
+            let ink = [Ink::Black, Ink::Gray(48), Ink::Paper][n % 3];
+            // Whole, or in bands of a few rows (data from the band's first row).
+            let bands: Vec<(usize, usize)> = if n % 4 == 3 {
+                let step = 1 + (rand() * 40.0) as usize;
+                (0..h)
+                    .step_by(step)
+                    .map(|j| (j, (j + step).min(h)))
+                    .collect()
+            } else {
+                vec![(0, h)]
+            };
+            let mut got = under.clone();
+            let mut want = under.clone();
+            let mut got_dirty = Dirty::new(w, h);
+            let mut want_dirty = Dirty::new(w, h);
+            for &(j0, j1) in &bands {
+                for (data, dirty, reference) in [
+                    (&mut got, &mut got_dirty, false),
+                    (&mut want, &mut want_dirty, true),
+                ] {
+                    for &(a, b) in &pts {
+                        c.push(a, b);
+                    }
+                    let mut t = Target {
+                        data: &mut data[j0 * w..j1 * w],
+                        width: w,
+                        height: h,
+                        ink,
+                        rows: (j0, j1),
+                        first: j0,
+                        dirty,
+                        layer: None,
+                    };
+                    if reference {
+                        c.stroke_reference(r, &mut t);
+                    } else {
+                        c.stroke(r, &mut t);
+                    }
+                }
+            }
+            assert!(got == want, "stroke {n}: r {r}, {} segments", pts.len());
+            assert_eq!(got_dirty.rows(), want_dirty.rows(), "stroke {n}");
+            assert!(c.row.iter().all(|&v| v == 0), "row buffer left clean");
+            if got != under {
+                if r > LANES_MAX_R {
+                    wide += 1;
+                } else {
+                    thin += 1;
+                }
+                crowded += usize::from(pts.len() > 20);
+            }
+        }
+        assert!(
+            wide > 300 && thin > 300 && crowded > 300,
+            "{wide} {thin} {crowded}"
         );
     }
 
