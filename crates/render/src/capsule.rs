@@ -28,7 +28,7 @@ use wide::f32x4;
 struct Seg {
     a: [f32; 2],
     d: [f32; 2],
-    /// `1 / |d|²`, or 0 for a point.
+    /// `1 / |d|²`, or 0 for a point (or a segment whose `|d|²` is subnormal).
     inv: f32,
     /// `|d|` (as the body's interval needs it, row after row).
     l: f32,
@@ -211,7 +211,14 @@ impl Capsules {
         self.segs.push(Seg {
             a,
             d,
-            inv: if len2 > 0.0 { 1.0 / len2 } else { 0.0 },
+            // A subnormal `|d|²` (a segment shorter than 10⁻¹⁹ px) would make `inv`
+            // infinite, and `0 · ∞` a NaN that [`Edge::measure`]'s finite lanes do not
+            // expect: such a segment is its dot.
+            inv: if len2 >= f32::MIN_POSITIVE {
+                1.0 / len2
+            } else {
+                0.0
+            },
             l: len2.sqrt(),
             rows: (0, 0),
             mode: Mode::Exact,
@@ -1020,6 +1027,27 @@ mod tests {
                 }
             }
             assert!(c.row.iter().all(|&v| v == 0), "row buffer left clean");
+        }
+    }
+
+    /// A segment too short for its `1 / |d|²` in f32 (a subnormal `|d|²`) is drawn as the
+    /// dot at its start, in every mode: no pixel is left out by a NaN of `0 · ∞`.
+    #[test]
+    fn a_vanishing_segment_is_its_dot() {
+        let (w, h) = (40, 40);
+        let (a, b) = ([1e-20f32, 2e-20], [2e-20f32, 1e-20]);
+        for r in [1.0f32, 2.5, 6.0] {
+            let draw = |b: [f32; 2]| {
+                let mut data = vec![0u8; w * h];
+                let mut dirty = Dirty::new(w, h);
+                let mut c = Capsules::default();
+                c.push(a, b);
+                c.stroke(r, &mut target(&mut data, w, &mut dirty, Ink::Black));
+                data
+            };
+            let (seg, dot) = (draw(b), draw(a));
+            assert!(dot[0] > 0, "r = {r}: the dot inks its pixel");
+            assert_eq!(seg, dot, "r = {r}");
         }
     }
 
