@@ -300,12 +300,12 @@ impl Bits {
         self.n -= 8 * whole;
     }
 
-    /// More room after `pos`.
+    /// More room after `pos`: 64 KiB more, the buffer's capacity growing as it would by
+    /// appending (a page's PNG fits the capacity it is given, sized from the last page's).
     #[cold]
     #[inline(never)]
     fn grow(&mut self) {
-        let len = (2 * self.out.len()).max(self.pos + 4096);
-        self.out.resize(len, 0);
+        self.out.resize(self.pos + (1 << 16), 0);
     }
 
     /// Appends `n ≤ 64` bits.
