@@ -695,11 +695,19 @@ impl Occupancy {
         }
     }
 
+    /// The cell of page point `p`, if on the grid. The cell's column is
+    /// `⌊(x − x0) / cell⌋` and is on the grid when `0 ≤ (x − x0) / cell < nx` (the
+    /// same test, as `nx` is whole: no `floor` call, NaN off the grid); likewise rows.
+    #[inline]
+    fn cell_of(&self, p: PagePoint) -> Option<usize> {
+        let i = (p[0] - self.x0) / self.cell;
+        let j = (p[1] - self.y0) / self.cell;
+        (i >= 0.0 && j >= 0.0 && i < self.nx as f64 && j < self.ny as f64)
+            .then(|| j as usize * self.nx + i as usize)
+    }
+
     pub(crate) fn mark_point(&mut self, p: PagePoint, weight: u32) {
-        let i = ((p[0] - self.x0) / self.cell).floor();
-        let j = ((p[1] - self.y0) / self.cell).floor();
-        if i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny {
-            let k = j as usize * self.nx + i as usize;
+        if let Some(k) = self.cell_of(p) {
             self.cells[k] = self.cells[k].saturating_add(weight);
         }
     }
@@ -713,13 +721,24 @@ impl Occupancy {
         }
     }
 
+    /// The summed-area table of the cells, row by row: the row's running sums first
+    /// (serial), then each added to the row above (independent, vectorised); the same
+    /// saturating sums in the same order per entry.
     pub(crate) fn build(&mut self) {
         let w = self.nx + 1;
+        let mut run = vec![0u32; self.nx];
         for j in 0..self.ny {
             let mut row = 0u32;
-            for i in 0..self.nx {
-                row = row.saturating_add(self.cells[j * self.nx + i]);
-                self.sat[(j + 1) * w + i + 1] = self.sat[j * w + i + 1].saturating_add(row);
+            for (r, &c) in run
+                .iter_mut()
+                .zip(&self.cells[j * self.nx..(j + 1) * self.nx])
+            {
+                row = row.saturating_add(c);
+                *r = row;
+            }
+            let (above, this) = self.sat[j * w..(j + 2) * w].split_at_mut(w);
+            for ((s, &a), &r) in this[1..].iter_mut().zip(&above[1..]).zip(&run) {
+                *s = a.saturating_add(r);
             }
         }
     }
@@ -733,10 +752,7 @@ impl Occupancy {
         let mut sum = 0u64;
         for s in 0..=n {
             let t = s as f64 / n as f64;
-            let i = ((a[0] + t * (b[0] - a[0]) - self.x0) / self.cell).floor();
-            let j = ((a[1] + t * (b[1] - a[1]) - self.y0) / self.cell).floor();
-            if i >= 0.0 && j >= 0.0 && (i as usize) < self.nx && (j as usize) < self.ny {
-                let k = j as usize * self.nx + i as usize;
+            if let Some(k) = self.cell_of([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]) {
                 if k != last {
                     sum += u64::from(self.cells[k]);
                     last = k;
@@ -1184,6 +1200,133 @@ pub fn footer_settings(setup: &PageSetup) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The occupancy grid as it was written first (`floor` per sample, the table in one
+    /// loop): the reference for the faster one.
+    struct OldOccupancy(Occupancy);
+
+    impl OldOccupancy {
+        fn mark_point(&mut self, p: PagePoint, weight: u32) {
+            let o = &mut self.0;
+            let i = ((p[0] - o.x0) / o.cell).floor();
+            let j = ((p[1] - o.y0) / o.cell).floor();
+            if i >= 0.0 && j >= 0.0 && (i as usize) < o.nx && (j as usize) < o.ny {
+                let k = j as usize * o.nx + i as usize;
+                o.cells[k] = o.cells[k].saturating_add(weight);
+            }
+        }
+
+        fn mark_segment(&mut self, a: PagePoint, b: PagePoint, weight: u32) {
+            let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
+            let n = (len / (0.5 * self.0.cell)).ceil().max(1.0) as usize;
+            for s in 0..=n {
+                let t = s as f64 / n as f64;
+                self.mark_point([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])], weight);
+            }
+        }
+
+        fn build(&mut self) {
+            let o = &mut self.0;
+            let w = o.nx + 1;
+            for j in 0..o.ny {
+                let mut row = 0u32;
+                for i in 0..o.nx {
+                    row = row.saturating_add(o.cells[j * o.nx + i]);
+                    o.sat[(j + 1) * w + i + 1] = o.sat[j * w + i + 1].saturating_add(row);
+                }
+            }
+        }
+
+        fn segment_cost(&self, a: PagePoint, b: PagePoint) -> u64 {
+            let o = &self.0;
+            let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
+            let n = (len / (0.5 * o.cell)).ceil().max(1.0) as usize;
+            let mut last = usize::MAX;
+            let mut sum = 0u64;
+            for s in 0..=n {
+                let t = s as f64 / n as f64;
+                let i = ((a[0] + t * (b[0] - a[0]) - o.x0) / o.cell).floor();
+                let j = ((a[1] + t * (b[1] - a[1]) - o.y0) / o.cell).floor();
+                if i >= 0.0 && j >= 0.0 && (i as usize) < o.nx && (j as usize) < o.ny {
+                    let k = j as usize * o.nx + i as usize;
+                    if k != last {
+                        sum += u64::from(o.cells[k]);
+                        last = k;
+                    }
+                }
+            }
+            sum
+        }
+    }
+
+    /// Points and segments on, off and along the grid's edges (cell boundaries hit
+    /// exactly, -0, NaN, infinities, huge weights that saturate): the same cells, the
+    /// same table and the same segment costs as the first version.
+    #[test]
+    fn occupancy_is_the_first_versions() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for frame in [[36.0, 36.0, 756.0, 1188.0], [0.5, -3.25, 40.0, 29.0]] {
+            for cell in [3.0, 0.7] {
+                let mut new = Occupancy::new(frame, cell);
+                let mut old = OldOccupancy(Occupancy::new(frame, cell));
+                let special = [
+                    f64::NAN,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    -0.0,
+                    frame[0],
+                    frame[0] - 1e-9,
+                    frame[2],
+                    frame[0] + cell * (new.nx as f64),
+                    frame[1] + cell * (new.ny as f64),
+                    frame[1] + 3.0 * cell,
+                ];
+                let mut coord = |k: usize| {
+                    let r = rand();
+                    if r % 5 == 0 {
+                        special[(r >> 8) as usize % special.len()]
+                    } else {
+                        let lo = frame[k % 2] - 20.0;
+                        let hi = frame[2 + k % 2] + 20.0;
+                        lo + (hi - lo) * ((r >> 11) as f64 / (1u64 << 53) as f64)
+                    }
+                };
+                let mut queries = Vec::new();
+                for round in 0..2 {
+                    for q in 0..3000 {
+                        let a = [coord(0), coord(1)];
+                        let b = [coord(0), coord(1)];
+                        let weight = if q % 97 == 0 {
+                            u32::MAX / 3
+                        } else {
+                            q as u32 % 41
+                        };
+                        if q % 3 == 0 {
+                            new.mark_point(a, weight);
+                            old.mark_point(a, weight);
+                        } else if a.iter().chain(&b).all(|x| x.is_finite()) {
+                            new.mark_segment(a, b, weight);
+                            old.mark_segment(a, b, weight);
+                            queries.push((a, b));
+                        }
+                    }
+                    new.build();
+                    old.build();
+                    assert!(new.cells == old.0.cells, "round {round}: cells differ");
+                    assert!(new.sat == old.0.sat, "round {round}: tables differ");
+                    for &(a, b) in &queries {
+                        assert_eq!(new.segment_cost(a, b), old.segment_cost(a, b));
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn page_sizes_parse() {

@@ -12,7 +12,11 @@
 //!   nothing to the sum `a` and `a` to the sum `b`), so the row is never read;
 //! - an **inked row** is read in 8-byte words as `fdeflate` reads it, but only the words
 //!   that may hold ink; the words between are known to be zero and only lengthen the
-//!   current run of zeros, and their Adler-32 is updated arithmetically too.
+//!   current run of zeros, and their Adler-32 is updated arithmetically too. The words
+//!   are read twice: once to mark which are not all zero, then the marked ones are coded
+//!   without a branch on their bytes (a word's run of zeros from a table, its literals
+//!   all eight coded and cut to length, its bits stored whole), since on anti-aliased
+//!   ink the branches per word and per byte of `fdeflate`'s loop are mispredicted.
 //!
 //! The code (the lengths of the literal/length and distance codes) is read from the header
 //! `fdeflate` writes, not copied: the two cannot drift apart, and the tests compare the
@@ -36,7 +40,23 @@ struct Format {
     dist: (u16, u8),
     /// The length symbol of a match of length `3 + i`, and its base length.
     length_symbol: [(u16, u16); 256],
+    /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
+    /// and their number.
+    zrun: [(u64, u32); ZRUN_MAX as usize + 1],
+    /// The bits of as many matches of 258 zeros as fit a `put`, their number of bits and
+    /// of matches.
+    matches: (u64, u32, u32),
 }
+
+/// The longest run of zeros [`Format::zrun`] holds: a literal 0 and one match of 258.
+const ZRUN_MAX: u32 = 259;
+
+/// The most bits of a run of zeros in [`Format::zrun`] (a word's run and its 8 literals
+/// of at most 12 bits fit [`Bits::put_wide`]).
+const ZRUN_BITS: u32 = 24;
+
+/// The most bits [`Bits::put`] takes at once.
+const PUT_MAX: u32 = 56;
 
 /// Extra bits of the length symbols 257..=285 (RFC 1951, 3.2.5).
 const LENGTH_EXTRA: [u8; 29] = [
@@ -125,14 +145,42 @@ impl Format {
         let bits = 16 + r.pos;
         let header = empty[..bits / 8].to_vec();
         let tail = u64::from(empty[bits / 8]) & ((1 << (bits % 8)) - 1);
-        Some(Format {
+        let mut f = Format {
             header,
             header_bits: (tail, (bits % 8) as u32),
             code,
             len,
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
-        })
+            zrun: [(0, 0); ZRUN_MAX as usize + 1],
+            matches: (0, 0, 0),
+        };
+        // Literal codes are at most 12 bits (four to a `put`), literal 0's code is all
+        // zero bits ([`Bits::word`] relies on it), and a short run of zeros fits one `put`.
+        if len.iter().any(|&l| l > 12) || code[0] != 0 {
+            return None;
+        }
+        let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
+        for (z, e) in zrun.iter_mut().enumerate().skip(1) {
+            let mut b = Bits::new(Vec::new());
+            b.zeros_by_symbol(&f, z as u32);
+            let (words, total) = b.into_words();
+            if total > u64::from(ZRUN_BITS) {
+                return None;
+            }
+            *e = (words[0], total as u32);
+        }
+        f.zrun = zrun;
+        let (c, l) = f.sym(285);
+        let one = l + u32::from(f.dist.1);
+        let m = c | u64::from(f.dist.0) << l;
+        let per = PUT_MAX / one;
+        if per == 0 {
+            return None;
+        }
+        let bits = (0..per).fold(0u64, |b, i| b | m << (i * one));
+        f.matches = (bits, per * one, per);
+        Some(f)
     }
 
     /// The bits of literal (or length symbol) `s`.
@@ -215,35 +263,82 @@ impl BitReader<'_> {
 
 /// A bit string being written, least significant bit first, into whole bytes.
 struct Bits {
+    /// The bytes written are `out[..pos]`; the bytes after are room to store into.
     out: Vec<u8>,
+    pos: usize,
+    /// The bits not yet in `out[..pos]`: fewer than 8 between calls.
     acc: u64,
     n: u32,
 }
 
 impl Bits {
-    /// Appends the low `n ≤ 64` bits of `bits` (the rest must be zero).
-    #[inline]
-    fn put(&mut self, bits: u64, n: u32) {
-        self.acc |= bits.checked_shl(self.n).unwrap_or(0);
-        self.n += n;
-        if self.n >= 64 {
-            self.out.extend_from_slice(&self.acc.to_le_bytes());
-            self.n -= 64;
-            self.acc = bits.checked_shr(n - self.n).unwrap_or(0);
+    /// A string appended to `out`.
+    fn new(out: Vec<u8>) -> Bits {
+        Bits {
+            pos: out.len(),
+            out,
+            acc: 0,
+            n: 0,
         }
+    }
+
+    /// Appends the low `n ≤ PUT_MAX` bits of `bits` (the rest must be zero), without a
+    /// branch on the data: the accumulator's 8 bytes are stored each time and the whole
+    /// bytes among them kept.
+    #[inline(always)]
+    fn put(&mut self, bits: u64, n: u32) {
+        debug_assert!(n <= PUT_MAX && self.n < 8 && bits.checked_shr(n).unwrap_or(0) == 0);
+        if self.out.len() < self.pos + 8 {
+            self.grow();
+        }
+        self.acc |= bits << self.n;
+        self.n += n;
+        self.out[self.pos..self.pos + 8].copy_from_slice(&self.acc.to_le_bytes());
+        let whole = self.n / 8;
+        self.pos += whole as usize;
+        self.acc >>= 8 * whole;
+        self.n -= 8 * whole;
+    }
+
+    /// More room after `pos`: 64 KiB more, the buffer's capacity growing as it would by
+    /// appending (a page's PNG fits the capacity it is given, sized from the last page's).
+    #[cold]
+    #[inline(never)]
+    fn grow(&mut self) {
+        self.out.resize(self.pos + (1 << 16), 0);
+    }
+
+    /// Appends `n ≤ 64` bits.
+    fn put_long(&mut self, bits: u64, n: u32) {
+        if n > 32 {
+            self.put(bits & 0xffff_ffff, 32);
+            self.put(bits >> 32, n - 32);
+        } else {
+            self.put(bits, n);
+        }
+    }
+
+    /// The bytes written, the last partial byte padded with zeros.
+    fn into_bytes(mut self) -> Vec<u8> {
+        self.out.truncate(self.pos);
+        if self.n > 0 {
+            self.out.push(self.acc as u8);
+        }
+        self.out
     }
 
     /// The string as 64-bit words and its length in bits.
     fn into_words(self) -> (Vec<u64>, u64) {
-        let total = self.out.len() as u64 * 8 + u64::from(self.n);
-        let mut words: Vec<u64> = self
-            .out
-            .chunks_exact(8)
-            .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
+        let total = self.pos as u64 * 8 + u64::from(self.n);
+        let bytes = self.into_bytes();
+        let words = bytes
+            .chunks(8)
+            .map(|c| {
+                let mut w = [0u8; 8];
+                w[..c.len()].copy_from_slice(c);
+                u64::from_le_bytes(w)
+            })
             .collect();
-        if self.n > 0 {
-            words.push(self.acc);
-        }
         (words, total)
     }
 
@@ -255,7 +350,7 @@ impl Bits {
             let (c, l) = f.sym(usize::from(b));
             acc |= c << n;
             n += l;
-            if n >= 48 {
+            if n > PUT_MAX - 12 {
                 self.put(acc, n);
                 (acc, n) = (0, 0);
             }
@@ -266,7 +361,8 @@ impl Bits {
     }
 
     /// A run of `run ≥ 1` zeros: a literal 0, then distance-1 matches (as `fdeflate`).
-    fn zeros(&mut self, f: &Format, mut run: u32) {
+    /// Used to make [`Format::zrun`]; [`Bits::zeros`] codes the same bits faster.
+    fn zeros_by_symbol(&mut self, f: &Format, mut run: u32) {
         let (dc, dl) = (u64::from(f.dist.0), u32::from(f.dist.1));
         let (zc, zl) = f.sym(0);
         self.put(zc, zl);
@@ -289,49 +385,170 @@ impl Bits {
         }
     }
 
-    /// One 8-byte word of a row, `fdeflate`'s way: a pending run of zeros takes the word's
-    /// leading zeros, the bytes up to its trailing zeros are literals, and its trailing
-    /// zeros start the next run.
-    #[inline]
-    fn word(&mut self, f: &Format, w: &[u8], run: &mut u32) {
-        let v = u64::from_le_bytes(w.try_into().expect("8 bytes"));
-        if v == 0 {
-            *run += 8;
-            return;
+    /// A run of `run ≥ 1` zeros, the bits of [`Bits::zeros_by_symbol`]: the literal 0,
+    /// the matches of 258 several to a `put`, and the rest from [`Format::zrun`] (a run
+    /// of `rest + 1` is the literal 0, whose code is all zero bits, then the rest's code).
+    fn zeros(&mut self, f: &Format, mut run: u32) {
+        let zl = u32::from(f.len[0]);
+        self.put(0, zl);
+        run -= 1;
+        let (bits, n, per) = f.matches;
+        while run >= 258 * per {
+            self.put(bits, n);
+            run -= 258 * per;
         }
-        let mut from = 0;
-        if *run > 0 {
-            let lead = v.trailing_zeros() / 8;
-            self.zeros(f, *run + lead);
-            from = lead as usize;
+        let one = n / per;
+        while run >= 258 {
+            self.put(bits & ((1 << one) - 1), one);
+            run -= 258;
         }
-        let tail = v.leading_zeros() / 8;
-        self.literals(f, &w[from..8 - tail as usize]);
-        *run = tail;
+        let (c, l) = f.zrun[run as usize + 1];
+        self.put(c >> zl, l - zl);
     }
 
-    /// A row whose bytes are zero outside the byte ranges `live` (ascending), as
-    /// `fdeflate::Compressor::write_data(row)` encodes it.
-    fn row(&mut self, f: &Format, row: &[u8], live: impl Iterator<Item = (usize, usize)>) {
-        let words = row.len() / 8;
-        let (mut next, mut run) = (0usize, 0u32);
-        for (s, e) in live {
-            let (w0, w1) = ((s / 8).max(next), e.div_ceil(8).min(words));
-            if w0 >= w1 {
-                continue;
-            }
-            run += 8 * (w0 - next) as u32;
-            for w in row[8 * w0..8 * w1].chunks_exact(8) {
-                self.word(f, w, &mut run);
-            }
-            next = w1;
+    /// The literal codes of `u`'s bytes `4·half..4·half + 4` and their length.
+    #[inline(always)]
+    fn four(f: &Format, u: u64, half: u32) -> (u64, u32) {
+        let (mut bits, mut n) = (0u64, 0u32);
+        for i in 4 * half..4 * half + 4 {
+            let b = usize::from((u >> (8 * i)) as u8);
+            bits |= u64::from(f.code[b]) << n;
+            n += u32::from(f.len[b]);
         }
-        run += 8 * (words - next) as u32;
-        if run > 0 {
-            self.zeros(f, run);
-        }
-        self.literals(f, &row[8 * words..]);
+        (bits, n)
     }
+
+    /// One inked 8-byte word `v ≠ 0` of a row after `run` zeros, `fdeflate`'s way: a
+    /// pending run of zeros takes the word's leading zeros, the bytes up to its trailing
+    /// zeros are literals, and its trailing zeros start the next run (returned). No
+    /// branch on the bytes: a run of zeros comes from a table (only runs longer than
+    /// `ZRUN_MAX` take the long way), and the literals are the word shifted down past
+    /// the run's bytes, all 8 bytes coded: the zero bytes shifted in code as zero bits
+    /// (literal 0's code is all zeros), so they are cut off by their length alone.
+    #[inline(always)]
+    fn word(&mut self, f: &Format, v: u64, run: u32) -> u32 {
+        let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
+        let from = if run > 0 { lead } else { 0 };
+        let z = if run > 0 { run + lead } else { 0 };
+        let (zc, zn) = if z > ZRUN_MAX {
+            self.zeros(f, z);
+            (0, 0)
+        } else {
+            f.zrun[z as usize]
+        };
+        // The literals: bytes `from..8 − tail`, `c` of them, now bytes `0..c` of `u`.
+        let u = v >> (8 * from);
+        let c = 8 - tail - from;
+        let (lo, nlo) = Bits::four(f, u, 0);
+        let (hi, nhi) = Bits::four(f, u, 1);
+        let zl = u32::from(f.len[0]);
+        let in_lo = c.min(4);
+        let nlo = nlo - zl * (4 - in_lo);
+        let nhi = nhi - zl * (4 - (c - in_lo));
+        // At most ZRUN_BITS + 96 bits, after fewer than 8: one store of 16 bytes.
+        let bits = u128::from(zc) | u128::from(lo) << zn | u128::from(hi) << (zn + nlo);
+        self.put_wide(bits, zn + nlo + nhi);
+        tail
+    }
+
+    /// Appends the low `n ≤ 120` bits of `bits` (the rest zero), as [`Bits::put`].
+    #[inline(always)]
+    fn put_wide(&mut self, bits: u128, n: u32) {
+        debug_assert!(n <= 120 && self.n < 8);
+        if self.out.len() < self.pos + 16 {
+            self.grow();
+        }
+        let acc = u128::from(self.acc) | bits << self.n;
+        let n = self.n + n;
+        self.out[self.pos..self.pos + 16].copy_from_slice(&acc.to_le_bytes());
+        let whole = n / 8;
+        self.pos += whole as usize;
+        self.acc = (acc >> (8 * whole)) as u64;
+        self.n = n - 8 * whole;
+    }
+
+    /// A row whose bytes are zero outside the byte ranges `live`, as
+    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
+    /// First the words that meet `live` are read and the inked ones (not all zero)
+    /// marked in `inked`; then the inked words are coded in order (their sums added),
+    /// and the zero words between only lengthen the run of zeros, their sums arithmetic.
+    fn row(
+        &mut self,
+        f: &Format,
+        row: &[u8],
+        live: impl Iterator<Item = (usize, usize)>,
+        adler: &mut Adler,
+        inked: &mut Vec<u64>,
+    ) {
+        let words = row.len() / 8;
+        inked.clear();
+        inked.resize(words.div_ceil(64), 0);
+        for (s, e) in live {
+            for i in s / 8..e.div_ceil(8).min(words) {
+                let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+                inked[i / 64] |= u64::from(v != 0) << (i % 64);
+            }
+        }
+        // Kept in locals (registers) while the row is coded.
+        let mut w = std::mem::replace(self, Bits::new(Vec::new()));
+        let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
+        // Bytes before `at` are coded and summed; `run` zeros are pending.
+        let (mut at, mut run) = (0usize, 0u32);
+        for (k, &m) in inked.iter().enumerate() {
+            if k % 64 == 0 {
+                // Every 4096 words (32 KiB) the zeros up to here are added and the sums
+                // reduced: in between `a` stays below 65521 + 255·2^15 (< 2^24) and `b`
+                // below 65521 + 2^15·2^24 + 2^12·5100, far below 2^64.
+                let gap = 512 * k - at;
+                run += gap as u32;
+                b = (b + (gap as u64 % ADLER_MOD) * (a % ADLER_MOD)) % ADLER_MOD;
+                a %= ADLER_MOD;
+                at = 512 * k;
+            }
+            let mut m = m;
+            while m != 0 {
+                let i = 64 * k + m.trailing_zeros() as usize;
+                m &= m - 1;
+                let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+                let gap = 8 * i - at;
+                run = w.word(f, v, run + gap as u32);
+                let (sum, weighted) = word_sums(v);
+                b += (gap as u64 + 8) * a + weighted;
+                a += sum;
+                at = 8 * i + 8;
+            }
+        }
+        let gap = 8 * words - at;
+        run += gap as u32;
+        b = (b + (gap as u64 % ADLER_MOD) * (a % ADLER_MOD)) % ADLER_MOD;
+        a %= ADLER_MOD;
+        if run > 0 {
+            w.zeros(f, run);
+        }
+        let rest = &row[8 * words..];
+        w.literals(f, rest);
+        for &x in rest {
+            a += u64::from(x);
+            b += a;
+        }
+        (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
+        *self = w;
+    }
+}
+
+/// The sums of an 8-byte word's bytes `x₀..x₇` (`x₀` first in the row) that Adler-32
+/// adds: `Σ xᵢ` to `a`, and `Σ (8 − i)·xᵢ` to `b` (beside `8·a`). In 16-bit lanes: the
+/// lane products stay below 2^16 (at most 255·20), so no carry crosses a lane.
+#[inline(always)]
+fn word_sums(v: u64) -> (u64, u64) {
+    const LANES: u64 = 0x00ff_00ff_00ff_00ff;
+    let (even, odd) = (v & LANES, v >> 8 & LANES);
+    // Lane k of `even` holds x_{2k}, of `odd` x_{2k+1}; multiplying by
+    // Σ c_k·2^{16k} puts Σ_k lane_k·c_{3−k} in the top lane.
+    let sum = (even + odd).wrapping_mul(0x0001_0001_0001_0001) >> 48;
+    let weighted = (even.wrapping_mul(0x0008_0006_0004_0002) >> 48)
+        + (odd.wrapping_mul(0x0007_0005_0003_0001) >> 48);
+    (sum, weighted)
 }
 
 /// Adler-32 of a stream, zeros added without reading them: the sums `(a, b)` kept as
@@ -388,6 +605,8 @@ pub(crate) struct RowDeflate {
     f: &'static Format,
     bits: Bits,
     adler: Adler,
+    /// The inked words of the row being coded, as bits.
+    inked: Vec<u64>,
     /// The bits of a blank row of `blank.0` bytes (filter type `blank.1`).
     blank: Option<(usize, u8, Vec<u64>, u64)>,
 }
@@ -397,32 +616,23 @@ impl RowDeflate {
     pub(crate) fn new(mut out: Vec<u8>) -> RowDeflate {
         let f = Format::get();
         out.extend_from_slice(&f.header);
-        let mut bits = Bits { out, acc: 0, n: 0 };
+        let mut bits = Bits::new(out);
         bits.put(f.header_bits.0, f.header_bits.1);
         RowDeflate {
             f,
             bits,
             adler: Adler::new(),
+            inked: Vec::new(),
             blank: None,
         }
     }
 
     /// A row (its filter byte first) whose bytes are zero outside the byte ranges `live`
     /// (ascending; the filter byte is always read).
-    pub(crate) fn row(&mut self, row: &[u8], live: impl Iterator<Item = (usize, usize)> + Clone) {
+    pub(crate) fn row(&mut self, row: &[u8], live: impl Iterator<Item = (usize, usize)>) {
         let live = std::iter::once((0, 1)).chain(live);
-        self.bits.row(self.f, row, live.clone());
-        let mut next = 0;
-        for (s, e) in live {
-            let (s, e) = (s.max(next), e.min(row.len()));
-            if s >= e {
-                continue;
-            }
-            self.adler.zeros(s - next);
-            self.adler.bytes(&row[s..e]);
-            next = e;
-        }
-        self.adler.zeros(row.len() - next);
+        self.bits
+            .row(self.f, row, live, &mut self.adler, &mut self.inked);
     }
 
     /// `count` blank rows of `len` bytes: filter type `filter`, then zeros.
@@ -435,12 +645,14 @@ impl RowDeflate {
         if fresh {
             let mut row = vec![0u8; len];
             row[0] = filter;
-            let mut b = Bits {
-                out: Vec::new(),
-                acc: 0,
-                n: 0,
-            };
-            b.row(f, &row, std::iter::once((0, 1)));
+            let mut b = Bits::new(Vec::new());
+            b.row(
+                f,
+                &row,
+                std::iter::once((0, 1)),
+                &mut Adler::new(),
+                &mut Vec::new(),
+            );
             let (words, total) = b.into_words();
             self.blank = Some((len, filter, words, total));
         }
@@ -451,10 +663,10 @@ impl RowDeflate {
         let rest = (*total % 64) as u32;
         for _ in 0..count {
             for &w in &words[..full] {
-                self.bits.put(w, 64);
+                self.bits.put_long(w, 64);
             }
             if rest > 0 {
-                self.bits.put(words[full], rest);
+                self.bits.put_long(words[full], rest);
             }
             self.adler.bytes(&[filter]);
             self.adler.zeros(len - 1);
@@ -465,8 +677,7 @@ impl RowDeflate {
     pub(crate) fn finish(mut self) -> Vec<u8> {
         let (c, l) = self.f.sym(256);
         self.bits.put(c, l);
-        let Bits { mut out, acc, n } = self.bits;
-        out.extend_from_slice(&acc.to_le_bytes()[..n.div_ceil(8) as usize]);
+        let mut out = self.bits.into_bytes();
         out.extend_from_slice(&self.adler.finish().to_be_bytes());
         out
     }
@@ -584,6 +795,46 @@ mod tests {
             assert!(got == reference(&rows), "width {width}: streams differ");
             let back = fdeflate::decompress_to_vec(&got).unwrap();
             assert_eq!(back, rows.concat(), "width {width}");
+        }
+    }
+
+    /// Rows as a page's are (sparse ink: a few bytes, often one, at any offset within
+    /// their words, in spans far apart), some longer than 4096 words: runs of zeros of
+    /// every length around the table's end and 258's multiples, zero words inside the
+    /// spans, spans that overlap or hold no ink. Each stream is `fdeflate`'s.
+    #[test]
+    fn sparse_and_long_rows_match() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        for width in [16usize, 63, 64, 520, 3301, 40_001] {
+            let mut rows = Vec::new();
+            let mut z = RowDeflate::new(Vec::new());
+            for j in 0..60 {
+                let mut row = vec![0u8; width];
+                row[0] = if j % 7 == 3 { 0 } else { 2 };
+                let mut spans = Vec::new();
+                let mut x = (lcg(&mut seed) % 600) as usize;
+                while x < width {
+                    let len = [1, 2, 8, 9, 17, 64, 300][(lcg(&mut seed) % 7) as usize];
+                    let e = (x + len).min(width);
+                    for b in &mut row[x..e] {
+                        if lcg(&mut seed) % 3 == 0 {
+                            *b = (lcg(&mut seed) % 255) as u8 + 1;
+                        }
+                    }
+                    spans.push((x, e));
+                    if lcg(&mut seed) % 5 == 0 {
+                        // An overlapping span.
+                        spans.push((x.saturating_sub(3), e));
+                    }
+                    let gap = [0, 1, 7, 250, 259, 260, 517, 1100, 5000];
+                    x = e + gap[(lcg(&mut seed) % 9) as usize];
+                }
+                spans.sort_unstable();
+                z.row(&row, spans.iter().copied());
+                rows.push(row);
+            }
+            let got = z.finish();
+            assert!(got == reference(&rows), "width {width}: streams differ");
         }
     }
 
