@@ -27,7 +27,8 @@ pub struct MatchOptions {
     pub candidates: usize,
     /// The same for an open target (its candidates come from the per-linkage scan, whose
     /// misfit ranks less sharply than the closed codes' distance, and are cheap to fit:
-    /// they start from the scan's crank angles).
+    /// they start from the scan's crank angles). With `allow_mirror`, this many of each
+    /// reflection.
     pub open_candidates: usize,
     /// Most linkages an open target's scan covers: an atlas of more linkages is first
     /// screened ([`LinkageScreen`]) and only the most promising this many are scanned.
