@@ -463,3 +463,100 @@ fn screen_on_a_large_atlas() {
         );
     }
 }
+
+/// An exact open target cut from atlas curve `id`: 64 points at even crank steps from
+/// `from` over `span` degrees, scaled by 4, turned by 30°, moved to (100, −40);
+/// `mirrored`: reflected first.
+fn cut(curves: &[AtlasCurve], id: u64, from: f64, span: f64, mirrored: bool) -> Target {
+    let c = &curves.iter().find(|c| c.id == id).expect("the curve").curve;
+    let a = C64::from_polar(4.0, 30f64.to_radians());
+    let b = C64::new(100.0, -40.0);
+    let pts = (0..64)
+        .map(|j| {
+            let m = c.at(from + span * j as f64 / 63.0).expect("assembles").m;
+            let z = a * if mirrored { m.conj() } else { m } + b;
+            [z.re, z.im]
+        })
+        .collect();
+    Target::new(pts, false, Timing::Untimed).unwrap()
+}
+
+/// Curve 1529 of the default atlas (A = B = 2.5, C = 2, point (5, 0), open circuit):
+/// Chebyshev's straight run, a curve symmetric about an axis, so reflected windows score
+/// almost as well as its own. The window is the one the Chebyshev query finds.
+const STRAIGHT: (u64, f64, f64) = (1529, -270.0, 206.8);
+
+fn with_mirror() -> MatchOptions {
+    MatchOptions {
+        allow_mirror: true,
+        ..MatchOptions::DEFAULT
+    }
+}
+
+fn straight_run(curves: &[AtlasCurve], mirrored: bool) -> Target {
+    let c = &curves
+        .iter()
+        .find(|c| c.id == STRAIGHT.0)
+        .expect("1529")
+        .curve;
+    assert_eq!((c.point.u, c.point.v, c.circuit), (5.0, 0.0, Circuit::Open));
+    cut(curves, STRAIGHT.0, STRAIGHT.1, STRAIGHT.2, mirrored)
+}
+
+/// `--mirror` allows reflections and must never lose what the plain query finds: the
+/// exact source of an open target is #1 (near-zero error) with and without it, and every
+/// rank's error with it is at most the plain query's (issue 13: the shared stage-1 window
+/// lists let reflected windows push the source's own out).
+#[test]
+fn mirror_keeps_the_exact_open_source() {
+    let (curves, _) = default_atlas();
+    let t = straight_run(&curves, false);
+    let plain = find_matches(
+        &t,
+        &curves,
+        &[],
+        &MatchOptions {
+            allow_mirror: false,
+            ..MatchOptions::DEFAULT
+        },
+    )
+    .unwrap();
+    let mirror = find_matches(&t, &curves, &[], &with_mirror()).unwrap();
+    for (name, m) in [("plain", &plain), ("mirror", &mirror)] {
+        assert_eq!(
+            m[0].id, STRAIGHT.0,
+            "{name}: #1 is curve {} at {} %",
+            m[0].id, m[0].rms_pct
+        );
+        assert!(m[0].rms_pct < 1e-4, "{name}: {} %", m[0].rms_pct);
+    }
+    assert_eq!(plain.len(), mirror.len());
+    for (p, q) in plain.iter().zip(&mirror) {
+        assert!(
+            q.fit.rms <= p.fit.rms,
+            "{} % against {} %",
+            q.rms_pct,
+            p.rms_pct
+        );
+    }
+}
+
+/// Reflected exact targets are found with `--mirror`: the straight run reflected (the
+/// curve is symmetric, so its best fit may be reported either way) and a window of an
+/// asymmetric curve (curve 4447: A = 3.5, B = 2.5, C = 3.5, point (5.25, 3.5)), which
+/// only a reflected fit matches. Each source is #1 at near-zero error.
+#[test]
+fn mirror_finds_the_reflected_exact_open_source() {
+    let (curves, _) = default_atlas();
+    for (t, id, reflected) in [
+        (straight_run(&curves, true), STRAIGHT.0, None),
+        (cut(&curves, 4447, 0.0, 150.0, true), 4447, Some(true)),
+    ] {
+        let m = find_matches(&t, &curves, &[], &with_mirror()).unwrap();
+        assert_eq!(m[0].id, id, "#1 is curve {} at {} %", m[0].id, m[0].rms_pct);
+        assert!(m[0].rms_pct < 1e-4, "curve {id}: {} %", m[0].rms_pct);
+        if let Some(r) = reflected {
+            assert_eq!(m[0].fit.mirrored, r, "curve {id}");
+        }
+    }
+}

@@ -5,7 +5,8 @@ use crate::code::{ClosedQuery, ShapeCode};
 use crate::fit::{CurveFit, FitOptions, Start, fit_timed, fit_untimed, fit_with};
 use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{
-    LinkageScreen, OpenQuery, Stage1, linkage_groups, open_candidates, open_stage1, open_stage2,
+    LinkageScreen, OpenQuery, Stage1, keep_each_reflection, linkage_groups, open_candidates,
+    open_stage1, open_stage2,
 };
 use crate::placement::Placement;
 use crate::sidecar::{SidecarError, SidecarView};
@@ -26,7 +27,8 @@ pub struct MatchOptions {
     pub candidates: usize,
     /// The same for an open target (its candidates come from the per-linkage scan, whose
     /// misfit ranks less sharply than the closed codes' distance, and are cheap to fit:
-    /// they start from the scan's crank angles).
+    /// they start from the scan's crank angles). With `allow_mirror`, this many of each
+    /// reflection.
     pub open_candidates: usize,
     /// Most linkages an open target's scan covers: an atlas of more linkages is first
     /// screened ([`LinkageScreen`]) and only the most promising this many are scanned.
@@ -107,6 +109,14 @@ pub struct Candidate {
     /// The coarse distance.
     pub coarse: f64,
     start: Option<Start>,
+}
+
+impl Candidate {
+    /// Whether the exact fit starts reflected (an open candidate's scan says so; a closed
+    /// candidate has no start and counts as unreflected).
+    fn reflected(&self) -> bool {
+        self.start.as_ref().is_some_and(|s| s.mirrored)
+    }
 }
 
 /// The coarse stage over `curves` (with their shape codes, in the same order; open targets
@@ -353,7 +363,11 @@ impl MatchOptions {
 /// The exact stage of [`find_matches`]: the best `options.candidates` of `candidates`
 /// (by coarse distance, then id; duplicates of one curve dropped) each get a quick fit,
 /// the best `4·top` (at least `top + 8`) the full fit on every point, and the best `options.top` by RMS error
-/// are returned. The candidates are fitted in parallel on the calling thread's rayon pool
+/// are returned, each curve once. An open target's candidates are counted per
+/// reflection of their start: with `allow_mirror`, the unreflected ones get the same
+/// quick fits, robust starts and final fits as without it (fitted without reflection),
+/// and as many reflected ones theirs, so allowing reflection never makes a rank's error
+/// worse. The candidates are fitted in parallel on the calling thread's rayon pool
 /// (run it inside `ThreadPool::install` to choose the threads); the result is the same,
 /// bit for bit, on any number of threads.
 pub fn rank_candidates(
@@ -365,16 +379,43 @@ pub fn rank_candidates(
         a.coarse
             .total_cmp(&b.coarse)
             .then(a.curve.id.cmp(&b.curve.id))
+            .then(a.reflected().cmp(&b.reflected()))
     });
-    candidates.dedup_by(|a, b| a.curve.id == b.curve.id);
-    candidates.truncate(options.kept(target));
+    candidates.dedup_by(|a, b| a.curve.id == b.curve.id && a.reflected() == b.reflected());
+    keep_each_reflection(&mut candidates, options.kept(target), |c| c.reflected());
+    // Each candidate's place among those of its reflection: the robust starts go to the
+    // best of each.
+    let place: Vec<usize> = {
+        let mut count = [0usize; 2];
+        candidates
+            .iter()
+            .map(|c| {
+                let k = &mut count[usize::from(c.reflected())];
+                *k += 1;
+                *k - 1
+            })
+            .collect()
+    };
     let fit_options = FitOptions {
         allow_mirror: options.allow_mirror,
         ..options.fit
     };
-    let quick_options = FitOptions {
+    // An unreflected open candidate is fitted without reflection, as a query without
+    // `allow_mirror` fits it: with reflection allowed, it gets the very same fits.
+    let plain_options = FitOptions {
+        allow_mirror: false,
+        ..options.fit
+    };
+    let options_of = |c: &Candidate| {
+        if c.start.is_some() && !c.reflected() {
+            plain_options
+        } else {
+            fit_options
+        }
+    };
+    let quick_of = |c: &Candidate| FitOptions {
         max_iterations: RANK_ITERATIONS,
-        ..fit_options
+        ..options_of(c)
     };
     let p = target.complex_points();
     // Every candidate gets a quick fit: closed targets on at most RANK_POINTS of the
@@ -400,19 +441,19 @@ pub fn rank_candidates(
         .map(|(i, c)| {
             let mut traced = None;
             let robust = match &c.start {
-                Some(_) if i < ROBUST_OPEN => {
+                Some(_) if place[i] < ROBUST_OPEN => {
                     let t = traced.insert(traced_of(c));
                     t.as_ref()
-                        .and_then(|t| fit_with(target, &c.curve.curve, t, &fit_options))
+                        .and_then(|t| fit_with(target, &c.curve.curve, t, &options_of(c)))
                 }
                 _ => None,
             };
             let f = match &c.start {
-                Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_options),
+                Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_of(c)),
                 None => traced
                     .insert(traced_of(c))
                     .as_ref()
-                    .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_options)),
+                    .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_of(c))),
             };
             let quick = match (f, &robust) {
                 (Some(f), Some(r)) => Some(f.rms.min(r.rms)),
@@ -437,7 +478,12 @@ pub fn rank_candidates(
             .then(candidates[a.1].coarse.total_cmp(&candidates[b.1].coarse))
             .then(candidates[a.1].curve.id.cmp(&candidates[b.1].curve.id))
     });
-    quick.truncate((4 * options.top).max(options.top + 8));
+    // The best of each reflection reach the final fits.
+    keep_each_reflection(
+        &mut quick,
+        (4 * options.top).max(options.top + 8),
+        |&(_, i)| candidates[i].reflected(),
+    );
     // The final fits, each candidate with its own (moved out) ranking state. Every open
     // candidate that reaches them also gets the robust start, so a reported curve's fit is
     // the better of the two basins (a curve's fit from the scan's start alone can stop in
@@ -463,6 +509,7 @@ pub fn rank_candidates(
             let traced = |r: &mut Ranked| -> Option<Traced> {
                 r.traced.take().unwrap_or_else(|| traced_of(c))
             };
+            let fit_options = options_of(c);
             let fit = match &c.start {
                 Some(s) => {
                     let mut t = None;
@@ -518,6 +565,9 @@ pub fn rank_candidates(
             .then(a.coarse.total_cmp(&b.coarse))
             .then(a.id.cmp(&b.id))
     });
+    // A curve fitted from both reflections' starts is reported once, at its best.
+    let mut seen = std::collections::HashSet::new();
+    matches.retain(|m| seen.insert(m.id));
     matches.truncate(options.top);
     matches
 }

@@ -291,8 +291,8 @@ impl PointColumns {
 }
 
 /// Bit `v` of `open[k]` set unless reflection `v` is not `live` or the misfit at point
-/// `k` is surely above its bound: the test of [`Sums::surely_above`] with `bar[k] =
-/// 1 − bound − 10⁻⁹`, computed with the same operations in the same order (so the same
+/// `k` is surely above its bound: the test of [`Sums::surely_above`] with `bar[v][k] =
+/// 1 − bound − 10⁻⁹` (each reflection its own bound), computed with the same operations in the same order (so the same
 /// values, bit for bit: `(w·g12).re` and `conj(w)·r` written out as `num-complex` forms
 /// them), over all points in one branch-free pass the compiler can vectorise.
 #[inline(always)]
@@ -300,7 +300,7 @@ fn sieve(
     sums: &Sums,
     gram: (f64, C64, f64),
     pts: &PointColumns,
-    bar: &[f64],
+    bar: [&[f64]; 2],
     live: [bool; 2],
     open: &mut [u8],
 ) {
@@ -319,16 +319,20 @@ fn sieve_with<const R0: bool, const R1: bool>(
     sums: &Sums,
     (g11, g12, g22): (f64, C64, f64),
     pts: &PointColumns,
-    bar: &[f64],
+    [bar0, bar1]: [&[f64]; 2],
     open: &mut [u8],
 ) {
     let n = open.len();
-    let (re, im, norm, bar) = (&pts.re[..n], &pts.im[..n], &pts.norm[..n], &bar[..n]);
+    let (re, im, norm) = (&pts.re[..n], &pts.im[..n], &pts.norm[..n]);
+    // A reflection not tested reads no bound (its slice may be empty).
+    let (bar0, bar1) = (
+        &bar0[..if R0 { n } else { 0 }],
+        &bar1[..if R1 { n } else { 0 }],
+    );
     let [[a0, b0], [a1, b1]] = sums.r;
     for k in 0..n {
         let (wr, wi) = (re[k], im[k]);
         let mm = g11 + 2.0 * (wr * g12.re - wi * g12.im) + norm[k] * g22;
-        let t = bar[k] * mm;
         let pos = mm > 0.0;
         let mut o = 0u8;
         // `my = r[v][0] + conj(w)·r[v][1]`: `conj(w) = (wr, −wi)`.
@@ -336,13 +340,13 @@ fn sieve_with<const R0: bool, const R1: bool>(
             let m0r = a0.re + (wr * b0.re - -wi * b0.im);
             let m0i = a0.im + (wr * b0.im + -wi * b0.re);
             let q0 = m0r * m0r + m0i * m0i;
-            o |= u8::from(!(pos & (q0 < t)));
+            o |= u8::from(!(pos & (q0 < bar0[k] * mm)));
         }
         if R1 {
             let m1r = a1.re + (wr * b1.re - -wi * b1.im);
             let m1i = a1.im + (wr * b1.im + -wi * b1.re);
             let q1 = m1r * m1r + m1i * m1i;
-            o |= u8::from(!(pos & (q1 < t))) << 1;
+            o |= u8::from(!(pos & (q1 < bar1[k] * mm))) << 1;
         }
         open[k] = o;
     }
@@ -599,23 +603,28 @@ impl OpenQuery {
     }
 
     /// Stage 1 on one linkage: for every coupler point `w` of the atlas on it, the best
-    /// hypothesis (span, sense, start, reflection) and its misfit.
+    /// `WINDOWS` distinct hypotheses (span, sense, start) of each reflection, best first,
+    /// the unreflected list before the reflected one. Each reflection has its own lists
+    /// and bounds, so the unreflected lists are the same, bit for bit, with reflection
+    /// allowed or not: a reflected window never pushes an unreflected one out.
     fn scan(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
         let mirrors: &[bool] = if self.allow_mirror {
             &[false, true]
         } else {
             &[false]
         };
-        let mut best: Vec<Vec<Window>> = points.iter().map(|_| Vec::new()).collect();
-        let period = table.period;
-        // Each point's least misfit [`offer`] still takes (its list's last, once full).
-        let mut worst = vec![f64::INFINITY; points.len()];
-        // The greatest of them (infinite until every list is full).
-        let mut most = f64::INFINITY;
+        let n = points.len();
+        // Per reflection: each point's list, the least misfit it still takes (its last,
+        // once full), the greatest of those (infinite until every list is full), and
         // `1 − worst − 10⁻⁹`, the factor of [`Sums::surely_above`]'s test.
-        let mut bar = vec![f64::NEG_INFINITY; points.len()];
+        let n1 = if self.allow_mirror { n } else { 0 };
+        let mut best: [Vec<Vec<Window>>; 2] = [vec![Vec::new(); n], vec![Vec::new(); n1]];
+        let mut worst = [vec![f64::INFINITY; n], vec![f64::INFINITY; n1]];
+        let mut most = [f64::INFINITY; 2];
+        let mut bar = [vec![f64::NEG_INFINITY; n], vec![f64::NEG_INFINITY; n1]];
+        let period = table.period;
         let pts = PointColumns::new(points);
-        let mut open = vec![0u8; points.len()];
+        let mut open = vec![0u8; n];
         let mut offsets = vec![0.0; self.x.len()];
         for span in self.spans(period) {
             let h = match self.layout {
@@ -639,14 +648,15 @@ impl OpenQuery {
                     );
                     let gram = sums.gram();
                     // A reflection whose least misfit over every coupler point is above
-                    // every point's bound would be refused by every list: skipped whole.
+                    // every point's bound of that reflection would be refused by every
+                    // list: skipped whole.
                     let mut live = [false; 2];
                     for &mirror in mirrors {
                         let v = usize::from(mirror);
                         // Live unless surely above (a NaN keeps it live).
                         live[v] = sums
                             .least_misfit(gram, v)
-                            .partial_cmp(&(most + BOUND_MARGIN))
+                            .partial_cmp(&(most[v] + BOUND_MARGIN))
                             != Some(std::cmp::Ordering::Greater);
                     }
                     if !live[0] && !live[1] {
@@ -654,14 +664,12 @@ impl OpenQuery {
                     }
                     // Which points each reflection may offer to, all points in one
                     // branch-free pass: bit `v` of `open[k]` is clear when the misfit
-                    // at point `k` is surely above its bound (the test of
-                    // [`Sums::surely_above`], the same values bit for bit).
-                    sieve(&sums, gram, &pts, &bar, live, &mut open);
-                    let mut offered = false;
-                    // Point by point, both reflections (each point's list sees its offers
-                    // in the same order as reflection by reflection). A point left open
-                    // is tested again with its bound of the moment: its first
-                    // reflection's offer may have lowered it.
+                    // at point `k` is surely above its bound for reflection `v` (the
+                    // test of [`Sums::surely_above`], the same values bit for bit).
+                    sieve(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
+                    let mut offered = [false; 2];
+                    // Point by point, each live reflection into its own list. A point
+                    // left open is tested again with its bound of the moment.
                     for (k, &w) in points.iter().enumerate() {
                         if open[k] == 0 {
                             continue;
@@ -669,12 +677,12 @@ impl OpenQuery {
                         let mm = Sums::model_norm(gram, w);
                         for &mirror in mirrors {
                             let v = usize::from(mirror);
-                            if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[k]) {
+                            if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[v][k]) {
                                 continue;
                             }
                             let m = sums.misfit_with(mm, v, w);
-                            offered = true;
-                            let list = &mut best[k];
+                            offered[v] = true;
+                            let list = &mut best[v][k];
                             offer(
                                 list,
                                 Window {
@@ -687,20 +695,30 @@ impl OpenQuery {
                                 period,
                             );
                             if list.len() == WINDOWS {
-                                worst[k] = list[WINDOWS - 1].misfit;
-                                bar[k] = 1.0 - worst[k] - 1e-9;
+                                worst[v][k] = list[WINDOWS - 1].misfit;
+                                bar[v][k] = 1.0 - worst[v][k] - 1e-9;
                             }
                         }
                     }
-                    if offered {
-                        most = worst.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    for v in 0..2 {
+                        if offered[v] {
+                            most[v] = worst[v].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                        }
                     }
                 }
             }
         }
-        best.into_iter()
-            .map(|l| {
-                l.into_iter()
+        let [plain, reflected] = best;
+        plain
+            .into_iter()
+            .zip(
+                reflected
+                    .into_iter()
+                    .chain(std::iter::repeat_with(Vec::new)),
+            )
+            .map(|(a, b)| {
+                a.into_iter()
+                    .chain(b)
                     .map(|b| Hypothesis {
                         misfit: b.misfit,
                         mirror: b.mirror,
@@ -1152,7 +1170,7 @@ fn stage2_count(keep: usize) -> usize {
     STAGE2.max(2 * keep)
 }
 
-/// One curve's best stage-1 hypothesis: `index` into the whole atlas, `group` the index
+/// One curve's best stage-1 hypothesis of one reflection: `index` into the whole atlas, `group` the index
 /// of its linkage's first curve.
 #[derive(Clone, Debug)]
 pub(crate) struct Stage1 {
@@ -1180,7 +1198,7 @@ pub(crate) fn open_candidates(
 
 /// Stage 1 over some linkages of the atlas (`groups`, ranges of `curves` as
 /// [`linkage_groups`] cuts them): the best `stage2_count(keep)` of their curves by their
-/// best hypothesis. The union of such lists over any split of the linkages holds the best
+/// best hypothesis, of each reflection (a curve may be there twice, once reflected). The union of such lists over any split of the linkages holds the best
 /// of them all, so [`open_stage2`] gives the same result however they are split.
 pub(crate) fn open_stage1(
     query: &OpenQuery,
@@ -1201,22 +1219,31 @@ pub(crate) fn open_stage1(
         };
         let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
         for (k, hs) in query.scan(&table, &pts).into_iter().enumerate() {
-            let Some(h) = hs
+            // Each reflection's best window after the projection: a curve goes on once
+            // per reflection, so its unreflected hypothesis is the one a query without
+            // reflection keeps.
+            let hs: Vec<Hypothesis> = hs
                 .into_iter()
                 .map(|mut h| {
                     query.project(&table, pts[k], &mut h, &mut buf);
                     h
                 })
-                .min_by(|a, b| a.misfit.total_cmp(&b.misfit))
-            else {
-                continue;
-            };
-            if h.misfit.is_finite() {
-                stage1.push(Stage1 {
-                    group: a,
-                    index: a + k,
-                    hyp: h,
-                });
+                .collect();
+            for mirror in [false, true] {
+                let Some(h) = hs
+                    .iter()
+                    .filter(|h| h.mirror == mirror)
+                    .min_by(|a, b| a.misfit.total_cmp(&b.misfit))
+                else {
+                    continue;
+                };
+                if h.misfit.is_finite() {
+                    stage1.push(Stage1 {
+                        group: a,
+                        index: a + k,
+                        hyp: h.clone(),
+                    });
+                }
             }
         }
     }
@@ -1224,14 +1251,28 @@ pub(crate) fn open_stage1(
     stage1
 }
 
+/// The best `stage2_count(keep)` of `stage1` by misfit (ties by index) **of each
+/// reflection**: reflected hypotheses never take an unreflected one's place, so the
+/// unreflected ones kept are those a query without reflection keeps.
 fn truncate_stage1(stage1: &mut Vec<Stage1>, keep: usize) {
     stage1.sort_by(|x, y| {
         x.hyp
             .misfit
             .total_cmp(&y.hyp.misfit)
             .then(x.index.cmp(&y.index))
+            .then(x.hyp.mirror.cmp(&y.hyp.mirror))
     });
-    stage1.truncate(stage2_count(keep));
+    keep_each_reflection(stage1, stage2_count(keep), |s| s.hyp.mirror);
+}
+
+/// Keeps the first `n` items of each reflection (`mirror` of an item), in order.
+pub(crate) fn keep_each_reflection<T>(items: &mut Vec<T>, n: usize, mirror: impl Fn(&T) -> bool) {
+    let mut count = [0usize; 2];
+    items.retain(|x| {
+        let c = &mut count[usize::from(mirror(x))];
+        *c += 1;
+        *c <= n
+    });
 }
 
 fn w_of(c: &AtlasCurve) -> C64 {
@@ -1239,7 +1280,8 @@ fn w_of(c: &AtlasCurve) -> C64 {
 }
 
 /// Stage 2 over the best of `stage1` (from one or several parts of `curves`, the whole
-/// atlas): re-estimated angles, the best `keep` as candidates, best first.
+/// atlas): re-estimated angles, the best `keep` of each reflection as candidates, best
+/// first.
 pub(crate) fn open_stage2(
     query: &OpenQuery,
     curves: &[AtlasCurve],
@@ -1250,7 +1292,7 @@ pub(crate) fn open_stage2(
     // Linkage by linkage (one table each), in parts on the calling thread's rayon pool:
     // each curve's polish is its own, and the parts are joined in order, so the result
     // does not depend on the threads.
-    stage1.sort_by_key(|x| (x.group, x.index));
+    stage1.sort_by_key(|x| (x.group, x.index, x.hyp.mirror));
     let mut out: Vec<OpenCandidate> = stage1
         .par_chunks(STAGE2_PART)
         .flat_map_iter(|part| {
@@ -1284,8 +1326,11 @@ pub(crate) fn open_stage2(
         x.misfit
             .total_cmp(&y.misfit)
             .then(x.curve.id.cmp(&y.curve.id))
+            .then(x.start.mirrored.cmp(&y.start.mirrored))
     });
-    out.truncate(keep);
+    // The best `keep` of each reflection (with reflection allowed, up to twice as many
+    // candidates: those a query without it proposes, and as many reflected).
+    keep_each_reflection(&mut out, keep, |c| c.start.mirrored);
     out
 }
 
@@ -1422,29 +1467,36 @@ mod tests {
             let pts: Vec<C64> = (0..50)
                 .map(|_| C64::new(rng.normal(), rng.normal()) * 3.0)
                 .collect();
-            let worst: Vec<f64> = pts
-                .iter()
-                .enumerate()
-                .map(|(k, &w)| match k % 5 {
-                    0 => f64::INFINITY,
-                    1 => 1.5,
-                    2 => rng.uniform(),
-                    // A hair around the point's own misfit.
-                    _ => {
-                        let m = s.misfit_with(Sums::model_norm(gram, w), 0, w);
-                        m + (rng.uniform() - 0.5) * 2e-9
-                    }
+            // Each reflection its own bounds (shifted by one point against the other's).
+            let worst: Vec<Vec<f64>> = (0..2)
+                .map(|v| {
+                    pts.iter()
+                        .enumerate()
+                        .map(|(k, &w)| match (k + v) % 5 {
+                            0 => f64::INFINITY,
+                            1 => 1.5,
+                            2 => rng.uniform(),
+                            // A hair around the point's own misfit.
+                            _ => {
+                                let m = s.misfit_with(Sums::model_norm(gram, w), v, w);
+                                m + (rng.uniform() - 0.5) * 2e-9
+                            }
+                        })
+                        .collect()
                 })
                 .collect();
-            let bar: Vec<f64> = worst.iter().map(|w| 1.0 - w - 1e-9).collect();
+            let bar: Vec<Vec<f64>> = worst
+                .iter()
+                .map(|l| l.iter().map(|w| 1.0 - w - 1e-9).collect())
+                .collect();
             let cols = super::PointColumns::new(&pts);
             for live in [[true, true], [true, false], [false, true]] {
                 let mut open = vec![0u8; pts.len()];
-                super::sieve(&s, gram, &cols, &bar, live, &mut open);
+                super::sieve(&s, gram, &cols, [&bar[0], &bar[1]], live, &mut open);
                 for (k, &w) in pts.iter().enumerate() {
                     let mm = Sums::model_norm(gram, w);
                     for (v, &l) in live.iter().enumerate() {
-                        let want = l && !s.surely_above(mm, v, w, worst[k]);
+                        let want = l && !s.surely_above(mm, v, w, worst[v][k]);
                         assert_eq!(open[k] & (1 << v) != 0, want, "{k} {v}");
                     }
                 }
@@ -1551,6 +1603,78 @@ mod tests {
             assert_eq!(cell(-0.0, period), (0, 0.0));
             assert_eq!(cell(p, period), (0, 0.0));
             assert_eq!(cell(-1e-12, period).0, period - 1);
+        }
+    }
+}
+
+#[cfg(test)]
+mod mirror {
+    //! Allowing reflection only adds candidates: the unreflected ones are those of the
+    //! same query without reflection, bit for bit.
+    use super::*;
+    use crate::cases::retrieval_cases;
+    use crate::kin::CouplerCurve;
+    use coupler_kinematics::{CouplerPoint, FourBar};
+
+    /// Four linkages, 40 coupler points each: the Chebyshev-like symmetric one (A = B),
+    /// whose curves score about as well reflected, and three others.
+    fn atlas() -> Vec<AtlasCurve> {
+        let mut out = Vec::new();
+        for (a, b, c) in [
+            (2.5, 2.5, 2.0),
+            (3.0, 2.5, 3.5),
+            (2.0, 3.0, 3.5),
+            (3.5, 4.0, 3.0),
+        ] {
+            let l = FourBar::new(a, b, c).unwrap();
+            for i in 0..8 {
+                for j in 0..5 {
+                    let p = CouplerPoint::new(
+                        a * (-0.25 + 0.25 * i as f64),
+                        a * (-1.0 + 0.5 * j as f64),
+                    );
+                    out.push(AtlasCurve {
+                        id: out.len() as u64,
+                        curve: CouplerCurve::new(l, Circuit::Open, p),
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    fn bits(c: &OpenCandidate) -> (u64, u64, bool, Vec<u64>) {
+        (
+            c.curve.id,
+            c.misfit.to_bits(),
+            c.start.mirrored,
+            c.start.theta.iter().map(|t| t.to_bits()).collect(),
+        )
+    }
+
+    /// With reflection allowed, the unreflected candidates are exactly, in order, those
+    /// proposed without it, and as many reflected ones come with them (issue 13: they
+    /// shared the per-point window lists and the cuts, so reflected windows pushed the
+    /// source's own out). Eight candidates kept, so the cut of stage 2 bites.
+    #[test]
+    fn reflection_only_adds_candidates() {
+        let curves = atlas();
+        let groups = linkage_groups(&curves);
+        for case in retrieval_cases(&curves, false, 13, 6) {
+            let plain = OpenQuery::new(&case.target, false).unwrap();
+            let both = OpenQuery::new(&case.target, true).unwrap();
+            let p = open_candidates(&plain, &curves, &groups, 8);
+            let b = open_candidates(&both, &curves, &groups, 8);
+            let unreflected: Vec<_> = b.iter().filter(|c| !c.start.mirrored).map(bits).collect();
+            let ids = |v: &[(u64, u64, bool, Vec<u64>)]| v.iter().map(|c| c.0).collect::<Vec<_>>();
+            let want: Vec<_> = p.iter().map(bits).collect();
+            assert_eq!(ids(&unreflected), ids(&want), "source {}", case.source);
+            assert!(
+                unreflected == want,
+                "source {}: the same curves, other bits",
+                case.source
+            );
+            assert_eq!(b.len() - unreflected.len(), p.len());
         }
     }
 }
