@@ -51,7 +51,7 @@ pub struct Args {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
     top: u32,
     /// Candidates from the coarse stage that get an exact fit (default: 64 for a closed
-    /// target, 1,024 for an open one; open with --mirror: that many of each reflection).
+    /// target, 1,024 for an open one; with --mirror: that many of each reflection).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     candidates: Option<u32>,
     /// Screen an open target's linkages and scan only the best N by a coarse score

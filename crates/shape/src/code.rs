@@ -150,6 +150,8 @@ fn quantize(z: &[C64]) -> ShapeCode {
 #[derive(Clone, Debug)]
 pub struct ClosedQuery {
     pub(crate) vectors: Vec<[f64; CODE_LEN]>,
+    /// How many of `vectors` (the first ones) describe the unreflected target.
+    plain: usize,
 }
 
 /// Divisors of the point count that set the smoothing terms of a closed query: one term
@@ -197,18 +199,37 @@ impl ClosedQuery {
                 canonical(&n).map_or_else(Vec::new, |c| c.iter().map(|x| flatten(x)).collect())
             })
             .collect();
+        // The unreflected jobs come first: both orders, every smoothing.
+        let plain = parts.iter().take(2 * SMOOTHINGS.len()).map(Vec::len).sum();
         let vectors = parts.concat();
-        (!vectors.is_empty()).then_some(ClosedQuery { vectors })
+        (!vectors.is_empty()).then_some(ClosedQuery { vectors, plain })
     }
 
     /// The coarse distance to a code: the least squared Euclidean distance over the query
     /// vectors.
     pub fn distance(&self, code: &ShapeCode) -> f64 {
+        self.distance_over(&self.vectors, code)
+    }
+
+    /// The coarse distance to a code of the target unreflected (`mirrored` false: the
+    /// same value, bit for bit, as a query without reflection gives) or reflected
+    /// (infinite when the query does not allow reflection).
+    pub fn distance_of(&self, code: &ShapeCode, mirrored: bool) -> f64 {
+        let (plain, reflected) = self.vectors.split_at(self.plain);
+        self.distance_over(if mirrored { reflected } else { plain }, code)
+    }
+
+    /// Whether the query describes the reflected target too.
+    pub fn allows_mirror(&self) -> bool {
+        self.plain < self.vectors.len()
+    }
+
+    fn distance_over(&self, vectors: &[[f64; CODE_LEN]], code: &ShapeCode) -> f64 {
         if *code == ShapeCode::ABSENT {
             return f64::INFINITY;
         }
         let c = code.values();
-        self.vectors
+        vectors
             .iter()
             .map(|q| {
                 q.iter()

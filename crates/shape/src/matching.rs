@@ -23,7 +23,8 @@ pub struct MatchOptions {
     /// Matches returned.
     pub top: usize,
     /// Candidates from the coarse stage that get the exact fit (quick fits on at most 40
-    /// points; the best `4·top` then fitted on every point).
+    /// points; the best `4·top` then fitted on every point). With `allow_mirror`, this
+    /// many of each reflection.
     pub candidates: usize,
     /// The same for an open target (its candidates come from the per-linkage scan, whose
     /// misfit ranks less sharply than the closed codes' distance, and are cheap to fit:
@@ -99,23 +100,25 @@ pub enum MatchError {
 }
 
 /// A curve the coarse stage proposes for the exact fit: the curve, its coarse distance
-/// (lower is closer; comparable within one search only) and, for an open target, where
-/// the exact fit starts (the reflection and the crank angle of every target point, from
-/// the per-linkage scan).
+/// (lower is closer; comparable within one search only), whether it is proposed for the
+/// reflected target and, for an open target, where the exact fit starts (the reflection
+/// and the crank angle of every target point, from the per-linkage scan).
 #[derive(Clone, Debug)]
 pub struct Candidate {
     /// The atlas curve.
     pub curve: AtlasCurve,
     /// The coarse distance.
     pub coarse: f64,
+    mirrored: bool,
     start: Option<Start>,
 }
 
 impl Candidate {
-    /// Whether the exact fit starts reflected (an open candidate's scan says so; a closed
-    /// candidate has no start and counts as unreflected).
+    /// Whether the candidate is proposed for the reflected target (an open candidate's
+    /// start is reflected; a closed one's coarse distance is to the reflected target's
+    /// description).
     fn reflected(&self) -> bool {
-        self.start.as_ref().is_some_and(|s| s.mirrored)
+        self.mirrored
     }
 }
 
@@ -172,6 +175,7 @@ pub fn coarse_candidates(
             .map(|c| Candidate {
                 curve: c.curve,
                 coarse: c.misfit,
+                mirrored: c.start.mirrored,
                 start: Some(c.start),
             })
             .collect())
@@ -182,7 +186,7 @@ pub fn coarse_candidates(
 /// place ([`SidecarView`]): the same candidates as [`coarse_candidates`] gives on those
 /// curves decoded ([`crate::decode_sidecar`]), without decoding them: every code is read
 /// where it lies, and only the best `options.candidates` records (by distance, ties by
-/// id) are decoded. `query` is the target's description
+/// id; of each reflection, with reflection allowed) are decoded. `query` is the target's description
 /// (`ClosedQuery::new(&target.complex_points(), options.allow_mirror)`), made once for
 /// all parts: to use several threads, call this on parts of `0..view.len()` in parallel
 /// and hand all the candidates to [`rank_candidates`]. An error if a record read does not
@@ -210,8 +214,11 @@ pub fn closed_candidates_in(
 /// The closed coarse stage over the curves `ids`, however they are held: `code(i)` gives
 /// curve `i`'s shape code (`None`: it has none), `curve(i)` the curve (called only for
 /// the kept candidates, and for every curve when the target is timed: its period), and
-/// `id(i)` its id. The best `keep` by distance, ties by id, best first; a curve whose
-/// period is shorter than the target's timed angles cannot carry it and is left out.
+/// `id(i)` its id. The best `keep` by distance, ties by id, best first; with reflection
+/// allowed, the best `keep` of each reflection (by the distance to the target's
+/// unreflected or reflected description: the unreflected ones are those of the query
+/// without reflection, bit for bit). A curve whose period is shorter than the target's
+/// timed angles cannot carry it and is left out.
 fn closed_stage(
     query: &ClosedQuery,
     target: &Target,
@@ -222,33 +229,49 @@ fn closed_stage(
     id: impl Fn(usize) -> u64,
 ) -> Result<Vec<Candidate>, MatchError> {
     let timed = target.angle_span().is_some();
-    let mut scored: Vec<(f64, u64, usize)> = Vec::new();
+    let mirror = query.allows_mirror();
+    // Per reflection.
+    let mut scored: [Vec<(f64, u64, usize)>; 2] = [Vec::new(), Vec::new()];
     for i in ids {
-        let d = query.distance(&code(i)?.unwrap_or(ShapeCode::ABSENT));
-        if !d.is_finite() {
+        let code = code(i)?.unwrap_or(ShapeCode::ABSENT);
+        let d = [
+            query.distance_of(&code, false),
+            if mirror {
+                query.distance_of(&code, true)
+            } else {
+                f64::INFINITY
+            },
+        ];
+        if !d.iter().any(|d| d.is_finite()) {
             continue;
         }
         if timed && !target.fits_period(curve(i)?.curve.period_deg()) {
             continue;
         }
-        scored.push((d, id(i), i));
+        for (m, d) in d.into_iter().enumerate() {
+            if d.is_finite() {
+                scored[m].push((d, id(i), i));
+            }
+        }
     }
     let by = |a: &(f64, u64, usize), b: &(f64, u64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-    if scored.len() > keep {
-        scored.select_nth_unstable_by(keep, by);
-        scored.truncate(keep);
-    }
-    scored.sort_by(by);
-    scored
-        .into_iter()
-        .map(|(d, _, i)| {
-            Ok(Candidate {
+    let mut out = Vec::new();
+    for (m, mut scored) in scored.into_iter().enumerate() {
+        if scored.len() > keep {
+            scored.select_nth_unstable_by(keep, by);
+            scored.truncate(keep);
+        }
+        scored.sort_by(by);
+        for (d, _, i) in scored {
+            out.push(Candidate {
                 curve: curve(i)?,
                 coarse: d,
+                mirrored: m == 1,
                 start: None,
-            })
-        })
-        .collect()
+            });
+        }
+    }
+    Ok(out)
 }
 
 /// Points of the target used to rank the candidates (the final fits use them all).
@@ -343,6 +366,7 @@ pub fn open_finish(
         .map(|c| Candidate {
             curve: c.curve,
             coarse: c.misfit,
+            mirrored: c.start.mirrored,
             start: Some(c.start),
         })
         .collect())
@@ -363,11 +387,11 @@ impl MatchOptions {
 /// The exact stage of [`find_matches`]: the best `options.candidates` of `candidates`
 /// (by coarse distance, then id; duplicates of one curve dropped) each get a quick fit,
 /// the best `4·top` (at least `top + 8`) the full fit on every point, and the best `options.top` by RMS error
-/// are returned, each curve once. An open target's candidates are counted per
-/// reflection of their start: with `allow_mirror`, the unreflected ones get the same
-/// quick fits, robust starts and final fits as without it (fitted without reflection),
-/// and as many reflected ones theirs, so allowing reflection never makes a rank's error
-/// worse. The candidates are fitted in parallel on the calling thread's rayon pool
+/// are returned, each curve once. The candidates are counted per reflection (an open
+/// one's start, a closed one's coarse description): with `allow_mirror`, the unreflected
+/// ones get the same quick fits, robust starts and final fits as without it (fitted
+/// without reflection), and as many reflected ones theirs (fitted with reflection
+/// allowed), so allowing reflection never makes a rank's error worse. The candidates are fitted in parallel on the calling thread's rayon pool
 /// (run it inside `ThreadPool::install` to choose the threads); the result is the same,
 /// bit for bit, on any number of threads.
 pub fn rank_candidates(
@@ -400,14 +424,15 @@ pub fn rank_candidates(
         allow_mirror: options.allow_mirror,
         ..options.fit
     };
-    // An unreflected open candidate is fitted without reflection, as a query without
-    // `allow_mirror` fits it: with reflection allowed, it gets the very same fits.
+    // An unreflected candidate is fitted without reflection, as a query without
+    // `allow_mirror` fits it: with reflection allowed, it gets the very same fits (a
+    // reflected one is fitted with reflection allowed, both ways).
     let plain_options = FitOptions {
         allow_mirror: false,
         ..options.fit
     };
     let options_of = |c: &Candidate| {
-        if c.start.is_some() && !c.reflected() {
+        if !c.reflected() {
             plain_options
         } else {
             fit_options
@@ -636,6 +661,46 @@ mod tests {
         }
     }
 
+    /// A closed query with reflection allowed proposes every candidate of the same query
+    /// without it, with the same coarse distance bit for bit (issue 13: the reflected
+    /// variants shared one budget and one distance with the unreflected ones), and at most
+    /// as many reflected ones on top.
+    #[test]
+    fn reflection_only_adds_closed_candidates() {
+        let atlas = decode_sidecar(&sidecar()).unwrap();
+        let mut rng = SplitMix64(13);
+        for source in [2, 11, 25, 40] {
+            let t = make_target(
+                &mut rng,
+                &atlas.curves[source].curve,
+                true,
+                30.0,
+                360.0,
+                48,
+                false,
+                0.01,
+            )
+            .unwrap();
+            let with = |allow_mirror: bool| {
+                let options = MatchOptions {
+                    allow_mirror,
+                    candidates: 6,
+                    top: 3,
+                    ..MatchOptions::DEFAULT
+                };
+                coarse_candidates(&t, &atlas.curves, &atlas.codes, &options).unwrap()
+            };
+            let bits = |c: &Candidate| (c.curve.id, c.coarse.to_bits());
+            let plain: Vec<_> = with(false).iter().map(bits).collect();
+            let both: Vec<_> = with(true).iter().map(bits).collect();
+            assert_eq!(plain.len(), 6);
+            for c in &plain {
+                assert!(both.contains(c), "source {source}: {c:?} not kept");
+            }
+            assert!(both.len() <= 2 * plain.len(), "source {source}");
+        }
+    }
+
     /// The closed coarse stage read in place, in uneven parts, proposes exactly the
     /// candidates of the stage over the decoded atlas, and the ranked matches are the
     /// same, bit for bit; a damaged record is an error when the search reads it, as the
@@ -655,9 +720,12 @@ mod tests {
             top: 3,
             ..MatchOptions::DEFAULT
         };
-        let key = |c: &[Candidate]| -> Vec<(u64, f64)> {
-            let mut v: Vec<(u64, f64)> = c.iter().map(|c| (c.curve.id, c.coarse)).collect();
-            v.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        let key = |c: &[Candidate]| -> Vec<(u64, f64, bool)> {
+            let mut v: Vec<(u64, f64, bool)> = c
+                .iter()
+                .map(|c| (c.curve.id, c.coarse, c.reflected()))
+                .collect();
+            v.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)).then(a.2.cmp(&b.2)));
             v.truncate(options.candidates);
             v
         };
