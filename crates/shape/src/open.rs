@@ -1616,6 +1616,22 @@ mod mirror {
     use crate::kin::CouplerCurve;
     use coupler_kinematics::{CouplerPoint, FourBar};
 
+    /// The open circuit's curves of `l` at 8 × 5 coupler points, in steps of a quarter
+    /// and half of its coupler `A`, numbered on from `out`'s.
+    pub(super) fn push_grid(l: FourBar, out: &mut Vec<AtlasCurve>) {
+        let a = l.coupler;
+        for i in 0..8 {
+            for j in 0..5 {
+                let p =
+                    CouplerPoint::new(a * (-0.25 + 0.25 * i as f64), a * (-1.0 + 0.5 * j as f64));
+                out.push(AtlasCurve {
+                    id: out.len() as u64,
+                    curve: CouplerCurve::new(l, Circuit::Open, p),
+                });
+            }
+        }
+    }
+
     /// Four linkages, 40 coupler points each: the Chebyshev-like symmetric one (A = B),
     /// whose curves score about as well reflected, and three others.
     fn atlas() -> Vec<AtlasCurve> {
@@ -1626,19 +1642,7 @@ mod mirror {
             (2.0, 3.0, 3.5),
             (3.5, 4.0, 3.0),
         ] {
-            let l = FourBar::new(a, b, c).unwrap();
-            for i in 0..8 {
-                for j in 0..5 {
-                    let p = CouplerPoint::new(
-                        a * (-0.25 + 0.25 * i as f64),
-                        a * (-1.0 + 0.5 * j as f64),
-                    );
-                    out.push(AtlasCurve {
-                        id: out.len() as u64,
-                        curve: CouplerCurve::new(l, Circuit::Open, p),
-                    });
-                }
-            }
+            push_grid(FourBar::new(a, b, c).unwrap(), &mut out);
         }
         out
     }
@@ -1686,8 +1690,7 @@ mod lab {
     use super::*;
     use crate::cases::{SplitMix64 as Rng, crank_angles};
     use crate::fit::{FitOptions, fit_untimed};
-    use crate::kin::CouplerCurve;
-    use coupler_kinematics::{CouplerPoint, FourBar};
+    use coupler_kinematics::FourBar;
 
     fn atlas() -> Vec<AtlasCurve> {
         let mut out = Vec::new();
@@ -1701,18 +1704,7 @@ mod lab {
                     if !l.is_crank_rocker() {
                         continue;
                     }
-                    for i in 0..8 {
-                        for j in 0..5 {
-                            let p = CouplerPoint::new(
-                                a * (-0.25 + 0.25 * i as f64),
-                                a * (-1.0 + 0.5 * j as f64),
-                            );
-                            out.push(AtlasCurve {
-                                id: out.len() as u64,
-                                curve: CouplerCurve::new(l, Circuit::Open, p),
-                            });
-                        }
-                    }
+                    super::mirror::push_grid(l, &mut out);
                 }
             }
         }
