@@ -44,48 +44,11 @@ pub struct CurveFit {
     pub timing_rate: Option<f64>,
 }
 
-/// Which reflections of the curve the exact fit tries.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Reflection {
-    /// Only the curve as it is (no reflected match).
-    Off,
-    /// The curve as it is and reflected.
-    Allowed,
-    /// Only the reflected curve (a search's reflected candidate, whose unreflected fit
-    /// is its unreflected candidate's).
-    Only,
-}
-
-impl Reflection {
-    /// `Allowed` if `allow_mirror`, else `Off`.
-    pub fn allowed(allow_mirror: bool) -> Reflection {
-        if allow_mirror {
-            Reflection::Allowed
-        } else {
-            Reflection::Off
-        }
-    }
-
-    /// The reflections tried (`false`: as it is), in that order.
-    pub fn mirrors(self) -> &'static [bool] {
-        match self {
-            Reflection::Off => &[false],
-            Reflection::Allowed => &[false, true],
-            Reflection::Only => &[true],
-        }
-    }
-
-    /// Whether a fit reflected (`mirrored`) or not is tried.
-    pub fn tries(self, mirrored: bool) -> bool {
-        self.mirrors().contains(&mirrored)
-    }
-}
-
 /// Settings of the exact fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FitOptions {
-    /// Which reflections are tried.
-    pub reflection: Reflection,
+    /// Allow reflected matches.
+    pub allow_mirror: bool,
     /// Crank samples of the dense trace used by the initial scans.
     pub trace_samples: usize,
     /// Iteration cap of Levenberg–Marquardt.
@@ -95,7 +58,7 @@ pub struct FitOptions {
 impl FitOptions {
     /// Reflection allowed, 720 samples (0.5°), 100 iterations.
     pub const DEFAULT: FitOptions = FitOptions {
-        reflection: Reflection::Allowed,
+        allow_mirror: true,
         trace_samples: 720,
         max_iterations: 100,
     };
@@ -147,25 +110,21 @@ fn unit(mut w: Vec<C64>) -> Option<Vec<C64>> {
     Some(w)
 }
 
-/// The target variants the scans try: (reversed, mirrored), the unreflected ones first.
-fn variants(reflection: Reflection) -> Vec<(bool, bool)> {
-    reflection
-        .mirrors()
-        .iter()
-        .flat_map(|&mir| [(false, mir), (true, mir)])
-        .collect()
+/// The target variants the scans try: (reversed, mirrored), each resampled by `resample`.
+fn variants(allow_mirror: bool) -> Vec<(bool, bool)> {
+    let mut v = vec![(false, false), (true, false)];
+    if allow_mirror {
+        v.extend([(false, true), (true, true)]);
+    }
+    v
 }
 
 /// The resampled target `t` in each variant the scans try ([`variants`]), centred and
 /// scaled to unit norm, with its (reversed, mirrored) flags; a reversed one is turned so
 /// that its first point stays first when `keep_first`. Variants that cannot be scaled
 /// (a single point) are left out.
-fn target_variants(
-    t: &[C64],
-    reflection: Reflection,
-    keep_first: bool,
-) -> Vec<(bool, bool, Vec<C64>)> {
-    variants(reflection)
+fn target_variants(t: &[C64], allow_mirror: bool, keep_first: bool) -> Vec<(bool, bool, Vec<C64>)> {
+    variants(allow_mirror)
         .into_iter()
         .filter_map(|(rev, mir)| {
             let mut v: Vec<C64> = t.iter().map(|&z| tilde(mir, z)).collect();
@@ -183,7 +142,7 @@ fn target_variants(
 /// Closed target: cyclic correlation of the arc-length resampled target against the
 /// resampled curve, every shift and every variant; the best shift per variant becomes a
 /// start.
-pub(crate) fn scan_closed(p: &[C64], traced: &Traced, reflection: Reflection) -> Vec<Start> {
+pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
     const M: usize = 128;
     let Some(t) = super::geom::resample(p, true, M) else {
         return Vec::new();
@@ -194,7 +153,7 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, reflection: Reflection) ->
     let tau = arc_fractions(p, true);
     let len = traced.length();
     // Reversed closed targets keep their first point first.
-    let vars = target_variants(&t, reflection, true);
+    let vars = target_variants(&t, allow_mirror, true);
     // The curve twice round, so that every shift is one slice.
     let cc: Vec<C64> = c.iter().chain(&c).map(|z| z.conj()).collect();
     let best_shifts = match vars.as_slice() {
@@ -257,7 +216,7 @@ fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L]
 /// whole loop, centres every `f/6`. Along each length's centres, every local minimum of
 /// the misfit is refined by a parabola through it and its neighbours; the best distinct
 /// ones (per reflection and direction) are polished by a pattern search on `(c, ln f)`.
-pub(crate) fn scan_open(p: &[C64], traced: &Traced, reflection: Reflection) -> Vec<Start> {
+pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
     const M: usize = 24;
     const POLISHED: usize = 10;
     let Some(t) = super::geom::resample(p, false, M) else {
@@ -280,7 +239,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, reflection: Reflection) -> V
         }
         unit_in_place(w)
     };
-    let vars = target_variants(&t, reflection, false);
+    let vars = target_variants(&t, allow_mirror, false);
     let score = |w: &[C64], v: &[C64]| -> f64 {
         let mut s = C64::new(0.0, 0.0);
         for (a, b) in w.iter().zip(v) {
@@ -616,8 +575,13 @@ pub(crate) fn fit_timed(
     };
     // Candidate (mirrored, θ₀, step) starts.
     let mut starts: Vec<(f64, bool, f64, f64)> = Vec::new();
+    let mirrors: &[bool] = if options.allow_mirror {
+        &[false, true]
+    } else {
+        &[false]
+    };
     if !free_step {
-        for &mir in options.reflection.mirrors() {
+        for &mir in mirrors {
             for sense in [1.0, -1.0] {
                 let step = sense * unit_step;
                 let mut best = (f64::INFINITY, 0.0);
@@ -637,7 +601,7 @@ pub(crate) fn fit_timed(
             }
         }
     }
-    if let Some(h) = hint.filter(|h| options.reflection.tries(h.mirrored)) {
+    if let Some(h) = hint.filter(|h| options.allow_mirror || !h.mirrored) {
         // Regression θ_k ≈ θ₀ + s·o_k (s fixed in magnitude unless free).
         let (om, tm) = (
             o.iter().sum::<f64>() / n as f64,
@@ -763,9 +727,9 @@ pub(crate) fn fit_with(
 ) -> Option<CurveFit> {
     let p = target.complex_points();
     let starts = if target.is_closed() {
-        scan_closed(&p, traced, options.reflection)
+        scan_closed(&p, traced, options.allow_mirror)
     } else {
-        scan_open(&p, traced, options.reflection)
+        scan_open(&p, traced, options.allow_mirror)
     };
     // Race the starts: a few iterations each, then the two best to convergence.
     let quick = FitOptions {
@@ -892,69 +856,5 @@ mod tests {
         let f = fit_curve(&t, &c, &FitOptions::DEFAULT).unwrap();
         assert!(f.rms < 1e-9 * t.size(), "{f:?}");
         assert_eq!(f.timing_rate, Some(-1.0));
-    }
-
-    /// `Reflection::Only` scans the reflected variants alone, with the very starts that
-    /// `Allowed` makes of them (a closed scan's every one; an open scan's, whose polished
-    /// windows are capped over all variants, at least those), and `Off` the unreflected
-    /// ones alike; a fit with `Only` is reflected, timed or not.
-    #[test]
-    fn reflection_only_scans_the_reflected_variants() {
-        let c = curve();
-        let traced = Traced::new(&c, 720).unwrap();
-        let (a, b) = (C64::new(3.0, -4.0), C64::new(10.0, 20.0));
-        let key = |s: &Start| {
-            (
-                s.mirrored,
-                s.score.to_bits(),
-                s.theta.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
-            )
-        };
-        for closed in [true, false] {
-            let angles: Vec<f64> = if closed {
-                (0..40).map(|k| 33.0 + 9.0 * k as f64).collect()
-            } else {
-                (0..30).map(|k| 100.0 + 5.0 * k as f64).collect()
-            };
-            for mirrored in [false, true] {
-                let pts = placed(&c, &angles, a, b, mirrored);
-                let t = Target::new(pts.clone(), closed, Timing::Untimed).unwrap();
-                let p = t.complex_points();
-                let scan = |r| {
-                    let s = if closed {
-                        scan_closed(&p, &traced, r)
-                    } else {
-                        scan_open(&p, &traced, r)
-                    };
-                    s.iter().map(key).collect::<Vec<_>>()
-                };
-                let all = scan(Reflection::Allowed);
-                for (r, mir) in [(Reflection::Off, false), (Reflection::Only, true)] {
-                    let own = scan(r);
-                    assert!(!own.is_empty() && own.iter().all(|s| s.0 == mir));
-                    let of_all: Vec<_> = all.iter().filter(|s| s.0 == mir).cloned().collect();
-                    if closed {
-                        assert_eq!(own, of_all, "{r:?} {mirrored}");
-                    } else {
-                        assert!(of_all.iter().all(|s| own.contains(s)), "{r:?} {mirrored}");
-                    }
-                }
-                let only = FitOptions {
-                    reflection: Reflection::Only,
-                    ..FitOptions::DEFAULT
-                };
-                let f = fit_curve(&t, &c, &only).unwrap();
-                assert!(f.mirrored);
-                if mirrored {
-                    assert!(f.rms < 1e-9 * t.size(), "{closed}: {f:?}");
-                }
-                let timed = Target::new(pts, closed, Timing::EqualSteps).unwrap();
-                let f = fit_curve(&timed, &c, &only).unwrap();
-                assert!(f.mirrored);
-                if mirrored {
-                    assert!(f.rms < 1e-9 * t.size(), "{closed} timed: {f:?}");
-                }
-            }
-        }
     }
 }

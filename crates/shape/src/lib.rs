@@ -29,7 +29,7 @@ mod target;
 mod traced;
 
 pub use code::{CODE_BYTES, CODE_LEN, ClosedQuery, HARMONICS, ShapeCode};
-pub use fit::{CurveFit, FitOptions, Reflection, fit_curve};
+pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
 pub use kin::{AtlasCurve, CouplerCurve, CurveGaps, PointAt, PointSensitivity};
 pub use matching::{

@@ -2,7 +2,7 @@
 //! exact fit of the best candidates, ranked by the exact RMS error.
 
 use crate::code::{ClosedQuery, ShapeCode};
-use crate::fit::{CurveFit, FitOptions, Reflection, Start, fit_timed, fit_untimed, fit_with};
+use crate::fit::{CurveFit, FitOptions, Start, fit_timed, fit_untimed, fit_with};
 use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{
     LinkageScreen, OpenQuery, Stage1, keep_each_reflection, linkage_groups, open_candidates,
@@ -37,8 +37,7 @@ pub struct MatchOptions {
     /// misses the source's linkage part of the time (`docs/shape-search.md`), so it is
     /// opt-in.
     pub open_linkages: usize,
-    /// The exact fit's settings (its `reflection` is set per candidate: off for an
-    /// unreflected one, only the reflected curve for a reflected one).
+    /// The exact fit's settings (its `allow_mirror` is overridden by this one's).
     pub fit: FitOptions,
 }
 
@@ -391,8 +390,8 @@ impl MatchOptions {
 /// are returned, each curve once. The candidates are counted per reflection (an open
 /// one's start, a closed one's coarse description): with `allow_mirror`, the unreflected
 /// ones get the same quick fits, robust starts and final fits as without it (fitted
-/// without reflection), and as many reflected ones theirs (fitted to the reflected curve
-/// only), so allowing reflection never makes a rank's error worse. The candidates are fitted in parallel on the calling thread's rayon pool
+/// without reflection), and as many reflected ones theirs (fitted with reflection
+/// allowed), so allowing reflection never makes a rank's error worse. The candidates are fitted in parallel on the calling thread's rayon pool
 /// (run it inside `ThreadPool::install` to choose the threads); the result is the same,
 /// bit for bit, on any number of threads.
 pub fn rank_candidates(
@@ -421,17 +420,23 @@ pub fn rank_candidates(
             })
             .collect()
     };
-    // An unreflected candidate is fitted without reflection, as a query without
-    // `allow_mirror` fits it (so it gets the very same fits), and a reflected one with
-    // the reflected curve only: its unreflected fit is the unreflected candidate's, if
-    // it is one.
-    let options_of = |c: &Candidate| FitOptions {
-        reflection: if c.reflected() {
-            Reflection::Only
-        } else {
-            Reflection::Off
-        },
+    let fit_options = FitOptions {
+        allow_mirror: options.allow_mirror,
         ..options.fit
+    };
+    // An unreflected candidate is fitted without reflection, as a query without
+    // `allow_mirror` fits it: with reflection allowed, it gets the very same fits (a
+    // reflected one is fitted with reflection allowed, both ways).
+    let plain_options = FitOptions {
+        allow_mirror: false,
+        ..options.fit
+    };
+    let options_of = |c: &Candidate| {
+        if !c.reflected() {
+            plain_options
+        } else {
+            fit_options
+        }
     };
     let quick_of = |c: &Candidate| FitOptions {
         max_iterations: RANK_ITERATIONS,
@@ -446,7 +451,7 @@ pub fn rank_candidates(
     let thin = target.thinned(RANK_POINTS);
     // A candidate's dense trace, made once: the quick fit, the robust start and the final
     // fit all scan it.
-    let traced_of = |c: &Candidate| Traced::new(&c.curve.curve, options.fit.trace_samples);
+    let traced_of = |c: &Candidate| Traced::new(&c.curve.curve, fit_options.trace_samples);
     // An open target's best few candidates by coarse distance also get the exact fit's own
     // robust start (its window scan of the traced curve): the scan's start can sit in the
     // basin of a neighbouring window.

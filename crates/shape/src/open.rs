@@ -1787,7 +1787,7 @@ mod stage_times {
     //! over the repetitions (`OPEN_REPS`, default 5), so that other work on the machine
     //! weighs little.
     use super::*;
-    use crate::fit::{FitOptions, Reflection, fit_untimed, fit_with};
+    use crate::fit::{FitOptions, fit_untimed, fit_with};
     use std::time::Instant;
 
     fn least(reps: usize, f: &mut dyn FnMut()) -> f64 {
@@ -1868,7 +1868,7 @@ mod stage_times {
         let cands = open_stage2(&q, curves, s1.clone(), keep);
         let p = t.complex_points();
         let full = FitOptions {
-            reflection: Reflection::allowed(mirror),
+            allow_mirror: mirror,
             ..FitOptions::DEFAULT
         };
         let quick = FitOptions {
@@ -1955,7 +1955,7 @@ mod fits_fingerprint {
     use super::fingerprint::lab_atlas;
     use super::*;
     use crate::cases::retrieval_cases;
-    use crate::fit::{CurveFit, FitOptions, Reflection, fit_untimed, fit_with};
+    use crate::fit::{CurveFit, FitOptions, fit_untimed, fit_with};
     use crate::matching::{MatchOptions, find_matches};
     use std::hash::{Hash, Hasher};
 
@@ -1986,7 +1986,7 @@ mod fits_fingerprint {
                 let q = OpenQuery::new(t, mirror).unwrap();
                 let c = open_candidates(&q, curves, &groups, 1024);
                 let full = FitOptions {
-                    reflection: Reflection::allowed(mirror),
+                    allow_mirror: mirror,
                     ..FitOptions::DEFAULT
                 };
                 let quick = FitOptions {
