@@ -109,17 +109,11 @@ pub struct Candidate {
     pub curve: AtlasCurve,
     /// The coarse distance.
     pub coarse: f64,
-    mirrored: bool,
-    start: Option<Start>,
-}
-
-impl Candidate {
     /// Whether the candidate is proposed for the reflected target (an open candidate's
     /// start is reflected; a closed one's coarse distance is to the reflected target's
     /// description).
-    fn reflected(&self) -> bool {
-        self.mirrored
-    }
+    reflected: bool,
+    start: Option<Start>,
 }
 
 /// The coarse stage over `curves` (with their shape codes, in the same order; open targets
@@ -175,7 +169,7 @@ pub fn coarse_candidates(
             .map(|c| Candidate {
                 curve: c.curve,
                 coarse: c.misfit,
-                mirrored: c.start.mirrored,
+                reflected: c.start.mirrored,
                 start: Some(c.start),
             })
             .collect())
@@ -266,7 +260,7 @@ fn closed_stage(
             out.push(Candidate {
                 curve: curve(i)?,
                 coarse: d,
-                mirrored: m == 1,
+                reflected: m == 1,
                 start: None,
             });
         }
@@ -366,7 +360,7 @@ pub fn open_finish(
         .map(|c| Candidate {
             curve: c.curve,
             coarse: c.misfit,
-            mirrored: c.start.mirrored,
+            reflected: c.start.mirrored,
             start: Some(c.start),
         })
         .collect())
@@ -403,10 +397,10 @@ pub fn rank_candidates(
         a.coarse
             .total_cmp(&b.coarse)
             .then(a.curve.id.cmp(&b.curve.id))
-            .then(a.reflected().cmp(&b.reflected()))
+            .then(a.reflected.cmp(&b.reflected))
     });
-    candidates.dedup_by(|a, b| a.curve.id == b.curve.id && a.reflected() == b.reflected());
-    keep_each_reflection(&mut candidates, options.kept(target), |c| c.reflected());
+    candidates.dedup_by(|a, b| a.curve.id == b.curve.id && a.reflected == b.reflected);
+    keep_each_reflection(&mut candidates, options.kept(target), |c| c.reflected);
     // Each candidate's place among those of its reflection: the robust starts go to the
     // best of each.
     let place: Vec<usize> = {
@@ -414,7 +408,7 @@ pub fn rank_candidates(
         candidates
             .iter()
             .map(|c| {
-                let k = &mut count[usize::from(c.reflected())];
+                let k = &mut count[usize::from(c.reflected)];
                 *k += 1;
                 *k - 1
             })
@@ -432,7 +426,7 @@ pub fn rank_candidates(
         ..options.fit
     };
     let options_of = |c: &Candidate| {
-        if !c.reflected() {
+        if !c.reflected {
             plain_options
         } else {
             fit_options
@@ -507,7 +501,7 @@ pub fn rank_candidates(
     keep_each_reflection(
         &mut quick,
         (4 * options.top).max(options.top + 8),
-        |&(_, i)| candidates[i].reflected(),
+        |&(_, i)| candidates[i].reflected,
     );
     // The final fits, each candidate with its own (moved out) ranking state. Every open
     // candidate that reaches them also gets the robust start, so a reported curve's fit is
@@ -723,7 +717,7 @@ mod tests {
         let key = |c: &[Candidate]| -> Vec<(u64, f64, bool)> {
             let mut v: Vec<(u64, f64, bool)> = c
                 .iter()
-                .map(|c| (c.curve.id, c.coarse, c.reflected()))
+                .map(|c| (c.curve.id, c.coarse, c.reflected))
                 .collect();
             v.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)).then(a.2.cmp(&b.2)));
             v.truncate(options.candidates);
