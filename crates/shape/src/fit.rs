@@ -188,20 +188,38 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec
 /// `M` conjugated points twice round) with the largest `|Σ_j conj(c[j + k])·v[j]|²`, and
 /// that value (the first such `k` on a tie). The `L` sums run side by side (one pass over
 /// the curve for all of them); each is summed over `j` in order, as one target's alone.
+/// The real and imaginary parts are held apart (the targets' lane by lane, so the `L` sums
+/// run in vector registers, and no bounds are checked in the loop); each term and sum is
+/// the complex product's and sum's, operation for operation (`Complex`'s `*` and `+=`),
+/// so the same bits as summing `C64`s (tested against that).
 #[inline]
 fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L] {
     let m = cc.len() / 2;
+    let vs = vs.map(|v| &v[..m]);
+    // Target point `j` of every variant: (re of each, im of each).
+    let vt: Vec<([f64; L], [f64; L])> = (0..m)
+        .map(|j| {
+            (
+                std::array::from_fn(|l| vs[l][j].re),
+                std::array::from_fn(|l| vs[l][j].im),
+            )
+        })
+        .collect();
+    let (cr, ci): (Vec<f64>, Vec<f64>) = cc[..2 * m].iter().map(|z| (z.re, z.im)).unzip();
     let mut best = [(-1.0, 0usize); L];
     for k in 0..m {
-        let w = &cc[k..k + m];
-        let mut s = [C64::new(0.0, 0.0); L];
-        for (j, &cj) in w.iter().enumerate() {
+        let (wr, wi) = (&cr[k..k + m], &ci[k..k + m]);
+        let mut sr = [0.0f64; L];
+        let mut si = [0.0f64; L];
+        for ((&a, &b), (xr, xi)) in wr.iter().zip(wi).zip(&vt) {
             for l in 0..L {
-                s[l] += cj * vs[l][j];
+                // `(a + ib)·(xr + i·xi)`: `Complex`'s product, then its `+=`.
+                sr[l] += a * xr[l] - b * xi[l];
+                si[l] += a * xi[l] + b * xr[l];
             }
         }
         for l in 0..L {
-            let q = s[l].norm_sqr();
+            let q = C64::new(sr[l], si[l]).norm_sqr();
             if q > best[l].0 {
                 best[l] = (q, k);
             }
@@ -970,6 +988,48 @@ mod tests {
         // Both kinds of answer are compared: some fits with reflection allowed are
         // reflected.
         assert!(reflected_best > 0);
+    }
+
+    /// `best_shifts` in split form gives the shifts and values of the sums of `C64`
+    /// products, bit for bit, for one, two and four targets.
+    #[test]
+    fn best_shifts_sums_as_complex() {
+        fn reference<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L] {
+            let m = cc.len() / 2;
+            let mut best = [(-1.0, 0usize); L];
+            for k in 0..m {
+                let w = &cc[k..k + m];
+                let mut s = [C64::new(0.0, 0.0); L];
+                for (j, &cj) in w.iter().enumerate() {
+                    for l in 0..L {
+                        s[l] += cj * vs[l][j];
+                    }
+                }
+                for l in 0..L {
+                    let q = s[l].norm_sqr();
+                    if q > best[l].0 {
+                        best[l] = (q, k);
+                    }
+                }
+            }
+            best
+        }
+        let mut rng = crate::cases::SplitMix64(7);
+        let mut point = || C64::new(rng.normal(), rng.normal());
+        for m in [1, 5, 128] {
+            let c: Vec<C64> = (0..m).map(|_| point()).collect();
+            let cc: Vec<C64> = c.iter().chain(&c).map(|z| z.conj()).collect();
+            let v: Vec<Vec<C64>> = (0..4).map(|_| (0..m).map(|_| point()).collect()).collect();
+            let bits = |r: &[(f64, usize)]| -> Vec<(u64, usize)> {
+                r.iter().map(|&(q, k)| (q.to_bits(), k)).collect()
+            };
+            let four = [&v[0][..], &v[1], &v[2], &v[3]];
+            assert_eq!(bits(&best_shifts(&cc, four)), bits(&reference(&cc, four)));
+            let two = [&v[0][..], &v[1]];
+            assert_eq!(bits(&best_shifts(&cc, two)), bits(&reference(&cc, two)));
+            let one = [&v[2][..]];
+            assert_eq!(bits(&best_shifts(&cc, one)), bits(&reference(&cc, one)));
+        }
     }
 
     #[test]
