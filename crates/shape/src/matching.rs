@@ -386,7 +386,9 @@ impl MatchOptions {
 /// one's start, a closed one's coarse description): with `allow_mirror`, the unreflected
 /// ones get the same quick fits, robust starts and final fits as without it (fitted
 /// without reflection), and as many reflected ones theirs (fitted with reflection
-/// allowed), so allowing reflection never makes a rank's error worse. The candidates are fitted in parallel on the calling thread's rayon pool
+/// allowed), so allowing reflection never makes a rank's error worse. A closed target's
+/// curve that is a candidate of both reflections is fitted both ways at once, with the
+/// same fits bit for bit (the work both fits share done once). The candidates are fitted in parallel on the calling thread's rayon pool
 /// (run it inside `ThreadPool::install` to choose the threads); the result is the same,
 /// bit for bit, on any number of threads.
 pub fn rank_candidates(
