@@ -668,18 +668,20 @@ pub fn rank_candidates(
 /// For each of `items`, the position of the reflected **closed** candidate of the same
 /// curve when the item is an unreflected closed candidate and there is one (an open
 /// candidate's fits start from its own scan: it is never paired).
+/// Each item is paired at most once (a curve listed twice in one reflection, which a
+/// caller may hand over, pairs its first entries).
 fn closed_partners(items: &[&Candidate]) -> Vec<Option<usize>> {
-    let reflected: std::collections::HashMap<u64, usize> = items
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| c.start.is_none() && c.reflected)
-        .map(|(k, c)| (c.curve.id, k))
-        .collect();
+    let mut reflected = std::collections::HashMap::new();
+    for (k, c) in items.iter().enumerate() {
+        if c.start.is_none() && c.reflected {
+            reflected.entry(c.curve.id).or_insert(k);
+        }
+    }
     items
         .iter()
         .map(|c| {
             (c.start.is_none() && !c.reflected)
-                .then(|| reflected.get(&c.curve.id).copied())
+                .then(|| reflected.remove(&c.curve.id))
                 .flatten()
         })
         .collect()
@@ -760,6 +762,55 @@ mod tests {
             assert_eq!(one.len(), 3);
             assert_eq!(on(3), one, "source {source}");
         }
+    }
+
+    /// A curve listed twice in each reflection's candidates (at two coarse distances, as a
+    /// caller may hand them over) is paired once: each entry is fitted, none twice, and
+    /// the search does not fail.
+    #[test]
+    fn a_curve_listed_twice_is_paired_once() {
+        let atlas = decode_sidecar(&sidecar()).unwrap();
+        let options = MatchOptions {
+            candidates: 12,
+            top: 3,
+            ..MatchOptions::DEFAULT
+        };
+        let mut rng = SplitMix64(19);
+        let t = make_target(
+            &mut rng,
+            &atlas.curves[7].curve,
+            true,
+            20.0,
+            360.0,
+            40,
+            false,
+            0.01,
+        )
+        .unwrap();
+        let mut c = coarse_candidates(&t, &atlas.curves, &atlas.codes, &options).unwrap();
+        // A curve in both lists, its unreflected and its reflected entry listed again.
+        let both = |k: &usize| {
+            let (id, r) = (c[*k].curve.id, c[*k].reflected);
+            !r && c.iter().any(|o| o.reflected && o.curve.id == id)
+        };
+        let plain = (0..c.len()).find(both).expect("a curve in both lists");
+        let mirrored = (0..c.len())
+            .find(|&k| c[k].reflected && c[k].curve.id == c[plain].curve.id)
+            .unwrap();
+        // Listed last (not next to the first entry, which the exact stage's dedup drops).
+        let last = c.iter().map(|c| c.coarse).fold(f64::MIN, f64::max);
+        for k in [plain, mirrored] {
+            let mut again = c[k].clone();
+            again.coarse = last + 1.0;
+            c.push(again);
+        }
+        // One more candidate a reflection than the coarse stage gave: the copies are kept.
+        let options = MatchOptions {
+            candidates: 13,
+            ..options
+        };
+        let m = rank_candidates(&t, c, &options);
+        assert_eq!(m.len(), 3);
     }
 
     /// A closed query with reflection allowed proposes every candidate of the same query
