@@ -321,19 +321,23 @@ const PROGRESS_LINKAGES: usize = 2_000;
 
 /// The coarse stage on the pool's threads: open targets' linkages screened (an atlas of
 /// many linkages) and scanned in shares, then finished on the whole (the same candidates
-/// however they are shared out); closed targets in one pass (the codes are cheap; the
-/// query's description is the cost).
+/// however they are shared out); closed targets' codes in parts, in parallel.
 fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec<Candidate>> {
     let view = atlas.view();
     if target.is_closed() {
         let q = ClosedQuery::new(&target.complex_points(), options.allow_mirror)
             .ok_or(MatchError::Undescribable)?;
-        // Parts of the atlas in parallel; their candidates together hold the best of all.
-        const PART: usize = 1 << 15;
-        let parts: Vec<Vec<Candidate>> = (0..view.len().div_ceil(PART))
+        // Parts of the atlas in parallel; their candidates together hold the best of all
+        // (the same candidates however the atlas is cut). At most 2^15 curves a part, and
+        // at least two parts a thread, so that a small atlas's codes are shared out too.
+        let part = view
+            .len()
+            .div_ceil(2 * rayon::current_num_threads())
+            .clamp(1024, 1 << 15);
+        let parts: Vec<Vec<Candidate>> = (0..view.len().div_ceil(part))
             .into_par_iter()
             .map(|k| {
-                let ids = k * PART..((k + 1) * PART).min(view.len());
+                let ids = k * part..((k + 1) * part).min(view.len());
                 closed_candidates_in(&q, target, &view, ids, options)
             })
             .collect::<Result<_, _>>()?;

@@ -163,41 +163,60 @@ impl ClosedQuery {
     /// The query vectors of a closed target's points; `None` if none can be formed.
     pub fn new(points: &[C64], allow_mirror: bool) -> Option<ClosedQuery> {
         use rayon::prelude::*;
-        // Every (reflection, order, smoothing), described in parallel on the calling
-        // thread's rayon pool (a least-squares smoothing each: most of a closed query's
-        // work before the fits) and kept in this order, so the vectors are the same on
-        // any number of threads.
-        let mut jobs = Vec::new();
-        for mir in [false, true] {
-            if mir && !allow_mirror {
-                continue;
+        // Every (order, smoothing), described in parallel on the calling thread's rayon
+        // pool (a least-squares smoothing each: most of a closed query's work before the
+        // fits), unreflected and, if allowed, reflected; kept in the order (reflection,
+        // order, smoothing), so the vectors are the same on any number of threads. The
+        // reflected target's smoothed points are the unreflected ones' mirror images
+        // (the smoothing commutes with the reflection: the same chord and arc lengths,
+        // conjugate coefficients), made from them rather than smoothed again.
+        let describe = |r: &[C64]| -> Vec<[f64; CODE_LEN]> {
+            let Some(n) = normalized(&fourier(r)) else {
+                return Vec::new();
+            };
+            canonical(&n).map_or_else(Vec::new, |c| c.iter().map(|x| flatten(x)).collect())
+        };
+        let smoothed = |mir: bool, rev: bool, d: usize| -> Option<(Vec<C64>, bool)> {
+            let mut v: Vec<C64> = points
+                .iter()
+                .map(|&z| if mir { z.conj() } else { z })
+                .collect();
+            if rev {
+                v.reverse();
             }
-            for rev in [false, true] {
-                for d in SMOOTHINGS {
-                    jobs.push((mir, rev, d));
-                }
+            let terms = (v.len() / d).clamp(2, 24);
+            match super::smooth::smooth_resample(&v, true, terms, SAMPLES) {
+                Some(r) => Some((r.0, true)),
+                None => resample(&v, true, SAMPLES).map(|r| (r, false)),
+            }
+        };
+        let mut jobs = Vec::new();
+        for rev in [false, true] {
+            for d in SMOOTHINGS {
+                jobs.push((rev, d));
             }
         }
-        let parts: Vec<Vec<[f64; CODE_LEN]>> = jobs
+        let parts: Vec<[Vec<[f64; CODE_LEN]>; 2]> = jobs
             .into_par_iter()
-            .map(|(mir, rev, d)| {
-                let mut v: Vec<C64> = points
-                    .iter()
-                    .map(|&z| if mir { z.conj() } else { z })
-                    .collect();
-                if rev {
-                    v.reverse();
-                }
-                let terms = (v.len() / d).clamp(2, 24);
-                let r = super::smooth::smooth_resample(&v, true, terms, SAMPLES)
-                    .map(|r| r.0)
-                    .or_else(|| resample(&v, true, SAMPLES));
-                let Some(r) = r else { return Vec::new() };
-                let Some(n) = normalized(&fourier(&r)) else {
-                    return Vec::new();
+            .map(|(rev, d)| {
+                let plain = smoothed(false, rev, d);
+                let reflected = if !allow_mirror {
+                    Vec::new()
+                } else {
+                    match &plain {
+                        Some((r, true)) => {
+                            describe(&r.iter().map(|z| z.conj()).collect::<Vec<_>>())
+                        }
+                        _ => smoothed(true, rev, d).map_or_else(Vec::new, |r| describe(&r.0)),
+                    }
                 };
-                canonical(&n).map_or_else(Vec::new, |c| c.iter().map(|x| flatten(x)).collect())
+                [plain.map_or_else(Vec::new, |r| describe(&r.0)), reflected]
             })
+            .collect();
+        let parts: Vec<Vec<[f64; CODE_LEN]>> = parts
+            .iter()
+            .map(|p| p[0].clone())
+            .chain(parts.iter().map(|p| p[1].clone()))
             .collect();
         // The unreflected jobs come first: both orders, every smoothing.
         let plain = parts.iter().take(2 * SMOOTHINGS.len()).map(Vec::len).sum();
@@ -245,6 +264,44 @@ impl ClosedQuery {
 mod tests {
     use super::*;
     use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+
+    /// A mirror query's reflected vectors (made from the unreflected smoothing, reflected)
+    /// are, to rounding, those of the reflected points described alone, and its
+    /// unreflected ones are those of the query without reflection, bit for bit.
+    #[test]
+    fn reflected_description_is_the_reflected_points_description() {
+        let mut rng = crate::cases::SplitMix64(17);
+        let c = CouplerCurve {
+            linkage: FourBar::new(3.0, 2.5, 3.5).unwrap().into(),
+            circuit: Circuit::Open,
+            point: CouplerPoint::new(1.5, 1.0),
+        };
+        let z = c.sample(72).unwrap();
+        for noise in [0.0, 0.01, 0.03] {
+            let pts: Vec<C64> = z
+                .iter()
+                .map(|&p| 20.0 * p + C64::new(rng.normal(), rng.normal()) * noise * 20.0)
+                .collect();
+            let both = ClosedQuery::new(&pts, true).unwrap();
+            let plain = ClosedQuery::new(&pts, false).unwrap();
+            let conj: Vec<C64> = pts.iter().map(|p| p.conj()).collect();
+            let alone = ClosedQuery::new(&conj, false).unwrap();
+            assert_eq!(both.plain, plain.vectors.len());
+            let bits = |v: &[[f64; CODE_LEN]]| -> Vec<u64> {
+                v.iter().flatten().map(|x| x.to_bits()).collect()
+            };
+            assert_eq!(bits(&both.vectors[..both.plain]), bits(&plain.vectors));
+            let reflected = &both.vectors[both.plain..];
+            assert_eq!(reflected.len(), alone.vectors.len());
+            for (a, b) in reflected
+                .iter()
+                .flatten()
+                .zip(alone.vectors.iter().flatten())
+            {
+                assert!((a - b).abs() < 1e-9, "noise {noise}: {a} against {b}");
+            }
+        }
+    }
 
     #[test]
     fn invariant_to_similarity_start_and_bytes_round_trip() {

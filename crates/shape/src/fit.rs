@@ -188,20 +188,38 @@ pub(crate) fn scan_closed(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec
 /// `M` conjugated points twice round) with the largest `|Σ_j conj(c[j + k])·v[j]|²`, and
 /// that value (the first such `k` on a tie). The `L` sums run side by side (one pass over
 /// the curve for all of them); each is summed over `j` in order, as one target's alone.
+/// The real and imaginary parts are held apart (the targets' lane by lane, so the `L` sums
+/// run in vector registers, and no bounds are checked in the loop); each term and sum is
+/// the complex product's and sum's, operation for operation (`Complex`'s `*` and `+=`),
+/// so the same bits as summing `C64`s (tested against that).
 #[inline]
 fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L] {
     let m = cc.len() / 2;
+    let vs = vs.map(|v| &v[..m]);
+    // Target point `j` of every variant: (re of each, im of each).
+    let vt: Vec<([f64; L], [f64; L])> = (0..m)
+        .map(|j| {
+            (
+                std::array::from_fn(|l| vs[l][j].re),
+                std::array::from_fn(|l| vs[l][j].im),
+            )
+        })
+        .collect();
+    let (cr, ci): (Vec<f64>, Vec<f64>) = cc[..2 * m].iter().map(|z| (z.re, z.im)).unzip();
     let mut best = [(-1.0, 0usize); L];
     for k in 0..m {
-        let w = &cc[k..k + m];
-        let mut s = [C64::new(0.0, 0.0); L];
-        for (j, &cj) in w.iter().enumerate() {
+        let (wr, wi) = (&cr[k..k + m], &ci[k..k + m]);
+        let mut sr = [0.0f64; L];
+        let mut si = [0.0f64; L];
+        for ((&a, &b), (xr, xi)) in wr.iter().zip(wi).zip(&vt) {
             for l in 0..L {
-                s[l] += cj * vs[l][j];
+                // `(a + ib)·(xr + i·xi)`: `Complex`'s product, then its `+=`.
+                sr[l] += a * xr[l] - b * xi[l];
+                si[l] += a * xi[l] + b * xr[l];
             }
         }
         for l in 0..L {
-            let q = s[l].norm_sqr();
+            let q = C64::new(sr[l], si[l]).norm_sqr();
             if q > best[l].0 {
                 best[l] = (q, k);
             }
@@ -767,6 +785,96 @@ pub(crate) fn fit_with(
     best
 }
 
+/// A **closed** target fitted to one curve both ways: `[fit_with` without reflection,
+/// `fit_with` with reflection allowed`]` (`options.allow_mirror` is ignored), the same
+/// results bit for bit as the two calls, for a curve that is a candidate of both
+/// reflections. The work both calls would do alike is done once:
+///
+/// - the scan: the starts of the scan with reflection allowed are those of the scan
+///   without it (the same values: each variant's shifts are summed alone, in order) plus
+///   the reflected ones, and both are sorted stably by score, so the unreflected ones
+///   come in the same order;
+/// - the race: an unreflected start's race is the same fit in both calls (the same start
+///   and iterations; an untimed fit does not read `allow_mirror`);
+/// - the finishes: each call finishes its two best raced fits, in its own order (a stable
+///   sort by RMS of the fits in the starts' order); a raced fit both calls finish is
+///   finished once.
+pub(crate) fn fit_closed_both(
+    target: &Target,
+    curve: &CouplerCurve,
+    traced: &Traced,
+    options: &FitOptions,
+) -> [Option<CurveFit>; 2] {
+    let p = target.complex_points();
+    let starts = scan_closed(&p, traced, true);
+    let quick = FitOptions {
+        max_iterations: RACE_ITERATIONS,
+        ..*options
+    };
+    // Every start raced once, on the pool, in the starts' order (as `fit_with`).
+    let raced: Vec<Option<CurveFit>> = starts
+        .par_iter()
+        .map(|s| fit_untimed(&p, curve, s, &quick))
+        .collect();
+    // Each call's two best raced fits: `fit_with`'s list (the raced fits that exist, in
+    // the starts' order, sorted stably by RMS) as indices into `raced`.
+    let best_two = |mirror: bool| -> Vec<usize> {
+        let mut order: Vec<usize> = (0..starts.len())
+            .filter(|&i| raced[i].is_some() && (mirror || !starts[i].mirrored))
+            .collect();
+        order.sort_by(|&a, &b| {
+            let rms = |i: usize| raced[i].as_ref().map_or(f64::NAN, |f| f.rms);
+            rms(a).total_cmp(&rms(b))
+        });
+        order.truncate(2);
+        order
+    };
+    let lists = [best_two(false), best_two(true)];
+    let mut needed: Vec<usize> = lists.iter().flatten().copied().collect();
+    needed.sort_unstable();
+    needed.dedup();
+    let finished: Vec<(usize, Option<CurveFit>)> = needed
+        .par_iter()
+        .map(|&i| {
+            let f = raced[i].as_ref().and_then(|f| {
+                let start = Start {
+                    mirrored: f.mirrored,
+                    theta: f.theta_deg.clone(),
+                    score: 0.0,
+                };
+                fit_untimed(&p, curve, &start, options)
+            });
+            (i, f)
+        })
+        .collect();
+    let finish_of = |i: usize| -> Option<&CurveFit> {
+        finished
+            .iter()
+            .find(|(j, _)| *j == i)
+            .and_then(|(_, f)| f.as_ref())
+    };
+    [false, true].map(|mirror| {
+        let mut best: Option<&CurveFit> = None;
+        for f in lists[usize::from(mirror)]
+            .iter()
+            .filter_map(|&i| finish_of(i))
+        {
+            if best.is_none_or(|b| f.rms < b.rms) {
+                best = Some(f);
+            }
+        }
+        let best = best.cloned();
+        if target.timing().is_timed() {
+            let options = FitOptions {
+                allow_mirror: mirror,
+                ..*options
+            };
+            return fit_timed(target, curve, traced, best.as_ref(), &options);
+        }
+        best
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -815,6 +923,112 @@ mod tests {
         }
         for x in xs {
             assert_eq!(frac(x).to_bits(), x.rem_euclid(1.0).to_bits(), "{x:e}");
+        }
+    }
+
+    /// `fit_closed_both` gives the fits of `fit_with` without and with reflection, bit
+    /// for bit: closed targets from curves of several shapes, unreflected and reflected,
+    /// noisy and exact, untimed and timed by equal steps, with the ranking's iteration cap
+    /// and the final one.
+    #[test]
+    fn fit_closed_both_is_two_fits() {
+        let mut rng = crate::cases::SplitMix64(31);
+        let curves = [
+            curve(),
+            CouplerCurve {
+                linkage: FourBar::new(2.0, 2.5, 2.0).unwrap().into(),
+                circuit: Circuit::Open,
+                point: CouplerPoint::new(3.0, 0.0),
+            },
+            CouplerCurve {
+                linkage: FourBar::new(4.5, 3.0, 3.5).unwrap().into(),
+                circuit: Circuit::Crossed,
+                point: CouplerPoint::new(1.125, -2.25),
+            },
+        ];
+        let bits = |f: &Option<CurveFit>| format!("{f:?}");
+        let mut reflected_best = 0;
+        for (ci, c) in curves.iter().enumerate() {
+            for (mirrored, noise, timed) in [
+                (false, 0.01, false),
+                (true, 0.01, false),
+                (false, 0.0, false),
+                (true, 0.02, true),
+            ] {
+                let t =
+                    crate::cases::make_target(&mut rng, c, true, 10.0, 360.0, 48, mirrored, noise)
+                        .unwrap();
+                let t = if timed {
+                    Target::new(t.points().to_vec(), true, Timing::EqualSteps).unwrap()
+                } else {
+                    t
+                };
+                let traced = Traced::new(c, 720).unwrap();
+                for iterations in [30, 100] {
+                    let options = FitOptions {
+                        max_iterations: iterations,
+                        ..FitOptions::DEFAULT
+                    };
+                    let alone = |allow_mirror: bool| {
+                        let o = FitOptions {
+                            allow_mirror,
+                            ..options
+                        };
+                        fit_with(&t, c, &traced, &o)
+                    };
+                    let [plain, both] = fit_closed_both(&t, c, &traced, &options);
+                    let what = format!("curve {ci}, {mirrored} {noise} {timed}, {iterations}");
+                    assert_eq!(bits(&plain), bits(&alone(false)), "{what}");
+                    assert_eq!(bits(&both), bits(&alone(true)), "{what}");
+                    assert!(plain.is_some(), "{what}");
+                    reflected_best += usize::from(both.is_some_and(|f| f.mirrored));
+                }
+            }
+        }
+        // Both kinds of answer are compared: some fits with reflection allowed are
+        // reflected.
+        assert!(reflected_best > 0);
+    }
+
+    /// `best_shifts` in split form gives the shifts and values of the sums of `C64`
+    /// products, bit for bit, for one, two and four targets.
+    #[test]
+    fn best_shifts_sums_as_complex() {
+        fn reference<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L] {
+            let m = cc.len() / 2;
+            let mut best = [(-1.0, 0usize); L];
+            for k in 0..m {
+                let w = &cc[k..k + m];
+                let mut s = [C64::new(0.0, 0.0); L];
+                for (j, &cj) in w.iter().enumerate() {
+                    for l in 0..L {
+                        s[l] += cj * vs[l][j];
+                    }
+                }
+                for l in 0..L {
+                    let q = s[l].norm_sqr();
+                    if q > best[l].0 {
+                        best[l] = (q, k);
+                    }
+                }
+            }
+            best
+        }
+        let mut rng = crate::cases::SplitMix64(7);
+        let mut point = || C64::new(rng.normal(), rng.normal());
+        for m in [1, 5, 128] {
+            let c: Vec<C64> = (0..m).map(|_| point()).collect();
+            let cc: Vec<C64> = c.iter().chain(&c).map(|z| z.conj()).collect();
+            let v: Vec<Vec<C64>> = (0..4).map(|_| (0..m).map(|_| point()).collect()).collect();
+            let bits = |r: &[(f64, usize)]| -> Vec<(u64, usize)> {
+                r.iter().map(|&(q, k)| (q.to_bits(), k)).collect()
+            };
+            let four = [&v[0][..], &v[1], &v[2], &v[3]];
+            assert_eq!(bits(&best_shifts(&cc, four)), bits(&reference(&cc, four)));
+            let two = [&v[0][..], &v[1]];
+            assert_eq!(bits(&best_shifts(&cc, two)), bits(&reference(&cc, two)));
+            let one = [&v[2][..]];
+            assert_eq!(bits(&best_shifts(&cc, one)), bits(&reference(&cc, one)));
         }
     }
 

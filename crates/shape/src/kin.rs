@@ -131,8 +131,10 @@ impl CouplerCurve {
         match (&self.linkage, gaps) {
             (Linkage::FourBar(l), CurveGaps::FourBar(g)) => {
                 let lanes = Pose::finite_points_with(l, g, self.circuit, self.point, degrees);
-                lanes.map(|lane| {
-                    let (m, v) = lane?;
+                // Lane by lane in place (`from_fn`: inlined, where `map` over the lanes was
+                // a call per group).
+                std::array::from_fn(|i| {
+                    let (m, v) = lanes[i]?;
                     if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()) {
                         return None;
                     }

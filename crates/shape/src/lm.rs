@@ -197,11 +197,11 @@ where
         hgg.fill(0.0);
         grad_g.fill(0.0);
         let nl = if has_locals { n } else { 0 };
-        hgl.clear();
+        // Every point's entries are written (`point_locals`: assigned, not summed) before
+        // they are read, so the buffers are sized, not cleared: after the first iteration
+        // (the same points) this is no work.
         hgl.resize(nl * ng, 0.0);
-        hll.clear();
         hll.resize(nl, 0.0);
-        grad_l.clear();
         grad_l.resize(nl, 0.0);
         let normal = Normal {
             hgg: &mut hgg,
@@ -408,7 +408,9 @@ impl Normal<'_> {
         } = self;
         let mut m = [[0.0; G]; G];
         let mut gr = [0.0; G];
+        let mut points = 0;
         for (j, (row, &rj)) in rows.zip(&e.r).enumerate() {
+            points += 1;
             let row = &row;
             for p in 0..G {
                 gr[p] += dot(row[p], rj);
@@ -428,6 +430,8 @@ impl Normal<'_> {
                 );
             }
         }
+        // Every point's locals written (the buffers are not cleared between iterations).
+        assert!(!has_locals || points == e.r.len(), "a row per point");
         for p in 0..G {
             for q in 0..G {
                 hgg[p * G + q] = if q < p { m[q][p] } else { m[p][q] };

@@ -2,7 +2,7 @@
 //! exact fit of the best candidates, ranked by the exact RMS error.
 
 use crate::code::{ClosedQuery, ShapeCode};
-use crate::fit::{CurveFit, FitOptions, Start, fit_timed, fit_untimed, fit_with};
+use crate::fit::{CurveFit, FitOptions, Start, fit_closed_both, fit_timed, fit_untimed, fit_with};
 use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{
     LinkageScreen, OpenQuery, Stage1, keep_each_reflection, linkage_groups, open_candidates,
@@ -14,6 +14,7 @@ use crate::target::Target;
 use crate::traced::Traced;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::Arc;
 
 /// Settings of a search.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -385,7 +386,9 @@ impl MatchOptions {
 /// one's start, a closed one's coarse description): with `allow_mirror`, the unreflected
 /// ones get the same quick fits, robust starts and final fits as without it (fitted
 /// without reflection), and as many reflected ones theirs (fitted with reflection
-/// allowed), so allowing reflection never makes a rank's error worse. The candidates are fitted in parallel on the calling thread's rayon pool
+/// allowed), so allowing reflection never makes a rank's error worse. A closed target's
+/// curve that is a candidate of both reflections is fitted both ways at once, with the
+/// same fits bit for bit (the work both fits share done once). The candidates are fitted in parallel on the calling thread's rayon pool
 /// (run it inside `ThreadPool::install` to choose the threads); the result is the same,
 /// bit for bit, on any number of threads.
 pub fn rank_candidates(
@@ -444,48 +447,81 @@ pub fn rank_candidates(
     // candidates' order, so the result does not depend on the threads.
     let thin = target.thinned(RANK_POINTS);
     // A candidate's dense trace, made once: the quick fit, the robust start and the final
-    // fit all scan it.
-    let traced_of = |c: &Candidate| Traced::new(&c.curve.curve, fit_options.trace_samples);
+    // fit all scan it. A closed target's curve that is a candidate of both reflections
+    // shares one trace (the same bits).
+    let traced_of =
+        |c: &Candidate| Traced::new(&c.curve.curve, fit_options.trace_samples).map(Arc::new);
+    // A closed target's curve in both reflections' lists is fitted both ways at once
+    // (`fit_closed_both`: the same fits, bit for bit, as fitting each candidate alone,
+    // with the unreflected starts' work done once): `partner[i]` is the reflected
+    // candidate of unreflected candidate `i`'s curve, if any.
+    let partner = closed_partners(&candidates.iter().collect::<Vec<_>>());
     // An open target's best few candidates by coarse distance also get the exact fit's own
     // robust start (its window scan of the traced curve): the scan's start can sit in the
     // basin of a neighbouring window.
     struct Ranked {
-        traced: Option<Option<Traced>>,
+        traced: Option<Option<Arc<Traced>>>,
         robust: Option<CurveFit>,
         quick: Option<f64>,
     }
-    let mut ranked: Vec<Ranked> = candidates
+    let quick_one = |i: usize| -> Ranked {
+        let c = &candidates[i];
+        let mut traced = None;
+        let robust = match &c.start {
+            Some(_) if place[i] < ROBUST_OPEN => {
+                let t = traced.insert(traced_of(c));
+                t.as_ref()
+                    .and_then(|t| fit_with(target, &c.curve.curve, t, &options_of(c)))
+            }
+            _ => None,
+        };
+        let f = match &c.start {
+            Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_of(c)),
+            None => traced
+                .insert(traced_of(c))
+                .as_ref()
+                .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_of(c))),
+        };
+        let quick = match (f, &robust) {
+            (Some(f), Some(r)) => Some(f.rms.min(r.rms)),
+            (Some(f), None) => Some(f.rms),
+            (None, Some(r)) => Some(r.rms),
+            (None, None) => None,
+        };
+        Ranked {
+            traced,
+            robust,
+            quick,
+        }
+    };
+    // The units of work: a candidate alone, or a closed curve's two candidates together.
+    let units = work_units(&partner);
+    let mut ranked: Vec<Option<Ranked>> = (0..candidates.len()).map(|_| None).collect();
+    let done: Vec<Vec<(usize, Ranked)>> = units
         .par_iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let mut traced = None;
-            let robust = match &c.start {
-                Some(_) if place[i] < ROBUST_OPEN => {
-                    let t = traced.insert(traced_of(c));
-                    t.as_ref()
-                        .and_then(|t| fit_with(target, &c.curve.curve, t, &options_of(c)))
-                }
-                _ => None,
-            };
-            let f = match &c.start {
-                Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_of(c)),
-                None => traced
-                    .insert(traced_of(c))
-                    .as_ref()
-                    .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_of(c))),
-            };
-            let quick = match (f, &robust) {
-                (Some(f), Some(r)) => Some(f.rms.min(r.rms)),
-                (Some(f), None) => Some(f.rms),
-                (None, Some(r)) => Some(r.rms),
-                (None, None) => None,
-            };
-            Ranked {
-                traced,
-                robust,
-                quick,
+        .map(|&(i, j)| match j {
+            None => vec![(i, quick_one(i))],
+            Some(j) => {
+                let c = &candidates[i];
+                let t = traced_of(c);
+                let [f, g] = t.as_ref().map_or([None, None], |t| {
+                    fit_closed_both(&thin, &c.curve.curve, t, &quick_of(c))
+                });
+                let r = |f: Option<CurveFit>| Ranked {
+                    traced: Some(t.clone()),
+                    robust: None,
+                    quick: f.map(|f| f.rms),
+                };
+                vec![(i, r(f)), (j, r(g))]
             }
         })
+        .collect();
+    for (i, r) in done.into_iter().flatten() {
+        ranked[i] = Some(r);
+    }
+    let mut ranked: Vec<Ranked> = ranked
+        .into_iter()
+        .map(|r| r.expect("every candidate is in one unit"))
         .collect();
     let mut quick: Vec<(f64, usize)> = ranked
         .iter()
@@ -520,63 +556,101 @@ pub fn rank_candidates(
         .collect();
     drop(ranked);
     let size = target.size();
-    let mut matches: Vec<Match> = finalists
-        .into_par_iter()
-        .filter_map(|(i, mut r)| {
-            let c = &candidates[i];
-            let curve = &c.curve.curve;
-            let traced = |r: &mut Ranked| -> Option<Traced> {
-                r.traced.take().unwrap_or_else(|| traced_of(c))
-            };
-            let fit_options = options_of(c);
-            let fit = match &c.start {
-                Some(s) => {
-                    let mut t = None;
-                    let robust = match r.robust.take() {
-                        Some(f) => Some(f),
-                        None => t
-                            .insert(traced(&mut r))
-                            .as_ref()
-                            .and_then(|t| fit_with(target, curve, t, &fit_options)),
-                    };
-                    let from_scan = fit_untimed(&p, curve, s, &fit_options).and_then(|untimed| {
-                        if target.timing().is_timed() {
-                            let t = match t.take() {
-                                Some(t) => t,
-                                None => traced(&mut r),
-                            }?;
-                            fit_timed(target, curve, &t, Some(&untimed), &fit_options)
-                        } else {
-                            Some(untimed)
-                        }
-                    });
-                    match (from_scan, robust) {
-                        (Some(a), Some(b)) => {
-                            if b.rms < a.rms {
-                                b
-                            } else {
-                                a
-                            }
-                        }
-                        (a, b) => a.or(b)?,
+    let match_of = |c: &Candidate, fit: CurveFit| Match {
+        id: c.curve.id,
+        curve: c.curve.curve,
+        coarse: c.coarse,
+        placement: Placement::of(&c.curve.curve, &fit),
+        rms_pct: 100.0 * fit.rms / size,
+        max_pct: 100.0 * fit.max / size,
+        fit,
+    };
+    let final_one = |i: usize, mut r: Ranked| -> Option<Match> {
+        let c = &candidates[i];
+        let curve = &c.curve.curve;
+        let traced = |r: &mut Ranked| -> Option<Arc<Traced>> {
+            r.traced.take().unwrap_or_else(|| traced_of(c))
+        };
+        let fit_options = options_of(c);
+        let fit = match &c.start {
+            Some(s) => {
+                let mut t = None;
+                let robust = match r.robust.take() {
+                    Some(f) => Some(f),
+                    None => t
+                        .insert(traced(&mut r))
+                        .as_ref()
+                        .and_then(|t| fit_with(target, curve, t, &fit_options)),
+                };
+                let from_scan = fit_untimed(&p, curve, s, &fit_options).and_then(|untimed| {
+                    if target.timing().is_timed() {
+                        let t = match t.take() {
+                            Some(t) => t,
+                            None => traced(&mut r),
+                        }?;
+                        fit_timed(target, curve, &t, Some(&untimed), &fit_options)
+                    } else {
+                        Some(untimed)
                     }
+                });
+                match (from_scan, robust) {
+                    (Some(a), Some(b)) => {
+                        if b.rms < a.rms {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                    (a, b) => a.or(b)?,
                 }
-                None => {
-                    let t = traced(&mut r)?;
-                    fit_with(target, curve, &t, &fit_options)?
-                }
-            };
-            Some(Match {
-                id: c.curve.id,
-                curve: *curve,
-                coarse: c.coarse,
-                placement: Placement::of(curve, &fit),
-                rms_pct: 100.0 * fit.rms / size,
-                max_pct: 100.0 * fit.max / size,
-                fit,
-            })
+            }
+            None => {
+                let t = traced(&mut r)?;
+                fit_with(target, curve, &t, &fit_options)?
+            }
+        };
+        Some(match_of(c, fit))
+    };
+    // A closed curve among both reflections' finalists is fitted both ways at once, as in
+    // the quick fits.
+    let final_partner = closed_partners(
+        &finalists
+            .iter()
+            .map(|(i, _)| &candidates[*i])
+            .collect::<Vec<_>>(),
+    );
+    let mut slots: Vec<Option<(usize, Ranked)>> = finalists.into_iter().map(Some).collect();
+    type Job = (usize, (usize, Ranked), Option<(usize, (usize, Ranked))>);
+    let jobs: Vec<Job> = work_units(&final_partner)
+        .into_iter()
+        .map(|(k, m)| {
+            let first = slots[k].take().expect("each finalist in one unit");
+            let second = m.map(|m| (m, slots[m].take().expect("each finalist in one unit")));
+            (k, first, second)
         })
         .collect();
+    let done: Vec<Vec<(usize, Option<Match>)>> = jobs
+        .into_par_iter()
+        .map(|(k, (i, mut r), second)| match second {
+            None => vec![(k, final_one(i, r))],
+            Some((m, (j, _))) => {
+                let c = &candidates[i];
+                let t = r.traced.take().unwrap_or_else(|| traced_of(c));
+                let [f, g] = t.as_ref().map_or([None, None], |t| {
+                    fit_closed_both(target, &c.curve.curve, t, &options_of(c))
+                });
+                vec![
+                    (k, f.map(|f| match_of(c, f))),
+                    (m, g.map(|g| match_of(&candidates[j], g))),
+                ]
+            }
+        })
+        .collect();
+    let mut placed: Vec<Option<Match>> = (0..slots.len()).map(|_| None).collect();
+    for (k, m) in done.into_iter().flatten() {
+        placed[k] = m;
+    }
+    let mut matches: Vec<Match> = placed.into_iter().flatten().collect();
     matches.sort_by(|a, b| {
         a.fit
             .rms
@@ -589,6 +663,41 @@ pub fn rank_candidates(
     matches.retain(|m| seen.insert(m.id));
     matches.truncate(options.top);
     matches
+}
+
+/// For each of `items`, the position of the reflected **closed** candidate of the same
+/// curve when the item is an unreflected closed candidate and there is one (an open
+/// candidate's fits start from its own scan: it is never paired).
+/// Each item is paired at most once (a curve listed twice in one reflection, which a
+/// caller may hand over, pairs its first entries).
+fn closed_partners(items: &[&Candidate]) -> Vec<Option<usize>> {
+    let mut reflected = std::collections::HashMap::new();
+    for (k, c) in items.iter().enumerate() {
+        if c.start.is_none() && c.reflected {
+            reflected.entry(c.curve.id).or_insert(k);
+        }
+    }
+    items
+        .iter()
+        .map(|c| {
+            (c.start.is_none() && !c.reflected)
+                .then(|| reflected.remove(&c.curve.id))
+                .flatten()
+        })
+        .collect()
+}
+
+/// The units of work over items with their [`closed_partners`]: each item alone, or an
+/// unreflected item with its partner; in the items' order (of the first of each unit).
+fn work_units(partner: &[Option<usize>]) -> Vec<(usize, Option<usize>)> {
+    let mut paired = vec![false; partner.len()];
+    for &j in partner.iter().flatten() {
+        paired[j] = true;
+    }
+    (0..partner.len())
+        .filter(|&i| !paired[i])
+        .map(|i| (i, partner[i]))
+        .collect()
 }
 
 #[cfg(test)]
@@ -653,6 +762,55 @@ mod tests {
             assert_eq!(one.len(), 3);
             assert_eq!(on(3), one, "source {source}");
         }
+    }
+
+    /// A curve listed twice in each reflection's candidates (at two coarse distances, as a
+    /// caller may hand them over) is paired once: each entry is fitted, none twice, and
+    /// the search does not fail.
+    #[test]
+    fn a_curve_listed_twice_is_paired_once() {
+        let atlas = decode_sidecar(&sidecar()).unwrap();
+        let options = MatchOptions {
+            candidates: 12,
+            top: 3,
+            ..MatchOptions::DEFAULT
+        };
+        let mut rng = SplitMix64(19);
+        let t = make_target(
+            &mut rng,
+            &atlas.curves[7].curve,
+            true,
+            20.0,
+            360.0,
+            40,
+            false,
+            0.01,
+        )
+        .unwrap();
+        let mut c = coarse_candidates(&t, &atlas.curves, &atlas.codes, &options).unwrap();
+        // A curve in both lists, its unreflected and its reflected entry listed again.
+        let both = |k: &usize| {
+            let (id, r) = (c[*k].curve.id, c[*k].reflected);
+            !r && c.iter().any(|o| o.reflected && o.curve.id == id)
+        };
+        let plain = (0..c.len()).find(both).expect("a curve in both lists");
+        let mirrored = (0..c.len())
+            .find(|&k| c[k].reflected && c[k].curve.id == c[plain].curve.id)
+            .unwrap();
+        // Listed last (not next to the first entry, which the exact stage's dedup drops).
+        let last = c.iter().map(|c| c.coarse).fold(f64::MIN, f64::max);
+        for k in [plain, mirrored] {
+            let mut again = c[k].clone();
+            again.coarse = last + 1.0;
+            c.push(again);
+        }
+        // One more candidate a reflection than the coarse stage gave: the copies are kept.
+        let options = MatchOptions {
+            candidates: 13,
+            ..options
+        };
+        let m = rank_candidates(&t, c, &options);
+        assert_eq!(m.len(), 3);
     }
 
     /// A closed query with reflection allowed proposes every candidate of the same query
