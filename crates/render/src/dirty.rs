@@ -69,6 +69,28 @@ impl Dirty {
         }
     }
 
+    /// Marks in row `j` the blocks whose bits are set in `bits`, the row's words from
+    /// word `w0` on (block `b` is bit `b % 64` of word `b / 64`, as in [`Dirty`]'s own
+    /// rows; a block past the row's width is not marked).
+    #[inline]
+    pub(crate) fn mark_blocks(&mut self, j: usize, w0: usize, bits: &[u64]) {
+        if j >= self.height || w0 >= self.words {
+            return;
+        }
+        let blocks = self.width.div_ceil(BLOCK);
+        let row = &mut self.bits[j * self.words..(j + 1) * self.words];
+        let mut any = 0;
+        for (i, (w, &b)) in row[w0..].iter_mut().zip(bits).enumerate() {
+            let b = b & bit_range(0, blocks.saturating_sub(64 * (w0 + i)).min(64));
+            *w |= b;
+            any |= b;
+        }
+        if any != 0 {
+            self.lo = self.lo.min(j);
+            self.hi = self.hi.max(j + 1);
+        }
+    }
+
     /// Marks the whole buffer.
     pub(crate) fn mark_all(&mut self) {
         self.mark_px(0, 0, self.width, self.height);
