@@ -60,12 +60,43 @@ impl Dirty {
         self.hi = self.hi.max(y1);
         let (b0, b1) = (x0 / BLOCK, (x1 - 1) / BLOCK + 1);
         let (w0, w1) = (b0 / 64, (b1 - 1) / 64);
+        if w0 == w1 {
+            // The box's blocks in one word of each row: that word's bits, made once.
+            let m = bit_range(b0 - 64 * w0, b1 - 64 * w0);
+            let rows = self.bits[y0 * self.words + w0..].iter_mut();
+            for w in rows.step_by(self.words).take(y1 - y0) {
+                *w |= m;
+            }
+            return;
+        }
         for j in y0..y1 {
             let row = &mut self.bits[j * self.words..(j + 1) * self.words];
             for (i, w) in row[w0..=w1].iter_mut().enumerate() {
                 let i = w0 + i;
                 *w |= bit_range(b0.saturating_sub(64 * i), (b1 - 64 * i).min(64));
             }
+        }
+    }
+
+    /// Marks in row `j` the blocks whose bits are set in `bits`, the row's words from
+    /// word `w0` on (block `b` is bit `b % 64` of word `b / 64`, as in [`Dirty`]'s own
+    /// rows; a block past the row's width is not marked).
+    #[inline]
+    pub(crate) fn mark_blocks(&mut self, j: usize, w0: usize, bits: &[u64]) {
+        if j >= self.height || w0 >= self.words {
+            return;
+        }
+        let blocks = self.width.div_ceil(BLOCK);
+        let row = &mut self.bits[j * self.words..(j + 1) * self.words];
+        let mut any = 0;
+        for (i, (w, &b)) in row[w0..].iter_mut().zip(bits).enumerate() {
+            let b = b & bit_range(0, blocks.saturating_sub(64 * (w0 + i)).min(64));
+            *w |= b;
+            any |= b;
+        }
+        if any != 0 {
+            self.lo = self.lo.min(j);
+            self.hi = self.hi.max(j + 1);
         }
     }
 
@@ -206,6 +237,45 @@ fn bit_range(lo: usize, hi: usize) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Boxes marked at once are the boxes' blocks set one by one, row by row: boxes in
+    /// one word and across words, at the buffer's edges and beyond, on widths that end
+    /// mid-word and on a word's end; the rows holding marks are kept too.
+    #[test]
+    fn boxes_mark_their_blocks_row_by_row() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rand = |n: usize| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 33) as usize % n
+        };
+        for &(w, h) in &[(3300, 70), (512, 9), (513, 9), (10, 4), (1100, 30)] {
+            let mut got = Dirty::new(w, h);
+            let mut want = Dirty::new(w, h);
+            for _ in 0..400 {
+                let (x0, y0) = (rand(w + 20), rand(h + 3));
+                let span = if rand(3) == 0 { 40 } else { 900 };
+                let (x1, y1) = (x0 + rand(span), y0 + rand(12));
+                got.mark_px(x0, y0, x1, y1);
+                let (x1c, y1c) = (x1.min(w), y1.min(h));
+                if x0 < x1c && y0 < y1c {
+                    for j in y0..y1c {
+                        for b in x0 / BLOCK..=(x1c - 1) / BLOCK {
+                            want.bits[j * want.words + b / 64] |= 1 << (b % 64);
+                        }
+                    }
+                    want.lo = want.lo.min(y0);
+                    want.hi = want.hi.max(y1c);
+                }
+                assert!(
+                    got.bits == want.bits,
+                    "{w} × {h}: [{x0}, {x1}) × [{y0}, {y1})"
+                );
+                assert_eq!((got.lo, got.hi), (want.lo, want.hi));
+            }
+        }
+    }
 
     #[test]
     fn marks_cover_their_boxes_and_spans_merge() {

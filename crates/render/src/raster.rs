@@ -979,8 +979,14 @@ impl RasterPage {
         // The glyphs' tiles: (page x, page y, key).
         let mut placed = std::mem::take(&mut self.halo_scratch.placed);
         self.place_label(pos, size, anchor, text, Some(halo), &mut placed);
+        self.draw_halo(&placed);
+        self.halo_scratch.placed = placed;
+    }
+
+    /// Draws a label's halo from its placed halo tiles ([`RasterPage::place_label`]).
+    fn draw_halo(&mut self, placed: &[(i64, i64, HaloKey)]) {
         let (mut bx0, mut by0, mut bx1, mut by1) = (i64::MAX, i64::MAX, i64::MIN, i64::MIN);
-        for (tx, ty, key) in &placed {
+        for (tx, ty, key) in placed {
             let Some(Some(tile)) = self.halos.get(key) else {
                 continue;
             };
@@ -990,7 +996,6 @@ impl RasterPage {
             by1 = by1.max(ty + tile.h as i64);
         }
         if placed.is_empty() {
-            self.halo_scratch.placed = placed;
             return;
         }
         // The union of the glyphs' halos over the label's box, clipped to the page (and
@@ -1005,7 +1010,7 @@ impl RasterPage {
             let merged = &mut self.halo_scratch.merged;
             merged.clear();
             merged.resize(bw * (by1 - by0) as usize, 0);
-            for (tx, ty, key) in &placed {
+            for (tx, ty, key) in placed {
                 let Some(Some(tile)) = self.halos.get(key) else {
                     continue;
                 };
@@ -1026,7 +1031,6 @@ impl RasterPage {
                 composite_row(&mut data[dst..dst + n], &merged[src..src + n], Ink::Paper);
             }
         }
-        self.halo_scratch.placed = placed;
     }
 
     /// Makes the tile of `key` if it is not cached yet: the coverage of a glyph when
@@ -1381,12 +1385,21 @@ impl Canvas for RasterPage {
             // The glyph outlines stroked in paper, under the glyphs.
             self.halo(pos, size, anchor, text, halo);
         }
-        let ink = self.ink;
         let mut placed = std::mem::take(&mut self.halo_scratch.placed);
         self.place_label(pos, size, anchor, text, None, &mut placed);
+        self.draw_glyphs(&placed);
+        self.halo_scratch.placed = placed;
+    }
+}
+
+impl RasterPage {
+    /// Draws a label's glyphs in the current ink from their placed tiles
+    /// ([`RasterPage::place_label`]).
+    fn draw_glyphs(&mut self, placed: &[(i64, i64, HaloKey)]) {
+        let ink = self.ink;
         let (w, h) = (i64::from(self.width()), i64::from(self.height()));
         let (r0, r1) = (self.rows.0 as i64, (self.rows.1 as i64).min(h));
-        for (tx, ty, key) in &placed {
+        for (tx, ty, key) in placed {
             // The glyph's coverage at its quarter-pixel position, made once and kept.
             let Some(Some(tile)) = self.halos.get(key) else {
                 continue;
@@ -1410,7 +1423,6 @@ impl Canvas for RasterPage {
                 composite_row(&mut data[dst..dst + n], &tile.cov[src..src + n], ink);
             }
         }
-        self.halo_scratch.placed = placed;
     }
 }
 

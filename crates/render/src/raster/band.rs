@@ -42,6 +42,8 @@ enum Step {
     Cover(u32, u32),
     /// Composite the gray layer.
     Flush,
+    /// Draw text item `.0` from its placement `.1` ([`Bands::labels`]).
+    Text(u32, u32),
 }
 
 /// The band plan of a page, kept from page to page (its vectors keep their memory).
@@ -56,6 +58,11 @@ pub(crate) struct Bands {
     /// The ink of each display item.
     inks: Vec<Ink>,
     placed: Vec<(i64, i64, HaloKey)>,
+    /// The labels' placed tiles (page x, page y, key), made once by the plan and drawn
+    /// from in every band a label reaches: `labels[l]` is label `l`'s halo tiles and
+    /// glyph tiles, ranges of `tiles`.
+    tiles: Vec<(i64, i64, HaloKey)>,
+    labels: Vec<[(usize, usize); 2]>,
 }
 
 /// Whether every number of the display list is finite and of a sane size (the plan's
@@ -154,6 +161,17 @@ impl RasterPage {
         while e < steps.len() {
             match steps[e] {
                 Step::Flush => self.flush_gray(),
+                Step::Text(i, l) => {
+                    // The label as `Canvas::text` draws it, from the plan's placement.
+                    self.ink = bands.inks[i as usize];
+                    let [halo, glyphs] = bands.labels[l as usize];
+                    if let Primitive::Text { halo: h, .. } = &display.items[i as usize]
+                        && *h > 0.0
+                    {
+                        self.draw_halo(&bands.tiles[halo.0..halo.1]);
+                    }
+                    self.draw_glyphs(&bands.tiles[glyphs.0..glyphs.1]);
+                }
                 Step::Cover(i, c) => {
                     self.ink = bands.inks[i as usize];
                     self.apply_cover(&bands.covers[c as usize], self.ink);
@@ -259,6 +277,8 @@ impl Bands {
         self.pieces.clear();
         self.covers.clear();
         self.inks.clear();
+        self.tiles.clear();
+        self.labels.clear();
         let k = page.px_per_pt;
         let mut ink = Ink::Black;
         // The gray layer's level as the page drawn whole would have it.
@@ -341,7 +361,11 @@ impl Bands {
                 } => {
                     let (mut lo, mut hi) = (i64::MAX, i64::MIN);
                     let mut placed = std::mem::take(&mut self.placed);
-                    for halo in [(*halo > 0.0).then_some(*halo), None] {
+                    let mut ranges = [(0, 0); 2];
+                    for (m, halo) in [(*halo > 0.0).then_some(*halo), None]
+                        .into_iter()
+                        .enumerate()
+                    {
                         if halo.is_none() {
                             page.place_label(*pos, *size, *anchor, text, None, &mut placed);
                         } else {
@@ -357,6 +381,10 @@ impl Bands {
                                 hi = hi.max(ty + tile.h as i64);
                             }
                         }
+                        // Kept for the bands (the tiles stay cached while the page is
+                        // drawn: the cache is trimmed between pages only).
+                        ranges[m] = (self.tiles.len(), self.tiles.len() + placed.len());
+                        self.tiles.extend_from_slice(&placed);
                     }
                     self.placed = placed;
                     if lo < hi {
@@ -364,7 +392,9 @@ impl Bands {
                             (lo - 1).clamp(0, h as i64) as usize,
                             (hi + 1).clamp(0, h as i64) as usize,
                         );
-                        self.add(rows, Step::Item(i), false);
+                        let step = Step::Text(i, self.labels.len() as u32);
+                        self.labels.push(ranges);
+                        self.add(rows, step, false);
                     }
                 }
             }
