@@ -17,6 +17,9 @@
 //!   without a branch on their bytes (a word's run of zeros from a table, its literals
 //!   all eight coded and cut to length, its bits stored whole), since on anti-aliased
 //!   ink the branches per word and per byte of `fdeflate`'s loop are mispredicted.
+//!   A page's Up-filtered row is not even stored ([`RowDeflate::up_row`]): the words
+//!   that meet the ink marks of the row and the row above are filtered eight bytes at
+//!   once from the ink and go straight to the coder.
 //!
 //! The code (the lengths of the literal/length and distance codes) is read from the header
 //! `fdeflate` writes, not copied: the two cannot drift apart, and the tests compare the
@@ -469,26 +472,35 @@ impl Bits {
 
     /// A row whose bytes are zero outside the byte ranges `live`, as
     /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
-    /// First the words that meet `live` are read and the inked ones (not all zero)
-    /// marked in `inked`; then the inked words are coded in order (their sums added),
-    /// and the zero words between only lengthen the run of zeros, their sums arithmetic.
+    /// The words that meet `live` are read into `vals` and the inked ones (not all zero)
+    /// marked in `inked`; then [`Bits::coded`] codes them.
     fn row(
         &mut self,
         f: &Format,
         row: &[u8],
         live: impl Iterator<Item = (usize, usize)>,
         adler: &mut Adler,
-        inked: &mut Vec<u64>,
+        words: &mut RowWords,
     ) {
-        let words = row.len() / 8;
-        inked.clear();
-        inked.resize(words.div_ceil(64), 0);
+        let n = row.len() / 8;
+        let (vals, inked) = words.begin(n);
         for (s, e) in live {
-            for i in s / 8..e.div_ceil(8).min(words) {
+            for i in s / 8..e.div_ceil(8).min(n) {
                 let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+                vals[i] = v;
                 inked[i / 64] |= u64::from(v != 0) << (i % 64);
             }
         }
+        self.coded(f, words, n, &row[8 * n..], adler);
+    }
+
+    /// A row of `n` whole 8-byte words and then the bytes `rest`, as
+    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
+    /// Only the words `words.inked` marks are read (from `words.vals`): every other
+    /// whole word is zero. The inked words are coded in order (their sums added), and
+    /// the zero words between only lengthen the run of zeros, their sums arithmetic.
+    fn coded(&mut self, f: &Format, words: &RowWords, n: usize, rest: &[u8], adler: &mut Adler) {
+        let (vals, inked) = (&words.vals[..n], &words.inked[..n.div_ceil(64)]);
         // Kept in locals (registers) while the row is coded.
         let mut w = std::mem::replace(self, Bits::new(Vec::new()));
         let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
@@ -509,7 +521,7 @@ impl Bits {
             while m != 0 {
                 let i = 64 * k + m.trailing_zeros() as usize;
                 m &= m - 1;
-                let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+                let v = vals[i];
                 let gap = 8 * i - at;
                 run = w.word(f, v, run + gap as u32);
                 let (sum, weighted) = word_sums(v);
@@ -518,14 +530,13 @@ impl Bits {
                 at = 8 * i + 8;
             }
         }
-        let gap = 8 * words - at;
+        let gap = 8 * n - at;
         run += gap as u32;
         b = (b + (gap as u64 % ADLER_MOD) * (a % ADLER_MOD)) % ADLER_MOD;
         a %= ADLER_MOD;
         if run > 0 {
             w.zeros(f, run);
         }
-        let rest = &row[8 * words..];
         w.literals(f, rest);
         for &x in rest {
             a += u64::from(x);
@@ -534,6 +545,36 @@ impl Bits {
         (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
         *self = w;
     }
+}
+
+/// The whole 8-byte words of the row being coded: a bit per word in `inked`, set for the
+/// words that are not zero, whose values are in `vals` (the values of other words are
+/// not read: what an earlier row left there does not matter).
+#[derive(Default)]
+pub(crate) struct RowWords {
+    vals: Vec<u64>,
+    inked: Vec<u64>,
+}
+
+impl RowWords {
+    /// Room for a row of `n` whole words, no word marked.
+    fn begin(&mut self, n: usize) -> (&mut [u64], &mut [u64]) {
+        if self.vals.len() < n {
+            self.vals.resize(n, 0);
+        }
+        self.inked.clear();
+        self.inked.resize(n.div_ceil(64), 0);
+        (&mut self.vals[..n], &mut self.inked[..])
+    }
+}
+
+/// `a − b` byte by byte (wrapping), in one `u64`: each byte of `a` with its top bit set
+/// minus the byte of `b` without it cannot borrow from the next byte, and the top bit
+/// of the difference is then flipped where `a`'s and `b`'s top bits are equal.
+#[inline(always)]
+fn sub_bytes(a: u64, b: u64) -> u64 {
+    const H: u64 = 0x8080_8080_8080_8080;
+    ((a | H) - (b & !H)) ^ ((a ^ !b) & H)
 }
 
 /// The sums of an 8-byte word's bytes `x₀..x₇` (`x₀` first in the row) that Adler-32
@@ -605,8 +646,8 @@ pub(crate) struct RowDeflate {
     f: &'static Format,
     bits: Bits,
     adler: Adler,
-    /// The inked words of the row being coded, as bits.
-    inked: Vec<u64>,
+    /// The whole words of the row being coded.
+    words: RowWords,
     /// The bits of a blank row of `blank.0` bytes (filter type `blank.1`).
     blank: Option<(usize, u8, Vec<u64>, u64)>,
 }
@@ -622,7 +663,7 @@ impl RowDeflate {
             f,
             bits,
             adler: Adler::new(),
-            inked: Vec::new(),
+            words: RowWords::default(),
             blank: None,
         }
     }
@@ -632,7 +673,75 @@ impl RowDeflate {
     pub(crate) fn row(&mut self, row: &[u8], live: impl Iterator<Item = (usize, usize)>) {
         let live = std::iter::once((0, 1)).chain(live);
         self.bits
-            .row(self.f, row, live, &mut self.adler, &mut self.inked);
+            .row(self.f, row, live, &mut self.adler, &mut self.words);
+    }
+
+    /// The row, after rows before it, of a page of ink coverage written as gray (255 −
+    /// ink) with the Up filter: the filter byte 2, then `above[x] − this[x]` (the gray
+    /// of the pixel minus the gray above it) for every pixel `x`, the same bits as
+    /// [`RowDeflate::row`] of that row. `marks` are the 8-pixel blocks (a bit per block,
+    /// block `k` being pixels `8k..8k + 8`, 64 to a word) of the two rows that may hold
+    /// ink: outside them both rows are 0 and so are the filtered bytes. Only the filtered
+    /// row's whole words that meet a marked block (and the first, which holds the filter
+    /// byte, and the bytes after the last whole word) are computed, eight bytes at once,
+    /// and no filtered row is stored: the words go straight to the coder.
+    pub(crate) fn up_row(&mut self, above: &[u8], this: &[u8], marks: (&[u64], &[u64])) {
+        const UP: u8 = 2;
+        let w = this.len();
+        assert_eq!(above.len(), w, "rows of one width");
+        let diff = |x: usize| above[x].wrapping_sub(this[x]);
+        // The row is `w + 1` bytes: `n` whole words, then `rest`.
+        let n = (w + 1) / 8;
+        let mut rest = [0u8; 8];
+        let (vals, inked) = self.words.begin(n);
+        let tail = if n == 0 {
+            rest[0] = UP;
+            for x in 0..w {
+                rest[1 + x] = diff(x);
+            }
+            w + 1
+        } else {
+            // Word 0: the filter byte, then pixels 0..7.
+            let mut v0 = u64::from(UP);
+            for x in 0..7 {
+                v0 |= u64::from(diff(x)) << (8 * (x + 1));
+            }
+            vals[0] = v0;
+            inked[0] = 1;
+            // Word `i ≥ 1` is pixels `8i − 1..8i + 7`: blocks `i − 1` and `i`.
+            let (ma, mb) = marks;
+            let last = inked.len() - 1;
+            let mut carry = 0;
+            for k in 0..=last {
+                let m = ma[k] | mb[k];
+                let mut c = m | m << 1 | carry;
+                carry = m >> 63;
+                if k == 0 {
+                    c &= !1;
+                }
+                if k == last && n % 64 != 0 {
+                    c &= (1 << (n % 64)) - 1;
+                }
+                let mut bits = 0;
+                while c != 0 {
+                    let i = 64 * k + c.trailing_zeros() as usize;
+                    c &= c - 1;
+                    let s = 8 * i - 1;
+                    let a = u64::from_le_bytes(above[s..s + 8].try_into().expect("8 bytes"));
+                    let t = u64::from_le_bytes(this[s..s + 8].try_into().expect("8 bytes"));
+                    let v = sub_bytes(a, t);
+                    vals[i] = v;
+                    bits |= u64::from(v != 0) << (i % 64);
+                }
+                inked[k] |= bits;
+            }
+            for (r, x) in rest.iter_mut().zip(8 * n - 1..w) {
+                *r = diff(x);
+            }
+            w + 1 - 8 * n
+        };
+        self.bits
+            .coded(self.f, &self.words, n, &rest[..tail], &mut self.adler);
     }
 
     /// `count` blank rows of `len` bytes: filter type `filter`, then zeros.
@@ -651,7 +760,7 @@ impl RowDeflate {
                 &row,
                 std::iter::once((0, 1)),
                 &mut Adler::new(),
-                &mut Vec::new(),
+                &mut RowWords::default(),
             );
             let (words, total) = b.into_words();
             self.blank = Some((len, filter, words, total));
@@ -854,6 +963,94 @@ mod tests {
                 z.finish() == reference(&[row]),
                 "lead {lead}: streams differ"
             );
+        }
+    }
+
+    /// `sub_bytes` is the byte-wise wrapping difference for every pair of bytes, in
+    /// every byte of the word.
+    #[test]
+    fn sub_bytes_is_the_difference_of_every_byte_pair() {
+        for a in 0..=255u8 {
+            for b in 0..=255u8 {
+                let d = a.wrapping_sub(b);
+                for lane in 0..8 {
+                    // The other lanes hold other pairs, so a borrow would show.
+                    let (x, y) = (0x00ff_7f80_01fe_ff00u64, 0xff00_807f_fe01_00ffu64);
+                    let (mx, my) = (!(0xffu64 << (8 * lane)), 8 * lane);
+                    let got = sub_bytes(x & mx | u64::from(a) << my, y & mx | u64::from(b) << my);
+                    assert_eq!((got >> my) as u8, d, "{a} − {b} in lane {lane}");
+                    for o in (0..8).filter(|&o| o != lane) {
+                        let (xo, yo) = ((x >> (8 * o)) as u8, (y >> (8 * o)) as u8);
+                        assert_eq!((got >> (8 * o)) as u8, xo.wrapping_sub(yo));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Pages of ink in marked blocks only (some marked blocks blank, ink at the row's
+    /// start and in the bytes after its last whole word, blocks marked in one row of a
+    /// pair only): the rows coded by `up_row` from the ink and the marks are `fdeflate`'s
+    /// stream of the whole Up-filtered gray rows, byte for byte, and `clear_row` leaves
+    /// every row blank.
+    #[test]
+    fn up_rows_from_the_marks_are_fdeflates_stream() {
+        use crate::dirty::{BLOCK, Dirty};
+        let mut seed = 0x51_7cc1_b727_220au64;
+        let widths = [
+            1usize, 2, 6, 7, 8, 9, 14, 15, 16, 17, 23, 63, 64, 65, 511, 512, 513,
+        ];
+        for w in widths.into_iter().chain([520, 1000, 3300, 5100]) {
+            let h = 24;
+            let mut ink = vec![0u8; w * h];
+            let mut dirty = Dirty::new(w, h);
+            let blocks = w.div_ceil(BLOCK);
+            for j in 0..h {
+                if j % 5 == 4 {
+                    continue; // a blank row
+                }
+                for _ in 0..1 + lcg(&mut seed) % 6 {
+                    // The first and last blocks, and the last of a word of marks
+                    // (its last pixel is in the next word of marks' first row word).
+                    let k = match lcg(&mut seed) % 5 {
+                        0 => 0,
+                        1 => blocks - 1,
+                        2 => 63 % blocks,
+                        _ => (lcg(&mut seed) as usize) % blocks,
+                    };
+                    let run = 1 + (lcg(&mut seed) as usize) % 3;
+                    let (x0, x1) = (BLOCK * k, (BLOCK * (k + run)).min(w));
+                    dirty.mark_px(x0, j, x1, j + 1);
+                    if lcg(&mut seed) % 4 != 0 {
+                        // The block's last pixel, in the row word after the block's.
+                        ink[j * w + (BLOCK * k + BLOCK - 1).min(w - 1)] = 9;
+                        for x in x0..x1 {
+                            if lcg(&mut seed) % 3 != 0 {
+                                ink[j * w + x] = (lcg(&mut seed) % 256) as u8;
+                            }
+                        }
+                    }
+                }
+            }
+            let mut rows = Vec::new();
+            for j in 0..h {
+                let mut row = vec![2u8; w + 1];
+                for x in 0..w {
+                    let above = if j == 0 { 0 } else { ink[(j - 1) * w + x] };
+                    row[1 + x] = above.wrapping_sub(ink[j * w + x]);
+                }
+                rows.push(row);
+            }
+            let mut z = RowDeflate::new(Vec::new());
+            z.row(&rows[0], std::iter::once((0, w + 1)));
+            for j in 1..h {
+                let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
+                z.up_row(above, this, dirty.row_pair_words(j));
+                dirty.clear_row(j - 1, above);
+            }
+            dirty.clear_row(h - 1, &mut ink[(h - 1) * w..]);
+            assert!(z.finish() == reference(&rows), "width {w}: streams differ");
+            assert!(ink.iter().all(|&x| x == 0), "width {w}: left blank");
         }
     }
 
