@@ -787,12 +787,9 @@ impl FastPng {
             self.z.blank_rows(w + 1, 2, self.blank);
             self.blank = 0;
             let (above, this) = ink[(j - 1 - first) * w..(j + 1 - first) * w].split_at_mut(w);
-            // Only the words meeting the marked blocks are filtered, in the encoder.
-            self.z.up_row(above, this, dirty.row_pair_words(j));
-            if clear {
-                // The row above is no longer read: its ink is in its marked blocks.
-                dirty.clear_row(j - 1, above);
-            }
+            // Only the words meeting the marked blocks are filtered, in the encoder, which
+            // clears the row above as it reads it (its ink is in its marked blocks).
+            self.z.up_row(above, this, dirty.row_pair_words(j), clear);
         }
         self.next = self.next.max(upto);
     }

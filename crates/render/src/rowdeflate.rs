@@ -54,8 +54,8 @@ struct Format {
 /// The longest run of zeros [`Format::zrun`] holds: a literal 0 and one match of 258.
 const ZRUN_MAX: u32 = 259;
 
-/// The most bits of a run of zeros in [`Format::zrun`] (a word's run and its 8 literals
-/// of at most 12 bits fit [`Bits::put_wide`]).
+/// The most bits of a run of zeros in [`Format::zrun`] (a word's run fits one
+/// [`Writer::put`]).
 const ZRUN_BITS: u32 = 24;
 
 /// The most bits [`Bits::put`] takes at once.
@@ -345,24 +345,6 @@ impl Bits {
         (words, total)
     }
 
-    /// `literal` codes of `bytes`, a few at a time.
-    #[inline]
-    fn literals(&mut self, f: &Format, bytes: &[u8]) {
-        let (mut acc, mut n) = (0u64, 0u32);
-        for &b in bytes {
-            let (c, l) = f.sym(usize::from(b));
-            acc |= c << n;
-            n += l;
-            if n > PUT_MAX - 12 {
-                self.put(acc, n);
-                (acc, n) = (0, 0);
-            }
-        }
-        if n > 0 {
-            self.put(acc, n);
-        }
-    }
-
     /// A run of `run ≥ 1` zeros: a literal 0, then distance-1 matches (as `fdeflate`).
     /// Used to make [`Format::zrun`]; [`Bits::zeros`] codes the same bits faster.
     fn zeros_by_symbol(&mut self, f: &Format, mut run: u32) {
@@ -388,10 +370,176 @@ impl Bits {
         }
     }
 
+    /// A row whose bytes are zero outside the byte ranges `live`, as
+    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
+    /// The words that meet `live` are read into `vals` and the inked ones (not all zero)
+    /// marked in `inked`; then [`Bits::coded`] codes them.
+    fn row(
+        &mut self,
+        f: &Format,
+        row: &[u8],
+        live: impl Iterator<Item = (usize, usize)>,
+        adler: &mut Adler,
+        words: &mut RowWords,
+    ) {
+        let n = row.len() / 8;
+        let (vals, inked) = words.begin(n);
+        inked.fill(0);
+        for (s, e) in live {
+            for i in s / 8..e.div_ceil(8).min(n) {
+                let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+                vals[i] = v;
+                inked[i / 64] |= u64::from(v != 0) << (i % 64);
+            }
+        }
+        let rest = &row[8 * n..];
+        let mut r = [0u8; 8];
+        r[..rest.len()].copy_from_slice(rest);
+        self.coded(f, words, n, (u64::from_le_bytes(r), rest.len()), adler);
+    }
+
+    /// A row of `n` whole 8-byte words and then the bytes `rest`, as
+    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
+    /// Only the words `words.inked` marks are read (from `words.vals`): every other
+    /// whole word is zero. The inked words are coded in order (their sums added), and
+    /// the zero words between only lengthen the run of zeros, their sums arithmetic.
+    fn coded(
+        &mut self,
+        f: &Format,
+        words: &RowWords,
+        n: usize,
+        (rest, t): (u64, usize),
+        adler: &mut Adler,
+    ) {
+        let (vals, inked) = (&words.vals[..n], &words.inked[..n.div_ceil(64)]);
+        // Room for the row's bits: at most 12 a byte (a literal's; a run of zeros takes
+        // fewer), the bits pending and the 8 bytes a store writes past them.
+        debug_assert!(t < 8 && rest.checked_shr(8 * t as u32).unwrap_or(0) == 0);
+        let len = 8 * n + t;
+        let room = self.pos + 2 * len + 64;
+        if self.out.len() < room {
+            self.out.resize(room.max(self.pos + (1 << 16)), 0);
+        }
+        // The writer and the sums in locals (registers) while the row is coded.
+        let mut w = Writer {
+            out: &mut self.out[..],
+            pos: self.pos,
+            acc: self.acc,
+            n: self.n,
+        };
+        // Adler-32 of the row after sums `(a₀, b₀)`: `a = a₀ + Σ xₚ` and
+        // `b = b₀ + len·a₀ + Σ (len − p)·xₚ` over the row's bytes `xₚ`, so each word adds
+        // its own terms, independent of the others. Reduced every 4096 words: in between
+        // `a` grows by at most 255·2^15 and `b` by 2^12·(len·2040 + 2040), far below 2^64.
+        let r = len as u64;
+        let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
+        b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
+        // Bytes before `at` are coded; `run` zeros are pending.
+        let (mut at, mut run) = (0usize, 0u32);
+        let zl = u32::from(f.len[0]);
+        for (k, &m) in inked.iter().enumerate() {
+            let mut m = m;
+            while m != 0 {
+                let i = 64 * k + m.trailing_zeros() as usize;
+                m &= m - 1;
+                let v = vals[i];
+                // A pending run of zeros takes the word's leading zero bytes, the bytes
+                // up to its trailing zeros are literals, and the trailing zeros start the
+                // next run. No branch on the bytes: the run's bits come from a table (only
+                // runs longer than `ZRUN_MAX` take the long way), and the literals are the
+                // word shifted down past the run's bytes, all 8 bytes coded: the zero bytes
+                // shifted in code as zero bits (literal 0's code is all zeros), so they are
+                // cut off by their length alone.
+                run += (8 * i - at) as u32;
+                let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
+                let from = if run > 0 { lead } else { 0 };
+                let z = if run > 0 { run + lead } else { 0 };
+                if z > ZRUN_MAX {
+                    w = w.zeros(f, z);
+                } else {
+                    let (zc, zn) = f.zrun[z as usize];
+                    w.put(zc, zn);
+                }
+                // The literals: bytes `from..8 − tail`, `c` of them, now bytes `0..c` of `u`.
+                let u = v >> (8 * from);
+                let c = 8 - tail - from;
+                let in_lo = c.min(4);
+                let (lo, nlo) = four(f, u as u32);
+                w.put(lo, nlo - zl * (4 - in_lo));
+                let (hi, nhi) = four(f, (u >> 32) as u32);
+                w.put(hi, nhi - zl * (4 - (c - in_lo)));
+                run = tail;
+                at = 8 * i + 8;
+                let (sum, weighted) = word_sums(v);
+                a += sum;
+                b += (r - 8 - 8 * i as u64) * sum + weighted;
+            }
+            if k % 64 == 63 {
+                (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
+            }
+        }
+        run += (8 * n - at) as u32;
+        if run > 0 {
+            w = w.zeros(f, run);
+        }
+        // The rest, each byte a literal (zeros too): all 8 coded and cut to `t`, as a
+        // word's literals; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
+        let t = t as u32;
+        let in_lo = t.min(4);
+        let (lo, nlo) = four(f, rest as u32);
+        w.put(lo, nlo - zl * (4 - in_lo));
+        let (hi, nhi) = four(f, (rest >> 32) as u32);
+        w.put(hi, nhi - zl * (4 - (t - in_lo)));
+        let (sum, weighted) = word_sums(rest);
+        a += sum;
+        b += weighted - u64::from(8 - t) * sum;
+        (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
+        (self.pos, self.acc, self.n) = (w.pos, w.acc, w.n);
+    }
+}
+
+/// The literal codes of the four bytes of `u` (the first in the low byte) and their
+/// length in bits (at most 48).
+#[inline(always)]
+fn four(f: &Format, u: u32) -> (u64, u32) {
+    let (mut bits, mut n) = (0u64, 0u32);
+    for i in 0..4 {
+        let b = usize::from((u >> (8 * i)) as u8);
+        bits |= u64::from(f.code[b]) << n;
+        n += u32::from(f.len[b]);
+    }
+    (bits, n)
+}
+
+/// [`Bits`]'s state while a row is coded, in locals: its buffer, with room for the row
+/// made beforehand, so that no `put` grows it.
+struct Writer<'a> {
+    out: &'a mut [u8],
+    pos: usize,
+    acc: u64,
+    n: u32,
+}
+
+impl Writer<'_> {
+    /// Appends the low `n ≤ PUT_MAX` bits of `bits` (the rest zero), as [`Bits::put`].
+    #[inline(always)]
+    fn put(&mut self, bits: u64, n: u32) {
+        debug_assert!(n <= PUT_MAX && self.n < 8 && bits.checked_shr(n).unwrap_or(0) == 0);
+        let acc = self.acc | bits << self.n;
+        let n = self.n + n;
+        self.out[self.pos..self.pos + 8].copy_from_slice(&acc.to_le_bytes());
+        let whole = n / 8;
+        self.pos += whole as usize;
+        self.acc = acc >> (8 * whole);
+        self.n = n - 8 * whole;
+    }
+
     /// A run of `run ≥ 1` zeros, the bits of [`Bits::zeros_by_symbol`]: the literal 0,
     /// the matches of 258 several to a `put`, and the rest from [`Format::zrun`] (a run
     /// of `rest + 1` is the literal 0, whose code is all zero bits, then the rest's code).
-    fn zeros(&mut self, f: &Format, mut run: u32) {
+    /// The buffer must have room (a run costs well under a bit a zero, plus 64 bits).
+    #[inline(never)]
+    fn zeros(mut self, f: &Format, mut run: u32) -> Self {
         let zl = u32::from(f.len[0]);
         self.put(0, zl);
         run -= 1;
@@ -407,143 +555,7 @@ impl Bits {
         }
         let (c, l) = f.zrun[run as usize + 1];
         self.put(c >> zl, l - zl);
-    }
-
-    /// The literal codes of `u`'s bytes `4·half..4·half + 4` and their length.
-    #[inline(always)]
-    fn four(f: &Format, u: u64, half: u32) -> (u64, u32) {
-        let (mut bits, mut n) = (0u64, 0u32);
-        for i in 4 * half..4 * half + 4 {
-            let b = usize::from((u >> (8 * i)) as u8);
-            bits |= u64::from(f.code[b]) << n;
-            n += u32::from(f.len[b]);
-        }
-        (bits, n)
-    }
-
-    /// One inked 8-byte word `v ≠ 0` of a row after `run` zeros, `fdeflate`'s way: a
-    /// pending run of zeros takes the word's leading zeros, the bytes up to its trailing
-    /// zeros are literals, and its trailing zeros start the next run (returned). No
-    /// branch on the bytes: a run of zeros comes from a table (only runs longer than
-    /// `ZRUN_MAX` take the long way), and the literals are the word shifted down past
-    /// the run's bytes, all 8 bytes coded: the zero bytes shifted in code as zero bits
-    /// (literal 0's code is all zeros), so they are cut off by their length alone.
-    #[inline(always)]
-    fn word(&mut self, f: &Format, v: u64, run: u32) -> u32 {
-        let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
-        let from = if run > 0 { lead } else { 0 };
-        let z = if run > 0 { run + lead } else { 0 };
-        let (zc, zn) = if z > ZRUN_MAX {
-            self.zeros(f, z);
-            (0, 0)
-        } else {
-            f.zrun[z as usize]
-        };
-        // The literals: bytes `from..8 − tail`, `c` of them, now bytes `0..c` of `u`.
-        let u = v >> (8 * from);
-        let c = 8 - tail - from;
-        let (lo, nlo) = Bits::four(f, u, 0);
-        let (hi, nhi) = Bits::four(f, u, 1);
-        let zl = u32::from(f.len[0]);
-        let in_lo = c.min(4);
-        let nlo = nlo - zl * (4 - in_lo);
-        let nhi = nhi - zl * (4 - (c - in_lo));
-        // At most ZRUN_BITS + 96 bits, after fewer than 8: one store of 16 bytes.
-        let bits = u128::from(zc) | u128::from(lo) << zn | u128::from(hi) << (zn + nlo);
-        self.put_wide(bits, zn + nlo + nhi);
-        tail
-    }
-
-    /// Appends the low `n ≤ 120` bits of `bits` (the rest zero), as [`Bits::put`].
-    #[inline(always)]
-    fn put_wide(&mut self, bits: u128, n: u32) {
-        debug_assert!(n <= 120 && self.n < 8);
-        if self.out.len() < self.pos + 16 {
-            self.grow();
-        }
-        let acc = u128::from(self.acc) | bits << self.n;
-        let n = self.n + n;
-        self.out[self.pos..self.pos + 16].copy_from_slice(&acc.to_le_bytes());
-        let whole = n / 8;
-        self.pos += whole as usize;
-        self.acc = (acc >> (8 * whole)) as u64;
-        self.n = n - 8 * whole;
-    }
-
-    /// A row whose bytes are zero outside the byte ranges `live`, as
-    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
-    /// The words that meet `live` are read into `vals` and the inked ones (not all zero)
-    /// marked in `inked`; then [`Bits::coded`] codes them.
-    fn row(
-        &mut self,
-        f: &Format,
-        row: &[u8],
-        live: impl Iterator<Item = (usize, usize)>,
-        adler: &mut Adler,
-        words: &mut RowWords,
-    ) {
-        let n = row.len() / 8;
-        let (vals, inked) = words.begin(n);
-        for (s, e) in live {
-            for i in s / 8..e.div_ceil(8).min(n) {
-                let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
-                vals[i] = v;
-                inked[i / 64] |= u64::from(v != 0) << (i % 64);
-            }
-        }
-        self.coded(f, words, n, &row[8 * n..], adler);
-    }
-
-    /// A row of `n` whole 8-byte words and then the bytes `rest`, as
-    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
-    /// Only the words `words.inked` marks are read (from `words.vals`): every other
-    /// whole word is zero. The inked words are coded in order (their sums added), and
-    /// the zero words between only lengthen the run of zeros, their sums arithmetic.
-    fn coded(&mut self, f: &Format, words: &RowWords, n: usize, rest: &[u8], adler: &mut Adler) {
-        let (vals, inked) = (&words.vals[..n], &words.inked[..n.div_ceil(64)]);
-        // Kept in locals (registers) while the row is coded.
-        let mut w = std::mem::replace(self, Bits::new(Vec::new()));
-        let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
-        // Bytes before `at` are coded and summed; `run` zeros are pending.
-        let (mut at, mut run) = (0usize, 0u32);
-        for (k, &m) in inked.iter().enumerate() {
-            if k % 64 == 0 {
-                // Every 4096 words (32 KiB) the zeros up to here are added and the sums
-                // reduced: in between `a` stays below 65521 + 255·2^15 (< 2^24) and `b`
-                // below 65521 + 2^15·2^24 + 2^12·5100, far below 2^64.
-                let gap = 512 * k - at;
-                run += gap as u32;
-                b = (b + (gap as u64 % ADLER_MOD) * (a % ADLER_MOD)) % ADLER_MOD;
-                a %= ADLER_MOD;
-                at = 512 * k;
-            }
-            let mut m = m;
-            while m != 0 {
-                let i = 64 * k + m.trailing_zeros() as usize;
-                m &= m - 1;
-                let v = vals[i];
-                let gap = 8 * i - at;
-                run = w.word(f, v, run + gap as u32);
-                let (sum, weighted) = word_sums(v);
-                b += (gap as u64 + 8) * a + weighted;
-                a += sum;
-                at = 8 * i + 8;
-            }
-        }
-        let gap = 8 * n - at;
-        run += gap as u32;
-        b = (b + (gap as u64 % ADLER_MOD) * (a % ADLER_MOD)) % ADLER_MOD;
-        a %= ADLER_MOD;
-        if run > 0 {
-            w.zeros(f, run);
-        }
-        w.literals(f, rest);
-        for &x in rest {
-            a += u64::from(x);
-            b += a;
-        }
-        (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
-        *self = w;
+        self
     }
 }
 
@@ -557,14 +569,16 @@ pub(crate) struct RowWords {
 }
 
 impl RowWords {
-    /// Room for a row of `n` whole words, no word marked.
+    /// Room for a row of `n` whole words (the marks left as they are: to be set).
     fn begin(&mut self, n: usize) -> (&mut [u64], &mut [u64]) {
         if self.vals.len() < n {
             self.vals.resize(n, 0);
         }
-        self.inked.clear();
-        self.inked.resize(n.div_ceil(64), 0);
-        (&mut self.vals[..n], &mut self.inked[..])
+        let m = n.div_ceil(64);
+        if self.inked.len() < m {
+            self.inked.resize(m, 0);
+        }
+        (&mut self.vals[..n], &mut self.inked[..m])
     }
 }
 
@@ -685,30 +699,44 @@ impl RowDeflate {
     /// row's whole words that meet a marked block (and the first, which holds the filter
     /// byte, and the bytes after the last whole word) are computed, eight bytes at once,
     /// and no filtered row is stored: the words go straight to the coder.
-    pub(crate) fn up_row(&mut self, above: &[u8], this: &[u8], marks: (&[u64], &[u64])) {
+    pub(crate) fn up_row(
+        &mut self,
+        above: &mut [u8],
+        this: &[u8],
+        marks: (&[u64], &[u64]),
+        clear: bool,
+    ) {
         const UP: u8 = 2;
         let w = this.len();
         assert_eq!(above.len(), w, "rows of one width");
-        let diff = |x: usize| above[x].wrapping_sub(this[x]);
-        // The row is `w + 1` bytes: `n` whole words, then `rest`.
+        let load =
+            |row: &[u8], s: usize| u64::from_le_bytes(row[s..s + 8].try_into().expect("8 bytes"));
+        // The row is `w + 1` bytes: `n` whole words, then `t < 8` bytes, `rest`.
         let n = (w + 1) / 8;
-        let mut rest = [0u8; 8];
         let (vals, inked) = self.words.begin(n);
-        let tail = if n == 0 {
-            rest[0] = UP;
+        let (rest, t) = if w < 8 {
+            // Word 0 (if whole) and the rest, byte by byte.
+            let mut v = u64::from(UP);
             for x in 0..w {
-                rest[1 + x] = diff(x);
+                v |= u64::from(above[x].wrapping_sub(this[x])) << (8 * (x + 1));
             }
-            w + 1
+            if clear {
+                above.fill(0);
+            }
+            if n == 1 {
+                (vals[0], inked[0]) = (v, 1);
+                (0, 0)
+            } else {
+                (v, w + 1)
+            }
         } else {
-            // Word 0: the filter byte, then pixels 0..7.
-            let mut v0 = u64::from(UP);
-            for x in 0..7 {
-                v0 |= u64::from(diff(x)) << (8 * (x + 1));
+            // Word 0: the filter byte, then pixels 0..7 (pixel 7 is word 1's).
+            vals[0] = sub_bytes(load(above, 0), load(this, 0)) << 8 | u64::from(UP);
+            if clear {
+                above[..7].copy_from_slice(&[0; 7]);
             }
-            vals[0] = v0;
-            inked[0] = 1;
-            // Word `i ≥ 1` is pixels `8i − 1..8i + 7`: blocks `i − 1` and `i`.
+            // Word `i ≥ 1` is pixels `8i − 1..8i + 7`: blocks `i − 1` and `i`. The words
+            // are apart, so the row above can be cleared as it is read.
             let (ma, mb) = marks;
             let last = inked.len() - 1;
             let mut carry = 0;
@@ -722,26 +750,30 @@ impl RowDeflate {
                 if k == last && n % 64 != 0 {
                     c &= (1 << (n % 64)) - 1;
                 }
-                let mut bits = 0;
+                let mut bits = u64::from(k == 0);
                 while c != 0 {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
                     let s = 8 * i - 1;
-                    let a = u64::from_le_bytes(above[s..s + 8].try_into().expect("8 bytes"));
-                    let t = u64::from_le_bytes(this[s..s + 8].try_into().expect("8 bytes"));
-                    let v = sub_bytes(a, t);
+                    let v = sub_bytes(load(above, s), load(this, s));
+                    if clear {
+                        above[s..s + 8].copy_from_slice(&[0; 8]);
+                    }
                     vals[i] = v;
                     bits |= u64::from(v != 0) << (i % 64);
                 }
-                inked[k] |= bits;
+                inked[k] = bits;
             }
-            for (r, x) in rest.iter_mut().zip(8 * n - 1..w) {
-                *r = diff(x);
+            // The rest: pixels `8n − 1..w`, the last `t` of the row's last 8.
+            let t = w + 1 - 8 * n;
+            let v = sub_bytes(load(above, w - 8), load(this, w - 8));
+            if clear {
+                above[w - t..].fill(0);
             }
-            w + 1 - 8 * n
+            (v.checked_shr(8 * (8 - t) as u32).unwrap_or(0), t)
         };
         self.bits
-            .coded(self.f, &self.words, n, &rest[..tail], &mut self.adler);
+            .coded(self.f, &self.words, n, (rest, t), &mut self.adler);
     }
 
     /// `count` blank rows of `len` bytes: filter type `filter`, then zeros.
@@ -1000,7 +1032,10 @@ mod tests {
         let widths = [
             1usize, 2, 6, 7, 8, 9, 14, 15, 16, 17, 23, 63, 64, 65, 511, 512, 513,
         ];
-        for w in widths.into_iter().chain([520, 1000, 3300, 5100]) {
+        for w in widths
+            .into_iter()
+            .chain([520, 1000, 1001, 3300, 3301, 5100])
+        {
             let h = 24;
             let mut ink = vec![0u8; w * h];
             let mut dirty = Dirty::new(w, h);
@@ -1041,12 +1076,16 @@ mod tests {
                 }
                 rows.push(row);
             }
+            // The encoder clears the row above as it reads it, or `clear_row` after.
+            let clear = w % 2 == 1;
             let mut z = RowDeflate::new(Vec::new());
             z.row(&rows[0], std::iter::once((0, w + 1)));
             for j in 1..h {
                 let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
-                z.up_row(above, this, dirty.row_pair_words(j));
-                dirty.clear_row(j - 1, above);
+                z.up_row(above, this, dirty.row_pair_words(j), clear);
+                if !clear {
+                    dirty.clear_row(j - 1, above);
+                }
             }
             dirty.clear_row(h - 1, &mut ink[(h - 1) * w..]);
             assert!(z.finish() == reference(&rows), "width {w}: streams differ");
