@@ -46,9 +46,8 @@ struct Format {
     /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
     /// and their number.
     zrun: [(u64, u32); ZRUN_MAX as usize + 1],
-    /// The bits of as many matches of 258 zeros as fit a `put`, their number of bits and
-    /// of matches.
-    matches: (u64, u32, u32),
+    /// The bits of [`MATCHES`] matches of 258 zeros (one `put`), and the bits of one.
+    matches: (u64, u32),
 }
 
 /// The longest run of zeros [`Format::zrun`] holds: a literal 0 and one match of 258.
@@ -57,6 +56,9 @@ const ZRUN_MAX: u32 = 259;
 /// The most bits of a run of zeros in [`Format::zrun`] (a word's run fits one
 /// [`Writer::put`]).
 const ZRUN_BITS: u32 = 24;
+
+/// Matches of 258 zeros put at once by [`Writer::zeros`].
+const MATCHES: u32 = 4;
 
 /// The most bits [`Bits::put`] takes at once.
 const PUT_MAX: u32 = 56;
@@ -156,7 +158,7 @@ impl Format {
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
-            matches: (0, 0, 0),
+            matches: (0, 0),
         };
         // Literal codes are at most 12 bits (four to a `put`), literal 0's code is all
         // zero bits ([`Bits::word`] relies on it), and a short run of zeros fits one `put`.
@@ -177,12 +179,12 @@ impl Format {
         let (c, l) = f.sym(285);
         let one = l + u32::from(f.dist.1);
         let m = c | u64::from(f.dist.0) << l;
-        let per = PUT_MAX / one;
-        if per == 0 {
+        // The literal 0 and fewer than `MATCHES` matches fit a `put` too.
+        if u32::from(f.len[0]) + MATCHES * one > PUT_MAX {
             return None;
         }
-        let bits = (0..per).fold(0u64, |b, i| b | m << (i * one));
-        f.matches = (bits, per * one, per);
+        let bits = (0..MATCHES).fold(0u64, |b, i| b | m << (i * one));
+        f.matches = (bits, one);
         Some(f)
     }
 
@@ -534,26 +536,23 @@ impl Writer<'_> {
         self.n = n - 8 * whole;
     }
 
-    /// A run of `run ≥ 1` zeros, the bits of [`Bits::zeros_by_symbol`]: the literal 0,
-    /// the matches of 258 several to a `put`, and the rest from [`Format::zrun`] (a run
-    /// of `rest + 1` is the literal 0, whose code is all zero bits, then the rest's code).
+    /// A run of `run ≥ 1` zeros, the bits of [`Bits::zeros_by_symbol`]: the literal 0
+    /// (its code is all zero bits) with the `q mod MATCHES` first of the `q` matches of
+    /// 258, then the others [`MATCHES`] to a `put`, and the rest from [`Format::zrun`] (a
+    /// run of `rest + 1` is the literal 0, then the rest's code). No loop for a run
+    /// shorter than `258·MATCHES + 1`.
     /// The buffer must have room (a run costs well under a bit a zero, plus 64 bits).
     #[inline(never)]
-    fn zeros(mut self, f: &Format, mut run: u32) -> Self {
+    fn zeros(mut self, f: &Format, run: u32) -> Self {
         let zl = u32::from(f.len[0]);
-        self.put(0, zl);
-        run -= 1;
-        let (bits, n, per) = f.matches;
-        while run >= 258 * per {
-            self.put(bits, n);
-            run -= 258 * per;
+        let (bits, one) = f.matches;
+        let (q, rest) = ((run - 1) / 258, (run - 1) % 258);
+        let first = (q % MATCHES) * one;
+        self.put((bits & ((1 << first) - 1)) << zl, zl + first);
+        for _ in 0..q / MATCHES {
+            self.put(bits, MATCHES * one);
         }
-        let one = n / per;
-        while run >= 258 {
-            self.put(bits & ((1 << one) - 1), one);
-            run -= 258;
-        }
-        let (c, l) = f.zrun[run as usize + 1];
+        let (c, l) = f.zrun[rest as usize + 1];
         self.put(c >> zl, l - zl);
         self
     }
@@ -1091,6 +1090,27 @@ mod tests {
             assert!(z.finish() == reference(&rows), "width {w}: streams differ");
             assert!(ink.iter().all(|&x| x == 0), "width {w}: left blank");
         }
+    }
+
+    /// Runs of zeros of every length up to past `258·MATCHES·2`, between inked words, at
+    /// the start and at the end of rows: each coded as `fdeflate` codes it.
+    #[test]
+    fn runs_of_every_length_match() {
+        let mut rows = Vec::new();
+        let mut z = RowDeflate::new(Vec::new());
+        for run in 1..2 * 258 * MATCHES as usize + 300 {
+            let mut row = vec![0u8; 16 + run + 9];
+            row[0] = 2;
+            row[15] = 7;
+            row[16 + run] = 200;
+            z.row(&row, [(0, 16), (16 + run, 17 + run)].into_iter());
+            rows.push(row);
+            let mut row = vec![0u8; 1 + run];
+            row[0] = 1;
+            z.row(&row, std::iter::empty());
+            rows.push(row);
+        }
+        assert!(z.finish() == reference(&rows), "streams differ");
     }
 
     /// An empty stream and a stream of one byte are `fdeflate`'s too.
