@@ -136,6 +136,31 @@ impl Dirty {
         }
     }
 
+    /// The marked blocks of rows `j` and `j − 1` (for `j = 0`, row 0 twice): a bit per
+    /// block, 64 to a word.
+    pub(crate) fn row_pair_words(&self, j: usize) -> (&[u64], &[u64]) {
+        let a = self.row(j);
+        (a, if j > 0 { self.row(j - 1) } else { a })
+    }
+
+    /// Zeroes the marked blocks of row `j` in `row`, that row's pixels: the row is
+    /// blank after (nothing is drawn outside the marks).
+    pub(crate) fn clear_row(&self, j: usize, row: &mut [u8]) {
+        let w = row.len().min(self.width);
+        for (k, &m) in self.row(j).iter().enumerate() {
+            let mut m = m;
+            while m != 0 {
+                let x = BLOCK * (64 * k + m.trailing_zeros() as usize);
+                m &= m - 1;
+                if x + BLOCK <= w {
+                    row[x..x + BLOCK].copy_from_slice(&[0; BLOCK]);
+                } else {
+                    row[x.min(w)..w].fill(0);
+                }
+            }
+        }
+    }
+
     /// Whether rows `j` and `j − 1` hold no mark (for `j = 0`, row 0).
     #[inline]
     pub(crate) fn row_pair_blank(&self, j: usize) -> bool {

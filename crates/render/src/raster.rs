@@ -678,11 +678,12 @@ fn ppm(dpi: f64) -> u32 {
 /// filter and fdeflate's PNG-tuned fast mode, the inversion folded into the filter:
 /// filtered = gray(row) − gray(row above) = ink(row above) − ink(row). Outside the blocks
 /// `dirty` marks (in this row or the one above) both rows are paper and the filtered bytes
-/// are 0, so only marked spans are computed, and [`RowDeflate`] reads only those: a row
-/// with no marked span is a blank row, written as a precomputed bit string (runs of them
-/// one after the other), and the zeros between an inked row's spans only lengthen a run.
-/// The bytes are those of `fdeflate` on the whole filtered rows. With `clear`, each row's
-/// marked spans are zeroed once the row below has been filtered (the buffer ends blank).
+/// are 0, so only the filtered row's 8-byte words that meet a marked block are computed,
+/// by [`RowDeflate::up_row`] as it codes them: a row with no marked block is a blank
+/// row, written as a precomputed bit string (runs of them one after the other), and the
+/// zeros between an inked row's words only lengthen a run. The bytes are those of
+/// `fdeflate` on the whole filtered rows. With `clear`, each row's marked blocks are
+/// zeroed once the row below has been filtered (the buffer ends blank).
 /// The file is built in one buffer of `capacity` bytes to start with.
 fn write_png_fast(
     ink: &mut [u8],
@@ -705,12 +706,12 @@ pub(crate) struct FastPng {
     z: RowDeflate,
     /// Where the IDAT chunk starts (its length is patched in at the end).
     idat: usize,
-    /// The filtered row (filter byte first).
+    /// The first row, filtered (filter byte first); the others are filtered by
+    /// [`RowDeflate::up_row`] as they are coded.
     row: Vec<u8>,
     /// Blank rows (no marked block in the row or the one above: filtered bytes all 0)
     /// waiting to be written as one run.
     blank: usize,
-    spans: Vec<(usize, usize)>,
     /// The next row to encode.
     next: usize,
     width: usize,
@@ -750,7 +751,6 @@ impl FastPng {
             idat,
             row,
             blank: 0,
-            spans: Vec::new(),
             next: 0,
             width: w,
             height: height as usize,
@@ -759,7 +759,7 @@ impl FastPng {
 
     /// Encodes the rows up to `upto` (exclusive) of the page, which must be drawn up to
     /// there; `ink` holds the page's rows from row `first` on (the row above the next
-    /// row to encode, if any, included). With `clear`, the marked spans of each row but
+    /// row to encode, if any, included). With `clear`, the marked blocks of each row but
     /// the last encoded are zeroed once the row below has been filtered.
     pub(crate) fn rows(
         &mut self,
@@ -779,57 +779,23 @@ impl FastPng {
             self.row[1..].fill(0);
             self.next = 1;
         }
-        let row = &mut self.row;
         for j in self.next.max(1)..upto {
             if dirty.row_pair_blank(j) {
                 self.blank += 1;
                 continue;
             }
-            self.spans.clear();
-            self.spans.extend(dirty.row_pair_spans(j));
             self.z.blank_rows(w + 1, 2, self.blank);
             self.blank = 0;
             let (above, this) = ink[(j - 1 - first) * w..(j + 1 - first) * w].split_at_mut(w);
-            for &(x0, x1) in &self.spans {
-                // The whole 8-byte words of the filtered row (filter byte first) that the
-                // span meets, which the encoder reads: the pixels around the span are
-                // paper in both rows, so their filtered bytes are 0, and no byte a word
-                // held from an earlier row is left in it (nothing to zero afterwards).
-                // With `clear`, the row above is zeroed as it is read (its pixels around
-                // the span are 0 already).
-                let p0 = (8 * ((1 + x0) / 8)).saturating_sub(1);
-                let p1 = (8 * (1 + x1).div_ceil(8) - 1).min(w);
-                let (o, a, b) = (&mut row[1 + p0..1 + p1], &mut above[p0..p1], &this[p0..p1]);
-                if clear {
-                    for ((o, a), b) in o.iter_mut().zip(a).zip(b) {
-                        *o = a.wrapping_sub(*b);
-                        *a = 0;
-                    }
-                } else {
-                    for ((o, a), b) in o.iter_mut().zip(a.iter()).zip(b) {
-                        *o = a.wrapping_sub(*b);
-                    }
-                }
-            }
-            self.z
-                .row(row, self.spans.iter().map(|&(x0, x1)| (1 + x0, 1 + x1)));
-            // The first word (after the filter byte) and the bytes after the last whole
-            // word are read in every row: zeroed for the next (a span that meets them
-            // writes them all).
-            let n = row.len();
-            if n >= 9 {
-                // Two stores (and no call) for rows as wide as pages.
-                row[1..9].copy_from_slice(&[0; 8]);
-                row[n - 8..].copy_from_slice(&[0; 8]);
-            } else {
-                row[1..].fill(0);
-            }
+            // Only the words meeting the marked blocks are filtered, in the encoder, which
+            // clears the row above as it reads it (its ink is in its marked blocks).
+            self.z.up_row(above, this, dirty.row_pair_words(j), clear);
         }
         self.next = self.next.max(upto);
     }
 
     /// The finished PNG, once every row is encoded; with `clear`, the last row's marked
-    /// spans are zeroed too (the page is left blank).
+    /// blocks are zeroed too (the page is left blank).
     pub(crate) fn finish(
         mut self,
         ink: &mut [u8],
@@ -841,10 +807,7 @@ impl FastPng {
         debug_assert_eq!(self.next, h, "every row encoded");
         self.z.blank_rows(w + 1, 2, self.blank);
         if clear && h > 0 {
-            let last = &mut ink[(h - 1 - first) * w..(h - first) * w];
-            for (x0, x1) in dirty.row_pair_spans(h - 1) {
-                last[x0..x1].fill(0);
-            }
+            dirty.clear_row(h - 1, &mut ink[(h - 1 - first) * w..(h - first) * w]);
         }
         let idat = self.idat;
         let mut out = self.z.finish();

@@ -17,6 +17,9 @@
 //!   without a branch on their bytes (a word's run of zeros from a table, its literals
 //!   all eight coded and cut to length, its bits stored whole), since on anti-aliased
 //!   ink the branches per word and per byte of `fdeflate`'s loop are mispredicted.
+//!   A page's Up-filtered row is not even stored ([`RowDeflate::up_row`]): the words
+//!   that meet the ink marks of the row and the row above are filtered eight bytes at
+//!   once from the ink and go straight to the coder.
 //!
 //! The code (the lengths of the literal/length and distance codes) is read from the header
 //! `fdeflate` writes, not copied: the two cannot drift apart, and the tests compare the
@@ -43,17 +46,19 @@ struct Format {
     /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
     /// and their number.
     zrun: [(u64, u32); ZRUN_MAX as usize + 1],
-    /// The bits of as many matches of 258 zeros as fit a `put`, their number of bits and
-    /// of matches.
-    matches: (u64, u32, u32),
+    /// The bits of [`MATCHES`] matches of 258 zeros (one `put`), and the bits of one.
+    matches: (u64, u32),
 }
 
 /// The longest run of zeros [`Format::zrun`] holds: a literal 0 and one match of 258.
 const ZRUN_MAX: u32 = 259;
 
-/// The most bits of a run of zeros in [`Format::zrun`] (a word's run and its 8 literals
-/// of at most 12 bits fit [`Bits::put_wide`]).
+/// The most bits of a run of zeros in [`Format::zrun`] (a word's run fits one
+/// [`Writer::put`]).
 const ZRUN_BITS: u32 = 24;
+
+/// Matches of 258 zeros put at once by [`Writer::zeros`].
+const MATCHES: u32 = 4;
 
 /// The most bits [`Bits::put`] takes at once.
 const PUT_MAX: u32 = 56;
@@ -153,7 +158,7 @@ impl Format {
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
-            matches: (0, 0, 0),
+            matches: (0, 0),
         };
         // Literal codes are at most 12 bits (four to a `put`), literal 0's code is all
         // zero bits ([`Bits::word`] relies on it), and a short run of zeros fits one `put`.
@@ -174,12 +179,12 @@ impl Format {
         let (c, l) = f.sym(285);
         let one = l + u32::from(f.dist.1);
         let m = c | u64::from(f.dist.0) << l;
-        let per = PUT_MAX / one;
-        if per == 0 {
+        // The literal 0 and fewer than `MATCHES` matches fit a `put` too.
+        if u32::from(f.len[0]) + MATCHES * one > PUT_MAX {
             return None;
         }
-        let bits = (0..per).fold(0u64, |b, i| b | m << (i * one));
-        f.matches = (bits, per * one, per);
+        let bits = (0..MATCHES).fold(0u64, |b, i| b | m << (i * one));
+        f.matches = (bits, one);
         Some(f)
     }
 
@@ -342,24 +347,6 @@ impl Bits {
         (words, total)
     }
 
-    /// `literal` codes of `bytes`, a few at a time.
-    #[inline]
-    fn literals(&mut self, f: &Format, bytes: &[u8]) {
-        let (mut acc, mut n) = (0u64, 0u32);
-        for &b in bytes {
-            let (c, l) = f.sym(usize::from(b));
-            acc |= c << n;
-            n += l;
-            if n > PUT_MAX - 12 {
-                self.put(acc, n);
-                (acc, n) = (0, 0);
-            }
-        }
-        if n > 0 {
-            self.put(acc, n);
-        }
-    }
-
     /// A run of `run ≥ 1` zeros: a literal 0, then distance-1 matches (as `fdeflate`).
     /// Used to make [`Format::zrun`]; [`Bits::zeros`] codes the same bits faster.
     fn zeros_by_symbol(&mut self, f: &Format, mut run: u32) {
@@ -385,155 +372,222 @@ impl Bits {
         }
     }
 
-    /// A run of `run ≥ 1` zeros, the bits of [`Bits::zeros_by_symbol`]: the literal 0,
-    /// the matches of 258 several to a `put`, and the rest from [`Format::zrun`] (a run
-    /// of `rest + 1` is the literal 0, whose code is all zero bits, then the rest's code).
-    fn zeros(&mut self, f: &Format, mut run: u32) {
-        let zl = u32::from(f.len[0]);
-        self.put(0, zl);
-        run -= 1;
-        let (bits, n, per) = f.matches;
-        while run >= 258 * per {
-            self.put(bits, n);
-            run -= 258 * per;
-        }
-        let one = n / per;
-        while run >= 258 {
-            self.put(bits & ((1 << one) - 1), one);
-            run -= 258;
-        }
-        let (c, l) = f.zrun[run as usize + 1];
-        self.put(c >> zl, l - zl);
-    }
-
-    /// The literal codes of `u`'s bytes `4·half..4·half + 4` and their length.
-    #[inline(always)]
-    fn four(f: &Format, u: u64, half: u32) -> (u64, u32) {
-        let (mut bits, mut n) = (0u64, 0u32);
-        for i in 4 * half..4 * half + 4 {
-            let b = usize::from((u >> (8 * i)) as u8);
-            bits |= u64::from(f.code[b]) << n;
-            n += u32::from(f.len[b]);
-        }
-        (bits, n)
-    }
-
-    /// One inked 8-byte word `v ≠ 0` of a row after `run` zeros, `fdeflate`'s way: a
-    /// pending run of zeros takes the word's leading zeros, the bytes up to its trailing
-    /// zeros are literals, and its trailing zeros start the next run (returned). No
-    /// branch on the bytes: a run of zeros comes from a table (only runs longer than
-    /// `ZRUN_MAX` take the long way), and the literals are the word shifted down past
-    /// the run's bytes, all 8 bytes coded: the zero bytes shifted in code as zero bits
-    /// (literal 0's code is all zeros), so they are cut off by their length alone.
-    #[inline(always)]
-    fn word(&mut self, f: &Format, v: u64, run: u32) -> u32 {
-        let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
-        let from = if run > 0 { lead } else { 0 };
-        let z = if run > 0 { run + lead } else { 0 };
-        let (zc, zn) = if z > ZRUN_MAX {
-            self.zeros(f, z);
-            (0, 0)
-        } else {
-            f.zrun[z as usize]
-        };
-        // The literals: bytes `from..8 − tail`, `c` of them, now bytes `0..c` of `u`.
-        let u = v >> (8 * from);
-        let c = 8 - tail - from;
-        let (lo, nlo) = Bits::four(f, u, 0);
-        let (hi, nhi) = Bits::four(f, u, 1);
-        let zl = u32::from(f.len[0]);
-        let in_lo = c.min(4);
-        let nlo = nlo - zl * (4 - in_lo);
-        let nhi = nhi - zl * (4 - (c - in_lo));
-        // At most ZRUN_BITS + 96 bits, after fewer than 8: one store of 16 bytes.
-        let bits = u128::from(zc) | u128::from(lo) << zn | u128::from(hi) << (zn + nlo);
-        self.put_wide(bits, zn + nlo + nhi);
-        tail
-    }
-
-    /// Appends the low `n ≤ 120` bits of `bits` (the rest zero), as [`Bits::put`].
-    #[inline(always)]
-    fn put_wide(&mut self, bits: u128, n: u32) {
-        debug_assert!(n <= 120 && self.n < 8);
-        if self.out.len() < self.pos + 16 {
-            self.grow();
-        }
-        let acc = u128::from(self.acc) | bits << self.n;
-        let n = self.n + n;
-        self.out[self.pos..self.pos + 16].copy_from_slice(&acc.to_le_bytes());
-        let whole = n / 8;
-        self.pos += whole as usize;
-        self.acc = (acc >> (8 * whole)) as u64;
-        self.n = n - 8 * whole;
-    }
-
     /// A row whose bytes are zero outside the byte ranges `live`, as
     /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
-    /// First the words that meet `live` are read and the inked ones (not all zero)
-    /// marked in `inked`; then the inked words are coded in order (their sums added),
-    /// and the zero words between only lengthen the run of zeros, their sums arithmetic.
+    /// The words that meet `live` are read into `vals` and the inked ones (not all zero)
+    /// marked in `inked`; then [`Bits::coded`] codes them.
     fn row(
         &mut self,
         f: &Format,
         row: &[u8],
         live: impl Iterator<Item = (usize, usize)>,
         adler: &mut Adler,
-        inked: &mut Vec<u64>,
+        words: &mut RowWords,
     ) {
-        let words = row.len() / 8;
-        inked.clear();
-        inked.resize(words.div_ceil(64), 0);
+        let n = row.len() / 8;
+        let (vals, inked) = words.begin(n);
+        inked.fill(0);
         for (s, e) in live {
-            for i in s / 8..e.div_ceil(8).min(words) {
+            for i in s / 8..e.div_ceil(8).min(n) {
                 let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
+                vals[i] = v;
                 inked[i / 64] |= u64::from(v != 0) << (i % 64);
             }
         }
-        // Kept in locals (registers) while the row is coded.
-        let mut w = std::mem::replace(self, Bits::new(Vec::new()));
+        let rest = &row[8 * n..];
+        let mut r = [0u8; 8];
+        r[..rest.len()].copy_from_slice(rest);
+        self.coded(f, words, n, (u64::from_le_bytes(r), rest.len()), adler);
+    }
+
+    /// A row of `n` whole 8-byte words and then the bytes `rest`, as
+    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
+    /// Only the words `words.inked` marks are read (from `words.vals`): every other
+    /// whole word is zero. The inked words are coded in order (their sums added), and
+    /// the zero words between only lengthen the run of zeros, their sums arithmetic.
+    fn coded(
+        &mut self,
+        f: &Format,
+        words: &RowWords,
+        n: usize,
+        (rest, t): (u64, usize),
+        adler: &mut Adler,
+    ) {
+        let (vals, inked) = (&words.vals[..n], &words.inked[..n.div_ceil(64)]);
+        // Room for the row's bits: at most 12 a byte (a literal's; a run of zeros takes
+        // fewer), the bits pending and the 8 bytes a store writes past them.
+        debug_assert!(t < 8 && rest.checked_shr(8 * t as u32).unwrap_or(0) == 0);
+        let len = 8 * n + t;
+        let room = self.pos + 2 * len + 64;
+        if self.out.len() < room {
+            self.out.resize(room.max(self.pos + (1 << 16)), 0);
+        }
+        // The writer and the sums in locals (registers) while the row is coded.
+        let mut w = Writer {
+            out: &mut self.out[..],
+            pos: self.pos,
+            acc: self.acc,
+            n: self.n,
+        };
+        // Adler-32 of the row after sums `(a₀, b₀)`: `a = a₀ + Σ xₚ` and
+        // `b = b₀ + len·a₀ + Σ (len − p)·xₚ` over the row's bytes `xₚ`, so each word adds
+        // its own terms, independent of the others. Reduced every 4096 words: in between
+        // `a` grows by at most 255·2^15 and `b` by 2^12·(len·2040 + 2040), far below 2^64.
+        let r = len as u64;
         let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
-        // Bytes before `at` are coded and summed; `run` zeros are pending.
+        b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
+        // Bytes before `at` are coded; `run` zeros are pending.
         let (mut at, mut run) = (0usize, 0u32);
+        let zl = u32::from(f.len[0]);
         for (k, &m) in inked.iter().enumerate() {
-            if k % 64 == 0 {
-                // Every 4096 words (32 KiB) the zeros up to here are added and the sums
-                // reduced: in between `a` stays below 65521 + 255·2^15 (< 2^24) and `b`
-                // below 65521 + 2^15·2^24 + 2^12·5100, far below 2^64.
-                let gap = 512 * k - at;
-                run += gap as u32;
-                b = (b + (gap as u64 % ADLER_MOD) * (a % ADLER_MOD)) % ADLER_MOD;
-                a %= ADLER_MOD;
-                at = 512 * k;
-            }
             let mut m = m;
             while m != 0 {
                 let i = 64 * k + m.trailing_zeros() as usize;
                 m &= m - 1;
-                let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
-                let gap = 8 * i - at;
-                run = w.word(f, v, run + gap as u32);
-                let (sum, weighted) = word_sums(v);
-                b += (gap as u64 + 8) * a + weighted;
-                a += sum;
+                let v = vals[i];
+                // A pending run of zeros takes the word's leading zero bytes, the bytes
+                // up to its trailing zeros are literals, and the trailing zeros start the
+                // next run. No branch on the bytes: the run's bits come from a table (only
+                // runs longer than `ZRUN_MAX` take the long way), and the literals are the
+                // word shifted down past the run's bytes, all 8 bytes coded: the zero bytes
+                // shifted in code as zero bits (literal 0's code is all zeros), so they are
+                // cut off by their length alone.
+                run += (8 * i - at) as u32;
+                let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
+                let from = if run > 0 { lead } else { 0 };
+                let z = if run > 0 { run + lead } else { 0 };
+                if z > ZRUN_MAX {
+                    w = w.zeros(f, z);
+                } else {
+                    let (zc, zn) = f.zrun[z as usize];
+                    w.put(zc, zn);
+                }
+                // The literals: bytes `from..8 − tail`, `c` of them, now bytes `0..c` of `u`.
+                let u = v >> (8 * from);
+                let c = 8 - tail - from;
+                let in_lo = c.min(4);
+                let (lo, nlo) = four(f, u as u32);
+                w.put(lo, nlo - zl * (4 - in_lo));
+                let (hi, nhi) = four(f, (u >> 32) as u32);
+                w.put(hi, nhi - zl * (4 - (c - in_lo)));
+                run = tail;
                 at = 8 * i + 8;
+                let (sum, weighted) = word_sums(v);
+                a += sum;
+                b += (r - 8 - 8 * i as u64) * sum + weighted;
+            }
+            if k % 64 == 63 {
+                (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
             }
         }
-        let gap = 8 * words - at;
-        run += gap as u32;
-        b = (b + (gap as u64 % ADLER_MOD) * (a % ADLER_MOD)) % ADLER_MOD;
-        a %= ADLER_MOD;
+        run += (8 * n - at) as u32;
         if run > 0 {
-            w.zeros(f, run);
+            w = w.zeros(f, run);
         }
-        let rest = &row[8 * words..];
-        w.literals(f, rest);
-        for &x in rest {
-            a += u64::from(x);
-            b += a;
-        }
+        // The rest, each byte a literal (zeros too): all 8 coded and cut to `t`, as a
+        // word's literals; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
+        let t = t as u32;
+        let in_lo = t.min(4);
+        let (lo, nlo) = four(f, rest as u32);
+        w.put(lo, nlo - zl * (4 - in_lo));
+        let (hi, nhi) = four(f, (rest >> 32) as u32);
+        w.put(hi, nhi - zl * (4 - (t - in_lo)));
+        let (sum, weighted) = word_sums(rest);
+        a += sum;
+        b += weighted - u64::from(8 - t) * sum;
         (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
-        *self = w;
+        (self.pos, self.acc, self.n) = (w.pos, w.acc, w.n);
     }
+}
+
+/// The literal codes of the four bytes of `u` (the first in the low byte) and their
+/// length in bits (at most 48).
+#[inline(always)]
+fn four(f: &Format, u: u32) -> (u64, u32) {
+    let (mut bits, mut n) = (0u64, 0u32);
+    for i in 0..4 {
+        let b = usize::from((u >> (8 * i)) as u8);
+        bits |= u64::from(f.code[b]) << n;
+        n += u32::from(f.len[b]);
+    }
+    (bits, n)
+}
+
+/// [`Bits`]'s state while a row is coded, in locals: its buffer, with room for the row
+/// made beforehand, so that no `put` grows it.
+struct Writer<'a> {
+    out: &'a mut [u8],
+    pos: usize,
+    acc: u64,
+    n: u32,
+}
+
+impl Writer<'_> {
+    /// Appends the low `n ≤ PUT_MAX` bits of `bits` (the rest zero), as [`Bits::put`].
+    #[inline(always)]
+    fn put(&mut self, bits: u64, n: u32) {
+        debug_assert!(n <= PUT_MAX && self.n < 8 && bits.checked_shr(n).unwrap_or(0) == 0);
+        let acc = self.acc | bits << self.n;
+        let n = self.n + n;
+        self.out[self.pos..self.pos + 8].copy_from_slice(&acc.to_le_bytes());
+        let whole = n / 8;
+        self.pos += whole as usize;
+        self.acc = acc >> (8 * whole);
+        self.n = n - 8 * whole;
+    }
+
+    /// A run of `run ≥ 1` zeros, the bits of [`Bits::zeros_by_symbol`]: the literal 0
+    /// (its code is all zero bits) with the `q mod MATCHES` first of the `q` matches of
+    /// 258, then the others [`MATCHES`] to a `put`, and the rest from [`Format::zrun`] (a
+    /// run of `rest + 1` is the literal 0, then the rest's code). No loop for a run
+    /// shorter than `258·MATCHES + 1`.
+    /// The buffer must have room (a run costs well under a bit a zero, plus 64 bits).
+    #[inline(never)]
+    fn zeros(mut self, f: &Format, run: u32) -> Self {
+        let zl = u32::from(f.len[0]);
+        let (bits, one) = f.matches;
+        let (q, rest) = ((run - 1) / 258, (run - 1) % 258);
+        let first = (q % MATCHES) * one;
+        self.put((bits & ((1 << first) - 1)) << zl, zl + first);
+        for _ in 0..q / MATCHES {
+            self.put(bits, MATCHES * one);
+        }
+        let (c, l) = f.zrun[rest as usize + 1];
+        self.put(c >> zl, l - zl);
+        self
+    }
+}
+
+/// The whole 8-byte words of the row being coded: a bit per word in `inked`, set for the
+/// words that are not zero, whose values are in `vals` (the values of other words are
+/// not read: what an earlier row left there does not matter).
+#[derive(Default)]
+pub(crate) struct RowWords {
+    vals: Vec<u64>,
+    inked: Vec<u64>,
+}
+
+impl RowWords {
+    /// Room for a row of `n` whole words (the marks left as they are: to be set).
+    fn begin(&mut self, n: usize) -> (&mut [u64], &mut [u64]) {
+        if self.vals.len() < n {
+            self.vals.resize(n, 0);
+        }
+        let m = n.div_ceil(64);
+        if self.inked.len() < m {
+            self.inked.resize(m, 0);
+        }
+        (&mut self.vals[..n], &mut self.inked[..m])
+    }
+}
+
+/// `a − b` byte by byte (wrapping), in one `u64`: each byte of `a` with its top bit set
+/// minus the byte of `b` without it cannot borrow from the next byte, and the top bit
+/// of the difference is then flipped where `a`'s and `b`'s top bits are equal.
+#[inline(always)]
+fn sub_bytes(a: u64, b: u64) -> u64 {
+    const H: u64 = 0x8080_8080_8080_8080;
+    ((a | H) - (b & !H)) ^ ((a ^ !b) & H)
 }
 
 /// The sums of an 8-byte word's bytes `x₀..x₇` (`x₀` first in the row) that Adler-32
@@ -605,8 +659,8 @@ pub(crate) struct RowDeflate {
     f: &'static Format,
     bits: Bits,
     adler: Adler,
-    /// The inked words of the row being coded, as bits.
-    inked: Vec<u64>,
+    /// The whole words of the row being coded.
+    words: RowWords,
     /// The bits of a blank row of `blank.0` bytes (filter type `blank.1`).
     blank: Option<(usize, u8, Vec<u64>, u64)>,
 }
@@ -622,7 +676,7 @@ impl RowDeflate {
             f,
             bits,
             adler: Adler::new(),
-            inked: Vec::new(),
+            words: RowWords::default(),
             blank: None,
         }
     }
@@ -632,7 +686,93 @@ impl RowDeflate {
     pub(crate) fn row(&mut self, row: &[u8], live: impl Iterator<Item = (usize, usize)>) {
         let live = std::iter::once((0, 1)).chain(live);
         self.bits
-            .row(self.f, row, live, &mut self.adler, &mut self.inked);
+            .row(self.f, row, live, &mut self.adler, &mut self.words);
+    }
+
+    /// The row, after rows before it, of a page of ink coverage written as gray (255 −
+    /// ink) with the Up filter: the filter byte 2, then `above[x] − this[x]` (the gray
+    /// of the pixel minus the gray above it) for every pixel `x`, the same bits as
+    /// [`RowDeflate::row`] of that row. `marks` are the 8-pixel blocks (a bit per block,
+    /// block `k` being pixels `8k..8k + 8`, 64 to a word) of the two rows that may hold
+    /// ink: outside them both rows are 0 and so are the filtered bytes. Only the filtered
+    /// row's whole words that meet a marked block (and the first, which holds the filter
+    /// byte, and the bytes after the last whole word) are computed, eight bytes at once,
+    /// and no filtered row is stored: the words go straight to the coder.
+    pub(crate) fn up_row(
+        &mut self,
+        above: &mut [u8],
+        this: &[u8],
+        marks: (&[u64], &[u64]),
+        clear: bool,
+    ) {
+        const UP: u8 = 2;
+        let w = this.len();
+        assert_eq!(above.len(), w, "rows of one width");
+        let load =
+            |row: &[u8], s: usize| u64::from_le_bytes(row[s..s + 8].try_into().expect("8 bytes"));
+        // The row is `w + 1` bytes: `n` whole words, then `t < 8` bytes, `rest`.
+        let n = (w + 1) / 8;
+        let (vals, inked) = self.words.begin(n);
+        let (rest, t) = if w < 8 {
+            // Word 0 (if whole) and the rest, byte by byte.
+            let mut v = u64::from(UP);
+            for x in 0..w {
+                v |= u64::from(above[x].wrapping_sub(this[x])) << (8 * (x + 1));
+            }
+            if clear {
+                above.fill(0);
+            }
+            if n == 1 {
+                (vals[0], inked[0]) = (v, 1);
+                (0, 0)
+            } else {
+                (v, w + 1)
+            }
+        } else {
+            // Word 0: the filter byte, then pixels 0..7 (pixel 7 is word 1's).
+            vals[0] = sub_bytes(load(above, 0), load(this, 0)) << 8 | u64::from(UP);
+            if clear {
+                above[..7].copy_from_slice(&[0; 7]);
+            }
+            // Word `i ≥ 1` is pixels `8i − 1..8i + 7`: blocks `i − 1` and `i`. The words
+            // are apart, so the row above can be cleared as it is read.
+            let (ma, mb) = marks;
+            let last = inked.len() - 1;
+            let mut carry = 0;
+            for k in 0..=last {
+                let m = ma[k] | mb[k];
+                let mut c = m | m << 1 | carry;
+                carry = m >> 63;
+                if k == 0 {
+                    c &= !1;
+                }
+                if k == last && n % 64 != 0 {
+                    c &= (1 << (n % 64)) - 1;
+                }
+                let mut bits = u64::from(k == 0);
+                while c != 0 {
+                    let i = 64 * k + c.trailing_zeros() as usize;
+                    c &= c - 1;
+                    let s = 8 * i - 1;
+                    let v = sub_bytes(load(above, s), load(this, s));
+                    if clear {
+                        above[s..s + 8].copy_from_slice(&[0; 8]);
+                    }
+                    vals[i] = v;
+                    bits |= u64::from(v != 0) << (i % 64);
+                }
+                inked[k] = bits;
+            }
+            // The rest: pixels `8n − 1..w`, the last `t` of the row's last 8.
+            let t = w + 1 - 8 * n;
+            let v = sub_bytes(load(above, w - 8), load(this, w - 8));
+            if clear {
+                above[w - t..].fill(0);
+            }
+            (v.checked_shr(8 * (8 - t) as u32).unwrap_or(0), t)
+        };
+        self.bits
+            .coded(self.f, &self.words, n, (rest, t), &mut self.adler);
     }
 
     /// `count` blank rows of `len` bytes: filter type `filter`, then zeros.
@@ -651,7 +791,7 @@ impl RowDeflate {
                 &row,
                 std::iter::once((0, 1)),
                 &mut Adler::new(),
-                &mut Vec::new(),
+                &mut RowWords::default(),
             );
             let (words, total) = b.into_words();
             self.blank = Some((len, filter, words, total));
@@ -855,6 +995,122 @@ mod tests {
                 "lead {lead}: streams differ"
             );
         }
+    }
+
+    /// `sub_bytes` is the byte-wise wrapping difference for every pair of bytes, in
+    /// every byte of the word.
+    #[test]
+    fn sub_bytes_is_the_difference_of_every_byte_pair() {
+        for a in 0..=255u8 {
+            for b in 0..=255u8 {
+                let d = a.wrapping_sub(b);
+                for lane in 0..8 {
+                    // The other lanes hold other pairs, so a borrow would show.
+                    let (x, y) = (0x00ff_7f80_01fe_ff00u64, 0xff00_807f_fe01_00ffu64);
+                    let (mx, my) = (!(0xffu64 << (8 * lane)), 8 * lane);
+                    let got = sub_bytes(x & mx | u64::from(a) << my, y & mx | u64::from(b) << my);
+                    assert_eq!((got >> my) as u8, d, "{a} − {b} in lane {lane}");
+                    for o in (0..8).filter(|&o| o != lane) {
+                        let (xo, yo) = ((x >> (8 * o)) as u8, (y >> (8 * o)) as u8);
+                        assert_eq!((got >> (8 * o)) as u8, xo.wrapping_sub(yo));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Pages of ink in marked blocks only (some marked blocks blank, ink at the row's
+    /// start and in the bytes after its last whole word, blocks marked in one row of a
+    /// pair only): the rows coded by `up_row` from the ink and the marks are `fdeflate`'s
+    /// stream of the whole Up-filtered gray rows, byte for byte, and `clear_row` leaves
+    /// every row blank.
+    #[test]
+    fn up_rows_from_the_marks_are_fdeflates_stream() {
+        use crate::dirty::{BLOCK, Dirty};
+        let mut seed = 0x51_7cc1_b727_220au64;
+        let widths = [
+            1usize, 2, 6, 7, 8, 9, 14, 15, 16, 17, 23, 63, 64, 65, 511, 512, 513,
+        ];
+        for w in widths
+            .into_iter()
+            .chain([520, 1000, 1001, 3300, 3301, 5100])
+        {
+            let h = 24;
+            let mut ink = vec![0u8; w * h];
+            let mut dirty = Dirty::new(w, h);
+            let blocks = w.div_ceil(BLOCK);
+            for j in 0..h {
+                if j % 5 == 4 {
+                    continue; // a blank row
+                }
+                for _ in 0..1 + lcg(&mut seed) % 6 {
+                    // The first and last blocks, and the last of a word of marks
+                    // (its last pixel is in the next word of marks' first row word).
+                    let k = match lcg(&mut seed) % 5 {
+                        0 => 0,
+                        1 => blocks - 1,
+                        2 => 63 % blocks,
+                        _ => (lcg(&mut seed) as usize) % blocks,
+                    };
+                    let run = 1 + (lcg(&mut seed) as usize) % 3;
+                    let (x0, x1) = (BLOCK * k, (BLOCK * (k + run)).min(w));
+                    dirty.mark_px(x0, j, x1, j + 1);
+                    if lcg(&mut seed) % 4 != 0 {
+                        // The block's last pixel, in the row word after the block's.
+                        ink[j * w + (BLOCK * k + BLOCK - 1).min(w - 1)] = 9;
+                        for x in x0..x1 {
+                            if lcg(&mut seed) % 3 != 0 {
+                                ink[j * w + x] = (lcg(&mut seed) % 256) as u8;
+                            }
+                        }
+                    }
+                }
+            }
+            let mut rows = Vec::new();
+            for j in 0..h {
+                let mut row = vec![2u8; w + 1];
+                for x in 0..w {
+                    let above = if j == 0 { 0 } else { ink[(j - 1) * w + x] };
+                    row[1 + x] = above.wrapping_sub(ink[j * w + x]);
+                }
+                rows.push(row);
+            }
+            // The encoder clears the row above as it reads it, or `clear_row` after.
+            let clear = w % 2 == 1;
+            let mut z = RowDeflate::new(Vec::new());
+            z.row(&rows[0], std::iter::once((0, w + 1)));
+            for j in 1..h {
+                let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
+                z.up_row(above, this, dirty.row_pair_words(j), clear);
+                if !clear {
+                    dirty.clear_row(j - 1, above);
+                }
+            }
+            dirty.clear_row(h - 1, &mut ink[(h - 1) * w..]);
+            assert!(z.finish() == reference(&rows), "width {w}: streams differ");
+            assert!(ink.iter().all(|&x| x == 0), "width {w}: left blank");
+        }
+    }
+
+    /// Runs of zeros of every length up to past `258·MATCHES·2`, between inked words, at
+    /// the start and at the end of rows: each coded as `fdeflate` codes it.
+    #[test]
+    fn runs_of_every_length_match() {
+        let mut rows = Vec::new();
+        let mut z = RowDeflate::new(Vec::new());
+        for run in 1..2 * 258 * MATCHES as usize + 300 {
+            let mut row = vec![0u8; 16 + run + 9];
+            row[0] = 2;
+            row[15] = 7;
+            row[16 + run] = 200;
+            z.row(&row, [(0, 16), (16 + run, 17 + run)].into_iter());
+            rows.push(row);
+            let mut row = vec![0u8; 1 + run];
+            row[0] = 1;
+            z.row(&row, std::iter::empty());
+            rows.push(row);
+        }
+        assert!(z.finish() == reference(&rows), "streams differ");
     }
 
     /// An empty stream and a stream of one byte are `fdeflate`'s too.
