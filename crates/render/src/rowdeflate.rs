@@ -39,9 +39,6 @@ struct Format {
     /// Literal/length codes, bit-reversed for writing least significant bit first.
     code: [u16; 286],
     len: [u8; 286],
-    /// The literal codes of a byte pair `x₀ | x₁ << 8` ([`PAIR_BITS`] bits: `x₀`'s code,
-    /// then `x₁`'s), with their length in bits in the top bits.
-    pair: Box<[u32; 1 << 16]>,
     /// The code of distance 1, and its length.
     dist: (u16, u8),
     /// The length symbol of a match of length `3 + i`, and its base length.
@@ -62,10 +59,6 @@ const ZRUN_BITS: u32 = 24;
 
 /// Matches of 258 zeros put at once by [`Writer::zeros`].
 const MATCHES: u32 = 4;
-
-/// The bits of a pair's code in [`Format::pair`] (two literal codes of at most 12
-/// bits); its length is above them.
-const PAIR_BITS: u32 = 24;
 
 /// The most bits [`Bits::put`] takes at once.
 const PUT_MAX: u32 = 56;
@@ -164,10 +157,6 @@ impl Format {
             len,
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
-            pair: vec![0u32; 1 << 16]
-                .into_boxed_slice()
-                .try_into()
-                .expect("65,536 entries"),
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
             matches: (0, 0),
         };
@@ -175,12 +164,6 @@ impl Format {
         // zero bits ([`Bits::word`] relies on it), and a short run of zeros fits one `put`.
         if len.iter().any(|&l| l > 12) || code[0] != 0 {
             return None;
-        }
-        for (x, e) in f.pair.iter_mut().enumerate() {
-            let (lo, hi) = (x & 0xff, x >> 8);
-            let l = u32::from(len[lo]);
-            let c = u32::from(code[lo]) | u32::from(code[hi]) << l;
-            *e = c | (l + u32::from(len[hi])) << PAIR_BITS;
         }
         let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
         for (z, e) in zrun.iter_mut().enumerate().skip(1) {
@@ -518,15 +501,16 @@ impl Bits {
 }
 
 /// The literal codes of the four bytes of `u` (the first in the low byte) and their
-/// length in bits (at most 48): two byte pairs' codes from [`Format::pair`].
+/// length in bits (at most 48).
 #[inline(always)]
 fn four(f: &Format, u: u32) -> (u64, u32) {
-    const CODE: u32 = (1 << PAIR_BITS) - 1;
-    let p = f.pair[usize::from(u as u16)];
-    let q = f.pair[usize::from((u >> 16) as u16)];
-    let pl = p >> PAIR_BITS;
-    let bits = u64::from(p & CODE) | u64::from(q & CODE) << pl;
-    (bits, pl + (q >> PAIR_BITS))
+    let (mut bits, mut n) = (0u64, 0u32);
+    for i in 0..4 {
+        let b = usize::from((u >> (8 * i)) as u8);
+        bits |= u64::from(f.code[b]) << n;
+        n += u32::from(f.len[b]);
+    }
+    (bits, n)
 }
 
 /// [`Bits`]'s state while a row is coded, in locals: its buffer, with room for the row
@@ -1010,37 +994,6 @@ mod tests {
                 z.finish() == reference(&[row]),
                 "lead {lead}: streams differ"
             );
-        }
-    }
-
-    /// Every entry of the byte-pair table is the two bytes' literal codes, the first
-    /// byte's code first, and the sum of their lengths; and `four` of any four bytes is
-    /// their four codes in order.
-    #[test]
-    fn pair_table_is_the_two_literal_codes() {
-        let f = Format::get();
-        for x in 0..1usize << 16 {
-            let (lo, hi) = (x & 0xff, x >> 8);
-            let (cl, ll) = f.sym(lo);
-            let (ch, lh) = f.sym(hi);
-            let e = f.pair[x];
-            assert_eq!(e >> PAIR_BITS, ll + lh, "pair {x:#06x}: length");
-            assert_eq!(
-                u64::from(e & ((1 << PAIR_BITS) - 1)),
-                cl | ch << ll,
-                "pair {x:#06x}: code"
-            );
-        }
-        let mut seed = 3u64;
-        for _ in 0..100_000 {
-            let u = lcg(&mut seed) as u32;
-            let (mut bits, mut n) = (0u64, 0u32);
-            for i in 0..4 {
-                let (c, l) = f.sym(usize::from((u >> (8 * i)) as u8));
-                bits |= c << n;
-                n += l;
-            }
-            assert_eq!(four(f, u), (bits, n), "{u:#010x}");
         }
     }
 
