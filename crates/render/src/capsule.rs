@@ -926,6 +926,22 @@ fn composite_pixels(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
 mod tests {
     use super::*;
 
+    /// The tests' seeded random numbers: xorshift64 (13, 7, 17) from `seed`.
+    fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        }
+    }
+
+    /// [`xorshift`]'s numbers as f32 in [0, 1), from their top 24 bits.
+    fn unit_floats(seed: u64) -> impl FnMut() -> f32 {
+        let mut next = xorshift(seed);
+        move || (next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+
     fn target<'a>(data: &'a mut [u8], w: usize, dirty: &'a mut Dirty, ink: Ink) -> Target<'a> {
         let h = data.len() / w;
         Target {
@@ -989,13 +1005,7 @@ mod tests {
     /// row or a column, rows through them, at their ends and beyond their reach.
     #[test]
     fn four_rows_intervals_are_each_ones() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rand = unit_floats(0x9e37_79b9_7f4a_7c15u64);
         let mut found = [0; 2];
         for n in 0..60_000 {
             let r = [0.2, 0.5, 1.56, 3.2, 4.1, 10.41, 40.0][n % 7];
@@ -1044,13 +1054,7 @@ mod tests {
     /// beyond, past 2^23, for infinities and NaN.
     #[test]
     fn pixel_spans_match_one_by_one() {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rand = xorshift(0x2545_f491_4f6c_dd1du64);
         let special = [
             0.0,
             -0.0,
@@ -1108,13 +1112,7 @@ mod tests {
     /// level and rows covered whole, every span length and position, at the row's ends.
     #[test]
     fn finite_measures_are_the_nan_exact_ones() {
-        let mut seed = 0x243f_6a88_85a3_08d3u64;
-        let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rand = unit_floats(0x243f_6a88_85a3_08d3u64);
         let w = 8192;
         let unders: [Vec<u8>; 3] = [
             vec![0; w],
@@ -1260,13 +1258,7 @@ mod tests {
     #[test]
     fn interiors_and_edges_match_measuring_every_pixel() {
         let mut worst = 0;
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rand = unit_floats(0x2545_f491_4f6c_dd1du64);
         for _ in 0..3000 {
             let a = [10.0 + 80.0 * rand(), 10.0 + 80.0 * rand()];
             let len = [0.0, 0.3, 3.0, 40.0][(rand() * 4.0) as usize % 4];
@@ -1332,13 +1324,7 @@ mod tests {
     /// made at once in lanes ([`intervals`]), the reference's one by one ([`interval`]).
     #[test]
     fn rows_made_every_way_are_the_same_bytes() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rand = unit_floats(0x9e37_79b9_7f4a_7c15u64);
         let w = 8192;
         let (mut made, mut covered) = ([0u64; 2], 0);
         let unders: [Vec<u8>; 2] = [
@@ -1513,13 +1499,7 @@ mod tests {
     /// leaving mid-band, rows clipped), one stroke after another with the same scratch.
     #[test]
     fn strokes_match_the_reference_row_loop() {
-        let mut seed = 0x5851_f42d_4c95_7f2du64;
-        let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rand = unit_floats(0x5851_f42d_4c95_7f2du64);
         let (w, h) = (240, 160);
         let (mut wide, mut thin, mut crowded) = (0, 0, 0);
         // One scratch for every stroke, as a page's (nothing of a stroke may be left for
