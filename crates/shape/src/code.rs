@@ -213,14 +213,11 @@ impl ClosedQuery {
                 [plain.map_or_else(Vec::new, |r| describe(&r.0)), reflected]
             })
             .collect();
-        let parts: Vec<Vec<[f64; CODE_LEN]>> = parts
-            .iter()
-            .map(|p| p[0].clone())
-            .chain(parts.iter().map(|p| p[1].clone()))
-            .collect();
-        // The unreflected jobs come first: both orders, every smoothing.
-        let plain = parts.iter().take(2 * SMOOTHINGS.len()).map(Vec::len).sum();
-        let vectors = parts.concat();
+        // The unreflected jobs' vectors first: both orders, every smoothing.
+        let (plain, reflected): (Vec<_>, Vec<_>) = parts.into_iter().map(|[p, r]| (p, r)).unzip();
+        let mut vectors = plain.concat();
+        let plain = vectors.len();
+        vectors.extend(reflected.into_iter().flatten());
         (!vectors.is_empty()).then_some(ClosedQuery { vectors, plain })
     }
 
