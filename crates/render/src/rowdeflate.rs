@@ -48,17 +48,14 @@ struct Format {
     /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
     /// and their number.
     zrun: [(u64, u32); ZRUN_MAX as usize + 1],
-    /// The code of each symbol of a row's symbols ([`RUN`]), `code << 8 | len` (at most
-    /// [`SYM_BITS`] each, so that two fit a `put`).
-    syms: [u32; SYMBOLS],
+    /// The code of each symbol of a row's symbols ([`RUN`]), `code << 8 | len`; two
+    /// symbols that can follow each other fit a `put` (checked when it is made).
+    syms: [u64; SYMBOLS],
 }
 
-/// The longest run of zeros [`Format::zrun`] holds: a literal 0 and one match of 258.
-const ZRUN_MAX: u32 = 259;
-
-/// The most bits of a symbol's code in [`Format::syms`] (a run of zeros in
-/// [`Format::zrun`] included): two fit a [`Bits::put`].
-const SYM_BITS: u32 = 24;
+/// The longest run of zeros [`Format::zrun`] holds: a literal 0 and three matches of 258
+/// (its codes are checked to fit a put beside a literal's).
+const ZRUN_MAX: u32 = 3 * 258 + 1;
 
 /// The symbols a row is first written as ([`Bits::coded`]), each coded by its entry in
 /// [`Format::syms`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
@@ -70,7 +67,7 @@ const RUN: u16 = 256;
 const MATCH: u16 = RUN + ZRUN_MAX as u16 + 1;
 const REST: u16 = MATCH + 1;
 /// The entries of [`Format::syms`] (a power of two: a symbol is masked into it).
-const SYMBOLS: usize = 1024;
+const SYMBOLS: usize = 2048;
 
 /// The most bits [`Bits::put`] takes at once.
 const PUT_MAX: u32 = 56;
@@ -174,16 +171,18 @@ impl Format {
         };
         let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
         for (z, e) in zrun.iter_mut().enumerate().skip(1) {
-            let mut b = Bits::new(Vec::new());
+            // Room for its bits (at most 8 bytes, checked below): no 64 KiB to grow.
+            let mut b = Bits::new(vec![0; 16]);
+            b.pos = 0;
             b.zeros_by_symbol(&f, z as u32);
             let (words, total) = b.into_words();
-            if total > u64::from(SYM_BITS) {
+            if total > 56 {
                 return None;
             }
             *e = (words[0], total as u32);
         }
         f.zrun = zrun;
-        // The symbols' codes, each at most `SYM_BITS` long.
+        // The symbols' codes.
         let (zc, zl) = f.sym(0);
         let (c, l) = f.sym(285);
         let one = (c | u64::from(f.dist.0) << l, l + u32::from(f.dist.1));
@@ -201,11 +200,20 @@ impl Format {
             }
             syms[usize::from(REST) + r] = (c >> zl, l - zl);
         }
+        // Two symbols that can follow each other fit a `put`: a run (of `RUN + z`) and
+        // a literal, or two of the literals, matches and rests. (A run is always next to
+        // literals, or to `RUN` alone, which has no bits, and so is a rest.)
+        let most = |r: std::ops::Range<u16>| {
+            let r = usize::from(r.start)..usize::from(r.end);
+            syms[r].iter().map(|e| e.1).max().unwrap_or(0)
+        };
+        let (lit, run) = (most(0..RUN), most(RUN..MATCH));
+        let other = most(MATCH..REST + 258).max(lit);
+        if run + lit > PUT_MAX || 2 * other > PUT_MAX {
+            return None;
+        }
         for (e, &(c, l)) in f.syms.iter_mut().zip(&syms) {
-            if l > SYM_BITS {
-                return None;
-            }
-            *e = (c as u32) << 8 | l;
+            *e = c << 8 | u64::from(l);
         }
         Some(f)
     }
@@ -467,7 +475,7 @@ impl Bits {
                 // A pending run of zeros takes the word's leading zero bytes, the bytes
                 // up to its trailing zeros are literals, and the trailing zeros start the
                 // next run. No branch on the bytes (only runs longer than `ZRUN_MAX` take
-                // the long way): the run is one symbol (`RUN` alone when there is none),
+                // the long way): the run is one symbol (none when the run is empty),
                 // and the literals are the word shifted down past the run's bytes, all 8
                 // stored as symbols, of which the `c` that are the word's are kept.
                 let run = (8 * i - zero) as u32;
@@ -483,12 +491,15 @@ impl Bits {
                 } else {
                     z
                 };
+                // The run's symbol is kept only if the run is not empty.
+                let has = usize::from(z > 0);
                 let win: &mut [u8; 18] =
                     (&mut syms[p..p + 18]).try_into().expect("room for a word");
                 win[..2].copy_from_slice(&(RUN + z as u16).to_le_bytes());
-                win[2..10].copy_from_slice(&widen(u as u32).to_le_bytes());
-                win[10..].copy_from_slice(&widen((u >> 32) as u32).to_le_bytes());
-                p += 2 * (1 + c as usize);
+                let lits = &mut win[2 * has..2 * has + 16];
+                lits[..8].copy_from_slice(&widen(u as u32).to_le_bytes());
+                lits[8..].copy_from_slice(&widen((u >> 32) as u32).to_le_bytes());
+                p += 2 * (has + c as usize);
                 let (sum, weighted) = word_sums(v);
                 a += sum;
                 b += (r - 8 - 8 * i as u64) * sum + weighted;
@@ -517,9 +528,9 @@ impl Bits {
         a += sum;
         b += weighted - (8 - t as u64) * sum;
         (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
-        // Then the symbols coded, eight at a time in four `put`s (two codes of at most
-        // `SYM_BITS` each), with one room check: each store is at most 6 bytes after the
-        // one before (the offsets masked to what they can be). Room for the row's bits:
+        // Then the symbols coded, eight at a time in four `put`s (two codes that can follow
+        // each other fit one), with one room check: each store is at most 7 bytes after
+        // the one before (the offsets masked to what they can be). Room for the row's bits:
         // at most 12 a byte (a literal's; a run of zeros takes fewer), the bits pending
         // and the 40 bytes the stores reach.
         let room = self.pos + 2 * len + 64 + 40;
@@ -535,9 +546,9 @@ impl Bits {
             let mut o = 0;
             for h in 0..4 {
                 let (e0, e1) = (e(2 * h), e(2 * h + 1));
-                let bits = u64::from(e0 >> 8) | u64::from(e1 >> 8) << (e0 & 0xff);
+                let bits = e0 >> 8 | (e1 >> 8) << (e0 & 0xff);
                 let x = acc | bits << nb;
-                let k = nb + (e0 & 0xff) + (e1 & 0xff);
+                let k = nb + (e0 & 0xff) as u32 + (e1 & 0xff) as u32;
                 win[o..o + 8].copy_from_slice(&x.to_le_bytes());
                 o = (o + (k / 8) as usize) & 31;
                 acc = x >> (k & 0x38);
@@ -774,9 +785,11 @@ impl RowDeflate {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
                     let s = 8 * i - 1;
-                    let v = sub_bytes(load(above, s), load(this, s));
+                    // One bounds check for the word above, read then cleared.
+                    let up: &mut [u8; 8] = (&mut above[s..s + 8]).try_into().expect("8 bytes");
+                    let v = sub_bytes(u64::from_le_bytes(*up), load(this, s));
                     if clear {
-                        above[s..s + 8].copy_from_slice(&[0; 8]);
+                        *up = [0; 8];
                     }
                     vals[i] = v;
                     bits |= u64::from(v != 0) << (i % 64);
@@ -1152,7 +1165,7 @@ mod tests {
         let f = Format::get();
         let entry = |s: u16| {
             let e = f.syms[usize::from(s)];
-            (u64::from(e >> 8), e & 0xff)
+            (e >> 8, (e & 0xff) as u32)
         };
         for b in 0..256u16 {
             assert_eq!(entry(b), f.sym(usize::from(b)), "literal {b}");
