@@ -13,10 +13,12 @@
 //! - an **inked row** is read in 8-byte words as `fdeflate` reads it, but only the words
 //!   that may hold ink; the words between are known to be zero and only lengthen the
 //!   current run of zeros, and their Adler-32 is updated arithmetically too. The words
-//!   are read twice: once to mark which are not all zero, then the marked ones are coded
-//!   without a branch on their bytes (a word's run of zeros from a table, its literals
-//!   all eight coded and cut to length, its bits stored whole), since on anti-aliased
-//!   ink the branches per word and per byte of `fdeflate`'s loop are mispredicted.
+//!   are read twice: once to mark which are not all zero, then the marked ones are
+//!   written as symbols without a branch on their bytes (a word's run of zeros one
+//!   symbol, its 8 bytes stored as literal symbols of which those up to its trailing
+//!   zeros are kept), since on anti-aliased ink the branches per word and per byte of
+//!   `fdeflate`'s loop are mispredicted; the row's symbols are then coded eight at a
+//!   time from one table, so a word's bits cost what its run and its few literals do.
 //!   A page's Up-filtered row is not even stored ([`RowDeflate::up_row`]): the words
 //!   that meet the ink marks of the row and the row above are filtered eight bytes at
 //!   once from the ink and go straight to the coder.
@@ -46,19 +48,26 @@ struct Format {
     /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
     /// and their number.
     zrun: [(u64, u32); ZRUN_MAX as usize + 1],
-    /// The bits of [`MATCHES`] matches of 258 zeros (one `put`), and the bits of one.
-    matches: (u64, u32),
+    /// The code of each symbol of a row's symbols ([`RUN`]), `code << 8 | len`; two
+    /// symbols that can follow each other fit a `put` (checked when it is made).
+    syms: [u64; SYMBOLS],
 }
 
-/// The longest run of zeros [`Format::zrun`] holds: a literal 0 and one match of 258.
-const ZRUN_MAX: u32 = 259;
+/// The longest run of zeros [`Format::zrun`] holds: a literal 0 and three matches of 258
+/// (its codes are checked to fit a put beside a literal's).
+const ZRUN_MAX: u32 = 3 * 258 + 1;
 
-/// The most bits of a run of zeros in [`Format::zrun`] (a word's run fits one
-/// [`Writer::put`]).
-const ZRUN_BITS: u32 = 24;
-
-/// Matches of 258 zeros put at once by [`Writer::zeros`].
-const MATCHES: u32 = 4;
+/// The symbols a row is first written as ([`Bits::coded`]), each coded by its entry in
+/// [`Format::syms`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
+/// (the bits of [`Format::zrun`]; `RUN` alone has no bits and pads); `MATCH` a match of
+/// 258 zeros; `REST + r` for `r < 258` the bits after the literal 0 of a run of `r + 1`
+/// zeros. A longer run of `z` zeros is the literal 0, `(z − 1) / 258` matches and
+/// `REST + (z − 1) % 258`, as `fdeflate` codes it ([`Bits::zeros_by_symbol`]).
+const RUN: u16 = 256;
+const MATCH: u16 = RUN + ZRUN_MAX as u16 + 1;
+const REST: u16 = MATCH + 1;
+/// The entries of [`Format::syms`] (a power of two: a symbol is masked into it).
+const SYMBOLS: usize = 2048;
 
 /// The most bits [`Bits::put`] takes at once.
 const PUT_MAX: u32 = 56;
@@ -158,33 +167,54 @@ impl Format {
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
-            matches: (0, 0),
+            syms: [0; SYMBOLS],
         };
-        // Literal codes are at most 12 bits (four to a `put`), literal 0's code is all
-        // zero bits ([`Bits::word`] relies on it), and a short run of zeros fits one `put`.
-        if len.iter().any(|&l| l > 12) || code[0] != 0 {
-            return None;
-        }
         let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
         for (z, e) in zrun.iter_mut().enumerate().skip(1) {
-            let mut b = Bits::new(Vec::new());
+            // Room for its bits (at most 8 bytes, checked below): no 64 KiB to grow.
+            let mut b = Bits::new(vec![0; 16]);
+            b.pos = 0;
             b.zeros_by_symbol(&f, z as u32);
             let (words, total) = b.into_words();
-            if total > u64::from(ZRUN_BITS) {
+            if total > 56 {
                 return None;
             }
             *e = (words[0], total as u32);
         }
         f.zrun = zrun;
+        // The symbols' codes.
+        let (zc, zl) = f.sym(0);
         let (c, l) = f.sym(285);
-        let one = l + u32::from(f.dist.1);
-        let m = c | u64::from(f.dist.0) << l;
-        // The literal 0 and fewer than `MATCHES` matches fit a `put` too.
-        if u32::from(f.len[0]) + MATCHES * one > PUT_MAX {
+        let one = (c | u64::from(f.dist.0) << l, l + u32::from(f.dist.1));
+        let mut syms = [(0u64, 0u32); SYMBOLS];
+        for (b, e) in syms.iter_mut().take(256).enumerate() {
+            *e = f.sym(b);
+        }
+        syms[usize::from(RUN)..usize::from(MATCH)].copy_from_slice(&f.zrun);
+        syms[usize::from(MATCH)] = one;
+        for r in 0..258 {
+            // A run of `r + 1` zeros is the literal 0, then these bits.
+            let (c, l) = f.zrun[r + 1];
+            if c & ((1 << zl) - 1) != zc {
+                return None;
+            }
+            syms[usize::from(REST) + r] = (c >> zl, l - zl);
+        }
+        // Two symbols that can follow each other fit a `put`: a run (of `RUN + z`) and
+        // a literal, or two of the literals, matches and rests. (A run is always next to
+        // literals, or to `RUN` alone, which has no bits, and so is a rest.)
+        let most = |r: std::ops::Range<u16>| {
+            let r = usize::from(r.start)..usize::from(r.end);
+            syms[r].iter().map(|e| e.1).max().unwrap_or(0)
+        };
+        let (lit, run) = (most(0..RUN), most(RUN..MATCH));
+        let other = most(MATCH..REST + 258).max(lit);
+        if run + lit > PUT_MAX || 2 * other > PUT_MAX {
             return None;
         }
-        let bits = (0..MATCHES).fold(0u64, |b, i| b | m << (i * one));
-        f.matches = (bits, one);
+        for (e, &(c, l)) in f.syms.iter_mut().zip(&syms) {
+            *e = c << 8 | u64::from(l);
+        }
         Some(f)
     }
 
@@ -408,27 +438,24 @@ impl Bits {
     fn coded(
         &mut self,
         f: &Format,
-        words: &RowWords,
+        words: &mut RowWords,
         n: usize,
         (rest, t): (u64, usize),
         adler: &mut Adler,
     ) {
-        let (vals, inked) = (&words.vals[..n], &words.inked[..n.div_ceil(64)]);
-        // Room for the row's bits: at most 12 a byte (a literal's; a run of zeros takes
-        // fewer), the bits pending and the 8 bytes a store writes past them.
+        let RowWords { vals, inked, syms } = words;
+        let (vals, inked) = (&vals[..n], &inked[..n.div_ceil(64)]);
         debug_assert!(t < 8 && rest.checked_shr(8 * t as u32).unwrap_or(0) == 0);
-        let len = 8 * n + t;
-        let room = self.pos + 2 * len + 64;
-        if self.out.len() < room {
-            self.out.resize(room.max(self.pos + (1 << 16)), 0);
+        // Room for the row's symbols, two bytes each: per word at most a long run (a
+        // literal 0, its matches — fewer than one per 32 words of zeros — and its rest),
+        // a padding run and 8 literals, then the row's last run, its rest and padding,
+        // and the 9 symbols a word's stores reach past its own.
+        let room = 2 * (12 * n + 64);
+        if syms.len() < room {
+            syms.resize(room, 0);
         }
-        // The writer and the sums in locals (registers) while the row is coded.
-        let mut w = Writer {
-            out: &mut self.out[..],
-            pos: self.pos,
-            acc: self.acc,
-            n: self.n,
-        };
+        let syms = &mut syms[..];
+        let len = 8 * n + t;
         // Adler-32 of the row after sums `(a₀, b₀)`: `a = a₀ + Σ xₚ` and
         // `b = b₀ + len·a₀ + Σ (len − p)·xₚ` over the row's bytes `xₚ`, so each word adds
         // its own terms, independent of the others. Reduced every 4096 words: in between
@@ -436,9 +463,9 @@ impl Bits {
         let r = len as u64;
         let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
         b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
-        // Bytes before `at` are coded; `run` zeros are pending.
-        let (mut at, mut run) = (0usize, 0u32);
-        let zl = u32::from(f.len[0]);
+        // First the row as symbols: the pending run of zeros starts at byte `zero` (the
+        // bytes before it are written) and the symbols are `syms[..p]`.
+        let (mut zero, mut p) = (0usize, 0usize);
         for (k, &m) in inked.iter().enumerate() {
             let mut m = m;
             while m != 0 {
@@ -447,31 +474,32 @@ impl Bits {
                 let v = vals[i];
                 // A pending run of zeros takes the word's leading zero bytes, the bytes
                 // up to its trailing zeros are literals, and the trailing zeros start the
-                // next run. No branch on the bytes: the run's bits come from a table (only
-                // runs longer than `ZRUN_MAX` take the long way), and the literals are the
-                // word shifted down past the run's bytes, all 8 bytes coded: the zero bytes
-                // shifted in code as zero bits (literal 0's code is all zeros), so they are
-                // cut off by their length alone.
-                run += (8 * i - at) as u32;
+                // next run. No branch on the bytes (only runs longer than `ZRUN_MAX` take
+                // the long way): the run is one symbol (none when the run is empty),
+                // and the literals are the word shifted down past the run's bytes, all 8
+                // stored as symbols, of which the `c` that are the word's are kept.
+                let run = (8 * i - zero) as u32;
                 let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
                 let from = if run > 0 { lead } else { 0 };
-                let z = if run > 0 { run + lead } else { 0 };
-                if z > ZRUN_MAX {
-                    w = w.zeros(f, z);
-                } else {
-                    let (zc, zn) = f.zrun[z as usize];
-                    w.put(zc, zn);
-                }
-                // The literals: bytes `from..8 − tail`, `c` of them, now bytes `0..c` of `u`.
-                let u = v >> (8 * from);
+                let z = run + from;
                 let c = 8 - tail - from;
-                let in_lo = c.min(4);
-                let (lo, nlo) = four(f, u as u32);
-                w.put(lo, nlo - zl * (4 - in_lo));
-                let (hi, nhi) = four(f, (u >> 32) as u32);
-                w.put(hi, nhi - zl * (4 - (c - in_lo)));
-                run = tail;
-                at = 8 * i + 8;
+                let u = v >> (8 * from);
+                zero = 8 * i + 8 - tail as usize;
+                let z = if z > ZRUN_MAX {
+                    p = long_run(syms, p, z);
+                    0
+                } else {
+                    z
+                };
+                // The run's symbol is kept only if the run is not empty.
+                let has = usize::from(z > 0);
+                let win: &mut [u8; 18] =
+                    (&mut syms[p..p + 18]).try_into().expect("room for a word");
+                win[..2].copy_from_slice(&(RUN + z as u16).to_le_bytes());
+                let lits = &mut win[2 * has..2 * has + 16];
+                lits[..8].copy_from_slice(&widen(u as u32).to_le_bytes());
+                lits[8..].copy_from_slice(&widen((u >> 32) as u32).to_le_bytes());
+                p += 2 * (has + c as usize);
                 let (sum, weighted) = word_sums(v);
                 a += sum;
                 b += (r - 8 - 8 * i as u64) * sum + weighted;
@@ -480,82 +508,83 @@ impl Bits {
                 (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
             }
         }
-        run += (8 * n - at) as u32;
-        if run > 0 {
-            w = w.zeros(f, run);
+        let run = (8 * n - zero) as u32;
+        p = if run > ZRUN_MAX {
+            long_run(syms, p, run)
+        } else {
+            syms[p..p + 2].copy_from_slice(&(RUN + run as u16).to_le_bytes());
+            p + 2
+        };
+        // The rest, each byte a literal (zeros too), then runs of none up to a multiple of
+        // eight symbols; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
+        let win: &mut [u8; 30] = (&mut syms[p..p + 30]).try_into().expect("room");
+        win[..8].copy_from_slice(&widen(rest as u32).to_le_bytes());
+        win[8..16].copy_from_slice(&widen((rest >> 32) as u32).to_le_bytes());
+        p += 2 * t;
+        for s in syms[p..p + 14].chunks_exact_mut(2) {
+            s.copy_from_slice(&RUN.to_le_bytes());
         }
-        // The rest, each byte a literal (zeros too): all 8 coded and cut to `t`, as a
-        // word's literals; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
-        let t = t as u32;
-        let in_lo = t.min(4);
-        let (lo, nlo) = four(f, rest as u32);
-        w.put(lo, nlo - zl * (4 - in_lo));
-        let (hi, nhi) = four(f, (rest >> 32) as u32);
-        w.put(hi, nhi - zl * (4 - (t - in_lo)));
         let (sum, weighted) = word_sums(rest);
         a += sum;
-        b += weighted - u64::from(8 - t) * sum;
+        b += weighted - (8 - t as u64) * sum;
         (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
-        (self.pos, self.acc, self.n) = (w.pos, w.acc, w.n);
-    }
-}
-
-/// The literal codes of the four bytes of `u` (the first in the low byte) and their
-/// length in bits (at most 48).
-#[inline(always)]
-fn four(f: &Format, u: u32) -> (u64, u32) {
-    let (mut bits, mut n) = (0u64, 0u32);
-    for i in 0..4 {
-        let b = usize::from((u >> (8 * i)) as u8);
-        bits |= u64::from(f.code[b]) << n;
-        n += u32::from(f.len[b]);
-    }
-    (bits, n)
-}
-
-/// [`Bits`]'s state while a row is coded, in locals: its buffer, with room for the row
-/// made beforehand, so that no `put` grows it.
-struct Writer<'a> {
-    out: &'a mut [u8],
-    pos: usize,
-    acc: u64,
-    n: u32,
-}
-
-impl Writer<'_> {
-    /// Appends the low `n ≤ PUT_MAX` bits of `bits` (the rest zero), as [`Bits::put`].
-    #[inline(always)]
-    fn put(&mut self, bits: u64, n: u32) {
-        debug_assert!(n <= PUT_MAX && self.n < 8 && bits.checked_shr(n).unwrap_or(0) == 0);
-        let acc = self.acc | bits << self.n;
-        let n = self.n + n;
-        self.out[self.pos..self.pos + 8].copy_from_slice(&acc.to_le_bytes());
-        let whole = n / 8;
-        self.pos += whole as usize;
-        self.acc = acc >> (8 * whole);
-        self.n = n - 8 * whole;
-    }
-
-    /// A run of `run ≥ 1` zeros, the bits of [`Bits::zeros_by_symbol`]: the literal 0
-    /// (its code is all zero bits) with the `q mod MATCHES` first of the `q` matches of
-    /// 258, then the others [`MATCHES`] to a `put`, and the rest from [`Format::zrun`] (a
-    /// run of `rest + 1` is the literal 0, then the rest's code). No loop for a run
-    /// shorter than `258·MATCHES + 1`.
-    /// The buffer must have room (a run costs well under a bit a zero, plus 64 bits).
-    #[inline(never)]
-    fn zeros(mut self, f: &Format, run: u32) -> Self {
-        let zl = u32::from(f.len[0]);
-        let (bits, one) = f.matches;
-        let (q, rest) = ((run - 1) / 258, (run - 1) % 258);
-        let first = (q % MATCHES) * one;
-        self.put((bits & ((1 << first) - 1)) << zl, zl + first);
-        for _ in 0..q / MATCHES {
-            self.put(bits, MATCHES * one);
+        // Then the symbols coded, eight at a time in four `put`s (two codes that can follow
+        // each other fit one), with one room check: each store is at most 7 bytes after
+        // the one before (the offsets masked to what they can be). Room for the row's bits:
+        // at most 12 a byte (a literal's; a run of zeros takes fewer), the bits pending
+        // and the 40 bytes the stores reach.
+        let room = self.pos + 2 * len + 64 + 40;
+        if self.out.len() < room {
+            self.out.resize(room.max(self.pos + (1 << 16)), 0);
         }
-        let (c, l) = f.zrun[rest as usize + 1];
-        self.put(c >> zl, l - zl);
-        self
+        let (out, tab) = (&mut self.out[..], &f.syms);
+        let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
+        for g in syms[..16 * (p / 2).div_ceil(8)].chunks_exact(16) {
+            let s = u128::from_le_bytes(g.try_into().expect("16 bytes"));
+            let e = |k: u32| tab[(s >> (16 * k)) as usize & (SYMBOLS - 1)];
+            let win: &mut [u8; 40] = (&mut out[pos..pos + 40]).try_into().expect("room");
+            let mut o = 0;
+            for h in 0..4 {
+                let (e0, e1) = (e(2 * h), e(2 * h + 1));
+                let bits = e0 >> 8 | (e1 >> 8) << (e0 & 0xff);
+                let x = acc | bits << nb;
+                let k = nb + (e0 & 0xff) as u32 + (e1 & 0xff) as u32;
+                win[o..o + 8].copy_from_slice(&x.to_le_bytes());
+                o = (o + (k / 8) as usize) & 31;
+                acc = x >> (k & 0x38);
+                nb = k & 7;
+            }
+            pos += o;
+        }
+        (self.pos, self.acc, self.n) = (pos, acc, nb);
     }
+}
+
+/// The four bytes of `x` (the first in the low byte) as four little-endian 16-bit
+/// symbols (the literals' own).
+#[inline(always)]
+fn widen(x: u32) -> u64 {
+    let x = u64::from(x);
+    let x = (x | x << 16) & 0x0000_ffff_0000_ffff;
+    (x | x << 8) & 0x00ff_00ff_00ff_00ff
+}
+
+/// A run of `z ≥ 1` zeros as symbols at byte `p` of `syms` (the literal 0, a match per
+/// whole 258 after it, and the rest; see [`RUN`]); gives the position after them.
+#[cold]
+#[inline(never)]
+fn long_run(syms: &mut [u8], mut p: usize, z: u32) -> usize {
+    let (q, r) = ((z - 1) / 258, (z - 1) % 258);
+    let mut put = |s: u16| {
+        syms[p..p + 2].copy_from_slice(&s.to_le_bytes());
+        p += 2;
+    };
+    put(0);
+    for _ in 0..q {
+        put(MATCH);
+    }
+    put(REST + r as u16);
+    p
 }
 
 /// The whole 8-byte words of the row being coded: a bit per word in `inked`, set for the
@@ -565,6 +594,8 @@ impl Writer<'_> {
 pub(crate) struct RowWords {
     vals: Vec<u64>,
     inked: Vec<u64>,
+    /// The row's symbols ([`RUN`]), two bytes each, little-endian.
+    syms: Vec<u8>,
 }
 
 impl RowWords {
@@ -754,9 +785,11 @@ impl RowDeflate {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
                     let s = 8 * i - 1;
-                    let v = sub_bytes(load(above, s), load(this, s));
+                    // One bounds check for the word above, read then cleared.
+                    let up: &mut [u8; 8] = (&mut above[s..s + 8]).try_into().expect("8 bytes");
+                    let v = sub_bytes(u64::from_le_bytes(*up), load(this, s));
                     if clear {
-                        above[s..s + 8].copy_from_slice(&[0; 8]);
+                        *up = [0; 8];
                     }
                     vals[i] = v;
                     bits |= u64::from(v != 0) << (i % 64);
@@ -772,7 +805,7 @@ impl RowDeflate {
             (v.checked_shr(8 * (8 - t) as u32).unwrap_or(0), t)
         };
         self.bits
-            .coded(self.f, &self.words, n, (rest, t), &mut self.adler);
+            .coded(self.f, &mut self.words, n, (rest, t), &mut self.adler);
     }
 
     /// `count` blank rows of `len` bytes: filter type `filter`, then zeros.
@@ -1092,13 +1125,13 @@ mod tests {
         }
     }
 
-    /// Runs of zeros of every length up to past `258·MATCHES·2`, between inked words, at
+    /// Runs of zeros of every length up to past `258·8` (up to 9 matches), between inked words, at
     /// the start and at the end of rows: each coded as `fdeflate` codes it.
     #[test]
     fn runs_of_every_length_match() {
         let mut rows = Vec::new();
         let mut z = RowDeflate::new(Vec::new());
-        for run in 1..2 * 258 * MATCHES as usize + 300 {
+        for run in 1..258 * 8 + 300 {
             let mut row = vec![0u8; 16 + run + 9];
             row[0] = 2;
             row[15] = 7;
@@ -1122,5 +1155,64 @@ mod tests {
         let mut want = vec![1, 2, 3];
         want.extend(reference(&[vec![0]]));
         assert_eq!(z.finish(), want);
+    }
+
+    /// The symbol table's codes: each literal's is its code in `fdeflate`'s header, and
+    /// every run of zeros up to past `258·8`, as symbols ([`RUN`], or the long way), has
+    /// the bits `fdeflate` gives it ([`Bits::zeros_by_symbol`]).
+    #[test]
+    fn symbols_code_as_the_header_says() {
+        let f = Format::get();
+        let entry = |s: u16| {
+            let e = f.syms[usize::from(s)];
+            (e >> 8, (e & 0xff) as u32)
+        };
+        for b in 0..256u16 {
+            assert_eq!(entry(b), f.sym(usize::from(b)), "literal {b}");
+        }
+        for z in 1..258 * 8 + 300u32 {
+            let mut want = Bits::new(Vec::new());
+            want.zeros_by_symbol(f, z);
+            let mut syms = vec![0u8; 2 * (z as usize / 258 + 4)];
+            let end = if z > ZRUN_MAX {
+                long_run(&mut syms, 0, z)
+            } else {
+                syms[..2].copy_from_slice(&(RUN + z as u16).to_le_bytes());
+                2
+            };
+            let mut got = Bits::new(Vec::new());
+            for s in syms[..end].chunks_exact(2) {
+                let (c, l) = entry(u16::from_le_bytes([s[0], s[1]]));
+                got.put(c, l);
+            }
+            assert_eq!(got.into_words(), want.into_words(), "a run of {z}");
+        }
+    }
+
+    /// Rows where the symbols' codes are as long as they get (the longest literal, after
+    /// the runs with the longest codes, at every offset of a word): the stores of eight
+    /// symbols reach furthest from where they start, and the stream is `fdeflate`'s.
+    #[test]
+    fn the_longest_codes_match() {
+        let f = Format::get();
+        let longest = |r: std::ops::Range<usize>| r.max_by_key(|&s| f.len[s]).unwrap();
+        let b = longest(1..256) as u8;
+        let z = (1..=ZRUN_MAX as usize)
+            .max_by_key(|&z| f.zrun[z].1)
+            .unwrap();
+        let mut rows = Vec::new();
+        let mut coder = RowDeflate::new(Vec::new());
+        for lits in 1..20 {
+            for lead in 0..8 {
+                let mut row = vec![b; 1 + lead];
+                for _ in 0..12 {
+                    row.extend(std::iter::repeat_n(0, z));
+                    row.extend(std::iter::repeat_n(b, lits));
+                }
+                coder.row(&row, std::iter::once((0, row.len())));
+                rows.push(row);
+            }
+        }
+        assert!(coder.finish() == reference(&rows), "streams differ");
     }
 }
