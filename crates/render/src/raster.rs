@@ -9,7 +9,7 @@ use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
 };
-use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePoint};
+use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePoint, Shaper};
 use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
@@ -28,6 +28,8 @@ pub struct RasterPage {
     px_per_pt: f64,
     dpi: f64,
     font: FontRef<'static>,
+    /// The labels' shaping, its look-ups kept from page to page.
+    shaper: Shaper,
     ink: Ink,
     /// Gray waiting to be composited.
     gray: GrayLayer,
@@ -106,6 +108,7 @@ impl RasterPage {
             px_per_pt: dpi / PT_PER_INCH,
             dpi,
             font: font::embedded_font(),
+            shaper: Shaper::new(),
             ink: Ink::Black,
             gray: GrayLayer::new(width_px as usize, height_px as usize),
             dirty: Dirty::new(width_px as usize, height_px as usize),
@@ -948,7 +951,7 @@ impl RasterPage {
         // since the halos were introduced: both kept as they are, byte for byte).
         let (origin, em, r, glyphs) = match halo {
             Some(halo) => {
-                let (glyphs, advance) = font::shape_line(&self.font, size, text);
+                let (glyphs, advance) = self.shaper.shape_line(size, text);
                 let x = anchored_x(pos[0], advance, anchor);
                 let r = (halo * k) as f32;
                 if r.is_nan() || r <= 0.0 {
@@ -959,7 +962,7 @@ impl RasterPage {
             }
             None => {
                 let size_px = size * k;
-                let (glyphs, advance) = font::shape_line(&self.font, size_px, text);
+                let (glyphs, advance) = self.shaper.shape_line(size_px, text);
                 let x0 = anchored_x(pos[0] * k, advance, anchor);
                 ((x0, 1.0), size_px as f32, 0.0, glyphs)
             }
