@@ -15,6 +15,7 @@ use crate::linkage::{Circuit, CouplerPoint};
 use crate::mechanism::Mechanism;
 use crate::pose::CrankAngle;
 use nalgebra::{Point2, Vector2};
+use std::cell::RefCell;
 
 /// Default dash step Δ in crank degrees (Hartenberg & Denavit's redrawn atlas): the one
 /// default of `[sampling] dash_deg`, by which pages draw and the index counts dashes.
@@ -194,6 +195,51 @@ struct Sampler<'a, M: Mechanism> {
     circuit: Circuit,
     point: CouplerPoint,
     warp: &'a dyn Fn(f64) -> f64,
+    /// The frames of the angles already solved, shared by the curves of several points
+    /// ([`dash_curves`]; the identity warp only), or `None`.
+    frames: Option<&'a RefCell<FrameCache>>,
+}
+
+/// Bisection nodes of a dash interval whose frames [`FrameCache`] keeps: node 1 is the
+/// interval's midpoint, nodes `2n` and `2n + 1` the midpoints of node `n`'s halves, so
+/// nodes below 128 are the midpoints down to depth 6 (deeper ones are solved each time).
+const CACHED_NODES: usize = 128;
+
+/// Slots of one dash in [`FrameCache`]: slot 0 its start, slots `1..CACHED_NODES` the
+/// bisection nodes, the last its end.
+const DASH_SLOTS: usize = CACHED_NODES + 1;
+
+/// The frames [`dash_curve`] solves for one mechanism and dash pattern, by dash and
+/// bisection node. Every point's sampler visits the same crank angles (the dash ends and
+/// the midpoints of the same halvings, the same `f64`s whatever the point), only more or
+/// fewer of them, and a frame depends on the angle alone: a frame solved for one point
+/// is the frame every other point would solve there, to the bit.
+#[derive(Default)]
+struct FrameCache {
+    /// Per slot, 1 + the frame's index in `frames`, or 0 when not solved yet.
+    slot: Vec<u32>,
+    frames: Vec<CouplerFrame>,
+}
+
+impl FrameCache {
+    fn new(dashes: usize) -> FrameCache {
+        FrameCache {
+            slot: vec![0; dashes * DASH_SLOTS],
+            frames: Vec::new(),
+        }
+    }
+
+    fn get(&self, slot: usize) -> Option<CouplerFrame> {
+        let i = *self.slot.get(slot)? as usize;
+        (i > 0).then(|| self.frames[i - 1])
+    }
+
+    fn put(&mut self, slot: usize, f: CouplerFrame) {
+        if let Some(s) = self.slot.get_mut(slot) {
+            self.frames.push(f);
+            *s = self.frames.len() as u32;
+        }
+    }
 }
 
 impl<M: Mechanism> Sampler<'_, M> {
@@ -211,10 +257,32 @@ impl<M: Mechanism> Sampler<'_, M> {
         Ok(self.pose(deg)?.point(self.point))
     }
 
+    /// [`Sampler::at`] the angle of cache slot `slot` (`None`: not kept), from the cache
+    /// when it holds that frame.
+    fn at_slot(&self, slot: Option<usize>, deg: f64) -> Result<Point2<f64>, DashError> {
+        let (Some(cache), Some(slot)) = (self.frames, slot) else {
+            return self.at(deg);
+        };
+        let cached = cache.borrow().get(slot);
+        let f = match cached {
+            Some(f) => f,
+            None => {
+                let f = self.pose(deg)?;
+                cache.borrow_mut().put(slot, f);
+                f
+            }
+        };
+        Ok(f.point(self.point))
+    }
+
     /// Appends the points after `p0` on `[t0, t1]` (excluding `p0`, including `p1`),
     /// bisecting while the mid-sample (or the quarter samples) strays from the chord by
     /// more than `tol`. Checking the quarter points as well as the midpoint catches an
     /// inflection whose midpoint happens to lie on the chord.
+    ///
+    /// `node` is the interval's bisection node in the dash whose cache slots start at
+    /// `base` ([`CACHED_NODES`]; `None` without a cache): the midpoint is that node, the
+    /// quarter points its children's.
     #[allow(clippy::too_many_arguments)]
     fn refine(
         &self,
@@ -224,15 +292,20 @@ impl<M: Mechanism> Sampler<'_, M> {
         p1: Point2<f64>,
         tol: f64,
         depth: u32,
+        node: Option<(usize, usize)>,
         out: &mut Vec<Point2<f64>>,
     ) -> Result<(), DashError> {
+        // The cache slot of node `n` (its children `2n`, `2n + 1`), if kept.
+        let slot = |n: usize| node.and_then(|(base, _)| (n < CACHED_NODES).then_some(base + n));
+        let child = |c: usize| node.map(|(base, n)| (base, 2 * n + c));
+        let n = node.map_or(0, |(_, n)| n);
         let tm = 0.5 * (t0 + t1);
-        let pm = self.at((self.warp)(tm))?;
+        let pm = self.at_slot(slot(n), (self.warp)(tm))?;
         let mut err = distance_to_segment(pm, p0, p1);
         if err <= tol && depth < 2 {
             // Cheap extra check on coarse pieces: the quarter points.
-            let q1 = self.at((self.warp)(0.5 * (t0 + tm)))?;
-            let q3 = self.at((self.warp)(0.5 * (tm + t1)))?;
+            let q1 = self.at_slot(slot(2 * n), (self.warp)(0.5 * (t0 + tm)))?;
+            let q3 = self.at_slot(slot(2 * n + 1), (self.warp)(0.5 * (tm + t1)))?;
             err = err
                 .max(distance_to_segment(q1, p0, p1))
                 .max(distance_to_segment(q3, p0, p1));
@@ -241,8 +314,8 @@ impl<M: Mechanism> Sampler<'_, M> {
             out.push(p1);
             return Ok(());
         }
-        self.refine(t0, p0, tm, pm, tol, depth + 1, out)?;
-        self.refine(tm, pm, t1, p1, tol, depth + 1, out)
+        self.refine(t0, p0, tm, pm, tol, depth + 1, child(0), out)?;
+        self.refine(tm, pm, t1, p1, tol, depth + 1, child(1), out)
     }
 }
 
@@ -267,6 +340,41 @@ pub fn dash_curve<M: Mechanism>(
     pattern: &DashPattern,
     tolerance: f64,
 ) -> Result<DashedCurve, DashError> {
+    dash_curve_with(linkage, circuit, point, pattern, tolerance, None)
+}
+
+/// [`dash_curve`] of each of `points` on one mechanism, in order: the same curves to the
+/// bit (and the first point's error, if any), for less work. The curves visit the same
+/// crank angles, so each angle's frame is solved once for all of them (up to a depth of
+/// bisection; the few deeper pieces are solved per point).
+pub fn dash_curves<M: Mechanism>(
+    linkage: &M,
+    circuit: Circuit,
+    points: &[CouplerPoint],
+    pattern: &DashPattern,
+    tolerance: f64,
+) -> Result<Vec<DashedCurve>, DashError> {
+    let turns = (linkage.period_deg() / 360.0).round().max(1.0) as usize;
+    let dashes = if pattern.validate().is_ok() {
+        pattern.count() * turns
+    } else {
+        0
+    };
+    let cache = RefCell::new(FrameCache::new(dashes));
+    points
+        .iter()
+        .map(|&p| dash_curve_with(linkage, circuit, p, pattern, tolerance, Some(&cache)))
+        .collect()
+}
+
+fn dash_curve_with<M: Mechanism>(
+    linkage: &M,
+    circuit: Circuit,
+    point: CouplerPoint,
+    pattern: &DashPattern,
+    tolerance: f64,
+    frames: Option<&RefCell<FrameCache>>,
+) -> Result<DashedCurve, DashError> {
     pattern.validate()?;
     if !(tolerance.is_finite() && tolerance > 0.0) {
         return Err(DashError::BadTolerance(tolerance));
@@ -276,6 +384,7 @@ pub fn dash_curve<M: Mechanism>(
         circuit,
         point,
         warp: &|t| t,
+        frames,
     };
     // Over the mechanism's whole period: one turn for a four-bar, q turns for a geared
     // five-bar of gear ratio p/q (one dash per Δ of input all the way).
@@ -285,10 +394,11 @@ pub fn dash_curve<M: Mechanism>(
     let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
     for k in 0..count {
         let (t0, t1) = pattern.interval(k);
-        let p0 = s.at(t0)?;
-        let p1 = s.at(t1)?;
+        let base = k * DASH_SLOTS;
+        let p0 = s.at_slot(Some(base), t0)?;
+        let p1 = s.at_slot(Some(base + CACHED_NODES), t1)?;
         let mut points = vec![p0];
-        s.refine(t0, p0, t1, p1, tolerance, 0, &mut points)?;
+        s.refine(t0, p0, t1, p1, tolerance, 0, Some((base, 1)), &mut points)?;
         for p in &points {
             bbox = [
                 bbox[0].min(p.x),
@@ -439,6 +549,7 @@ fn dash_leg_intervals<M: Mechanism>(
             circuit,
             point,
             warp: &warp,
+            frames: None,
         };
         let (p_a, p_b) = (s.at(a)?, s.at(b)?);
         let (t0, t1, p0, p1, s0, s1) = if to_deg >= from_deg {
@@ -447,7 +558,7 @@ fn dash_leg_intervals<M: Mechanism>(
             (b, a, p_b, p_a, 1.0, 0.0)
         };
         let mut points = vec![p0];
-        s.refine(s0, p0, s1, p1, tolerance, 0, &mut points)?;
+        s.refine(s0, p0, s1, p1, tolerance, 0, None, &mut points)?;
         dashes.push(Dash {
             index: k,
             theta_start: t0,
@@ -703,5 +814,80 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `dash_curves` gives each point's `dash_curve`, bit for bit (the `Debug` text of
+    /// every `f64`, sign of zero included), on four-bars and geared five-bars (a period of
+    /// two turns among them), points near and far, tolerances that bisect past the
+    /// cached depth; and the first point's error where one does not assemble.
+    #[test]
+    fn curves_dashed_together_are_each_dashed_alone() {
+        use crate::geared::{GearRatio, GearedFiveBar};
+        use crate::mechanism::Linkage;
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut unit = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let linkages = [
+            Linkage::FourBar(FourBar::new(3.0, 2.0, 3.0).unwrap()),
+            Linkage::FourBar(FourBar::new(2.5, 3.5, 3.0).unwrap()),
+            Linkage::FourBar(FourBar::new(4.0, 2.5, 4.5).unwrap()),
+            Linkage::GearedFiveBar(
+                GearedFiveBar::new(2.0, 2.5, 2.5, 1.0, GearRatio::integer(-1).unwrap(), 180.0)
+                    .unwrap(),
+            ),
+            Linkage::GearedFiveBar(
+                GearedFiveBar::new(2.5, 2.2, 2.4, 0.8, GearRatio::new(3, 2).unwrap(), 30.0)
+                    .unwrap(),
+            ),
+        ];
+        let (mut ok, mut deep) = (0, 0);
+        for l in &linkages {
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                for tol in [3e-2, 1e-3, 2e-5, 1e-7] {
+                    let points: Vec<CouplerPoint> = (0..6)
+                        .map(|_| CouplerPoint::new(6.0 * unit() - 3.0, 6.0 * unit() - 3.0))
+                        .collect();
+                    let pat = DashPattern::default();
+                    let together = dash_curves(l, circuit, &points, &pat, tol);
+                    let alone: Result<Vec<_>, _> = points
+                        .iter()
+                        .map(|&p| dash_curve(l, circuit, p, &pat, tol))
+                        .collect();
+                    assert_eq!(format!("{together:?}"), format!("{alone:?}"));
+                    if let Ok(curves) = &alone {
+                        ok += 1;
+                        // More than 2⁶ pieces in a dash: bisected past the cached nodes.
+                        deep += usize::from(
+                            curves
+                                .iter()
+                                .any(|c| c.dashes.iter().any(|d| d.points.len() > 65)),
+                        );
+                    }
+                }
+            }
+        }
+        assert!(ok >= 16 && deep >= 4, "{ok} sets dashed, {deep} deep");
+        // No points, and a bad pattern or tolerance: as each alone.
+        let l = &linkages[0];
+        assert!(
+            matches!(dash_curves(l, Circuit::Open, &[], &DashPattern::default(), 1e-3), Ok(v) if v.is_empty())
+        );
+        let p = [CouplerPoint::new(1.0, 1.0)];
+        let bad = DashPattern {
+            step_deg: 7.0,
+            fraction: 0.5,
+        };
+        assert_eq!(
+            dash_curves(l, Circuit::Open, &p, &bad, 1e-3).unwrap_err(),
+            dash_curve(l, Circuit::Open, p[0], &bad, 1e-3).unwrap_err()
+        );
+        assert_eq!(
+            dash_curves(l, Circuit::Open, &p, &DashPattern::default(), 0.0).unwrap_err(),
+            DashError::BadTolerance(0.0)
+        );
     }
 }

@@ -34,8 +34,8 @@ pub use curve::{
 };
 pub use dash::{
     DEFAULT_CHORD_TOLERANCE, DEFAULT_DASH_FRACTION, DEFAULT_DASH_STEP_DEG, Dash, DashError,
-    DashPattern, DashedCurve, MAX_SUBDIVISION_DEPTH, dash_curve, dash_leg, dash_leg_from,
-    distance_to_segment,
+    DashPattern, DashedCurve, MAX_SUBDIVISION_DEPTH, dash_curve, dash_curves, dash_leg,
+    dash_leg_from, distance_to_segment,
 };
 pub use dd::Dd;
 pub use exact::{Decimal, DecimalError, divides_turn};

@@ -25,7 +25,7 @@ use crate::page::{
 use coupler_features::CurveFeatures;
 use coupler_kinematics::{
     AngleTables, Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, DashedCurve, Drawing,
-    Linkage, Mechanism, PoseTable, dash_curve,
+    Linkage, Mechanism, PoseTable, dash_curves,
 };
 
 /// Crank angle (degrees) at which the linkage is drawn: θ = 0, so every coupler point of
@@ -191,11 +191,14 @@ fn compute_page_from<M: Mechanism>(
     let (transform, inset, frame, orientation) = best.expect("at least one orientation");
     let scale = transform.scale;
     let tol_world = setup.chord_tolerance_px / setup.px_per_pt() / scale;
-    let curves = page
-        .points
-        .iter()
-        .map(|p| dash_curve(&page.linkage, page.circuit, *p, &setup.dash, tol_world))
-        .collect::<Result<Vec<_>, _>>()?;
+    // Every curve of the page dashed with the frames of the angles solved once.
+    let curves = dash_curves(
+        &page.linkage,
+        page.circuit,
+        &page.points,
+        &setup.dash,
+        tol_world,
+    )?;
     Ok(PageGeometry {
         curves,
         transform,

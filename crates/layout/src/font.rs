@@ -54,6 +54,85 @@ pub fn shape_line(font: &FontRef<'_>, size: f64, text: &str) -> (Vec<PlacedGlyph
     (out, x)
 }
 
+/// [`shape_line`] with the embedded font, each ASCII character's glyph id and advance
+/// and each ASCII pair's kerning looked up once and kept (a few table searches per
+/// character and pair otherwise): the same values, so the same glyphs and positions to
+/// the bit. Other characters are looked up each time.
+pub struct Shaper {
+    font: FontRef<'static>,
+    upem: f64,
+    /// Per ASCII character: its glyph id and unscaled advance.
+    ascii: Vec<(GlyphId, f32)>,
+    /// Per ASCII pair `(a, b)` at `128·a + b`: the unscaled kerning, NaN until looked up.
+    kern: Vec<f32>,
+}
+
+impl Default for Shaper {
+    fn default() -> Self {
+        Shaper::new()
+    }
+}
+
+impl Shaper {
+    /// A shaper of the embedded font.
+    pub fn new() -> Shaper {
+        let font = embedded_font();
+        let ascii = (0..128u8)
+            .map(|c| {
+                let id = font.glyph_id(char::from(c));
+                (id, font.h_advance_unscaled(id))
+            })
+            .collect();
+        Shaper {
+            upem: f64::from(font.units_per_em().unwrap_or(2048.0)),
+            font,
+            ascii,
+            kern: vec![f32::NAN; 128 * 128],
+        }
+    }
+
+    /// The embedded font.
+    pub fn font(&self) -> &FontRef<'static> {
+        &self.font
+    }
+
+    /// [`shape_line`]`(font, size, text)` of the embedded font.
+    pub fn shape_line(&mut self, size: f64, text: &str) -> (Vec<PlacedGlyph>, f64) {
+        let k = size / self.upem;
+        let mut out = Vec::with_capacity(text.len());
+        let mut x = 0.0;
+        // The previous glyph, and its ASCII code if it has one.
+        let mut prev: Option<(GlyphId, Option<usize>)> = None;
+        for ch in text.chars() {
+            let code = ch.is_ascii().then_some(ch as usize);
+            let (id, advance) = match code {
+                Some(c) => self.ascii[c],
+                None => {
+                    let id = self.font.glyph_id(ch);
+                    (id, self.font.h_advance_unscaled(id))
+                }
+            };
+            if let Some((p, pc)) = prev {
+                let kern = match (pc, code) {
+                    (Some(a), Some(b)) => {
+                        let kept = &mut self.kern[128 * a + b];
+                        if kept.is_nan() {
+                            *kept = self.font.kern_unscaled(p, id);
+                        }
+                        *kept
+                    }
+                    _ => self.font.kern_unscaled(p, id),
+                };
+                x += f64::from(kern) * k;
+            }
+            out.push(PlacedGlyph { id, x });
+            x += f64::from(advance) * k;
+            prev = Some((id, code));
+        }
+        (out, x)
+    }
+}
+
 /// Advance width of `text` at em size `size`.
 pub fn text_width(size: f64, text: &str) -> f64 {
     shape_line(&embedded_font(), size, text).1
@@ -148,5 +227,46 @@ mod tests {
         assert!((w20 - 2.0 * w10).abs() < 1e-9);
         assert!(ascent(10.0) > 7.0 && descent(10.0) > 1.0);
         assert!(!text_outline(10.0, [0.0, 0.0], "θ (u, v)").is_empty());
+    }
+
+    /// The shaper's glyphs and positions are `shape_line`'s, bit for bit: every ASCII
+    /// pair (kerned or not), at several sizes, and strings with characters beyond ASCII.
+    #[test]
+    fn the_shaper_shapes_as_shape_line() {
+        let font = embedded_font();
+        let mut shaper = Shaper::new();
+        let bits = |(g, w): (Vec<PlacedGlyph>, f64)| {
+            let g: Vec<(u16, u64)> = g.iter().map(|p| (p.id.0, p.x.to_bits())).collect();
+            (g, w.to_bits())
+        };
+        let mut texts: Vec<String> = Vec::new();
+        for a in 0..128u8 {
+            let row: String = (0..128u8)
+                .flat_map(|b| [char::from(a), char::from(b)])
+                .collect();
+            texts.push(row);
+        }
+        texts.extend(
+            [
+                "AV To (0.25, −1.5)",
+                "θ = 0°, λ = 3/2",
+                "S 23°",
+                "",
+                "Wa.",
+                "éAVé",
+            ]
+            .map(String::from),
+        );
+        for size in [8.0, 7.0 * 300.0 / 72.0, 11.3] {
+            for t in &texts {
+                assert_eq!(
+                    bits(shaper.shape_line(size, t)),
+                    bits(shape_line(&font, size, t)),
+                    "{t:?} at {size}"
+                );
+            }
+        }
+        // Kerning is there to keep: some ASCII pairs kern.
+        assert!(shaper.kern.iter().any(|&k| k != 0.0 && !k.is_nan()));
     }
 }

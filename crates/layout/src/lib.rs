@@ -27,8 +27,8 @@ pub use classic::{
 };
 pub use contents::{ContentsEntry, ContentsPage, layout_contents};
 pub use font::{
-    FONT_BYTES, FONT_FAMILY, OutlineCmd, PlacedGlyph, ascent, descent, embedded_font, px_scale,
-    shape_line, text_outline, text_width,
+    FONT_BYTES, FONT_FAMILY, OutlineCmd, PlacedGlyph, Shaper, ascent, descent, embedded_font,
+    px_scale, shape_line, text_outline, text_width,
 };
 pub use labels::{own_dot_is_nearest, rect_distance};
 pub use page::{

@@ -9,7 +9,7 @@ use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
 };
-use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePoint};
+use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePoint, Shaper};
 use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
@@ -28,6 +28,8 @@ pub struct RasterPage {
     px_per_pt: f64,
     dpi: f64,
     font: FontRef<'static>,
+    /// The labels' shaping, its look-ups kept from page to page.
+    shaper: Shaper,
     ink: Ink,
     /// Gray waiting to be composited.
     gray: GrayLayer,
@@ -106,6 +108,7 @@ impl RasterPage {
             px_per_pt: dpi / PT_PER_INCH,
             dpi,
             font: font::embedded_font(),
+            shaper: Shaper::new(),
             ink: Ink::Black,
             gray: GrayLayer::new(width_px as usize, height_px as usize),
             dirty: Dirty::new(width_px as usize, height_px as usize),
@@ -340,30 +343,27 @@ impl RasterPage {
         let columns: Vec<f64> = (i0..i1).map(|i| cover(x0, x1, i)).collect();
         let first = self.first;
         let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
+        if ink_of != Ink::Paper {
+            let rows = &mut data[(j0 - first) * stride..(j1 - first) * stride];
+            fill_rect_rows(
+                rows,
+                stride,
+                i0,
+                &columns,
+                |j| cover(y0, y1, j0 + j),
+                ink_of,
+            );
+            return;
+        }
         for j in j0..j1 {
             let cy = cover(y0, y1, j);
             let row = &mut data[(j - first) * stride..(j - first + 1) * stride];
-            let mut span = |a: usize, b: usize| {
-                for (px, cx) in row[a..b].iter_mut().zip(&columns[a - i0..b - i0]) {
-                    let c = cx * cy;
-                    if ink_of == Ink::Black {
-                        let ink = f64::from(*px);
-                        *px = (ink + (255.0 - ink) * c + 0.5).min(255.0) as u8;
-                    } else {
-                        *px = composite(*px, (c * 255.0 + 0.5).min(255.0) as u8, ink_of);
-                    }
+            // Paper changes only pixels with ink: the marked blocks.
+            for (a, b) in self.dirty.row_pair_spans(j) {
+                let (a, b) = (a.max(i0), b.min(i1));
+                if a < b {
+                    rect_span(&mut row[a..b], &columns[a - i0..b - i0], cy, ink_of);
                 }
-            };
-            if ink_of == Ink::Paper {
-                // Paper changes only pixels with ink: the marked blocks.
-                for (a, b) in self.dirty.row_pair_spans(j) {
-                    let (a, b) = (a.max(i0), b.min(i1));
-                    if a < b {
-                        span(a, b);
-                    }
-                }
-            } else {
-                span(i0, i1);
             }
         }
     }
@@ -569,6 +569,63 @@ fn lerp_white(d: u8, c: u8) -> u8 {
 /// Composites coverage `c` (0..=255) of `ink` over the page's ink `dst` (0 paper, 255
 /// black), in integers (deterministic): black and grays overprint (`dst + (255 − dst)·c·g`,
 /// never lighter), paper erases (`dst·(1 − c)`).
+/// A rectangle's pixels on one row: `px[i]` covered `columns[i] · cy` in `ink`.
+#[inline]
+fn rect_span(px: &mut [u8], columns: &[f64], cy: f64, ink: Ink) {
+    for (px, cx) in px.iter_mut().zip(columns) {
+        let c = cx * cy;
+        if ink == Ink::Black {
+            let ink = f64::from(*px);
+            *px = (ink + (255.0 - ink) * c + 0.5).min(255.0) as u8;
+        } else {
+            *px = composite(*px, (c * 255.0 + 0.5).min(255.0) as u8, ink);
+        }
+    }
+}
+
+/// Widest rectangle (pixels) whose rows [`fill_rect_rows`] remembers.
+const RECT_MEMO: usize = 16;
+
+/// A rectangle's rows `rows` (`stride` pixels each), columns `i0..i0 + columns.len()`,
+/// each row `j` covered `cy(j)` in `ink` ([`rect_span`]; not paper). A row is a pure
+/// function of its pixels before and its `cy`, so a row that holds the bytes the row
+/// before held and has the same `cy` (a tall, narrow rectangle's rows over blank or
+/// evenly inked paper: the frame's sides) takes the row before's result, not its
+/// arithmetic again.
+fn fill_rect_rows(
+    rows: &mut [u8],
+    stride: usize,
+    i0: usize,
+    columns: &[f64],
+    cy: impl Fn(usize) -> f64,
+    ink: Ink,
+) {
+    let n = columns.len();
+    let i1 = i0 + n;
+    // The row before: its `cy` (bits), its pixels before and after.
+    let mut memo: Option<(u64, [u8; RECT_MEMO], [u8; RECT_MEMO])> = None;
+    for (j, row) in rows.chunks_exact_mut(stride).enumerate() {
+        let cy = cy(j);
+        let px = &mut row[i0..i1];
+        if n > RECT_MEMO {
+            rect_span(px, columns, cy, ink);
+            continue;
+        }
+        if let Some((bits, before, after)) = &memo {
+            if *bits == cy.to_bits() && px[..] == before[..n] {
+                px.copy_from_slice(&after[..n]);
+                continue;
+            }
+        }
+        let mut before = [0; RECT_MEMO];
+        before[..n].copy_from_slice(px);
+        rect_span(px, columns, cy, ink);
+        let mut after = [0; RECT_MEMO];
+        after[..n].copy_from_slice(px);
+        memo = Some((cy.to_bits(), before, after));
+    }
+}
+
 fn composite(dst: u8, c: u8, ink: Ink) -> u8 {
     match ink {
         Ink::Paper => {
@@ -894,7 +951,7 @@ impl RasterPage {
         // since the halos were introduced: both kept as they are, byte for byte).
         let (origin, em, r, glyphs) = match halo {
             Some(halo) => {
-                let (glyphs, advance) = font::shape_line(&self.font, size, text);
+                let (glyphs, advance) = self.shaper.shape_line(size, text);
                 let x = anchored_x(pos[0], advance, anchor);
                 let r = (halo * k) as f32;
                 if r.is_nan() || r <= 0.0 {
@@ -905,7 +962,7 @@ impl RasterPage {
             }
             None => {
                 let size_px = size * k;
-                let (glyphs, advance) = font::shape_line(&self.font, size_px, text);
+                let (glyphs, advance) = self.shaper.shape_line(size_px, text);
                 let x0 = anchored_x(pos[0] * k, advance, anchor);
                 ((x0, 1.0), size_px as f32, 0.0, glyphs)
             }
@@ -1394,6 +1451,61 @@ mod tests {
     use super::*;
     use crate::draw;
     use coupler_layout::{DisplayList, Primitive};
+
+    /// A rectangle's rows filled with the row before's result where it applies are the
+    /// rows each blended on its own: tall and wide rectangles with fractional edges (a
+    /// first and last row of their own `cy`) over rows that repeat, in runs, and change,
+    /// in black and grays.
+    #[test]
+    fn rect_rows_remembered_are_each_blended() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let stride = 40;
+        let mut remembered = 0;
+        for case in 0..400 {
+            let n = 1 + (next() % 20) as usize;
+            let i0 = (next() % (stride - n) as u64) as usize;
+            let rows = 1 + (next() % 30) as usize;
+            // Rows in runs of equal bytes: a few values, repeated.
+            let mut page = vec![0u8; rows * stride];
+            let mut fill = 0u8;
+            for row in page.chunks_exact_mut(stride) {
+                if next() % 4 == 0 {
+                    fill = [0, 0, 255, 90, 200][(next() % 5) as usize];
+                }
+                row.fill(fill);
+                if next() % 6 == 0 {
+                    row[i0 + (next() as usize % n)] = next() as u8;
+                }
+            }
+            let (x0, x1) = (
+                0.3 * (next() % 4) as f64,
+                n as f64 - 0.25 * (next() % 4) as f64,
+            );
+            let columns: Vec<f64> = (0..n)
+                .map(|i| (x1.min(i as f64 + 1.0) - x0.max(i as f64)).max(0.0))
+                .collect();
+            let (y0, y1) = (
+                0.4 * (next() % 3) as f64,
+                rows as f64 - 0.3 * (next() % 3) as f64,
+            );
+            let cy = |j: usize| (y1.min(j as f64 + 1.0) - y0.max(j as f64)).max(0.0);
+            let ink = [Ink::Black, Ink::Gray(150), Ink::Gray(80)][case % 3];
+            let mut reference = page.clone();
+            for (j, row) in reference.chunks_exact_mut(stride).enumerate() {
+                rect_span(&mut row[i0..i0 + n], &columns, cy(j), ink);
+            }
+            fill_rect_rows(&mut page, stride, i0, &columns, cy, ink);
+            assert_eq!(page, reference, "case {case}");
+            remembered += usize::from(rows > 2 && n <= RECT_MEMO);
+        }
+        assert!(remembered > 100);
+    }
 
     /// A page with every kind of primitive in black, grays and paper.
     fn sample() -> DisplayList {
