@@ -566,9 +566,6 @@ fn lerp_white(d: u8, c: u8) -> u8 {
     ((d * (255 - c) + 255 * c + 255) >> 8) as u8
 }
 
-/// Composites coverage `c` (0..=255) of `ink` over the page's ink `dst` (0 paper, 255
-/// black), in integers (deterministic): black and grays overprint (`dst + (255 − dst)·c·g`,
-/// never lighter), paper erases (`dst·(1 − c)`).
 /// A rectangle's pixels on one row: `px[i]` covered `columns[i] · cy` in `ink`.
 #[inline]
 fn rect_span(px: &mut [u8], columns: &[f64], cy: f64, ink: Ink) {
@@ -626,6 +623,9 @@ fn fill_rect_rows(
     }
 }
 
+/// Composites coverage `c` (0..=255) of `ink` over the page's ink `dst` (0 paper, 255
+/// black), in integers (deterministic): black and grays overprint (`dst + (255 − dst)·c·g`,
+/// never lighter), paper erases (`dst·(1 − c)`).
 fn composite(dst: u8, c: u8, ink: Ink) -> u8 {
     match ink {
         Ink::Paper => {
