@@ -6,7 +6,7 @@
 use crate::geom::C64;
 use coupler_kinematics::{
     Circuit, CouplerPoint, CrankAngle, FourBar, GearedFiveBar, GearedGaps, Linkage, Mechanism,
-    POINT_LANES, Pose, ToggleGaps,
+    POINT_LANES, PointLanes, Pose, ToggleGaps,
 };
 
 /// A curve a search can return: its id (in the atlas) and what traces it.
@@ -41,6 +41,47 @@ pub enum CurveGaps {
     FourBar(ToggleGaps),
     /// A geared five-bar's.
     Geared(GearedGaps),
+}
+
+/// A curve made ready for [`CurveLanes::at`], its points [`POINT_LANES`] angles at a time
+/// ([`CouplerCurve::lanes`]): a four-bar's linkage constants computed once
+/// ([`PointLanes`]), for a fit that evaluates the same curve at many angles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CurveLanes {
+    /// A four-bar's coupler point, its lanes side by side.
+    FourBar(PointLanes),
+    /// Another mechanism's curve, one angle at a time ([`CouplerCurve::at_with`]).
+    Other(CouplerCurve, CurveGaps),
+}
+
+impl CurveLanes {
+    /// [`CouplerCurve::at_lanes_with`] of the curve, the same values bit for bit.
+    #[inline(always)]
+    pub fn at(&self, degrees: &[f64; POINT_LANES]) -> [Option<PointAt>; POINT_LANES] {
+        match self {
+            CurveLanes::FourBar(k) => point_lanes(k, degrees),
+            CurveLanes::Other(curve, gaps) => degrees.map(|d| curve.at_with(gaps, d)),
+        }
+    }
+}
+
+/// A four-bar's lanes as [`PointAt`]s: `None` also where a value is not finite. A
+/// function of its own: the lanes vectorize well alone, and worse inlined into a fit.
+#[inline(never)]
+fn point_lanes(k: &PointLanes, degrees: &[f64; POINT_LANES]) -> [Option<PointAt>; POINT_LANES] {
+    let lanes = k.at(degrees);
+    // Lane by lane in place (`from_fn`: inlined, where `map` over the lanes was a call per
+    // group).
+    std::array::from_fn(|i| {
+        let (m, v) = lanes[i]?;
+        if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()) {
+            return None;
+        }
+        Some(PointAt {
+            m: C64::new(m.x, m.y),
+            dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
+        })
+    })
 }
 
 /// The coupler point at one crank angle, with derivatives.
@@ -122,29 +163,30 @@ impl CouplerCurve {
     }
 
     /// [`CouplerCurve::at_with`] at [`POINT_LANES`] angles at once, the same values bit
-    /// for bit; a four-bar's lanes run side by side ([`Pose::finite_points_with`]).
+    /// for bit; a four-bar's lanes run side by side ([`Pose::finite_points_with`]; for
+    /// many groups of angles, [`CouplerCurve::lanes`] prepares the curve once).
     pub fn at_lanes_with(
         &self,
         gaps: &CurveGaps,
         degrees: &[f64; POINT_LANES],
     ) -> [Option<PointAt>; POINT_LANES] {
+        self.lanes_with(gaps).at(degrees)
+    }
+
+    /// The curve made ready for evaluating [`POINT_LANES`] angles at a time
+    /// ([`CurveLanes::at`]: [`CouplerCurve::at_lanes_with`]'s values, bit for bit).
+    pub fn lanes(&self) -> CurveLanes {
+        self.lanes_with(&self.gaps())
+    }
+
+    /// [`CouplerCurve::lanes`] with the linkage's constants computed once (`gaps`).
+    #[inline]
+    pub fn lanes_with(&self, gaps: &CurveGaps) -> CurveLanes {
         match (&self.linkage, gaps) {
             (Linkage::FourBar(l), CurveGaps::FourBar(g)) => {
-                let lanes = Pose::finite_points_with(l, g, self.circuit, self.point, degrees);
-                // Lane by lane in place (`from_fn`: inlined, where `map` over the lanes was
-                // a call per group).
-                std::array::from_fn(|i| {
-                    let (m, v) = lanes[i]?;
-                    if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()) {
-                        return None;
-                    }
-                    Some(PointAt {
-                        m: C64::new(m.x, m.y),
-                        dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
-                    })
-                })
+                CurveLanes::FourBar(PointLanes::new(l, g, self.circuit, self.point))
             }
-            _ => degrees.map(|d| self.at_with(gaps, d)),
+            _ => CurveLanes::Other(*self, *gaps),
         }
     }
 
@@ -152,9 +194,10 @@ impl CouplerCurve {
     /// values); `None` if any is.
     pub fn points_with(&self, gaps: &CurveGaps, degrees: &[f64]) -> Option<Vec<PointAt>> {
         let mut out = Vec::with_capacity(degrees.len());
+        let prepared = self.lanes_with(gaps);
         for chunk in degrees.chunks(POINT_LANES) {
             let lanes = std::array::from_fn(|i| chunk[i.min(chunk.len() - 1)]);
-            let got = self.at_lanes_with(gaps, &lanes);
+            let got = prepared.at(&lanes);
             for x in &got[..chunk.len()] {
                 out.push((*x)?);
             }

@@ -166,13 +166,41 @@ pub(crate) fn solve_from<F>(
 where
     F: FnMut(&[f64], &[f64], Ask) -> Option<Eval>,
 {
+    let into = |g: &[f64], l: &[f64], ask: Ask, out: &mut Eval| -> Option<()> {
+        *out = eval(g, l, ask)?;
+        Some(())
+    };
+    solve_into(global, local, first, into, options)
+}
+
+/// [`solve_from`] with an `eval` that writes each evaluation into a buffer it is given
+/// (`eval(g, l, ask, out)`: `Some(())` with `out` holding what [`solve`]'s `eval` would
+/// return, `None` where that is `None`, `out` then left in any state), so that the
+/// evaluations reuse two buffers (the current point's and the trial's) instead of
+/// allocating their vectors each time. The same iterations, bit for bit.
+pub(crate) fn solve_into<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    first: Option<Eval>,
+    mut eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
     let ng = global.len();
     let has_locals = !local.is_empty();
     let (mut g, mut l) = (global, local);
     let mut e = match first {
         Some(e) => e,
-        None => eval(&g, &l, Ask::whole(true))?,
+        None => {
+            let mut e = Eval::default();
+            eval(&g, &l, Ask::whole(true), &mut e)?;
+            e
+        }
     };
+    // The trial's buffer: an accepted trial's evaluation is swapped into `e`.
+    let mut trial = Eval::default();
     let mut cost = e.cost();
     let mut lambda = 1e-3;
     let mut iterations = 0;
@@ -223,7 +251,8 @@ where
             0.0
         };
         let mut accepted = false;
-        let mut next: Option<Eval> = None;
+        // The accepted trial's evaluation is in `trial` (with `reuse_trial`).
+        let mut kept = false;
         for _ in 0..12 {
             s.copy_from_slice(&hgg);
             for (r, gg) in rhs.iter_mut().zip(&grad_g) {
@@ -276,21 +305,20 @@ where
                     }));
                 }
             }
-            let trial = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
+            let finite = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
                 && dg.iter().all(|x| x.is_finite());
-            let new_eval = if trial {
-                eval(
+            let evaluated = finite
+                && eval(
                     &g_new,
                     &l_new,
                     Ask {
                         jacobian: options.reuse_trial,
                         reject_above: cost,
                     },
+                    &mut trial,
                 )
-            } else {
-                None
-            };
-            let new_cost = new_eval.as_ref().map(Eval::cost);
+                .is_some();
+            let new_cost = evaluated.then(|| trial.cost());
             match new_cost {
                 Some(c) if c.is_finite() && c <= cost => {
                     let decrease = cost - c;
@@ -304,14 +332,12 @@ where
                             l,
                             eval,
                             iterations,
-                            new_eval.filter(|_| options.reuse_trial),
+                            options.reuse_trial.then_some(trial),
                         );
                     }
-                    if options.reuse_trial {
-                        // The residuals and Jacobian at the accepted point: what
-                        // `eval(&g, &l, Ask::whole(true))` gives.
-                        next = new_eval;
-                    }
+                    // With `reuse_trial`, the residuals and Jacobian at the accepted
+                    // point: what `eval(&g, &l, Ask::whole(true))` gives.
+                    kept = options.reuse_trial;
                     break;
                 }
                 _ => lambda *= 4.0,
@@ -320,10 +346,11 @@ where
         if !accepted {
             break;
         }
-        e = match next.take() {
-            Some(kept) => kept,
-            None => eval(&g, &l, Ask::whole(true))?,
-        };
+        if kept {
+            std::mem::swap(&mut e, &mut trial);
+        } else {
+            eval(&g, &l, Ask::whole(true), &mut e)?;
+        }
         cost = e.cost();
     }
     let last = options.reuse_trial.then_some(e);
@@ -569,10 +596,10 @@ fn finish<F>(
     last: Option<Eval>,
 ) -> Option<LmResult>
 where
-    F: FnMut(&[f64], &[f64], Ask) -> Option<Eval>,
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
 {
     if last.is_none() {
-        eval(&g, &l, Ask::whole(false))?;
+        eval(&g, &l, Ask::whole(false), &mut Eval::default())?;
     }
     Some(LmResult {
         global: g,
