@@ -193,27 +193,7 @@ const COS_TINY: f64 = f64::from_bits(0x3e46_a09e_0000_0000);
 fn sincos_deg_select(degrees: f64) -> (f64, f64) {
     let a = degrees.abs();
     let r = if a < 360.0 { a } else { a - 360.0 };
-    let sin_sign = if degrees < 0.0 { -1.0 } else { 1.0 };
-    let over_half = r > 180.0;
-    let r = if over_half { 360.0 - r } else { r };
-    let sin_sign = if over_half { -sin_sign } else { sin_sign };
-    let over_quarter = r > 90.0;
-    let r = if over_quarter { 180.0 - r } else { r };
-    let cos_sign = if over_quarter { -1.0 } else { 1.0 };
-    let swap = r > 45.0;
-    let r = if swap { 90.0 - r } else { r };
-    let x = r * (std::f64::consts::PI / 180.0);
-    // `r == 0` gives x = 0, where both kernels take their tiny branch: (0, 1), as
-    // `sincos_deg` has it.
-    let z = x * x;
-    let w = z * z;
-    let sin_k = kernel_sin(x, z, w);
-    let s = if x < SIN_TINY { x } else { sin_k };
-    // `x` is finite and `≥ 0` below 720°, where libm's `− x·0.0` changes no bit.
-    let cos_k = kernel_cos_finite(z, w);
-    let c = if x < COS_TINY { 1.0 } else { cos_k };
-    let (s, c) = if swap { (c, s) } else { (s, c) };
-    (sin_sign * s + 0.0, cos_sign * c + 0.0)
+    sincos_turn_select(r, degrees < 0.0)
 }
 
 /// [`sincos_deg_select`] for a half angle, `|degrees| < 360` (half of a lane's
@@ -221,25 +201,49 @@ fn sincos_deg_select(degrees: f64) -> (f64, f64) {
 /// otherwise, so the same bits (a test compares them).
 #[inline(always)]
 fn sincos_half_deg_select(degrees: f64) -> (f64, f64) {
-    let r = degrees.abs();
-    let sin_sign = if degrees < 0.0 { -1.0 } else { 1.0 };
-    let over_half = r > 180.0;
-    let r = if over_half { 360.0 - r } else { r };
-    let sin_sign = if over_half { -sin_sign } else { sin_sign };
-    let over_quarter = r > 90.0;
-    let r = if over_quarter { 180.0 - r } else { r };
-    let cos_sign = if over_quarter { -1.0 } else { 1.0 };
-    let swap = r > 45.0;
-    let r = if swap { 90.0 - r } else { r };
+    sincos_turn_select(degrees.abs(), degrees < 0.0)
+}
+
+/// The sine and cosine of `±r` degrees for `r` in `[0°, 360°)` (`−` if `negative`), as
+/// [`sincos_deg`] folds and evaluates them. Each fold `r ↦ K − r` (`K` = 360°, 180°,
+/// 90°) is taken where `r > K/2`, which is where `K − r < r`: below `K/2` the rounded
+/// `K − r` is at least `K/2 ≥ r`, above it the difference is exact (Sterbenz's lemma) and
+/// below `K/2 < r`; so each fold is a minimum (one instruction in lanes) and its test the
+/// same comparison. The signs are `sincos_deg`'s `±1` factors as flips of the sign bit
+/// (a product by `−1` is exact: the same bits for the finite values here).
+#[inline(always)]
+fn sincos_turn_select(r: f64, negative: bool) -> (f64, f64) {
+    let t = 360.0 - r;
+    let over_half = t < r;
+    let r = if over_half { t } else { r };
+    let t = 180.0 - r;
+    let over_quarter = t < r;
+    let r = if over_quarter { t } else { r };
+    let t = 90.0 - r;
+    let swap = t < r;
+    let r = if swap { t } else { r };
     let x = r * (std::f64::consts::PI / 180.0);
+    // `r == 0` gives x = 0, where both kernels take their tiny branch: (0, 1), as
+    // `sincos_deg` has it.
     let z = x * x;
     let w = z * z;
     let sin_k = kernel_sin(x, z, w);
     let s = if x < SIN_TINY { x } else { sin_k };
+    // `x` is finite and `≥ 0` here, where libm's `− x·0.0` changes no bit.
     let cos_k = kernel_cos_finite(z, w);
     let c = if x < COS_TINY { 1.0 } else { cos_k };
     let (s, c) = if swap { (c, s) } else { (s, c) };
-    (sin_sign * s + 0.0, cos_sign * c + 0.0)
+    // `+ 0.0` turns a −0 into +0, as `sincos_deg` does.
+    (
+        flip_sign(s, negative != over_half) + 0.0,
+        flip_sign(c, over_quarter) + 0.0,
+    )
+}
+
+/// `x` with its sign bit flipped where `flip`: `−x`, as `−1.0·x` gives it.
+#[inline(always)]
+fn flip_sign(x: f64, flip: bool) -> f64 {
+    f64::from_bits(x.to_bits() ^ (u64::from(flip) << 63))
 }
 
 /// [`kernel_cos`] for a finite `x ≥ 0` (given `z = x²`, `w = z²`), where `x·0.0 = +0`
@@ -330,6 +334,25 @@ impl PointLanes {
         &self,
         degrees: &[f64; POINT_LANES],
     ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
+        self.lanes::<false>(degrees)
+    }
+
+    /// [`PointLanes::at`], `None` also where the point or its velocity is not finite
+    /// (what a fit asks: tested in the lanes, side by side).
+    #[inline(always)]
+    pub fn at_finite(
+        &self,
+        degrees: &[f64; POINT_LANES],
+    ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
+        self.lanes::<true>(degrees)
+    }
+
+    /// [`PointLanes::at`], or with `FINITE` [`PointLanes::at_finite`].
+    #[inline(always)]
+    fn lanes<const FINITE: bool>(
+        &self,
+        degrees: &[f64; POINT_LANES],
+    ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
         const L: usize = POINT_LANES;
         let k = self;
         let gaps = &k.gaps;
@@ -348,9 +371,12 @@ impl PointLanes {
             let p_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.outer_scale + k.c4 * ch2);
             let qx = gaps.inner + k.c4 * sh2;
             let q_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.inner_scale + k.c4 * sh2);
-            let p = if px >= 0.0 { px } else { 0.0 };
-            let q = if qx >= 0.0 { qx } else { 0.0 };
-            let assembles = (px >= 0.0 || px >= p_tol) && (qx >= 0.0 || qx >= q_tol);
+            // `flat_or_none`: a factor below 0 by no more than its tolerance is 0 (written
+            // as a maximum, the same values: a −0 is kept). The tolerances are ≤ 0 (the
+            // scales are sums of squares), so `px ≥ 0` passes `px ≥ p_tol` too.
+            let p = if px < 0.0 { 0.0 } else { px };
+            let q = if qx < 0.0 { 0.0 } else { qx };
+            let assembles = px >= p_tol && qx >= q_tol;
             let area4 = (p * q).sqrt();
             let inv_d2 = 1.0 / d2;
             let along = 0.5 * (k.ab_sq + d2) * inv_d2;
@@ -369,14 +395,16 @@ impl PointLanes {
                 && pb_y.is_finite()
                 && omega.is_finite()
                 && rocker_omega.is_finite();
-            ok[i] = deg.abs() < 720.0 && d2 != 0.0 && assembles && finite;
             // CouplerFrame::point and ::velocity.
-            out[i] = [
+            let o = [
                 cos + k.u * e_x - k.v * e_y,
                 sin + k.u * e_y + k.v * e_x,
                 -sin + omega * (k.neg_u * e_y - k.v * e_x),
                 cos + omega * (k.u * e_x - k.v * e_y),
             ];
+            let values = !FINITE || o.iter().all(|x| x.is_finite());
+            ok[i] = deg.abs() < 720.0 && d2 != 0.0 && assembles && finite && values;
+            out[i] = o;
         }
         let mut got = [None; L];
         for i in 0..L {
@@ -387,6 +415,13 @@ impl PointLanes {
         }
         if !degrees.iter().all(|d| d.abs() < 720.0) {
             self.far_lanes(degrees, &mut got);
+            if FINITE {
+                for lane in &mut got {
+                    *lane = lane.filter(|(m, v)| {
+                        m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()
+                    });
+                }
+            }
         }
         got
     }
@@ -915,6 +950,7 @@ mod tests {
                         let d: [f64; POINT_LANES] = chunk.try_into().unwrap();
                         let got = Pose::finite_points_with(&l, &g, circuit, point, &d);
                         let again = prepared.at(&d);
+                        let finite = prepared.at_finite(&d);
                         for (i, (lane, other)) in got.iter().zip(&again).enumerate() {
                             let angle = CrankAngle::from_degrees(d[i]);
                             let want = Pose::finite_frame_with(&l, &g, circuit, &angle)
@@ -924,6 +960,10 @@ mod tests {
                             };
                             assert_eq!(bits(*lane), bits(want), "{l} {circuit} {}", d[i]);
                             assert_eq!(bits(*other), bits(want), "{l} {circuit} {}", d[i]);
+                            let want_finite = want.filter(|(m, v)| {
+                                [m.x, m.y, v.x, v.y].iter().all(|x| x.is_finite())
+                            });
+                            assert_eq!(bits(finite[i]), bits(want_finite), "{l} {circuit}");
                             lanes += 1;
                             none += usize::from(want.is_none());
                         }

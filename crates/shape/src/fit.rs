@@ -462,21 +462,32 @@ fn untimed_residuals(
         e.jl.reserve(p.len());
     }
     let mut cost = RunningCost::new(ask);
+    let zero = C64::new(0.0, 0.0);
     for (c, chunk) in p.chunks(POINT_LANES).enumerate() {
         let points = group(c * POINT_LANES);
-        for (&pk, at) in chunk.iter().zip(&points) {
+        // The group's values, appended together.
+        let (mut r, mut m, mut jl) = (
+            [zero; POINT_LANES],
+            [zero; POINT_LANES],
+            [zero; POINT_LANES],
+        );
+        for (i, (&pk, at)) in chunk.iter().zip(&points).enumerate() {
             let at = (*at)?;
-            let m = tilde(mir, at.m);
-            let r = a * m + b - pk;
-            if !cost.add(r) {
+            m[i] = tilde(mir, at.m);
+            r[i] = a * m[i] + b - pk;
+            if !cost.add(r[i]) {
                 return None;
             }
-            e.r.push(r);
             if jac {
-                // The row `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
-                e.sim.push(m);
-                e.jl.push(a * tilde(mir, at.dm_dtheta));
+                jl[i] = a * tilde(mir, at.dm_dtheta);
             }
+        }
+        let n = chunk.len();
+        e.r.extend_from_slice(&r[..n]);
+        if jac {
+            // The rows `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
+            e.sim.extend_from_slice(&m[..n]);
+            e.jl.extend_from_slice(&jl[..n]);
         }
     }
     Some(())

@@ -69,14 +69,11 @@ impl CurveLanes {
 /// function of its own: the lanes vectorize well alone, and worse inlined into a fit.
 #[inline(never)]
 fn point_lanes(k: &PointLanes, degrees: &[f64; POINT_LANES]) -> [Option<PointAt>; POINT_LANES] {
-    let lanes = k.at(degrees);
+    let lanes = k.at_finite(degrees);
     // Lane by lane in place (`from_fn`: inlined, where `map` over the lanes was a call per
     // group).
     std::array::from_fn(|i| {
         let (m, v) = lanes[i]?;
-        if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()) {
-            return None;
-        }
         Some(PointAt {
             m: C64::new(m.x, m.y),
             dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
