@@ -451,10 +451,7 @@ fn untimed_residuals(
     mut group: impl FnMut(usize) -> [Option<PointAt>; POINT_LANES],
 ) -> Option<()> {
     let jac = ask.jacobian;
-    e.r.clear();
-    e.jg.clear();
-    e.jl.clear();
-    e.sim.clear();
+    e.clear();
     // Room for every point (after a buffer's first evaluation, no work).
     e.r.reserve(p.len());
     if jac {
@@ -490,6 +487,7 @@ fn untimed_residuals(
             e.jl.extend_from_slice(&jl[..n]);
         }
     }
+    e.summed = Some(cost.sum());
     Some(())
 }
 
@@ -695,10 +693,7 @@ fn timed_lm(
     let eval = |g: &[f64], _: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let (t0, s) = (g[4], if free_step { g[5] } else { step });
-        e.r.clear();
-        e.jg.clear();
-        e.jl.clear();
-        e.sim.clear();
+        e.clear();
         e.r.reserve(p.len());
         if ask.jacobian {
             e.jg.reserve(p.len() * if free_step { 6 } else { 5 });
@@ -734,6 +729,7 @@ fn timed_lm(
                 }
             }
         }
+        e.summed = Some(cost.sum());
         Some(())
     };
     let mut g = vec![a.re, a.im, b.re, b.im, t0];

@@ -5,9 +5,11 @@
 
 use crate::geom::C64;
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankAngle, FourBar, GearedFiveBar, GearedGaps, Linkage, Mechanism,
-    POINT_LANES, PointLanes, Pose, ToggleGaps,
+    Circuit, CouplerPoint, CrankAngle, CrankTable, FourBar, GearedFiveBar, GearedGaps, Linkage,
+    Mechanism, POINT_LANES, PointLanes, Pose, ToggleGaps,
 };
+use std::cell::RefCell;
+use std::rc::Rc;
 
 /// A curve a search can return: its id (in the atlas) and what traces it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -357,7 +359,7 @@ impl CouplerCurve {
     /// ([`CouplerCurve::period_deg`]); `None` unless it assembles at all of them.
     pub fn sample(&self, n: usize) -> Option<Vec<C64>> {
         let period = self.period_deg();
-        let table = coupler_kinematics::CrankTable::over(period / n as f64, period)?;
+        let table = crank_table(period / n as f64, period)?;
         let poses = self.linkage.pose_table(self.circuit, &table);
         if !poses.all_valid() {
             return None;
@@ -365,6 +367,28 @@ impl CouplerCurve {
         let c = poses.trace(self.point);
         Some((0..c.len()).map(|k| C64::new(c.x[k], c.y[k])).collect())
     }
+}
+
+/// `CrankTable::over(step, period)`, the table of the last `(step, period)` asked on this
+/// thread kept for the next ask: a query traces every candidate at the same angles
+/// (each table's sines and cosines cost as much as the poses). The table is a function
+/// of its arguments alone, so the same values.
+fn crank_table(step: f64, period: f64) -> Option<Rc<CrankTable>> {
+    thread_local! {
+        static LAST: RefCell<Option<(u64, u64, Rc<CrankTable>)>> = const { RefCell::new(None) };
+    }
+    let key = (step.to_bits(), period.to_bits());
+    LAST.with(|last| {
+        let mut last = last.borrow_mut();
+        if let Some((s, p, table)) = last.as_ref() {
+            if (*s, *p) == key {
+                return Some(Rc::clone(table));
+            }
+        }
+        let table = Rc::new(CrankTable::over(step, period)?);
+        *last = Some((key.0, key.1, Rc::clone(&table)));
+        Some(table)
+    })
 }
 
 #[cfg(test)]

@@ -23,6 +23,9 @@ pub(crate) struct Eval {
     /// globals), given by their `m_j` instead of in `jg`: row `j` is
     /// [`similarity_row`]`(m_j)`, the same values (empty when `jg` holds the rows).
     pub sim: Vec<C64>,
+    /// [`Eval::cost`] as the evaluation summed it ([`RunningCost::sum`]: the same sum in
+    /// the same order), if it did.
+    pub summed: Option<f64>,
 }
 
 /// The Jacobian row `∂r/∂(Re a, Im a, Re b, Im b)` of a residual `a·m + b − p`:
@@ -38,8 +41,21 @@ pub(crate) fn similarity_row(m: C64) -> [C64; 4] {
 }
 
 impl Eval {
+    /// `Σ_j |r_j|²`, in point order.
     pub fn cost(&self) -> f64 {
-        self.r.iter().map(|r| r.norm_sqr()).sum()
+        match self.summed {
+            Some(c) if !self.r.is_empty() => c,
+            _ => self.r.iter().map(|r| r.norm_sqr()).sum(),
+        }
+    }
+
+    /// Empty, its vectors' room kept (for the next evaluation into it).
+    pub fn clear(&mut self) {
+        self.r.clear();
+        self.jg.clear();
+        self.jl.clear();
+        self.sim.clear();
+        self.summed = None;
     }
 }
 
@@ -82,6 +98,13 @@ impl RunningCost {
             sum: 0.0,
             limit: ask.reject_above,
         }
+    }
+
+    /// The cost so far: `Σ |r_j|²` of the points added, in their order (the same value as
+    /// [`Eval::cost`] of those residuals, which sums from `−0`: the terms are `≥ +0`, so
+    /// the first sum is the same).
+    pub fn sum(&self) -> f64 {
+        self.sum
     }
 
     /// Adds a point's residual; `false` once the cost so far exceeds the limit (the trial
