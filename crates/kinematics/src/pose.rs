@@ -376,7 +376,7 @@ impl PointLanes {
             // scales are sums of squares), so `px ≥ 0` passes `px ≥ p_tol` too.
             let p = if px < 0.0 { 0.0 } else { px };
             let q = if qx < 0.0 { 0.0 } else { qx };
-            let assembles = px >= p_tol && qx >= q_tol;
+            let assembles = (px >= p_tol) & (qx >= q_tol);
             let area4 = (p * q).sqrt();
             let inv_d2 = 1.0 / d2;
             let along = 0.5 * (k.ab_sq + d2) * inv_d2;
@@ -391,10 +391,6 @@ impl PointLanes {
             // finite_frame_with.
             let cross34 = half_area / k.a_b;
             let rocker_omega = -(-sin * e_x + cos * e_y) / (k.b_len * cross34);
-            let finite = pb_x.is_finite()
-                && pb_y.is_finite()
-                && omega.is_finite()
-                && rocker_omega.is_finite();
             // CouplerFrame::point and ::velocity.
             let o = [
                 cos + k.u * e_x - k.v * e_y,
@@ -402,8 +398,14 @@ impl PointLanes {
                 -sin + omega * (k.neg_u * e_y - k.v * e_x),
                 cos + omega * (k.u * e_x - k.v * e_y),
             ];
-            let values = !FINITE || o.iter().all(|x| x.is_finite());
-            ok[i] = deg.abs() < 720.0 && d2 != 0.0 && assembles && finite && values;
+            // Every value finite (`is_finite` of each): `x·0` is ±0 for a finite `x` and
+            // NaN for an infinite or NaN one, so their sum is ±0 exactly when all are
+            // finite (one comparison for the lot).
+            let mut zero = (pb_x * 0.0 + pb_y * 0.0) + (omega * 0.0 + rocker_omega * 0.0);
+            if FINITE {
+                zero += (o[0] * 0.0 + o[1] * 0.0) + (o[2] * 0.0 + o[3] * 0.0);
+            }
+            ok[i] = (deg.abs() < 720.0) & (d2 != 0.0) & assembles & (zero == 0.0);
             out[i] = o;
         }
         let mut got = [None; L];
