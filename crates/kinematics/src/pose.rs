@@ -180,12 +180,6 @@ fn libm_sin_cos(x: f64) -> (f64, f64) {
 /// How many crank angles [`Pose::finite_points_with`] evaluates at once.
 pub const POINT_LANES: usize = 4;
 
-/// `x < 2⁻²⁶` for `x ≥ 0`: libm's sine kernel returns `x` itself (its high-word test
-/// `ix < 0x3e50_0000`, as a comparison of the value).
-const SIN_TINY: f64 = f64::from_bits(0x3e50_0000_0000_0000);
-/// `x < 2⁻²⁷·√2`: libm's cosine kernel returns 1 (`ix < 0x3e46_a09e`).
-const COS_TINY: f64 = f64::from_bits(0x3e46_a09e_0000_0000);
-
 /// [`sincos_deg`] for `|degrees| < 720` (the caller's test), without branches: every
 /// fold and kernel computed and selected, the same operations in the same order, so the
 /// same bits (a test compares them), and lanes of these run side by side.
@@ -223,15 +217,17 @@ fn sincos_turn_select(r: f64, negative: bool) -> (f64, f64) {
     let swap = t < r;
     let r = if swap { t } else { r };
     let x = r * (std::f64::consts::PI / 180.0);
-    // `r == 0` gives x = 0, where both kernels take their tiny branch: (0, 1), as
-    // `sincos_deg` has it.
+    // libm's tiny branches (`x` itself below 2⁻²⁶, 1 below 2⁻²⁷·√2) need no selection
+    // here: there the kernels round to those very values. The sine's correction is about
+    // `x³/6`, under `x·2⁻⁵⁴`, less than half an ulp of `x` (or 0 once `x³` underflows);
+    // the cosine's `½x²` is under `2⁻⁵⁴`, half an ulp below 1, and so is every step from
+    // 1 (a test compares every fold and both thresholds with `sincos_deg`). At `x = 0`
+    // both give (0, 1).
     let z = x * x;
     let w = z * z;
-    let sin_k = kernel_sin(x, z, w);
-    let s = if x < SIN_TINY { x } else { sin_k };
+    let s = kernel_sin(x, z, w);
     // `x` is finite and `≥ 0` here, where libm's `− x·0.0` changes no bit.
-    let cos_k = kernel_cos_finite(z, w);
-    let c = if x < COS_TINY { 1.0 } else { cos_k };
+    let c = kernel_cos_finite(z, w);
     let (s, c) = if swap { (c, s) } else { (s, c) };
     // `+ 0.0` turns a −0 into +0, as `sincos_deg` does.
     (
@@ -913,6 +909,14 @@ mod tests {
                 for x in [r, r.next_up(), r.next_down(), 90.0 - r, 180.0 + r] {
                     check(x);
                 }
+            }
+        }
+        // Small folded angles on a log scale, from subnormal to past libm's tiny branches
+        // (2⁻²⁷·√2 and 2⁻²⁶ radians), about each multiple of 90°.
+        for k in 0..400_000 {
+            let r = 2f64.powf(-1070.0 + 1050.0 * k as f64 / 400_000.0);
+            for x in [r, 90.0 - r, 90.0 + r, 180.0 - r, 180.0 + r, 360.0 - r, -r] {
+                check(x);
             }
         }
     }
