@@ -180,12 +180,6 @@ fn libm_sin_cos(x: f64) -> (f64, f64) {
 /// How many crank angles [`Pose::finite_points_with`] evaluates at once.
 pub const POINT_LANES: usize = 4;
 
-/// `x < 2⁻²⁶` for `x ≥ 0`: libm's sine kernel returns `x` itself (its high-word test
-/// `ix < 0x3e50_0000`, as a comparison of the value).
-const SIN_TINY: f64 = f64::from_bits(0x3e50_0000_0000_0000);
-/// `x < 2⁻²⁷·√2`: libm's cosine kernel returns 1 (`ix < 0x3e46_a09e`).
-const COS_TINY: f64 = f64::from_bits(0x3e46_a09e_0000_0000);
-
 /// [`sincos_deg`] for `|degrees| < 720` (the caller's test), without branches: every
 /// fold and kernel computed and selected, the same operations in the same order, so the
 /// same bits (a test compares them), and lanes of these run side by side.
@@ -193,26 +187,260 @@ const COS_TINY: f64 = f64::from_bits(0x3e46_a09e_0000_0000);
 fn sincos_deg_select(degrees: f64) -> (f64, f64) {
     let a = degrees.abs();
     let r = if a < 360.0 { a } else { a - 360.0 };
-    let sin_sign = if degrees < 0.0 { -1.0 } else { 1.0 };
-    let over_half = r > 180.0;
-    let r = if over_half { 360.0 - r } else { r };
-    let sin_sign = if over_half { -sin_sign } else { sin_sign };
-    let over_quarter = r > 90.0;
-    let r = if over_quarter { 180.0 - r } else { r };
-    let cos_sign = if over_quarter { -1.0 } else { 1.0 };
-    let swap = r > 45.0;
-    let r = if swap { 90.0 - r } else { r };
+    sincos_turn_select(r, degrees < 0.0)
+}
+
+/// [`sincos_deg_select`] for a half angle, `|degrees| < 360` (half of a lane's
+/// `|θ| < 720°`), where its first fold, `a < 360`, always keeps `a`: the same operations
+/// otherwise, so the same bits (a test compares them).
+#[inline(always)]
+fn sincos_half_deg_select(degrees: f64) -> (f64, f64) {
+    sincos_turn_select(degrees.abs(), degrees < 0.0)
+}
+
+/// The sine and cosine of `±r` degrees for `r` in `[0°, 360°)` (`−` if `negative`), as
+/// [`sincos_deg`] folds and evaluates them. Each fold `r ↦ K − r` (`K` = 360°, 180°,
+/// 90°) is taken where `r > K/2`, which is where `K − r < r`: below `K/2` the rounded
+/// `K − r` is at least `K/2 ≥ r`, above it the difference is exact (Sterbenz's lemma) and
+/// below `K/2 < r`; so each fold is a minimum (one instruction in lanes) and its test the
+/// same comparison. The signs are `sincos_deg`'s `±1` factors as flips of the sign bit
+/// (a product by `−1` is exact: the same bits for the finite values here).
+#[inline(always)]
+fn sincos_turn_select(r: f64, negative: bool) -> (f64, f64) {
+    let t = 360.0 - r;
+    let over_half = t < r;
+    let r = if over_half { t } else { r };
+    let t = 180.0 - r;
+    let over_quarter = t < r;
+    let r = if over_quarter { t } else { r };
+    let t = 90.0 - r;
+    let swap = t < r;
+    let r = if swap { t } else { r };
     let x = r * (std::f64::consts::PI / 180.0);
-    // `r == 0` gives x = 0, where both kernels take their tiny branch: (0, 1), as
-    // `sincos_deg` has it.
+    // libm's tiny branches (`x` itself below 2⁻²⁶, 1 below 2⁻²⁷·√2) need no selection
+    // here: there the kernels round to those very values. The sine's correction is about
+    // `x³/6`, under `x·2⁻⁵⁴`, less than half an ulp of `x` (or 0 once `x³` underflows);
+    // the cosine's `½x²` is under `2⁻⁵⁴`, half an ulp below 1, and so is every step from
+    // 1 (a test compares every fold and both thresholds with `sincos_deg`). At `x = 0`
+    // both give (0, 1).
     let z = x * x;
     let w = z * z;
-    let sin_k = kernel_sin(x, z, w);
-    let s = if x < SIN_TINY { x } else { sin_k };
-    let cos_k = kernel_cos(x, z, w);
-    let c = if x < COS_TINY { 1.0 } else { cos_k };
+    let s = kernel_sin(x, z, w);
+    // `x` is finite and `≥ 0` here, where libm's `− x·0.0` changes no bit.
+    let c = kernel_cos_finite(z, w);
     let (s, c) = if swap { (c, s) } else { (s, c) };
-    (sin_sign * s + 0.0, cos_sign * c + 0.0)
+    // `+ 0.0` turns a −0 into +0, as `sincos_deg` does.
+    (
+        flip_sign(s, negative != over_half) + 0.0,
+        flip_sign(c, over_quarter) + 0.0,
+    )
+}
+
+/// `x` with its sign bit flipped where `flip`: `−x`, as `−1.0·x` gives it.
+#[inline(always)]
+fn flip_sign(x: f64, flip: bool) -> f64 {
+    f64::from_bits(x.to_bits() ^ (u64::from(flip) << 63))
+}
+
+/// [`kernel_cos`] for a finite `x ≥ 0` (given `z = x²`, `w = z²`), where `x·0.0 = +0`
+/// and `y − (+0) = y` for every `y` (also `±0`): the same bits without that term.
+#[inline(always)]
+#[allow(clippy::excessive_precision)] // libm's literals, digit for digit
+fn kernel_cos_finite(z: f64, w: f64) -> f64 {
+    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
+    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
+    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
+    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
+    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
+    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
+    let r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    let hz = 0.5 * z;
+    let hw = 1.0 - hz;
+    hw + (((1.0 - hw) - hz) + z * r)
+}
+
+/// One four-bar coupler point (a linkage, its circuit and the point) with every constant
+/// of [`Pose::finite_points_with`]'s lanes computed once, for evaluating the point at many
+/// crank angles ([`PointLanes::at`]): a shape fit evaluates the same point at every
+/// target point's angle, iteration after iteration. The constants are the very
+/// subexpressions the lanes formed each time (`4·C`, `(C − 1)²`, `(A − B)(A + B)`, `1/A`,
+/// `A·B`, …, each evaluated as the lanes' expressions group them), so the values are the
+/// same, bit for bit (tested).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointLanes {
+    linkage: FourBar,
+    gaps: ToggleGaps,
+    circuit: Circuit,
+    point: CouplerPoint,
+    /// `C`, `C − 1`, `(C − 1)·(C − 1)`, `4·C`.
+    c_len: f64,
+    c_m1: f64,
+    c_m1_sq: f64,
+    c4: f64,
+    /// `(A − B)·(A + B)`.
+    ab_sq: f64,
+    /// `σ·0.5` and `σ`.
+    half_sign: f64,
+    sign: f64,
+    /// `1/A`, `A·B`, `B`.
+    inv_a: f64,
+    a_b: f64,
+    b_len: f64,
+    /// `u`, `v`, `−u`.
+    u: f64,
+    v: f64,
+    neg_u: f64,
+}
+
+impl PointLanes {
+    /// The constants of `point` on `circuit` of `linkage` (with its [`ToggleGaps`]).
+    pub fn new(
+        linkage: &FourBar,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        point: CouplerPoint,
+    ) -> PointLanes {
+        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
+        let sign = circuit.sign();
+        PointLanes {
+            linkage: *linkage,
+            gaps: *gaps,
+            circuit,
+            point,
+            c_len,
+            c_m1: c_len - 1.0,
+            c_m1_sq: (c_len - 1.0) * (c_len - 1.0),
+            c4: 4.0 * c_len,
+            ab_sq: (a_len - b_len) * (a_len + b_len),
+            half_sign: sign * 0.5,
+            sign,
+            inv_a: 1.0 / a_len,
+            a_b: a_len * b_len,
+            b_len,
+            u: point.u,
+            v: point.v,
+            neg_u: -point.u,
+        }
+    }
+
+    /// The coupler point and its velocity at [`POINT_LANES`] crank angles:
+    /// [`Pose::finite_points_with`] of this linkage, circuit and point, bit for bit.
+    #[inline(always)]
+    pub fn at(
+        &self,
+        degrees: &[f64; POINT_LANES],
+    ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
+        self.lanes::<false>(degrees)
+    }
+
+    /// [`PointLanes::at`], `None` also where the point or its velocity is not finite
+    /// (what a fit asks: tested in the lanes, side by side).
+    #[inline(always)]
+    pub fn at_finite(
+        &self,
+        degrees: &[f64; POINT_LANES],
+    ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
+        self.lanes::<true>(degrees)
+    }
+
+    /// [`PointLanes::at`], or with `FINITE` [`PointLanes::at_finite`].
+    #[inline(always)]
+    fn lanes<const FINITE: bool>(
+        &self,
+        degrees: &[f64; POINT_LANES],
+    ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
+        const L: usize = POINT_LANES;
+        let k = self;
+        let gaps = &k.gaps;
+        let mut out = [[0.0f64; 4]; L];
+        let mut ok = [false; L];
+        for i in 0..L {
+            let deg = degrees[i];
+            let (sin, cos) = sincos_deg_select(deg);
+            let (sin_half, cos_half) = sincos_half_deg_select(0.5 * deg);
+            // PoseCore::solve.
+            let sh2 = sin_half * sin_half;
+            let ch2 = cos_half * cos_half;
+            let (wx, wy) = (k.c_m1 + 2.0 * sh2, -sin);
+            let d2 = k.c_m1_sq + k.c4 * sh2;
+            let px = gaps.outer + k.c4 * ch2;
+            let p_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.outer_scale + k.c4 * ch2);
+            let qx = gaps.inner + k.c4 * sh2;
+            let q_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.inner_scale + k.c4 * sh2);
+            // `flat_or_none`: a factor below 0 by no more than its tolerance is 0 (written
+            // as a maximum, the same values: a −0 is kept). The tolerances are ≤ 0 (the
+            // scales are sums of squares), so `px ≥ 0` passes `px ≥ p_tol` too.
+            let p = if px < 0.0 { 0.0 } else { px };
+            let q = if qx < 0.0 { 0.0 } else { qx };
+            let assembles = (px >= p_tol) & (qx >= q_tol);
+            let area4 = (p * q).sqrt();
+            let inv_d2 = 1.0 / d2;
+            let along = 0.5 * (k.ab_sq + d2) * inv_d2;
+            let half_area = k.half_sign * area4;
+            let across = half_area * inv_d2;
+            let (cx, cy) = (wx * along - wy * across, wy * along + wx * across);
+            let pb_x = cos + cx;
+            let pb_y = sin + cy;
+            let va_dot = -sin * (pb_x - k.c_len) + cos * pb_y;
+            let omega = -2.0 * va_dot / (k.sign * area4);
+            let (e_x, e_y) = (cx * k.inv_a, cy * k.inv_a);
+            // finite_frame_with.
+            let cross34 = half_area / k.a_b;
+            let rocker_omega = -(-sin * e_x + cos * e_y) / (k.b_len * cross34);
+            // CouplerFrame::point and ::velocity.
+            let o = [
+                cos + k.u * e_x - k.v * e_y,
+                sin + k.u * e_y + k.v * e_x,
+                -sin + omega * (k.neg_u * e_y - k.v * e_x),
+                cos + omega * (k.u * e_x - k.v * e_y),
+            ];
+            // Every value finite (`is_finite` of each): `x·0` is ±0 for a finite `x` and
+            // NaN for an infinite or NaN one, so their sum is ±0 exactly when all are
+            // finite (one comparison for the lot).
+            let mut zero = (pb_x * 0.0 + pb_y * 0.0) + (omega * 0.0 + rocker_omega * 0.0);
+            if FINITE {
+                zero += (o[0] * 0.0 + o[1] * 0.0) + (o[2] * 0.0 + o[3] * 0.0);
+            }
+            ok[i] = (deg.abs() < 720.0) & (d2 != 0.0) & assembles & (zero == 0.0);
+            out[i] = o;
+        }
+        let mut got = [None; L];
+        for i in 0..L {
+            if ok[i] {
+                let o = out[i];
+                got[i] = Some((Point2::new(o[0], o[1]), Vector2::new(o[2], o[3])));
+            }
+        }
+        if !degrees.iter().all(|d| d.abs() < 720.0) {
+            self.far_lanes(degrees, &mut got);
+            if FINITE {
+                for lane in &mut got {
+                    *lane = lane.filter(|(m, v)| {
+                        m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()
+                    });
+                }
+            }
+        }
+        got
+    }
+
+    /// The lanes outside `|θ| < 720°` (or NaN), by the scalar path.
+    #[cold]
+    #[inline(never)]
+    fn far_lanes(
+        &self,
+        degrees: &[f64; POINT_LANES],
+        got: &mut [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES],
+    ) {
+        for (d, lane) in degrees.iter().zip(got.iter_mut()) {
+            let near = d.abs() < 720.0;
+            if !near {
+                let angle = CrankAngle::from_degrees(*d);
+                *lane = Pose::finite_frame_with(&self.linkage, &self.gaps, self.circuit, &angle)
+                    .map(|f| (f.point(self.point), f.velocity(self.point)));
+            }
+        }
+    }
 }
 
 impl Pose {
@@ -221,7 +449,8 @@ impl Pose {
     /// `Pose::finite_frame_with(linkage, gaps, circuit, &CrankAngle::from_degrees(degrees[i]))
     /// .map(|f| (f.point(point), f.velocity(point)))`. The lanes run the same operations
     /// without branches (each test a selection), so the compiler can run them side by
-    /// side; a lane outside `|θ| < 720°` (or NaN) takes the scalar path.
+    /// side; a lane outside `|θ| < 720°` (or NaN) takes the scalar path. For many angles
+    /// of one point, [`PointLanes`] computes the linkage's constants once.
     #[inline]
     pub fn finite_points_with(
         linkage: &FourBar,
@@ -230,67 +459,7 @@ impl Pose {
         point: CouplerPoint,
         degrees: &[f64; POINT_LANES],
     ) -> [Option<(Point2<f64>, Vector2<f64>)>; POINT_LANES] {
-        const L: usize = POINT_LANES;
-        let (a_len, b_len, c_len) = (linkage.coupler, linkage.rocker, linkage.ground);
-        let sign = circuit.sign();
-        let (u, v) = (point.u, point.v);
-        let mut out = [[0.0f64; 4]; L];
-        let mut ok = [false; L];
-        for i in 0..L {
-            let deg = degrees[i];
-            let (sin, cos) = sincos_deg_select(deg);
-            let (sin_half, cos_half) = sincos_deg_select(0.5 * deg);
-            // PoseCore::solve.
-            let sh2 = sin_half * sin_half;
-            let ch2 = cos_half * cos_half;
-            let (wx, wy) = ((c_len - 1.0) + 2.0 * sh2, -sin);
-            let d2 = (c_len - 1.0) * (c_len - 1.0) + 4.0 * c_len * sh2;
-            let px = gaps.outer + 4.0 * c_len * ch2;
-            let p_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.outer_scale + 4.0 * c_len * ch2);
-            let qx = gaps.inner + 4.0 * c_len * sh2;
-            let q_tol = -TOGGLE_ULPS * f64::EPSILON * (gaps.inner_scale + 4.0 * c_len * sh2);
-            let p = if px >= 0.0 { px } else { 0.0 };
-            let q = if qx >= 0.0 { qx } else { 0.0 };
-            let assembles = (px >= 0.0 || px >= p_tol) && (qx >= 0.0 || qx >= q_tol);
-            let area4 = (p * q).sqrt();
-            let inv_d2 = 1.0 / d2;
-            let along = 0.5 * ((a_len - b_len) * (a_len + b_len) + d2) * inv_d2;
-            let across = sign * 0.5 * area4 * inv_d2;
-            let (cx, cy) = (wx * along - wy * across, wy * along + wx * across);
-            let pb_x = cos + cx;
-            let pb_y = sin + cy;
-            let inv_a = 1.0 / a_len;
-            let va_dot = -sin * (pb_x - c_len) + cos * pb_y;
-            let omega = -2.0 * va_dot / (sign * area4);
-            let (e_x, e_y) = (cx * inv_a, cy * inv_a);
-            // finite_frame_with.
-            let cross34 = sign * 0.5 * area4 / (a_len * b_len);
-            let rocker_omega = -(-sin * e_x + cos * e_y) / (b_len * cross34);
-            let finite = pb_x.is_finite()
-                && pb_y.is_finite()
-                && omega.is_finite()
-                && rocker_omega.is_finite();
-            ok[i] = deg.abs() < 720.0 && d2 != 0.0 && assembles && finite;
-            // CouplerFrame::point and ::velocity.
-            out[i] = [
-                cos + u * e_x - v * e_y,
-                sin + u * e_y + v * e_x,
-                -sin + omega * (-u * e_y - v * e_x),
-                cos + omega * (u * e_x - v * e_y),
-            ];
-        }
-        std::array::from_fn(|i| {
-            if ok[i] {
-                let o = out[i];
-                Some((Point2::new(o[0], o[1]), Vector2::new(o[2], o[3])))
-            } else if degrees[i].abs() < 720.0 {
-                None
-            } else {
-                let angle = CrankAngle::from_degrees(degrees[i]);
-                Pose::finite_frame_with(linkage, gaps, circuit, &angle)
-                    .map(|f| (f.point(point), f.velocity(point)))
-            }
-        })
+        PointLanes::new(linkage, gaps, circuit, point).at(degrees)
     }
 }
 
@@ -686,7 +855,8 @@ mod tests {
     }
 
     /// The branch-free sine and cosine of the lanes are [`sincos_deg`]'s, bit for bit, below
-    /// 720° (every fold, the kernels' tiny branches, zeros and multiples of 45°).
+    /// 720° (every fold, the kernels' tiny branches, zeros and multiples of 45°), and so
+    /// are the half angle's below 360°.
     #[test]
     fn selected_sincos_is_sincos_deg() {
         let check = |d: f64| {
@@ -697,6 +867,14 @@ mod tests {
                 (s2.to_bits(), c2.to_bits()),
                 "{d:e}"
             );
+            if d.abs() < 360.0 {
+                let (s3, c3) = sincos_half_deg_select(d);
+                assert_eq!(
+                    (s.to_bits(), c.to_bits()),
+                    (s3.to_bits(), c3.to_bits()),
+                    "half {d:e}"
+                );
+            }
         };
         for k in -7_200_000i32..7_200_000 {
             check(k as f64 * 1e-4);
@@ -733,14 +911,23 @@ mod tests {
                 }
             }
         }
+        // Small folded angles on a log scale, from subnormal to past libm's tiny branches
+        // (2⁻²⁷·√2 and 2⁻²⁶ radians), about each multiple of 90°.
+        for k in 0..400_000 {
+            let r = 2f64.powf(-1070.0 + 1050.0 * k as f64 / 400_000.0);
+            for x in [r, 90.0 - r, 90.0 + r, 180.0 - r, 180.0 + r, 360.0 - r, -r] {
+                check(x);
+            }
+        }
     }
 
-    /// Every lane of [`Pose::finite_points_with`] is the scalar path's point and velocity,
-    /// bit for bit, and `None` where it is: both circuits, across toggles and unassembled
-    /// angles (a non-Grashof linkage), beyond 720° and NaN.
+    /// Every lane of [`Pose::finite_points_with`], and of one [`PointLanes`] made once and
+    /// evaluated at every angle, is the scalar path's point and velocity, bit for bit, and
+    /// `None` where it is: both circuits, several coupler points (on the coupler's line,
+    /// off it either side, at its pins), across toggles and unassembled angles (a
+    /// non-Grashof linkage), beyond 720° and NaN.
     #[test]
     fn lanes_are_the_scalar_points() {
-        let point = CouplerPoint::new(1.3, -0.8);
         let mut lanes = 0;
         let mut none = 0;
         for (a, b, c) in [
@@ -748,30 +935,49 @@ mod tests {
             (3.0, 3.0, 3.0),
             (1.2, 1.5, 1.1),
             (2.0, 2.5, 3.5),
+            (4.5, 3.0, 3.5),
         ] {
             let l = FourBar::new(a, b, c).unwrap();
             let g = ToggleGaps::of(&l);
             for circuit in [Circuit::Open, Circuit::Crossed] {
-                let mut degs: Vec<f64> = (-3000..3000).map(|k| k as f64 * 0.37).collect();
-                degs.extend([0.0, 180.0, -180.0, 720.0, -720.0, 1e6, f64::NAN, 5e-324]);
-                for chunk in degs.chunks_exact(POINT_LANES) {
-                    let d: [f64; POINT_LANES] = chunk.try_into().unwrap();
-                    let got = Pose::finite_points_with(&l, &g, circuit, point, &d);
-                    for (i, lane) in got.iter().enumerate() {
-                        let angle = CrankAngle::from_degrees(d[i]);
-                        let want = Pose::finite_frame_with(&l, &g, circuit, &angle)
-                            .map(|f| (f.point(point), f.velocity(point)));
-                        let bits = |x: Option<(Point2<f64>, Vector2<f64>)>| {
-                            x.map(|(m, v)| [m.x, m.y, v.x, v.y].map(f64::to_bits))
-                        };
-                        assert_eq!(bits(*lane), bits(want), "{l} {circuit} {}", d[i]);
-                        lanes += 1;
-                        none += usize::from(want.is_none());
+                for (u, v) in [
+                    (1.3, -0.8),
+                    (0.0, 0.0),
+                    (a, 0.0),
+                    (-0.7, 2.25),
+                    (1.125, -2.25),
+                ] {
+                    let point = CouplerPoint::new(u, v);
+                    let prepared = PointLanes::new(&l, &g, circuit, point);
+                    let mut degs: Vec<f64> = (-3000..3000).map(|k| k as f64 * 0.37).collect();
+                    degs.extend([0.0, 180.0, -180.0, 720.0, -720.0, 1e6, f64::NAN, 5e-324]);
+                    degs.extend([-0.0, 359.999_999_999_999_94, 719.999_999_999_999_9, 90.0]);
+                    for chunk in degs.chunks_exact(POINT_LANES) {
+                        let d: [f64; POINT_LANES] = chunk.try_into().unwrap();
+                        let got = Pose::finite_points_with(&l, &g, circuit, point, &d);
+                        let again = prepared.at(&d);
+                        let finite = prepared.at_finite(&d);
+                        for (i, (lane, other)) in got.iter().zip(&again).enumerate() {
+                            let angle = CrankAngle::from_degrees(d[i]);
+                            let want = Pose::finite_frame_with(&l, &g, circuit, &angle)
+                                .map(|f| (f.point(point), f.velocity(point)));
+                            let bits = |x: Option<(Point2<f64>, Vector2<f64>)>| {
+                                x.map(|(m, v)| [m.x, m.y, v.x, v.y].map(f64::to_bits))
+                            };
+                            assert_eq!(bits(*lane), bits(want), "{l} {circuit} {}", d[i]);
+                            assert_eq!(bits(*other), bits(want), "{l} {circuit} {}", d[i]);
+                            let want_finite = want.filter(|(m, v)| {
+                                [m.x, m.y, v.x, v.y].iter().all(|x| x.is_finite())
+                            });
+                            assert_eq!(bits(finite[i]), bits(want_finite), "{l} {circuit}");
+                            lanes += 1;
+                            none += usize::from(want.is_none());
+                        }
                     }
                 }
             }
         }
-        assert!(none > 1000 && lanes - none > 20_000, "{none} of {lanes}");
+        assert!(none > 5000 && lanes - none > 100_000, "{none} of {lanes}");
     }
 
     /// The fast reduction is `%` to the bit, at the edges and far out.

@@ -13,7 +13,7 @@
 
 use crate::geom::{C64, abs, fit_similarity, mean};
 use crate::kin::{CouplerCurve, PointAt};
-use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve, solve_from};
+use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve_into};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
 use coupler_kinematics::POINT_LANES;
@@ -434,6 +434,63 @@ fn unwrap_sequence(mut t: Vec<f64>, period: f64) -> Vec<f64> {
     t
 }
 
+/// The untimed fit's residuals `a·M̃(θ_k) + b − p_k` into `e` and, with the Jacobian
+/// asked, their derivatives (the similarity rows by `m`, `lm::similarity_row`, and the
+/// angles' `a·dM̃/dθ`), from the curve's points [`POINT_LANES`] at a time: `group(k)`
+/// gives points `k..k + POINT_LANES` (those past the end unread), asked in order, so a
+/// trial rejected part-way ([`Ask::reject_above`]) evaluates no more groups. `None` where
+/// a point is `None` or the trial is given up (`e` then holds part of it).
+#[inline(always)]
+fn untimed_residuals(
+    p: &[C64],
+    mir: bool,
+    a: C64,
+    b: C64,
+    ask: Ask,
+    e: &mut Eval,
+    mut group: impl FnMut(usize) -> [Option<PointAt>; POINT_LANES],
+) -> Option<()> {
+    let jac = ask.jacobian;
+    e.clear();
+    // Room for every point (after a buffer's first evaluation, no work).
+    e.r.reserve(p.len());
+    if jac {
+        e.sim.reserve(p.len());
+        e.jl.reserve(p.len());
+    }
+    let mut cost = RunningCost::new(ask);
+    let zero = C64::new(0.0, 0.0);
+    for (c, chunk) in p.chunks(POINT_LANES).enumerate() {
+        let points = group(c * POINT_LANES);
+        // The group's values, appended together.
+        let (mut r, mut m, mut jl) = (
+            [zero; POINT_LANES],
+            [zero; POINT_LANES],
+            [zero; POINT_LANES],
+        );
+        for (i, (&pk, at)) in chunk.iter().zip(&points).enumerate() {
+            let at = (*at)?;
+            m[i] = tilde(mir, at.m);
+            r[i] = a * m[i] + b - pk;
+            if !cost.add(r[i]) {
+                return None;
+            }
+            if jac {
+                jl[i] = a * tilde(mir, at.dm_dtheta);
+            }
+        }
+        let n = chunk.len();
+        e.r.extend_from_slice(&r[..n]);
+        if jac {
+            // The rows `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
+            e.sim.extend_from_slice(&m[..n]);
+            e.jl.extend_from_slice(&jl[..n]);
+        }
+    }
+    e.summed = Some(cost.sum());
+    Some(())
+}
+
 /// Least-squares untimed fit from a start: LM on (a, b) and every θ_k.
 pub(crate) fn fit_untimed(
     p: &[C64],
@@ -443,76 +500,38 @@ pub(crate) fn fit_untimed(
 ) -> Option<CurveFit> {
     let mir = start.mirrored;
     let gaps = curve.gaps();
-    // The residuals `a·M̃(θ_k) + b − p_k` and, with the Jacobian asked, their derivatives,
-    // from the curve's points at the angles (`at(k)` gives point k's, asked in order: a
-    // trial rejected part-way evaluates no more of them).
-    fn residuals(
-        p: &[C64],
-        mir: bool,
-        a: C64,
-        b: C64,
-        mut at: impl FnMut(usize) -> Option<PointAt>,
-        ask: Ask,
-    ) -> Option<Eval> {
-        let jac = ask.jacobian;
-        let mut e = Eval {
-            r: Vec::with_capacity(p.len()),
-            jg: Vec::new(),
-            jl: Vec::with_capacity(if jac { p.len() } else { 0 }),
-            sim: Vec::with_capacity(if jac { p.len() } else { 0 }),
-        };
-        let mut cost = RunningCost::new(ask);
-        for (k, &pk) in p.iter().enumerate() {
-            let at = at(k)?;
-            let m = tilde(mir, at.m);
-            let r = a * m + b - pk;
-            if !cost.add(r) {
-                return None;
-            }
-            e.r.push(r);
-            if jac {
-                // The row `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
-                e.sim.push(m);
-                e.jl.push(a * tilde(mir, at.dm_dtheta));
-            }
-        }
-        Some(e)
-    }
+    let lanes = curve.lanes_with(&gaps);
     // The start's points serve both its similarity and LM's first evaluation.
     let at0: Vec<PointAt> = curve.points_with(&gaps, &start.theta)?;
     let m0: Vec<C64> = at0.iter().map(|x| tilde(mir, x.m)).collect();
     let (a, b, _) = fit_similarity(&m0, p)?;
-    let eval = |g: &[f64], l: &[f64], ask: Ask| -> Option<Eval> {
+    // The points a lane group at a time (`POINT_LANES` angles side by side): a trial
+    // given up part-way has evaluated at most a group's worth more.
+    let eval = |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
-        // The points a lane group at a time (`POINT_LANES` angles side by side): a trial
-        // given up part-way has evaluated at most a group's worth more.
-        let mut group = [None; POINT_LANES];
-        let at = |k: usize| {
-            let lane = k % POINT_LANES;
-            if lane == 0 {
-                let last = l.len() - 1;
-                let degrees = std::array::from_fn(|i| l[(k + i).min(last)]);
-                group = curve.at_lanes_with(&gaps, &degrees);
-            }
-            group[lane]
-        };
-        residuals(p, mir, a, b, at, ask)
+        let last = l.len() - 1;
+        untimed_residuals(p, mir, a, b, ask, e, |k| {
+            let degrees = std::array::from_fn(|i| l[(k + i).min(last)]);
+            lanes.at(&degrees)
+        })
     };
     let g0 = vec![a.re, a.im, b.re, b.im];
-    let first = residuals(
+    let mut first = Eval::default();
+    untimed_residuals(
         p,
         mir,
         C64::new(g0[0], g0[1]),
         C64::new(g0[2], g0[3]),
-        |k| Some(at0[k]),
         Ask::whole(true),
-    );
+        &mut first,
+        |k| std::array::from_fn(|i| at0.get(k + i).copied()),
+    )?;
     let lm = LmOptions {
         max_iterations: options.max_iterations,
         reuse_trial: true,
         ..LmOptions::DEFAULT
     };
-    let res = solve_from(g0, start.theta.clone(), Some(first?), eval, &lm)?;
+    let res = solve_into(g0, start.theta.clone(), Some(first), eval, &lm)?;
     let theta = unwrap_sequence(res.local.clone(), curve.period_deg());
     // The residuals at the result, where the unwrapped angles are the ones LM evaluated.
     let known = res
@@ -670,13 +689,15 @@ fn timed_lm(
         .map(|&x| curve.at_with(&gaps, t0 + step * x).map(|a| tilde(mir, a.m)))
         .collect::<Option<_>>()?;
     let (a, b, _) = fit_similarity(&m0, p)?;
-    let eval = |g: &[f64], _: &[f64], ask: Ask| -> Option<Eval> {
+    let lanes = curve.lanes_with(&gaps);
+    let eval = |g: &[f64], _: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let (t0, s) = (g[4], if free_step { g[5] } else { step });
-        let mut e = Eval {
-            r: Vec::with_capacity(p.len()),
-            ..Eval::default()
-        };
+        e.clear();
+        e.r.reserve(p.len());
+        if ask.jacobian {
+            e.jg.reserve(p.len() * if free_step { 6 } else { 5 });
+        }
         let mut cost = RunningCost::new(ask);
         // The points a lane group at a time, as in the untimed fit.
         let mut group = [None; POINT_LANES];
@@ -685,7 +706,7 @@ fn timed_lm(
             let lane = k % POINT_LANES;
             if lane == 0 {
                 let degrees = std::array::from_fn(|i| t0 + s * o[(k + i).min(last)]);
-                group = curve.at_lanes_with(&gaps, &degrees);
+                group = lanes.at(&degrees);
             }
             let at = group[lane]?;
             let m = tilde(mir, at.m);
@@ -708,7 +729,8 @@ fn timed_lm(
                 }
             }
         }
-        Some(e)
+        e.summed = Some(cost.sum());
+        Some(())
     };
     let mut g = vec![a.re, a.im, b.re, b.im, t0];
     if free_step {
@@ -719,7 +741,7 @@ fn timed_lm(
         reuse_trial: true,
         ..LmOptions::DEFAULT
     };
-    let res = solve(g, Vec::new(), eval, &lm)?;
+    let res = solve_into(g, Vec::new(), None, eval, &lm)?;
     let s = if free_step { res.global[5] } else { step };
     let theta = o.iter().map(|&x| res.global[4] + s * x).collect();
     finish_fit(p, curve, mir, &res.global, theta, Some(s), None)

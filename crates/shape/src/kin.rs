@@ -5,9 +5,11 @@
 
 use crate::geom::C64;
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankAngle, FourBar, GearedFiveBar, GearedGaps, Linkage, Mechanism,
-    POINT_LANES, Pose, ToggleGaps,
+    Circuit, CouplerPoint, CrankAngle, CrankTable, FourBar, GearedFiveBar, GearedGaps, Linkage,
+    Mechanism, POINT_LANES, PointLanes, Pose, ToggleGaps,
 };
+use std::cell::RefCell;
+use std::rc::Rc;
 
 /// A curve a search can return: its id (in the atlas) and what traces it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -41,6 +43,44 @@ pub enum CurveGaps {
     FourBar(ToggleGaps),
     /// A geared five-bar's.
     Geared(GearedGaps),
+}
+
+/// A curve made ready for [`CurveLanes::at`], its points [`POINT_LANES`] angles at a time
+/// ([`CouplerCurve::lanes`]): a four-bar's linkage constants computed once
+/// ([`PointLanes`]), for a fit that evaluates the same curve at many angles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CurveLanes {
+    /// A four-bar's coupler point, its lanes side by side.
+    FourBar(PointLanes),
+    /// Another mechanism's curve, one angle at a time ([`CouplerCurve::at_with`]).
+    Other(CouplerCurve, CurveGaps),
+}
+
+impl CurveLanes {
+    /// [`CouplerCurve::at_lanes_with`] of the curve, the same values bit for bit.
+    #[inline(always)]
+    pub fn at(&self, degrees: &[f64; POINT_LANES]) -> [Option<PointAt>; POINT_LANES] {
+        match self {
+            CurveLanes::FourBar(k) => point_lanes(k, degrees),
+            CurveLanes::Other(curve, gaps) => degrees.map(|d| curve.at_with(gaps, d)),
+        }
+    }
+}
+
+/// A four-bar's lanes as [`PointAt`]s: `None` also where a value is not finite. A
+/// function of its own: the lanes vectorize well alone, and worse inlined into a fit.
+#[inline(never)]
+fn point_lanes(k: &PointLanes, degrees: &[f64; POINT_LANES]) -> [Option<PointAt>; POINT_LANES] {
+    let lanes = k.at_finite(degrees);
+    // Lane by lane in place (`from_fn`: inlined, where `map` over the lanes was a call per
+    // group).
+    std::array::from_fn(|i| {
+        let (m, v) = lanes[i]?;
+        Some(PointAt {
+            m: C64::new(m.x, m.y),
+            dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
+        })
+    })
 }
 
 /// The coupler point at one crank angle, with derivatives.
@@ -122,29 +162,30 @@ impl CouplerCurve {
     }
 
     /// [`CouplerCurve::at_with`] at [`POINT_LANES`] angles at once, the same values bit
-    /// for bit; a four-bar's lanes run side by side ([`Pose::finite_points_with`]).
+    /// for bit; a four-bar's lanes run side by side ([`Pose::finite_points_with`]; for
+    /// many groups of angles, [`CouplerCurve::lanes`] prepares the curve once).
     pub fn at_lanes_with(
         &self,
         gaps: &CurveGaps,
         degrees: &[f64; POINT_LANES],
     ) -> [Option<PointAt>; POINT_LANES] {
+        self.lanes_with(gaps).at(degrees)
+    }
+
+    /// The curve made ready for evaluating [`POINT_LANES`] angles at a time
+    /// ([`CurveLanes::at`]: [`CouplerCurve::at_lanes_with`]'s values, bit for bit).
+    pub fn lanes(&self) -> CurveLanes {
+        self.lanes_with(&self.gaps())
+    }
+
+    /// [`CouplerCurve::lanes`] with the linkage's constants computed once (`gaps`).
+    #[inline]
+    pub fn lanes_with(&self, gaps: &CurveGaps) -> CurveLanes {
         match (&self.linkage, gaps) {
             (Linkage::FourBar(l), CurveGaps::FourBar(g)) => {
-                let lanes = Pose::finite_points_with(l, g, self.circuit, self.point, degrees);
-                // Lane by lane in place (`from_fn`: inlined, where `map` over the lanes was
-                // a call per group).
-                std::array::from_fn(|i| {
-                    let (m, v) = lanes[i]?;
-                    if !(m.x.is_finite() && m.y.is_finite() && v.x.is_finite() && v.y.is_finite()) {
-                        return None;
-                    }
-                    Some(PointAt {
-                        m: C64::new(m.x, m.y),
-                        dm_dtheta: C64::new(v.x, v.y) * RAD_PER_DEG,
-                    })
-                })
+                CurveLanes::FourBar(PointLanes::new(l, g, self.circuit, self.point))
             }
-            _ => degrees.map(|d| self.at_with(gaps, d)),
+            _ => CurveLanes::Other(*self, *gaps),
         }
     }
 
@@ -152,9 +193,10 @@ impl CouplerCurve {
     /// values); `None` if any is.
     pub fn points_with(&self, gaps: &CurveGaps, degrees: &[f64]) -> Option<Vec<PointAt>> {
         let mut out = Vec::with_capacity(degrees.len());
+        let prepared = self.lanes_with(gaps);
         for chunk in degrees.chunks(POINT_LANES) {
             let lanes = std::array::from_fn(|i| chunk[i.min(chunk.len() - 1)]);
-            let got = self.at_lanes_with(gaps, &lanes);
+            let got = prepared.at(&lanes);
             for x in &got[..chunk.len()] {
                 out.push((*x)?);
             }
@@ -317,7 +359,7 @@ impl CouplerCurve {
     /// ([`CouplerCurve::period_deg`]); `None` unless it assembles at all of them.
     pub fn sample(&self, n: usize) -> Option<Vec<C64>> {
         let period = self.period_deg();
-        let table = coupler_kinematics::CrankTable::over(period / n as f64, period)?;
+        let table = crank_table(period / n as f64, period)?;
         let poses = self.linkage.pose_table(self.circuit, &table);
         if !poses.all_valid() {
             return None;
@@ -325,6 +367,28 @@ impl CouplerCurve {
         let c = poses.trace(self.point);
         Some((0..c.len()).map(|k| C64::new(c.x[k], c.y[k])).collect())
     }
+}
+
+/// `CrankTable::over(step, period)`, the table of the last `(step, period)` asked on this
+/// thread kept for the next ask: a query traces every candidate at the same angles
+/// (each table's sines and cosines cost as much as the poses). The table is a function
+/// of its arguments alone, so the same values.
+fn crank_table(step: f64, period: f64) -> Option<Rc<CrankTable>> {
+    thread_local! {
+        static LAST: RefCell<Option<(u64, u64, Rc<CrankTable>)>> = const { RefCell::new(None) };
+    }
+    let key = (step.to_bits(), period.to_bits());
+    LAST.with(|last| {
+        let mut last = last.borrow_mut();
+        if let Some((s, p, table)) = last.as_ref() {
+            if (*s, *p) == key {
+                return Some(Rc::clone(table));
+            }
+        }
+        let table = Rc::new(CrankTable::over(step, period)?);
+        *last = Some((key.0, key.1, Rc::clone(&table)));
+        Some(table)
+    })
 }
 
 #[cfg(test)]

@@ -31,7 +31,7 @@ mod traced;
 pub use code::{CODE_BYTES, CODE_LEN, ClosedQuery, HARMONICS, ShapeCode};
 pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
-pub use kin::{AtlasCurve, CouplerCurve, CurveGaps, PointAt, PointSensitivity};
+pub use kin::{AtlasCurve, CouplerCurve, CurveGaps, CurveLanes, PointAt, PointSensitivity};
 pub use matching::{
     Candidate, Match, MatchError, MatchOptions, OpenScan, closed_candidates_in, coarse_candidates,
     find_matches, open_finish, open_linkages, open_scan, rank_candidates,

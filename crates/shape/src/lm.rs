@@ -23,6 +23,9 @@ pub(crate) struct Eval {
     /// globals), given by their `m_j` instead of in `jg`: row `j` is
     /// [`similarity_row`]`(m_j)`, the same values (empty when `jg` holds the rows).
     pub sim: Vec<C64>,
+    /// [`Eval::cost`] as the evaluation summed it ([`RunningCost::sum`]: the same sum in
+    /// the same order), if it did.
+    pub summed: Option<f64>,
 }
 
 /// The Jacobian row `∂r/∂(Re a, Im a, Re b, Im b)` of a residual `a·m + b − p`:
@@ -38,8 +41,21 @@ pub(crate) fn similarity_row(m: C64) -> [C64; 4] {
 }
 
 impl Eval {
+    /// `Σ_j |r_j|²`, in point order.
     pub fn cost(&self) -> f64 {
-        self.r.iter().map(|r| r.norm_sqr()).sum()
+        match self.summed {
+            Some(c) if !self.r.is_empty() => c,
+            _ => self.r.iter().map(|r| r.norm_sqr()).sum(),
+        }
+    }
+
+    /// Empty, its vectors' room kept (for the next evaluation into it).
+    pub fn clear(&mut self) {
+        self.r.clear();
+        self.jg.clear();
+        self.jl.clear();
+        self.sim.clear();
+        self.summed = None;
     }
 }
 
@@ -82,6 +98,13 @@ impl RunningCost {
             sum: 0.0,
             limit: ask.reject_above,
         }
+    }
+
+    /// The cost so far: `Σ |r_j|²` of the points added, in their order (the same value as
+    /// [`Eval::cost`] of those residuals, which sums from `−0`: the terms are `≥ +0`, so
+    /// the first sum is the same).
+    pub fn sum(&self) -> f64 {
+        self.sum
     }
 
     /// Adds a point's residual; `false` once the cost so far exceeds the limit (the trial
@@ -166,13 +189,41 @@ pub(crate) fn solve_from<F>(
 where
     F: FnMut(&[f64], &[f64], Ask) -> Option<Eval>,
 {
+    let into = |g: &[f64], l: &[f64], ask: Ask, out: &mut Eval| -> Option<()> {
+        *out = eval(g, l, ask)?;
+        Some(())
+    };
+    solve_into(global, local, first, into, options)
+}
+
+/// [`solve_from`] with an `eval` that writes each evaluation into a buffer it is given
+/// (`eval(g, l, ask, out)`: `Some(())` with `out` holding what [`solve`]'s `eval` would
+/// return, `None` where that is `None`, `out` then left in any state), so that the
+/// evaluations reuse two buffers (the current point's and the trial's) instead of
+/// allocating their vectors each time. The same iterations, bit for bit.
+pub(crate) fn solve_into<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    first: Option<Eval>,
+    mut eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
     let ng = global.len();
     let has_locals = !local.is_empty();
     let (mut g, mut l) = (global, local);
     let mut e = match first {
         Some(e) => e,
-        None => eval(&g, &l, Ask::whole(true))?,
+        None => {
+            let mut e = Eval::default();
+            eval(&g, &l, Ask::whole(true), &mut e)?;
+            e
+        }
     };
+    // The trial's buffer: an accepted trial's evaluation is swapped into `e`.
+    let mut trial = Eval::default();
     let mut cost = e.cost();
     let mut lambda = 1e-3;
     let mut iterations = 0;
@@ -223,7 +274,8 @@ where
             0.0
         };
         let mut accepted = false;
-        let mut next: Option<Eval> = None;
+        // The accepted trial's evaluation is in `trial` (with `reuse_trial`).
+        let mut kept = false;
         for _ in 0..12 {
             s.copy_from_slice(&hgg);
             for (r, gg) in rhs.iter_mut().zip(&grad_g) {
@@ -276,21 +328,20 @@ where
                     }));
                 }
             }
-            let trial = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
+            let finite = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
                 && dg.iter().all(|x| x.is_finite());
-            let new_eval = if trial {
-                eval(
+            let evaluated = finite
+                && eval(
                     &g_new,
                     &l_new,
                     Ask {
                         jacobian: options.reuse_trial,
                         reject_above: cost,
                     },
+                    &mut trial,
                 )
-            } else {
-                None
-            };
-            let new_cost = new_eval.as_ref().map(Eval::cost);
+                .is_some();
+            let new_cost = evaluated.then(|| trial.cost());
             match new_cost {
                 Some(c) if c.is_finite() && c <= cost => {
                     let decrease = cost - c;
@@ -304,14 +355,12 @@ where
                             l,
                             eval,
                             iterations,
-                            new_eval.filter(|_| options.reuse_trial),
+                            options.reuse_trial.then_some(trial),
                         );
                     }
-                    if options.reuse_trial {
-                        // The residuals and Jacobian at the accepted point: what
-                        // `eval(&g, &l, Ask::whole(true))` gives.
-                        next = new_eval;
-                    }
+                    // With `reuse_trial`, the residuals and Jacobian at the accepted
+                    // point: what `eval(&g, &l, Ask::whole(true))` gives.
+                    kept = options.reuse_trial;
                     break;
                 }
                 _ => lambda *= 4.0,
@@ -320,10 +369,11 @@ where
         if !accepted {
             break;
         }
-        e = match next.take() {
-            Some(kept) => kept,
-            None => eval(&g, &l, Ask::whole(true))?,
-        };
+        if kept {
+            std::mem::swap(&mut e, &mut trial);
+        } else {
+            eval(&g, &l, Ask::whole(true), &mut e)?;
+        }
         cost = e.cost();
     }
     let last = options.reuse_trial.then_some(e);
@@ -569,10 +619,10 @@ fn finish<F>(
     last: Option<Eval>,
 ) -> Option<LmResult>
 where
-    F: FnMut(&[f64], &[f64], Ask) -> Option<Eval>,
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
 {
     if last.is_none() {
-        eval(&g, &l, Ask::whole(false))?;
+        eval(&g, &l, Ask::whole(false), &mut Eval::default())?;
     }
     Some(LmResult {
         global: g,
