@@ -24,6 +24,19 @@ fn default_atlas() -> (Vec<AtlasCurve>, Vec<ShapeCode>) {
     (curves, codes)
 }
 
+/// A match's curve's features, with the default tolerances and dashes.
+fn features(m: &Match) -> coupler_atlas::CurveFeatures {
+    use coupler_atlas::{DashPattern, FeatureExtractor, FeatureTolerances};
+    FeatureExtractor::new(
+        &m.curve.linkage,
+        m.curve.circuit,
+        &FeatureTolerances::DEFAULT,
+        &DashPattern::default(),
+    )
+    .unwrap()
+    .extract(m.curve.point)
+}
+
 /// Closed targets from atlas curves under random similarity transforms (half reflected),
 /// random start points and 1 % noise: the source (or a curve at least as close) is in the
 /// top 5 in at least 95 % of 200 seeded cases.
@@ -171,19 +184,8 @@ fn placement_reproduces_the_target() {
 fn classics_find_their_families() {
     use coupler_atlas::CurveList;
     use coupler_atlas::trace_full;
-    use coupler_atlas::{DashPattern, FeatureExtractor, FeatureTolerances};
     let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "classics").unwrap();
     let (curves, codes) = default_atlas();
-    let features = |m: &Match| {
-        FeatureExtractor::new(
-            &m.curve.linkage,
-            m.curve.circuit,
-            &FeatureTolerances::DEFAULT,
-            &DashPattern::default(),
-        )
-        .unwrap()
-        .extract(m.curve.point)
-    };
     for name in ["Hoeken", "Watt"] {
         let c = list.curves.iter().find(|c| c.name == name).unwrap();
         let full = trace_full(c.linkage.four_bar().unwrap(), c.point, 2.0);
@@ -243,7 +245,6 @@ fn classics_find_their_families() {
 fn chebyshev_open_run_finds_hoekens_cognate() {
     use coupler_atlas::CurveList;
     use coupler_atlas::trace_full;
-    use coupler_atlas::{DashPattern, FeatureExtractor, FeatureTolerances};
     let list = CurveList::parse(include_str!("../atlas-spec/classics.toml"), "classics").unwrap();
     let c = list.curves.iter().find(|c| c.name == "Chebyshev").unwrap();
     let full = trace_full(c.linkage.four_bar().unwrap(), c.point, 1.0);
@@ -274,14 +275,7 @@ fn chebyshev_open_run_finds_hoekens_cognate() {
     let m = find_matches(&t, &curves, &codes, &MatchOptions::DEFAULT).unwrap();
     assert_eq!(m.len(), 5);
     for x in &m {
-        let f = FeatureExtractor::new(
-            &x.curve.linkage,
-            x.curve.circuit,
-            &FeatureTolerances::DEFAULT,
-            &DashPattern::default(),
-        )
-        .unwrap()
-        .extract(x.curve.point);
+        let f = features(x);
         println!(
             "Chebyshev open: curve {} {} ({}, {}) rms {:.3e}% crank {:?} straight {:?}",
             x.id,
