@@ -13,10 +13,11 @@
 //! - an **inked row** is read in 8-byte words as `fdeflate` reads it, but only the words
 //!   that may hold ink; the words between are known to be zero and only lengthen the
 //!   current run of zeros, and their Adler-32 is updated arithmetically too. The words
-//!   are read twice: once to mark which are not all zero, then the marked ones are
+//!   are read twice: once to list those not all zero (each word stored at the list's
+//!   end, which moves on only if it is not zero: no branch), then the listed ones are
 //!   written as symbols without a branch on their bytes (a word's run of zeros one
-//!   symbol, its 8 bytes stored as literal symbols of which those up to its trailing
-//!   zeros are kept), since on anti-aliased ink the branches per word and per byte of
+//!   symbol, its 8 bytes widened in one unpack and stored as literal symbols of which
+//!   those up to its trailing zeros are kept), since on anti-aliased ink the branches per word and per byte of
 //!   `fdeflate`'s loop are mispredicted; the row's symbols are then coded eight at a
 //!   time from one table, so a word's bits cost what its run and its few literals do.
 //!   A page's Up-filtered row is not even stored ([`RowDeflate::up_row`]): the words
@@ -28,6 +29,7 @@
 //! streams byte for byte.
 
 use std::sync::OnceLock;
+use wide::{u8x16, u16x8};
 
 /// The Adler-32 modulus.
 const ADLER_MOD: u64 = 65_521;
@@ -402,10 +404,10 @@ impl Bits {
         }
     }
 
-    /// A row whose bytes are zero outside the byte ranges `live`, as
-    /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
-    /// The words that meet `live` are read into `vals` and the inked ones (not all zero)
-    /// marked in `inked`; then [`Bits::coded`] codes them.
+    /// A row whose bytes are zero outside the byte ranges `live` (ascending by start,
+    /// possibly overlapping), as `fdeflate::Compressor::write_data(row)` encodes it; its
+    /// bytes are added to `adler`. The words that meet `live` are read and the inked ones
+    /// (not all zero) listed in `words`; then [`Bits::coded`] codes them.
     fn row(
         &mut self,
         f: &Format,
@@ -415,42 +417,47 @@ impl Bits {
         words: &mut RowWords,
     ) {
         let n = row.len() / 8;
-        let (vals, inked) = words.begin(n);
-        inked.fill(0);
+        let list = words.begin(n);
+        let (mut cnt, mut next) = (0, 0);
         for (s, e) in live {
-            for i in s / 8..e.div_ceil(8).min(n) {
+            let e = e.div_ceil(8).min(n);
+            for i in (s / 8).max(next)..e {
                 let v = u64::from_le_bytes(row[8 * i..8 * i + 8].try_into().expect("8 bytes"));
-                vals[i] = v;
-                inked[i / 64] |= u64::from(v != 0) << (i % 64);
+                list[cnt] = (i, v);
+                cnt += usize::from(v != 0);
             }
+            next = next.max(e);
         }
         let rest = &row[8 * n..];
         let mut r = [0u8; 8];
         r[..rest.len()].copy_from_slice(rest);
-        self.coded(f, words, n, (u64::from_le_bytes(r), rest.len()), adler);
+        self.coded(f, words, n, cnt, (u64::from_le_bytes(r), rest.len()), adler);
     }
 
     /// A row of `n` whole 8-byte words and then the bytes `rest`, as
     /// `fdeflate::Compressor::write_data(row)` encodes it; its bytes are added to `adler`.
-    /// Only the words `words.inked` marks are read (from `words.vals`): every other
-    /// whole word is zero. The inked words are coded in order (their sums added), and
-    /// the zero words between only lengthen the run of zeros, their sums arithmetic.
+    /// Its inked words are the first `cnt` of `words.list` (index and value, ascending):
+    /// every other whole word is zero. The inked words are coded in order (their sums
+    /// added), and the zero words between only lengthen the run of zeros, their sums
+    /// arithmetic.
     fn coded(
         &mut self,
         f: &Format,
         words: &mut RowWords,
         n: usize,
+        cnt: usize,
         (rest, t): (u64, usize),
         adler: &mut Adler,
     ) {
-        let RowWords { vals, inked, syms } = words;
-        let (vals, inked) = (&vals[..n], &inked[..n.div_ceil(64)]);
+        let RowWords { list, syms } = words;
+        let list = &list[..cnt];
         debug_assert!(t < 8 && rest.checked_shr(8 * t as u32).unwrap_or(0) == 0);
-        // Room for the row's symbols, two bytes each: per word at most a long run (a
-        // literal 0, its matches — fewer than one per 32 words of zeros — and its rest),
-        // a padding run and 8 literals, then the row's last run, its rest and padding,
-        // and the 9 symbols a word's stores reach past its own.
-        let room = 2 * (12 * n + 64);
+        debug_assert!(list.windows(2).all(|w| w[0].0 < w[1].0) && list.iter().all(|w| w.0 < n));
+        // Room for the row's symbols: per word at most a long run (a literal 0, its
+        // matches — fewer than one per 32 words of zeros — and its rest), a padding run and
+        // 8 literals, then the row's last run, its rest and padding, and the 9 symbols a
+        // word's stores reach past its own.
+        let room = 12 * n + 64;
         if syms.len() < room {
             syms.resize(room, 0);
         }
@@ -458,20 +465,17 @@ impl Bits {
         let len = 8 * n + t;
         // Adler-32 of the row after sums `(a₀, b₀)`: `a = a₀ + Σ xₚ` and
         // `b = b₀ + len·a₀ + Σ (len − p)·xₚ` over the row's bytes `xₚ`, so each word adds
-        // its own terms, independent of the others. Reduced every 4096 words: in between
-        // `a` grows by at most 255·2^15 and `b` by 2^12·(len·2040 + 2040), far below 2^64.
+        // its own terms, independent of the others. Reduced every 4096 inked words: in
+        // between `a` grows by at most 255·2^15 and `b` by 2^12·(len·2040 + 2040), far
+        // below 2^64.
         let r = len as u64;
         let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
         b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
         // First the row as symbols: the pending run of zeros starts at byte `zero` (the
         // bytes before it are written) and the symbols are `syms[..p]`.
         let (mut zero, mut p) = (0usize, 0usize);
-        for (k, &m) in inked.iter().enumerate() {
-            let mut m = m;
-            while m != 0 {
-                let i = 64 * k + m.trailing_zeros() as usize;
-                m &= m - 1;
-                let v = vals[i];
+        for part in list.chunks(4096) {
+            for &(i, v) in part {
                 // A pending run of zeros takes the word's leading zero bytes, the bytes
                 // up to its trailing zeros are literals, and the trailing zeros start the
                 // next run. No branch on the bytes (only runs longer than `ZRUN_MAX` take
@@ -493,37 +497,29 @@ impl Bits {
                 };
                 // The run's symbol is kept only if the run is not empty.
                 let has = usize::from(z > 0);
-                let win: &mut [u8; 18] =
-                    (&mut syms[p..p + 18]).try_into().expect("room for a word");
-                win[..2].copy_from_slice(&(RUN + z as u16).to_le_bytes());
-                let lits = &mut win[2 * has..2 * has + 16];
-                lits[..8].copy_from_slice(&widen(u as u32).to_le_bytes());
-                lits[8..].copy_from_slice(&widen((u >> 32) as u32).to_le_bytes());
-                p += 2 * (has + c as usize);
+                let win: &mut [u16; 9] = (&mut syms[p..p + 9]).try_into().expect("room");
+                win[0] = RUN + z as u16;
+                win[has..has + 8].copy_from_slice(&literals(u));
+                p += has + c as usize;
                 let (sum, weighted) = word_sums(v);
                 a += sum;
                 b += (r - 8 - 8 * i as u64) * sum + weighted;
             }
-            if k % 64 == 63 {
-                (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
-            }
+            (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
         }
         let run = (8 * n - zero) as u32;
         p = if run > ZRUN_MAX {
             long_run(syms, p, run)
         } else {
-            syms[p..p + 2].copy_from_slice(&(RUN + run as u16).to_le_bytes());
-            p + 2
+            syms[p] = RUN + run as u16;
+            p + 1
         };
         // The rest, each byte a literal (zeros too), then runs of none up to a multiple of
         // eight symbols; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
-        let win: &mut [u8; 30] = (&mut syms[p..p + 30]).try_into().expect("room");
-        win[..8].copy_from_slice(&widen(rest as u32).to_le_bytes());
-        win[8..16].copy_from_slice(&widen((rest >> 32) as u32).to_le_bytes());
-        p += 2 * t;
-        for s in syms[p..p + 14].chunks_exact_mut(2) {
-            s.copy_from_slice(&RUN.to_le_bytes());
-        }
+        let win: &mut [u16; 15] = (&mut syms[p..p + 15]).try_into().expect("room");
+        win[..8].copy_from_slice(&literals(rest));
+        p += t;
+        syms[p..p + 7].fill(RUN);
         let (sum, weighted) = word_sums(rest);
         a += sum;
         b += weighted - (8 - t as u64) * sum;
@@ -539,9 +535,9 @@ impl Bits {
         }
         let (out, tab) = (&mut self.out[..], &f.syms);
         let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
-        for g in syms[..16 * (p / 2).div_ceil(8)].chunks_exact(16) {
-            let s = u128::from_le_bytes(g.try_into().expect("16 bytes"));
-            let e = |k: u32| tab[(s >> (16 * k)) as usize & (SYMBOLS - 1)];
+        for g in syms[..8 * p.div_ceil(8)].chunks_exact(8) {
+            let g: &[u16; 8] = g.try_into().expect("8 symbols");
+            let e = |k: usize| tab[usize::from(g[k]) & (SYMBOLS - 1)];
             let win: &mut [u8; 40] = (&mut out[pos..pos + 40]).try_into().expect("room");
             let mut o = 0;
             for h in 0..4 {
@@ -560,24 +556,21 @@ impl Bits {
     }
 }
 
-/// The four bytes of `x` (the first in the low byte) as four little-endian 16-bit
-/// symbols (the literals' own).
+/// The eight bytes of `x` (the first in the low byte) as eight literal symbols.
 #[inline(always)]
-fn widen(x: u32) -> u64 {
-    let x = u64::from(x);
-    let x = (x | x << 16) & 0x0000_ffff_0000_ffff;
-    (x | x << 8) & 0x00ff_00ff_00ff_00ff
+fn literals(x: u64) -> [u16; 8] {
+    u16x8::from_u8x16_low(u8x16::new(u128::from(x).to_le_bytes())).to_array()
 }
 
-/// A run of `z ≥ 1` zeros as symbols at byte `p` of `syms` (the literal 0, a match per
+/// A run of `z ≥ 1` zeros as symbols at `p` in `syms` (the literal 0, a match per
 /// whole 258 after it, and the rest; see [`RUN`]); gives the position after them.
 #[cold]
 #[inline(never)]
-fn long_run(syms: &mut [u8], mut p: usize, z: u32) -> usize {
+fn long_run(syms: &mut [u16], mut p: usize, z: u32) -> usize {
     let (q, r) = ((z - 1) / 258, (z - 1) % 258);
     let mut put = |s: u16| {
-        syms[p..p + 2].copy_from_slice(&s.to_le_bytes());
-        p += 2;
+        syms[p] = s;
+        p += 1;
     };
     put(0);
     for _ in 0..q {
@@ -587,28 +580,23 @@ fn long_run(syms: &mut [u8], mut p: usize, z: u32) -> usize {
     p
 }
 
-/// The whole 8-byte words of the row being coded: a bit per word in `inked`, set for the
-/// words that are not zero, whose values are in `vals` (the values of other words are
-/// not read: what an earlier row left there does not matter).
+/// The inked (not all zero) whole 8-byte words of the row being coded, and its symbols.
 #[derive(Default)]
 pub(crate) struct RowWords {
-    vals: Vec<u64>,
-    inked: Vec<u64>,
-    /// The row's symbols ([`RUN`]), two bytes each, little-endian.
-    syms: Vec<u8>,
+    /// `(index, value)` of the inked words, in order (the entries after them are
+    /// scratch: a word is stored, then kept if it is inked).
+    list: Vec<(usize, u64)>,
+    /// The row's symbols ([`RUN`]).
+    syms: Vec<u16>,
 }
 
 impl RowWords {
-    /// Room for a row of `n` whole words (the marks left as they are: to be set).
-    fn begin(&mut self, n: usize) -> (&mut [u64], &mut [u64]) {
-        if self.vals.len() < n {
-            self.vals.resize(n, 0);
+    /// Room for the inked words of a row of `n` whole words.
+    fn begin(&mut self, n: usize) -> &mut [(usize, u64)] {
+        if self.list.len() < n {
+            self.list.resize(n, (0, 0));
         }
-        let m = n.div_ceil(64);
-        if self.inked.len() < m {
-            self.inked.resize(m, 0);
-        }
-        (&mut self.vals[..n], &mut self.inked[..m])
+        &mut self.list[..n]
     }
 }
 
@@ -743,7 +731,10 @@ impl RowDeflate {
             |row: &[u8], s: usize| u64::from_le_bytes(row[s..s + 8].try_into().expect("8 bytes"));
         // The row is `w + 1` bytes: `n` whole words, then `t < 8` bytes, `rest`.
         let n = (w + 1) / 8;
-        let (vals, inked) = self.words.begin(n);
+        let list = self.words.begin(n);
+        // The inked words are `list[..cnt]`: each candidate word is stored at `cnt`, which
+        // then moves on if it is not zero.
+        let mut cnt = 0;
         let (rest, t) = if w < 8 {
             // Word 0 (if whole) and the rest, byte by byte.
             let mut v = u64::from(UP);
@@ -754,21 +745,25 @@ impl RowDeflate {
                 above.fill(0);
             }
             if n == 1 {
-                (vals[0], inked[0]) = (v, 1);
+                (list[0], cnt) = ((0, v), 1);
                 (0, 0)
             } else {
                 (v, w + 1)
             }
         } else {
             // Word 0: the filter byte, then pixels 0..7 (pixel 7 is word 1's).
-            vals[0] = sub_bytes(load(above, 0), load(this, 0)) << 8 | u64::from(UP);
+            list[0] = (
+                0,
+                sub_bytes(load(above, 0), load(this, 0)) << 8 | u64::from(UP),
+            );
+            cnt = 1;
             if clear {
                 above[..7].copy_from_slice(&[0; 7]);
             }
             // Word `i ≥ 1` is pixels `8i − 1..8i + 7`: blocks `i − 1` and `i`. The words
             // are apart, so the row above can be cleared as it is read.
             let (ma, mb) = marks;
-            let last = inked.len() - 1;
+            let last = n.div_ceil(64) - 1;
             let mut carry = 0;
             for k in 0..=last {
                 let m = ma[k] | mb[k];
@@ -780,7 +775,6 @@ impl RowDeflate {
                 if k == last && n % 64 != 0 {
                     c &= (1 << (n % 64)) - 1;
                 }
-                let mut bits = u64::from(k == 0);
                 while c != 0 {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
@@ -791,10 +785,9 @@ impl RowDeflate {
                     if clear {
                         *up = [0; 8];
                     }
-                    vals[i] = v;
-                    bits |= u64::from(v != 0) << (i % 64);
+                    list[cnt] = (i, v);
+                    cnt += usize::from(v != 0);
                 }
-                inked[k] = bits;
             }
             // The rest: pixels `8n − 1..w`, the last `t` of the row's last 8.
             let t = w + 1 - 8 * n;
@@ -805,7 +798,7 @@ impl RowDeflate {
             (v.checked_shr(8 * (8 - t) as u32).unwrap_or(0), t)
         };
         self.bits
-            .coded(self.f, &mut self.words, n, (rest, t), &mut self.adler);
+            .coded(self.f, &mut self.words, n, cnt, (rest, t), &mut self.adler);
     }
 
     /// `count` blank rows of `len` bytes: filter type `filter`, then zeros.
@@ -1173,16 +1166,16 @@ mod tests {
         for z in 1..258 * 8 + 300u32 {
             let mut want = Bits::new(Vec::new());
             want.zeros_by_symbol(f, z);
-            let mut syms = vec![0u8; 2 * (z as usize / 258 + 4)];
+            let mut syms = vec![0u16; z as usize / 258 + 4];
             let end = if z > ZRUN_MAX {
                 long_run(&mut syms, 0, z)
             } else {
-                syms[..2].copy_from_slice(&(RUN + z as u16).to_le_bytes());
-                2
+                syms[0] = RUN + z as u16;
+                1
             };
             let mut got = Bits::new(Vec::new());
-            for s in syms[..end].chunks_exact(2) {
-                let (c, l) = entry(u16::from_le_bytes([s[0], s[1]]));
+            for &s in &syms[..end] {
+                let (c, l) = entry(s);
                 got.put(c, l);
             }
             assert_eq!(got.into_words(), want.into_words(), "a run of {z}");
