@@ -29,7 +29,7 @@
 //! streams byte for byte.
 
 use std::sync::OnceLock;
-use wide::{u8x16, u16x8};
+use wide::{i16x8, i32x4, u8x16, u16x8};
 
 /// The Adler-32 modulus.
 const ADLER_MOD: u64 = 65_521;
@@ -465,48 +465,18 @@ impl Bits {
         let len = 8 * n + t;
         // Adler-32 of the row after sums `(a₀, b₀)`: `a = a₀ + Σ xₚ` and
         // `b = b₀ + len·a₀ + Σ (len − p)·xₚ` over the row's bytes `xₚ`, so each word adds
-        // its own terms, independent of the others. Reduced every 4096 inked words: in
-        // between `a` grows by at most 255·2^15 and `b` by 2^12·(len·2040 + 2040), far
-        // below 2^64.
+        // its own terms, independent of the others ([`word_symbols`]).
         let r = len as u64;
-        let (mut a, mut b) = (u64::from(adler.a), u64::from(adler.b));
-        b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
+        let (a, b) = (u64::from(adler.a), u64::from(adler.b));
+        let b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
         // First the row as symbols: the pending run of zeros starts at byte `zero` (the
-        // bytes before it are written) and the symbols are `syms[..p]`.
-        let (mut zero, mut p) = (0usize, 0usize);
-        for part in list.chunks(4096) {
-            for &(i, v) in part {
-                // A pending run of zeros takes the word's leading zero bytes, the bytes
-                // up to its trailing zeros are literals, and the trailing zeros start the
-                // next run. No branch on the bytes (only runs longer than `ZRUN_MAX` take
-                // the long way): the run is one symbol (none when the run is empty),
-                // and the literals are the word shifted down past the run's bytes, all 8
-                // stored as symbols, of which the `c` that are the word's are kept.
-                let run = (8 * i - zero) as u32;
-                let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
-                let from = if run > 0 { lead } else { 0 };
-                let z = run + from;
-                let c = 8 - tail - from;
-                let u = v >> (8 * from);
-                zero = 8 * i + 8 - tail as usize;
-                let z = if z > ZRUN_MAX {
-                    p = long_run(syms, p, z);
-                    0
-                } else {
-                    z
-                };
-                // The run's symbol is kept only if the run is not empty.
-                let has = usize::from(z > 0);
-                let win: &mut [u16; 9] = (&mut syms[p..p + 9]).try_into().expect("room");
-                win[0] = RUN + z as u16;
-                win[has..has + 8].copy_from_slice(&literals(u));
-                p += has + c as usize;
-                let (sum, weighted) = word_sums(v);
-                a += sum;
-                b += (r - 8 - 8 * i as u64) * sum + weighted;
-            }
-            (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
-        }
+        // bytes before it are written) and the symbols are `syms[..p]`. The words' sums
+        // in 16-bit lanes when the weights `len − p` fit them.
+        let (mut p, zero, mut a, mut b) = if len <= LANE_ROW {
+            word_symbols::<true>(list, syms, r, (a, b))
+        } else {
+            word_symbols::<false>(list, syms, r, (a, b))
+        };
         let run = (8 * n - zero) as u32;
         p = if run > ZRUN_MAX {
             long_run(syms, p, run)
@@ -554,6 +524,85 @@ impl Bits {
         }
         (self.pos, self.acc, self.n) = (pos, acc, nb);
     }
+}
+
+/// The longest row whose Adler-32 weights `len − p` (at most `len`) [`word_symbols`]
+/// takes in 16-bit lanes.
+const LANE_ROW: usize = i16::MAX as usize;
+
+/// The weights `−j` of a word's bytes `j = 0..8` beside the weight of its first.
+const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
+
+/// The inked words `list` (index and value, in order) of a row of `r` bytes as symbols
+/// at the start of `syms` ([`Bits::coded`]), and their bytes added to the Adler-32 sums
+/// `(a, b)` as `a += Σ xₚ`, `b += Σ (r − p)·xₚ` (the byte `xₚ` at `p`). Gives the end of
+/// the symbols, the end of the last word's ink (where the pending run of zeros starts)
+/// and the sums, reduced.
+///
+/// With `LANES` (rows of at most [`LANE_ROW`] bytes) a word's sums are taken from its
+/// literals' 16-bit lanes, the ones the symbols are stored from: `a`'s lanes add the
+/// bytes and `b`'s multiply them by `r − p` (at most `2^15 − 1`, an `i16`) and add
+/// them in pairs into 32-bit lanes. They are added up every 64 words: a lane of `a`
+/// then holds at most 64·255 = 16,320 (below 2^15) and one of `b` at most
+/// 64·2·255·(2^15 − 1) = 1,069,515,840 (below 2^31), all of them at least 0 (the
+/// bytes past a word's ink, whose weights may be below 0, are zeros). Without, each
+/// word's sums are taken in a `u64` ([`word_sums`]): `b` grows by at most
+/// 64·(r·2040 + 2040) between reductions.
+#[inline(always)]
+fn word_symbols<const LANES: bool>(
+    list: &[(usize, u64)],
+    syms: &mut [u16],
+    r: u64,
+    (mut a, mut b): (u64, u64),
+) -> (usize, usize, u64, u64) {
+    let (mut zero, mut p) = (0usize, 0usize);
+    for part in list.chunks(64) {
+        let (mut la, mut lb) = (i16x8::ZERO, i32x4::ZERO);
+        for &(i, v) in part {
+            // A pending run of zeros takes the word's leading zero bytes, the bytes up
+            // to its trailing zeros are literals, and the trailing zeros start the next
+            // run. No branch on the bytes (only runs longer than `ZRUN_MAX` take the
+            // long way): the run is one symbol (none when the run is empty), and the
+            // literals are the word shifted down past the run's bytes, all 8 stored as
+            // symbols, of which the `c` that are the word's are kept.
+            let run = (8 * i - zero) as u32;
+            let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
+            let from = if run > 0 { lead } else { 0 };
+            let z = run + from;
+            let c = 8 - tail - from;
+            let u = v >> (8 * from);
+            zero = 8 * i + 8 - tail as usize;
+            let z = if z > ZRUN_MAX {
+                p = long_run(syms, p, z);
+                0
+            } else {
+                z
+            };
+            // The run's symbol is kept only if the run is not empty.
+            let has = usize::from(z > 0);
+            let lits = i16x8::from_u8x16_low(u8x16::new(u128::from(u).to_le_bytes()));
+            let win: &mut [u16; 9] = (&mut syms[p..p + 9]).try_into().expect("room");
+            win[0] = RUN + z as u16;
+            win[has..has + 8].copy_from_slice(&lits.to_array().map(|x| x as u16));
+            p += has + c as usize;
+            if LANES {
+                // The literals' first byte is at `8i + from`.
+                let first = (r - (8 * i) as u64 - u64::from(from)) as i16;
+                la += lits;
+                lb += lits.dot(i16x8::splat(first) + RAMP);
+            } else {
+                let (sum, weighted) = word_sums(v);
+                a += sum;
+                b += (r - 8 - 8 * i as u64) * sum + weighted;
+            }
+        }
+        if LANES {
+            a += la.to_array().iter().map(|&x| x as u64).sum::<u64>();
+            b += lb.to_array().iter().map(|&x| x as u64).sum::<u64>();
+        }
+        (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
+    }
+    (p, zero, a, b)
 }
 
 /// The eight bytes of `x` (the first in the low byte) as eight literal symbols.
@@ -1135,6 +1184,32 @@ mod tests {
             row[0] = 1;
             z.row(&row, std::iter::empty());
             rows.push(row);
+        }
+        assert!(z.finish() == reference(&rows), "streams differ");
+    }
+
+    /// Rows at the lanes' limit ([`LANE_ROW`] bytes, one less and one more: the sums in
+    /// lanes and in a `u64`) and around zlib's 5,552-byte block: every byte 255 (the
+    /// largest sums a lane holds), and words of random bytes between zero words. The
+    /// streams, their Adler-32 included, are `fdeflate`'s.
+    #[test]
+    fn rows_at_the_lane_limit_match() {
+        let mut seed = 0x2b99_2ddf_a232_49d6u64;
+        let mut rows = Vec::new();
+        let mut z = RowDeflate::new(Vec::new());
+        for len in [5551, 5552, 5553, LANE_ROW - 1, LANE_ROW, LANE_ROW + 1] {
+            let full = vec![255u8; len];
+            z.row(&full, std::iter::once((0, len)));
+            rows.push(full);
+            let mut mixed = vec![0u8; len];
+            for (k, b) in mixed.iter_mut().enumerate() {
+                let r = lcg(&mut seed);
+                if (k / 8) % 5 != 0 && r % 4 != 0 {
+                    *b = (r >> 8) as u8;
+                }
+            }
+            z.row(&mixed, std::iter::once((0, len)));
+            rows.push(mixed);
         }
         assert!(z.finish() == reference(&rows), "streams differ");
     }
