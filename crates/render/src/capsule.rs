@@ -857,14 +857,14 @@ impl Edge {
 
 /// `x / 255` in lanes, for every 16-bit `x`: `(x · 0x8081) >> 23` (tested for all).
 #[inline(always)]
-fn div255(x: u16x8) -> u16x8 {
+pub(crate) fn div255(x: u16x8) -> u16x8 {
     x.mul_keep_high(u16x8::splat(0x8081))
         .unbounded_shr_scalar(7)
 }
 
 /// Eight bytes in 16-bit lanes.
 #[inline(always)]
-fn widen(b: &[u8]) -> u16x8 {
+pub(crate) fn widen(b: &[u8]) -> u16x8 {
     let mut a = [0u8; 16];
     a[..8].copy_from_slice(&b[..8]);
     u16x8::from_u8x16_low(u8x16::new(a))
@@ -1597,11 +1597,7 @@ mod tests {
                     } else {
                         c.stroke(r, &mut t);
                     }
-                    let op = |d: u8, c: u8, g: u32| {
-                        let (d, c) = (u32::from(d), u32::from(c));
-                        (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
-                    };
-                    layer.flush(&mut data[j0 * w..j1 * w], j0, dirty, op);
+                    layer.flush(&mut data[j0 * w..j1 * w], j0);
                 }
             }
             assert!(got == want, "stroke {n}: r {r}, {} segments", pts.len());
