@@ -870,6 +870,14 @@ pub(crate) fn widen(b: &[u8]) -> u16x8 {
     u16x8::from_u8x16_low(u8x16::new(a))
 }
 
+/// [`widen`]'s inverse: eight 16-bit lanes, each at most 255, stored as bytes into
+/// `b[..8]` (one saturating pack, the same values).
+#[inline(always)]
+pub(crate) fn narrow(v: u16x8, b: &mut [u8]) {
+    let v = i16x8::new(v.to_array().map(|x| x as i16));
+    b[..8].copy_from_slice(&u8x16::narrow_i16x8(v, i16x8::ZERO).to_array()[..8]);
+}
+
 /// Composites coverage `cov` of `ink` over `dst` and clears `cov`: `composite` of
 /// `raster.rs` pixel by pixel, black and paper eight pixels at a time in 16-bit lanes
 /// (`(255·x + 32512) / 65025` is `(x + 127) / 255` for black, see `composite_row`).
@@ -892,10 +900,7 @@ fn composite_span(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
         } else {
             d + div255((u16x8::splat(255) - d) * c + half)
         };
-        let v = v.to_array();
-        for (o, v) in d8.iter_mut().zip(v) {
-            *o = v as u8;
-        }
+        narrow(v, d8);
     }
     composite_pixels(&mut dst[lanes..], &mut cov[lanes..], ink);
     cov.fill(0);

@@ -7,9 +7,9 @@
 //! that holds coverage, so a layer costs memory and compositing time only where there is
 //! gray (a page-sized layer was 16.8 MB per worker at 300 dpi).
 
-use crate::capsule::{div255, widen};
+use crate::capsule::{div255, narrow, widen};
 use crate::raster::overprint;
-use wide::{f32x8, i32x8, u16x8};
+use wide::{f32x8, i16x8, i32x8, u8x16, u16x8};
 
 /// Tile side, pixels.
 const TILE: usize = 64;
@@ -62,6 +62,7 @@ impl GrayLayer {
     /// Merges coverage `cov` into row `j`, columns `x0..x0 + cov.len()` ("source over":
     /// `l ← l + (255 − l)·c`, rounded, [`merge`]), and clears `cov`. The caller marks
     /// those pixels in the page's dirty map ([`GrayLayer::flush`] does not).
+    #[inline]
     pub(crate) fn add_span(&mut self, j: usize, x0: usize, cov: &mut [u8]) {
         let x1 = (x0 + cov.len()).min(self.width);
         if j >= self.height || x0 >= x1 {
@@ -75,32 +76,38 @@ impl GrayLayer {
             let end = ((tx + 1) * TILE).min(x1);
             let at = ty * self.cols + tx;
             let k = match self.slot[at] {
-                NONE => {
-                    if self.used == self.tiles.len() {
-                        self.tiles.push(Tile {
-                            at: at as u32,
-                            cov: vec![0; TILE * TILE].into_boxed_slice(),
-                            span: [(u8::MAX, 0); TILE],
-                            rows: 0,
-                        });
-                    }
-                    self.tiles[self.used].at = at as u32;
-                    self.slot[at] = self.used as u32;
-                    self.used += 1;
-                    self.used - 1
-                }
+                NONE => self.new_tile(at),
                 k => k as usize,
             };
             let tile = &mut self.tiles[k];
             let (lo, hi) = (x - tx * TILE, end - tx * TILE);
             let row = &mut tile.cov[r * TILE + lo..r * TILE + hi];
-            merge(row, &cov[x - x0..end - x0]);
+            merge(row, &mut cov[x - x0..end - x0]);
             let s = &mut tile.span[r];
             *s = (s.0.min(lo as u8), s.1.max(hi as u8));
             tile.rows |= 1 << r;
             x = end;
         }
-        cov.fill(0);
+        cov[x1 - x0..].fill(0);
+    }
+
+    /// A tile for the page's tile `at`, which has none: the index of a spare one or of a
+    /// new one.
+    #[cold]
+    #[inline(never)]
+    fn new_tile(&mut self, at: usize) -> usize {
+        if self.used == self.tiles.len() {
+            self.tiles.push(Tile {
+                at: at as u32,
+                cov: vec![0; TILE * TILE].into_boxed_slice(),
+                span: [(u8::MAX, 0); TILE],
+                rows: 0,
+            });
+        }
+        self.tiles[self.used].at = at as u32;
+        self.slot[at] = self.used as u32;
+        self.used += 1;
+        self.used - 1
     }
 
     /// Composites the layer into `page` (row-major ink, the layer's width, from page row
@@ -125,8 +132,9 @@ impl GrayLayer {
                 let (j, x) = (ty * TILE + r, tx * TILE);
                 let at = (j - first) * self.width + x;
                 let dst = &mut page[at + lo..at + hi];
-                let src = &mut tile.cov[r * TILE + lo..r * TILE + hi];
-                overprint_span(dst, src, g);
+                let src = &mut tile.cov[r * TILE..(r + 1) * TILE];
+                overprint_span(dst, &src[lo..hi], g);
+                // The row's coverage outside its span is 0 already.
                 src.fill(0);
             }
             self.slot[at] = NONE;
@@ -136,26 +144,26 @@ impl GrayLayer {
 }
 
 /// `l ← l + ((255 − l)·c + 127) / 255` over `l` with `c` (the layer's "source over"),
-/// eight pixels at a time in 16-bit lanes: `(255 − l)·c + 127 ≤ 65152`, and [`div255`]
-/// is `x / 255` for every 16-bit `x`.
+/// eight pixels at a time in 16-bit lanes (`(255 − l)·c + 127 ≤ 65152`, and [`div255`]
+/// is `x / 255` for every 16-bit `x`), and clears `c`.
 #[inline]
-fn merge(l: &mut [u8], c: &[u8]) {
+fn merge(l: &mut [u8], c: &mut [u8]) {
     let n = l.len().min(c.len());
     let lanes = n - n % 8;
     let (full, half) = (u16x8::splat(255), u16x8::splat(127));
-    for (l8, c8) in l[..lanes]
-        .chunks_exact_mut(8)
-        .zip(c[..lanes].chunks_exact(8))
-    {
+    let (l8s, c8s) = (
+        l[..lanes].chunks_exact_mut(8),
+        c[..lanes].chunks_exact_mut(8),
+    );
+    for (l8, c8) in l8s.zip(c8s) {
         let (a, b) = (widen(l8), widen(c8));
-        let v = (a + div255((full - a) * b + half)).to_array();
-        for (o, v) in l8.iter_mut().zip(v) {
-            *o = v as u8;
-        }
+        narrow(a + div255((full - a) * b + half), l8);
+        c8.fill(0);
     }
-    for (l, c) in l[lanes..n].iter_mut().zip(&c[lanes..n]) {
+    for (l, c) in l[lanes..n].iter_mut().zip(&mut c[lanes..n]) {
         let (ll, cc) = (u32::from(*l), u32::from(*c));
         *l = (ll + ((255 - ll) * cc + 127) / 255) as u8;
+        *c = 0;
     }
 }
 
@@ -179,9 +187,9 @@ pub(crate) fn overprint_span(dst: &mut [u8], cov: &[u8], g: u8) {
         let under = i32x8::from_u16x8(full - d).round_float();
         let cg = i32x8::from_u16x8(c * gl).round_float();
         let v = ((under * cg + round) / q).fast_trunc_int() + i32x8::from_u16x8(d);
-        for (o, v) in d8.iter_mut().zip(v.to_array()) {
-            *o = v as u8;
-        }
+        // At most 255: one saturating pack each way.
+        let v = u8x16::narrow_i16x8(i16x8::from_i32x8_saturate(v), i16x8::ZERO);
+        d8.copy_from_slice(&v.to_array()[..8]);
     }
     let g = u32::from(g);
     for (d, &c) in dst[lanes..n].iter_mut().zip(&cov[lanes..n]) {
@@ -271,8 +279,9 @@ mod tests {
     fn lanes_are_the_formulas_for_every_value() {
         let under: Vec<u8> = (0..65536 + 5).map(|i| (i >> 8) as u8).collect();
         let cov: Vec<u8> = (0..65536 + 5).map(|i| i as u8).collect();
-        let mut got = under.clone();
-        merge(&mut got, &cov);
+        let (mut got, mut cleared) = (under.clone(), cov.clone());
+        merge(&mut got, &mut cleared);
+        assert!(cleared.iter().all(|&c| c == 0), "cleared");
         for (i, (&l, &c)) in under.iter().zip(&cov).enumerate() {
             let (ll, cc) = (u32::from(l), u32::from(c));
             assert_eq!(
