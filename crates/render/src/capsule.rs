@@ -345,10 +345,12 @@ impl Capsules {
     }
 
     /// Composites the row buffer's noted blocks into row `j` and clears them: each run
-    /// of adjacent blocks at once, in the order of the row (a pixel of a noted block
-    /// that no span reached has coverage 0, which leaves the page as it is), and marks
-    /// the blocks in the target's `dirty` (not for paper): the blocks the spans touch,
-    /// as marking each span would.
+    /// of adjacent blocks within a word of the block map at once, in the order of the
+    /// row (a pixel of a noted block that no span reached has coverage 0, which leaves
+    /// the page as it is; a run across words is composited in two pieces, split at a
+    /// multiple of 512 pixels, which changes no pixel's arithmetic nor a gray tile's
+    /// span), and marks the blocks in the target's `dirty` (not for paper): the blocks
+    /// the spans touch, as marking each span would.
     fn flush_row(&mut self, j: usize, t: &mut Target) {
         if self.wlo >= self.whi {
             return;
@@ -359,15 +361,8 @@ impl Capsules {
             t.dirty.mark_blocks(j, wlo, &self.blocks[wlo..whi]);
         }
         let row = &mut t.data[(j - t.first) * t.width..(j - t.first + 1) * t.width];
-        let width = t.width;
-        let mut run: Option<(usize, usize)> = None;
-        let mut composite = |(b0, b1): (usize, usize), cov: &mut [u8]| {
-            let (x0, x1) = (b0 * BLOCK, (b1 * BLOCK).min(width));
-            match t.layer.as_deref_mut() {
-                Some(layer) => layer.add_span(j, x0, &mut cov[x0..x1]),
-                None => composite_span(&mut row[x0..x1], &mut cov[x0..x1], t.ink),
-            }
-        };
+        let (width, ink) = (t.width, t.ink);
+        let mut layer = t.layer.as_deref_mut();
         for w in wlo..whi {
             let mut bits = std::mem::take(&mut self.blocks[w]);
             while bits != 0 {
@@ -375,19 +370,13 @@ impl Capsules {
                 let n = (!(bits >> s)).trailing_zeros() as usize;
                 // The lowest run of ones cleared.
                 bits &= bits.wrapping_add(1 << s);
-                let (b0, b1) = (64 * w + s, 64 * w + s + n);
-                run = match run {
-                    Some((a, b)) if b == b0 => Some((a, b1)),
-                    Some(done) => {
-                        composite(done, &mut self.row);
-                        Some((b0, b1))
-                    }
-                    None => Some((b0, b1)),
-                };
+                let (x0, x1) = (BLOCK * (64 * w + s), (BLOCK * (64 * w + s + n)).min(width));
+                let cov = &mut self.row[x0..x1];
+                match layer.as_deref_mut() {
+                    Some(layer) => layer.add_span(j, x0, cov),
+                    None => composite_span(&mut row[x0..x1], cov, ink),
+                }
             }
-        }
-        if let Some(done) = run {
-            composite(done, &mut self.row);
         }
     }
 
@@ -1501,16 +1490,18 @@ mod tests {
     /// segments (many segments on a row, overlapping: a feature mark's band, a curve),
     /// scattered segments and dots, thin ([`Mode::Lanes`]) and wide ([`Mode::Wide`]),
     /// over blank and inked pages, drawn whole and band by band (segments entering and
-    /// leaving mid-band, rows clipped), one stroke after another with the same scratch.
+    /// leaving mid-band, rows clipped), one stroke after another with the same scratch,
+    /// on pages narrower and wider than a word of the block map.
     #[test]
     fn strokes_match_the_reference_row_loop() {
         let mut rand = unit_floats(0x5851_f42d_4c95_7f2du64);
-        let (w, h) = (240, 160);
         let (mut wide, mut thin, mut crowded) = (0, 0, 0);
         // One scratch for every stroke, as a page's (nothing of a stroke may be left for
         // the next: the intervals made ahead for rows of a wide segment).
         let mut c = Capsules::default();
         for n in 0..1500 {
+            // Now and then a page wider than a word of the block map (512 pixels).
+            let (w, h) = if n % 7 == 6 { (1100, 40) } else { (240, 160) };
             let r = [0.2, 0.5, 0.83, 1.56, 2.6, 3.0, 3.125, 4.8, 10.41, 14.0][n % 10];
             let mut pts = Vec::new();
             let count = 1 + (rand() * 90.0) as usize;
