@@ -275,12 +275,16 @@ impl Capsules {
         self.active.clear();
         let mut next = 0;
         let mut j = 0u32;
+        // The first row past an active segment's rows (the active list changes only
+        // there and where segments enter).
+        let mut ends = u32::MAX;
         while next < self.order.len() || !self.active.is_empty() {
             if self.active.is_empty() {
                 j = j.max(segs[self.order[next] as usize].rows.0);
             }
             while next < self.order.len() && segs[self.order[next] as usize].rows.0 <= j {
                 self.active.push(self.order[next]);
+                ends = ends.min(segs[self.order[next] as usize].rows.1);
                 next += 1;
             }
             self.edges.clear();
@@ -311,7 +315,16 @@ impl Capsules {
                 measure_edges(&segs, &self.edges, cy, r, &mut self.row);
             }
             self.flush_row(j as usize, t);
-            self.active.retain(|&k| segs[k as usize].rows.1 > j + 1);
+            if ends <= j + 1 {
+                ends = u32::MAX;
+                self.active.retain(|&k| {
+                    let end = segs[k as usize].rows.1;
+                    if end > j + 1 {
+                        ends = ends.min(end);
+                    }
+                    end > j + 1
+                });
+            }
             j += 1;
         }
         segs.clear();
