@@ -682,12 +682,14 @@ fn pixel_spans(v: [f32; 4], o: [f32; 4], w: f32) -> [usize; 4] {
     let x = f32x4::new(v) - f32x4::new(o);
     let x = x ^ f32x4::new([-0.0, 0.0, -0.0, 0.0]);
     if x.abs().simd_lt(f32x4::splat(8_388_608.0)).to_bitmask() == 0b1111 {
-        let t = x.trunc_int().round_float();
+        // Finite and below 2^23: the plain truncation is `trunc_int`'s (which differs
+        // only for NaN and beyond 2^31).
+        let t = x.fast_trunc_int().round_float();
         let fl = t - (t.simd_gt(x) & f32x4::ONE);
         let p = (fl ^ f32x4::new([-0.0, 0.0, -0.0, 0.0])) + f32x4::new([0.0, 1.0, 0.0, 1.0]);
-        // Whole numbers, not NaN: `clamp` is max then min.
+        // Whole numbers, not NaN: `clamp` is max then min; then within [0, w].
         let p = p.fast_max(f32x4::ZERO).fast_min(f32x4::splat(w));
-        p.trunc_int().to_array().map(|p| p as usize)
+        p.fast_trunc_int().to_array().map(|p| p as usize)
     } else {
         [
             ceil(v[0] - o[0]),
