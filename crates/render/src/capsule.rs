@@ -275,12 +275,16 @@ impl Capsules {
         self.active.clear();
         let mut next = 0;
         let mut j = 0u32;
+        // The first row past an active segment's rows (the active list changes only
+        // there and where segments enter).
+        let mut ends = u32::MAX;
         while next < self.order.len() || !self.active.is_empty() {
             if self.active.is_empty() {
                 j = j.max(segs[self.order[next] as usize].rows.0);
             }
             while next < self.order.len() && segs[self.order[next] as usize].rows.0 <= j {
                 self.active.push(self.order[next]);
+                ends = ends.min(segs[self.order[next] as usize].rows.1);
                 next += 1;
             }
             self.edges.clear();
@@ -311,7 +315,16 @@ impl Capsules {
                 measure_edges(&segs, &self.edges, cy, r, &mut self.row);
             }
             self.flush_row(j as usize, t);
-            self.active.retain(|&k| segs[k as usize].rows.1 > j + 1);
+            if ends <= j + 1 {
+                ends = u32::MAX;
+                self.active.retain(|&k| {
+                    let end = segs[k as usize].rows.1;
+                    if end > j + 1 {
+                        ends = ends.min(end);
+                    }
+                    end > j + 1
+                });
+            }
             j += 1;
         }
         segs.clear();
@@ -345,10 +358,12 @@ impl Capsules {
     }
 
     /// Composites the row buffer's noted blocks into row `j` and clears them: each run
-    /// of adjacent blocks at once, in the order of the row (a pixel of a noted block
-    /// that no span reached has coverage 0, which leaves the page as it is), and marks
-    /// the blocks in the target's `dirty` (not for paper): the blocks the spans touch,
-    /// as marking each span would.
+    /// of adjacent blocks within a word of the block map at once, in the order of the
+    /// row (a pixel of a noted block that no span reached has coverage 0, which leaves
+    /// the page as it is; a run across words is composited in two pieces, split at a
+    /// multiple of 512 pixels, which changes no pixel's arithmetic nor a gray tile's
+    /// span), and marks the blocks in the target's `dirty` (not for paper): the blocks
+    /// the spans touch, as marking each span would.
     fn flush_row(&mut self, j: usize, t: &mut Target) {
         if self.wlo >= self.whi {
             return;
@@ -359,15 +374,8 @@ impl Capsules {
             t.dirty.mark_blocks(j, wlo, &self.blocks[wlo..whi]);
         }
         let row = &mut t.data[(j - t.first) * t.width..(j - t.first + 1) * t.width];
-        let width = t.width;
-        let mut run: Option<(usize, usize)> = None;
-        let mut composite = |(b0, b1): (usize, usize), cov: &mut [u8]| {
-            let (x0, x1) = (b0 * BLOCK, (b1 * BLOCK).min(width));
-            match t.layer.as_deref_mut() {
-                Some(layer) => layer.add_span(j, x0, &mut cov[x0..x1]),
-                None => composite_span(&mut row[x0..x1], &mut cov[x0..x1], t.ink),
-            }
-        };
+        let (width, ink) = (t.width, t.ink);
+        let mut layer = t.layer.as_deref_mut();
         for w in wlo..whi {
             let mut bits = std::mem::take(&mut self.blocks[w]);
             while bits != 0 {
@@ -375,19 +383,13 @@ impl Capsules {
                 let n = (!(bits >> s)).trailing_zeros() as usize;
                 // The lowest run of ones cleared.
                 bits &= bits.wrapping_add(1 << s);
-                let (b0, b1) = (64 * w + s, 64 * w + s + n);
-                run = match run {
-                    Some((a, b)) if b == b0 => Some((a, b1)),
-                    Some(done) => {
-                        composite(done, &mut self.row);
-                        Some((b0, b1))
-                    }
-                    None => Some((b0, b1)),
-                };
+                let (x0, x1) = (BLOCK * (64 * w + s), (BLOCK * (64 * w + s + n)).min(width));
+                let cov = &mut self.row[x0..x1];
+                match layer.as_deref_mut() {
+                    Some(layer) => layer.add_span(j, x0, cov),
+                    None => composite_span(&mut row[x0..x1], cov, ink),
+                }
             }
-        }
-        if let Some(done) = run {
-            composite(done, &mut self.row);
         }
     }
 
@@ -680,12 +682,14 @@ fn pixel_spans(v: [f32; 4], o: [f32; 4], w: f32) -> [usize; 4] {
     let x = f32x4::new(v) - f32x4::new(o);
     let x = x ^ f32x4::new([-0.0, 0.0, -0.0, 0.0]);
     if x.abs().simd_lt(f32x4::splat(8_388_608.0)).to_bitmask() == 0b1111 {
-        let t = x.trunc_int().round_float();
+        // Finite and below 2^23: the plain truncation is `trunc_int`'s (which differs
+        // only for NaN and beyond 2^31).
+        let t = x.fast_trunc_int().round_float();
         let fl = t - (t.simd_gt(x) & f32x4::ONE);
         let p = (fl ^ f32x4::new([-0.0, 0.0, -0.0, 0.0])) + f32x4::new([0.0, 1.0, 0.0, 1.0]);
-        // Whole numbers, not NaN: `clamp` is max then min.
+        // Whole numbers, not NaN: `clamp` is max then min; then within [0, w].
         let p = p.fast_max(f32x4::ZERO).fast_min(f32x4::splat(w));
-        p.trunc_int().to_array().map(|p| p as usize)
+        p.fast_trunc_int().to_array().map(|p| p as usize)
     } else {
         [
             ceil(v[0] - o[0]),
@@ -857,17 +861,25 @@ impl Edge {
 
 /// `x / 255` in lanes, for every 16-bit `x`: `(x · 0x8081) >> 23` (tested for all).
 #[inline(always)]
-fn div255(x: u16x8) -> u16x8 {
+pub(crate) fn div255(x: u16x8) -> u16x8 {
     x.mul_keep_high(u16x8::splat(0x8081))
         .unbounded_shr_scalar(7)
 }
 
 /// Eight bytes in 16-bit lanes.
 #[inline(always)]
-fn widen(b: &[u8]) -> u16x8 {
+pub(crate) fn widen(b: &[u8]) -> u16x8 {
     let mut a = [0u8; 16];
     a[..8].copy_from_slice(&b[..8]);
     u16x8::from_u8x16_low(u8x16::new(a))
+}
+
+/// [`widen`]'s inverse: eight 16-bit lanes, each at most 255, stored as bytes into
+/// `b[..8]` (one saturating pack, the same values).
+#[inline(always)]
+pub(crate) fn narrow(v: u16x8, b: &mut [u8]) {
+    let v = i16x8::new(v.to_array().map(|x| x as i16));
+    b[..8].copy_from_slice(&u8x16::narrow_i16x8(v, i16x8::ZERO).to_array()[..8]);
 }
 
 /// Composites coverage `cov` of `ink` over `dst` and clears `cov`: `composite` of
@@ -892,10 +904,7 @@ fn composite_span(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
         } else {
             d + div255((u16x8::splat(255) - d) * c + half)
         };
-        let v = v.to_array();
-        for (o, v) in d8.iter_mut().zip(v) {
-            *o = v as u8;
-        }
+        narrow(v, d8);
     }
     composite_pixels(&mut dst[lanes..], &mut cov[lanes..], ink);
     cov.fill(0);
@@ -1496,16 +1505,18 @@ mod tests {
     /// segments (many segments on a row, overlapping: a feature mark's band, a curve),
     /// scattered segments and dots, thin ([`Mode::Lanes`]) and wide ([`Mode::Wide`]),
     /// over blank and inked pages, drawn whole and band by band (segments entering and
-    /// leaving mid-band, rows clipped), one stroke after another with the same scratch.
+    /// leaving mid-band, rows clipped), one stroke after another with the same scratch,
+    /// on pages narrower and wider than a word of the block map.
     #[test]
     fn strokes_match_the_reference_row_loop() {
         let mut rand = unit_floats(0x5851_f42d_4c95_7f2du64);
-        let (w, h) = (240, 160);
         let (mut wide, mut thin, mut crowded) = (0, 0, 0);
         // One scratch for every stroke, as a page's (nothing of a stroke may be left for
         // the next: the intervals made ahead for rows of a wide segment).
         let mut c = Capsules::default();
         for n in 0..1500 {
+            // Now and then a page wider than a word of the block map (512 pixels).
+            let (w, h) = if n % 7 == 6 { (1100, 40) } else { (240, 160) };
             let r = [0.2, 0.5, 0.83, 1.56, 2.6, 3.0, 3.125, 4.8, 10.41, 14.0][n % 10];
             let mut pts = Vec::new();
             let count = 1 + (rand() * 90.0) as usize;
@@ -1597,11 +1608,7 @@ mod tests {
                     } else {
                         c.stroke(r, &mut t);
                     }
-                    let op = |d: u8, c: u8, g: u32| {
-                        let (d, c) = (u32::from(d), u32::from(c));
-                        (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
-                    };
-                    layer.flush(&mut data[j0 * w..j1 * w], j0, dirty, op);
+                    layer.flush(&mut data[j0 * w..j1 * w], j0);
                 }
             }
             assert!(got == want, "stroke {n}: r {r}, {} segments", pts.len());

@@ -7,7 +7,9 @@
 //! that holds coverage, so a layer costs memory and compositing time only where there is
 //! gray (a page-sized layer was 16.8 MB per worker at 300 dpi).
 
-use crate::dirty::Dirty;
+use crate::capsule::{div255, narrow, widen};
+use crate::raster::overprint;
+use wide::{f32x8, i16x8, i32x8, u8x16, u16x8};
 
 /// Tile side, pixels.
 const TILE: usize = 64;
@@ -16,11 +18,12 @@ const TILE: usize = 64;
 const NONE: u32 = u32::MAX;
 
 /// One tile: its number in the page's tile grid, its coverage and each row's span
-/// `[lo, hi)` (empty when `lo ≥ hi`).
+/// `[lo, hi)` (empty when `lo ≥ hi`), and which rows hold a span (bit `r` for row `r`).
 struct Tile {
     at: u32,
     cov: Box<[u8]>,
     span: [(u8, u8); TILE],
+    rows: u64,
 }
 
 /// A sparse coverage layer of one gray level over a `width × height` page.
@@ -57,7 +60,9 @@ impl GrayLayer {
     }
 
     /// Merges coverage `cov` into row `j`, columns `x0..x0 + cov.len()` ("source over":
-    /// `l ← l + (255 − l)·c`, rounded), and clears `cov`.
+    /// `l ← l + (255 − l)·c`, rounded, [`merge`]), and clears `cov`. The caller marks
+    /// those pixels in the page's dirty map ([`GrayLayer::flush`] does not).
+    #[inline]
     pub(crate) fn add_span(&mut self, j: usize, x0: usize, cov: &mut [u8]) {
         let x1 = (x0 + cov.len()).min(self.width);
         if j >= self.height || x0 >= x1 {
@@ -71,71 +76,124 @@ impl GrayLayer {
             let end = ((tx + 1) * TILE).min(x1);
             let at = ty * self.cols + tx;
             let k = match self.slot[at] {
-                NONE => {
-                    if self.used == self.tiles.len() {
-                        self.tiles.push(Tile {
-                            at: at as u32,
-                            cov: vec![0; TILE * TILE].into_boxed_slice(),
-                            span: [(u8::MAX, 0); TILE],
-                        });
-                    }
-                    self.tiles[self.used].at = at as u32;
-                    self.slot[at] = self.used as u32;
-                    self.used += 1;
-                    self.used - 1
-                }
+                NONE => self.new_tile(at),
                 k => k as usize,
             };
             let tile = &mut self.tiles[k];
             let (lo, hi) = (x - tx * TILE, end - tx * TILE);
             let row = &mut tile.cov[r * TILE + lo..r * TILE + hi];
-            for (l, c) in row.iter_mut().zip(&cov[x - x0..end - x0]) {
-                let (ll, cc) = (u32::from(*l), u32::from(*c));
-                *l = (ll + ((255 - ll) * cc + 127) / 255) as u8;
-            }
+            merge(row, &mut cov[x - x0..end - x0]);
             let s = &mut tile.span[r];
             *s = (s.0.min(lo as u8), s.1.max(hi as u8));
+            tile.rows |= 1 << r;
             x = end;
         }
-        cov.fill(0);
+        cov[x1 - x0..].fill(0);
+    }
+
+    /// A tile for the page's tile `at`, which has none: the index of a spare one or of a
+    /// new one.
+    #[cold]
+    #[inline(never)]
+    fn new_tile(&mut self, at: usize) -> usize {
+        if self.used == self.tiles.len() {
+            self.tiles.push(Tile {
+                at: at as u32,
+                cov: vec![0; TILE * TILE].into_boxed_slice(),
+                span: [(u8::MAX, 0); TILE],
+                rows: 0,
+            });
+        }
+        self.tiles[self.used].at = at as u32;
+        self.slot[at] = self.used as u32;
+        self.used += 1;
+        self.used - 1
     }
 
     /// Composites the layer into `page` (row-major ink, the layer's width, from page row
-    /// `first` on) with the layer's gray, marks what it inked in `dirty` and empties the
-    /// layer.
-    pub(crate) fn flush(
-        &mut self,
-        page: &mut [u8],
-        first: usize,
-        dirty: &mut Dirty,
-        overprint: impl Fn(u8, u8, u32) -> u8,
-    ) {
+    /// `first` on) with the layer's gray ([`overprint`], [`overprint_span`]) and empties
+    /// the layer. Marks nothing: the pixels were marked in the page's dirty map when
+    /// they were added ([`GrayLayer::add_span`]), and the map is not reset while the
+    /// layer holds coverage.
+    pub(crate) fn flush(&mut self, page: &mut [u8], first: usize) {
         if self.used == 0 {
             return;
         }
-        let g = u32::from(self.level);
+        let g = self.level;
         for tile in &mut self.tiles[..self.used] {
             let at = tile.at as usize;
             let (ty, tx) = (at / self.cols, at % self.cols);
-            for (r, s) in tile.span.iter_mut().enumerate() {
-                if s.0 >= s.1 {
-                    continue;
-                }
+            let mut rows = std::mem::take(&mut tile.rows);
+            while rows != 0 {
+                let r = rows.trailing_zeros() as usize;
+                rows &= rows - 1;
+                let s = std::mem::replace(&mut tile.span[r], (u8::MAX, 0));
                 let (lo, hi) = (usize::from(s.0), usize::from(s.1));
                 let (j, x) = (ty * TILE + r, tx * TILE);
                 let at = (j - first) * self.width + x;
                 let dst = &mut page[at + lo..at + hi];
-                let src = &mut tile.cov[r * TILE + lo..r * TILE + hi];
-                for (d, c) in dst.iter_mut().zip(src.iter()) {
-                    *d = overprint(*d, *c, g);
-                }
+                let src = &mut tile.cov[r * TILE..(r + 1) * TILE];
+                overprint_span(dst, &src[lo..hi], g);
+                // The row's coverage outside its span is 0 already.
                 src.fill(0);
-                dirty.mark_px(x + lo, j, x + hi, j + 1);
-                *s = (u8::MAX, 0);
             }
             self.slot[at] = NONE;
         }
         self.used = 0;
+    }
+}
+
+/// `l ← l + ((255 − l)·c + 127) / 255` over `l` with `c` (the layer's "source over"),
+/// eight pixels at a time in 16-bit lanes (`(255 − l)·c + 127 ≤ 65152`, and [`div255`]
+/// is `x / 255` for every 16-bit `x`), and clears `c`.
+#[inline]
+fn merge(l: &mut [u8], c: &mut [u8]) {
+    let n = l.len().min(c.len());
+    let lanes = n - n % 8;
+    let (full, half) = (u16x8::splat(255), u16x8::splat(127));
+    let (l8s, c8s) = (
+        l[..lanes].chunks_exact_mut(8),
+        c[..lanes].chunks_exact_mut(8),
+    );
+    for (l8, c8) in l8s.zip(c8s) {
+        let (a, b) = (widen(l8), widen(c8));
+        narrow(a + div255((full - a) * b + half), l8);
+        c8.fill(0);
+    }
+    for (l, c) in l[lanes..n].iter_mut().zip(&mut c[lanes..n]) {
+        let (ll, cc) = (u32::from(*l), u32::from(*c));
+        *l = (ll + ((255 - ll) * cc + 127) / 255) as u8;
+        *c = 0;
+    }
+}
+
+/// [`overprint`] of coverage `cov` in gray `g` over `dst`, eight pixels at a time in
+/// f32 lanes: `(255 − d)·(c·g) + 32512 < 2^24` is exact in an f32, and its quotient by
+/// 65025 (at most 255.5), correctly rounded, truncates to the integer quotient (a
+/// quotient below an integer `k + 1` lies at least 1/65025 below it, more than half an
+/// f32's ulp there, so it never rounds up to `k + 1`). Tested for every `d`, `c`, `g`.
+#[inline]
+pub(crate) fn overprint_span(dst: &mut [u8], cov: &[u8], g: u8) {
+    let n = dst.len().min(cov.len());
+    let lanes = n - n % 8;
+    let (full, gl) = (u16x8::splat(255), u16x8::splat(u16::from(g)));
+    let (round, q) = (f32x8::splat(32_512.0), f32x8::splat(65_025.0));
+    for (d8, c8) in dst[..lanes]
+        .chunks_exact_mut(8)
+        .zip(cov[..lanes].chunks_exact(8))
+    {
+        let (d, c) = (widen(d8), widen(c8));
+        // c·g ≤ 65025: exact in 16 bits.
+        let under = i32x8::from_u16x8(full - d).round_float();
+        let cg = i32x8::from_u16x8(c * gl).round_float();
+        let v = ((under * cg + round) / q).fast_trunc_int() + i32x8::from_u16x8(d);
+        // At most 255: one saturating pack each way.
+        let v = u8x16::narrow_i16x8(i16x8::from_i32x8_saturate(v), i16x8::ZERO);
+        d8.copy_from_slice(&v.to_array()[..8]);
+    }
+    let g = u32::from(g);
+    for (d, &c) in dst[lanes..n].iter_mut().zip(&cov[lanes..n]) {
+        *d = overprint(*d, c, g);
     }
 }
 
@@ -155,12 +213,7 @@ mod tests {
         layer.add_span(70, 100, &mut cov);
         assert!(layer.any());
         let mut page = vec![0u8; w * h];
-        let mut dirty = Dirty::new(w, h);
-        let op = |d: u8, c: u8, g: u32| {
-            let (d, c) = (u32::from(d), u32::from(c));
-            (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
-        };
-        layer.flush(&mut page, 0, &mut dirty, op);
+        layer.flush(&mut page, 0);
         assert!(!layer.any());
         // 200 over 200: 200 + 55·200/255 = 243.
         assert_eq!(page[70 * w + 105], 243);
@@ -169,13 +222,80 @@ mod tests {
         assert_eq!(page[70 * w + 190], 0);
         assert_eq!(page.iter().filter(|&&v| v != 0).count(), 150);
         // Flushed again: nothing more.
-        layer.flush(&mut page, 0, &mut dirty, op);
+        layer.flush(&mut page, 0);
         assert_eq!(page[70 * w + 105], 243);
-        assert!(dirty.row_pair_spans(70).any(|(a, b)| a <= 40 && 189 < b));
         // Off the page: ignored.
         layer.add_span(500, 0, &mut [9u8; 10]);
         layer.add_span(10, 295, &mut [9u8; 10]);
-        layer.flush(&mut page, 0, &mut dirty, op);
+        layer.flush(&mut page, 0);
         assert_eq!(page[10 * w + 299], 9);
+    }
+
+    /// The layer in lanes is the layer pixel by pixel: random spans of random gray
+    /// coverage (every length, across tiles, on the page's last, partial tile) merged
+    /// and composited in random grays over a random page, flushed now and then, against
+    /// a page-sized reference layer merged and composited pixel by pixel.
+    #[test]
+    fn the_layer_is_its_pixel_by_pixel_reference() {
+        let (w, h) = (203, 150);
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = |n: usize| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 33) as usize % n
+        };
+        let mut page: Vec<u8> = (0..w * h).map(|_| rand(256) as u8).collect();
+        let mut want = page.clone();
+        let mut layer = GrayLayer::new(w, h);
+        let mut reference = vec![0u8; w * h];
+        for round in 0..60 {
+            layer.level = rand(256) as u8;
+            for _ in 0..40 {
+                let (j, x0, len) = (rand(h), rand(w), 1 + rand(150));
+                let mut cov: Vec<u8> = (0..len).map(|_| rand(256) as u8).collect();
+                for (i, &c) in cov.iter().enumerate() {
+                    if x0 + i < w {
+                        let l = &mut reference[j * w + x0 + i];
+                        let (ll, cc) = (u32::from(*l), u32::from(c));
+                        *l = (ll + ((255 - ll) * cc + 127) / 255) as u8;
+                    }
+                }
+                layer.add_span(j, x0, &mut cov);
+            }
+            layer.flush(&mut page, 0);
+            let g = u32::from(layer.level);
+            for (d, l) in want.iter_mut().zip(reference.iter_mut()) {
+                *d = overprint(*d, *l, g);
+                *l = 0;
+            }
+            assert!(page == want, "round {round}");
+        }
+    }
+
+    /// [`merge`] and [`overprint_span`] are their pixel-by-pixel formulas for every
+    /// level under, every coverage and every gray (tails of 0–7 pixels too).
+    #[test]
+    fn lanes_are_the_formulas_for_every_value() {
+        let under: Vec<u8> = (0..65536 + 5).map(|i| (i >> 8) as u8).collect();
+        let cov: Vec<u8> = (0..65536 + 5).map(|i| i as u8).collect();
+        let (mut got, mut cleared) = (under.clone(), cov.clone());
+        merge(&mut got, &mut cleared);
+        assert!(cleared.iter().all(|&c| c == 0), "cleared");
+        for (i, (&l, &c)) in under.iter().zip(&cov).enumerate() {
+            let (ll, cc) = (u32::from(l), u32::from(c));
+            assert_eq!(
+                u32::from(got[i]),
+                ll + ((255 - ll) * cc + 127) / 255,
+                "{l} {c}"
+            );
+        }
+        for g in 0..=255u8 {
+            let mut got = under.clone();
+            overprint_span(&mut got, &cov, g);
+            for (i, (&d, &c)) in under.iter().zip(&cov).enumerate() {
+                assert_eq!(got[i], overprint(d, c, u32::from(g)), "{d} {c} {g}");
+            }
+        }
     }
 }

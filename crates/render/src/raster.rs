@@ -199,8 +199,7 @@ impl RasterPage {
     fn flush_gray(&mut self) {
         if self.gray.any() {
             let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
-            self.gray
-                .flush(data, self.first, &mut self.dirty, overprint);
+            self.gray.flush(data, self.first);
         }
     }
 
@@ -639,7 +638,8 @@ fn composite(dst: u8, c: u8, ink: Ink) -> u8 {
 /// [`composite`] over a row: `dst[i] ← composite(dst[i], cov[i], ink)`, the ink chosen
 /// once, not per pixel, so that each loop vectorises. Paper and black (whose
 /// `(255·x + 32512) / 65025` is `(x + 127) / 255`: `255·(x + 127) + 127` leaves less
-/// than 65025 over the quotient's multiple) fit 16-bit lanes; grays need 32 bits.
+/// than 65025 over the quotient's multiple) fit 16-bit lanes; grays take f32 lanes
+/// ([`crate::layer::overprint_span`]).
 fn composite_row(dst: &mut [u8], cov: &[u8], ink: Ink) {
     match ink {
         Ink::Paper => {
@@ -654,19 +654,14 @@ fn composite_row(dst: &mut [u8], cov: &[u8], ink: Ink) {
                 *d += (x / 255) as u8;
             }
         }
-        ink => {
-            let g = u32::from(ink.level());
-            for (d, &c) in dst.iter_mut().zip(cov) {
-                *d = overprint(*d, c, g);
-            }
-        }
+        ink => crate::layer::overprint_span(dst, cov, ink.level()),
     }
 }
 
 /// Ink of level `g` (0..=255) with coverage `c` over the page's ink `dst`: `dst` when
 /// `c` is 0.
 #[inline(always)]
-fn overprint(dst: u8, c: u8, g: u32) -> u8 {
+pub(crate) fn overprint(dst: u8, c: u8, g: u32) -> u8 {
     let (d, c) = (u32::from(dst), u32::from(c));
     (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
 }
