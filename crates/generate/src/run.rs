@@ -30,6 +30,7 @@ use std::collections::VecDeque;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// What a run did.
@@ -510,6 +511,11 @@ pub fn run(
         None
     };
     let shape_kind = assembly.as_ref().and_then(Assembly::record_kind);
+    // A whole run's atlas files, when the renderer makes them alongside the groups: made
+    // by the pool's first task (see below), kept here and written at the end as before
+    // (the ledger records their names after the chunks', in the same order for any
+    // number of workers).
+    let alongside: Mutex<Option<Rendered>> = Mutex::new(None);
     // The chunks' units are computed in atlas order by all workers, a chunk's first units
     // while the last of the one before are still running (see `finish_front`); a computed
     // chunk's record is written (its pages made durable, the record written and made
@@ -603,6 +609,16 @@ pub fn run(
             })
         };
         let result = pool.in_place_scope_fifo(|scope| -> Result<(), GenerateError> {
+            if whole {
+                // The atlas files that depend on the job alone (the contents pages) are
+                // the first task: drawn by one worker while the other starts on the
+                // groups, not after the last group with one worker idle.
+                let alongside = &alongside;
+                scope.spawn_fifo(move |_| {
+                    let made = renderer.render_atlas_alongside(job);
+                    *alongside.lock().unwrap_or_else(PoisonError::into_inner) = made;
+                });
+            }
             let mut queue: VecDeque<Admitted> = VecDeque::new();
             let finish =
                 |queue: &mut VecDeque<Admitted>, done: &mut Done| -> Result<bool, GenerateError> {
@@ -694,12 +710,15 @@ pub fn run(
         }
     })?;
     still_there(&job.out)?;
+    let alongside = alongside
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
     let mut failed = failed;
     if !failed.is_empty() {
         if whole {
             // The atlas-level pages (contents) do not depend on the failed ones.
-            let (_, atlas_failed) =
-                write_rendered(&job.out, renderer.render_atlas(job), &prep.ledger);
+            let made = alongside.unwrap_or_else(|| renderer.render_atlas(job));
+            let (_, atlas_failed) = write_rendered(&job.out, made, &prep.ledger);
             failed.extend(atlas_failed);
         }
         return Err(GenerateError::PagesFailed {
@@ -709,7 +728,8 @@ pub fn run(
     }
     let (index_path, removed_files) = match assembly {
         Some(a) => {
-            let (p, removed) = assemble(job, renderer, &key, chunk_files, &prep.ledger, a)?;
+            let (p, removed) =
+                assemble(job, renderer, &key, chunk_files, &prep.ledger, a, alongside)?;
             (Some(p), removed)
         }
         None => (None, 0),
@@ -729,8 +749,9 @@ pub fn run(
 /// Puts the atlas-level files into `job.out`: the atlas pages, then the index, columns
 /// and sidecar of `assembly` (every chunk added), then `manifest.json`; then removes files
 /// of earlier runs this atlas no longer has. `known` holds the files of the chunks already
-/// verified (the others are verified here). Returns the index's path and how many old
-/// files were removed.
+/// verified (the others are verified here); `made`, the atlas files if the run made them
+/// already ([`Renderer::render_atlas_alongside`]). Returns the index's path and how many
+/// old files were removed.
 fn assemble(
     job: &Job,
     renderer: &dyn Renderer,
@@ -738,6 +759,7 @@ fn assemble(
     known: Vec<Option<Vec<FileEntry>>>,
     ledger: &Ledger,
     assembly: Assembly,
+    made: Option<Rendered>,
 ) -> Result<(PathBuf, usize), GenerateError> {
     let total = job.chunk_count();
     let mut files: Vec<FileEntry> = Vec::new();
@@ -767,7 +789,8 @@ fn assemble(
     });
     let assembled = assembled?;
     recorded?;
-    let (atlas_files, failed) = write_rendered(&job.out, renderer.render_atlas(job), ledger);
+    let made = made.unwrap_or_else(|| renderer.render_atlas(job));
+    let (atlas_files, failed) = write_rendered(&job.out, made, ledger);
     if !failed.is_empty() {
         return Err(GenerateError::PagesFailed {
             failed,
@@ -995,12 +1018,114 @@ pub fn merge(
         return Err(stopped());
     }
     let assembly = Assembly::of_records(job, &job.summary(renderer.pages(job)), &key)?;
-    assemble(job, renderer, &key, chunk_files, &prep.ledger, assembly).map(|(p, _)| p)
+    assemble(
+        job,
+        renderer,
+        &key,
+        chunk_files,
+        &prep.ledger,
+        assembly,
+        None,
+    )
+    .map(|(p, _)| p)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Artifact;
+    use std::sync::atomic::AtomicUsize;
+
+    /// Index only, and one atlas file (`atlas.txt`): made alongside the groups or, with
+    /// `alongside` false, at the end; counts the calls of each.
+    #[derive(Default)]
+    struct AtlasFile {
+        alongside: bool,
+        made_alongside: AtomicUsize,
+        made_at_end: AtomicUsize,
+    }
+
+    impl AtlasFile {
+        fn made(&self, job: &Job) -> Rendered {
+            vec![Ok(Artifact {
+                name: "atlas.txt".into(),
+                bytes: format!("{} groups\n", job.groups().count()).into_bytes(),
+            })]
+        }
+    }
+
+    impl Renderer for AtlasFile {
+        fn group_files(&self, _: &Job, _: &Group) -> Option<Vec<String>> {
+            Some(Vec::new())
+        }
+        fn render_group(&self, _: &Job, _: &Group, _: &mut [IndexCurve]) -> Rendered {
+            Vec::new()
+        }
+        fn render_atlas(&self, job: &Job) -> Rendered {
+            self.made_at_end.fetch_add(1, Ordering::Relaxed);
+            self.made(job)
+        }
+        fn render_atlas_alongside(&self, job: &Job) -> Option<Rendered> {
+            if !self.alongside {
+                return None;
+            }
+            self.made_alongside.fetch_add(1, Ordering::Relaxed);
+            Some(self.made(job))
+        }
+        fn pages(&self, _: &Job) -> u64 {
+            0
+        }
+        fn settings(&self) -> String {
+            "atlas file".into()
+        }
+    }
+
+    /// Atlas files made alongside the groups are made once, not again at the end, and
+    /// written as those made at the end are: the same bytes, in the manifest, and recorded
+    /// in the ledger last (after the chunks' names and the root files'), so that the
+    /// ledger, too, is the same for any number of workers and either way of making them.
+    #[test]
+    fn atlas_files_made_alongside_are_written_as_at_the_end() {
+        for base in crate::job::quick_jobs() {
+            let mut want: Option<(Vec<u8>, String)> = None;
+            for (jobs, alongside) in [(1, false), (1, true), (2, true), (3, true)] {
+                let out = std::env::temp_dir().join(format!(
+                    "coupler-alongside-{}-{}-{jobs}-{alongside}",
+                    base.spec.name,
+                    std::process::id()
+                ));
+                let _ = std::fs::remove_dir_all(&out);
+                let mut job = base.clone();
+                job.out = out.clone();
+                job.jobs = jobs;
+                let r = AtlasFile {
+                    alongside,
+                    ..AtlasFile::default()
+                };
+                run(&job, &r, &|_| {}, &AtomicBool::new(false)).unwrap();
+                let made = (
+                    r.made_alongside.load(Ordering::Relaxed),
+                    r.made_at_end.load(Ordering::Relaxed),
+                );
+                assert_eq!(made, if alongside { (1, 0) } else { (0, 1) });
+                let bytes = std::fs::read(out.join("atlas.txt")).unwrap();
+                assert_eq!(
+                    bytes,
+                    format!("{} groups\n", job.groups().count()).as_bytes()
+                );
+                let manifest = read_manifest(&out).unwrap();
+                assert!(manifest.files.iter().any(|f| f.name == "atlas.txt"));
+                let ledger = std::fs::read_to_string(out.join(STATE_DIR).join("files")).unwrap();
+                assert_eq!(ledger.lines().last(), Some("atlas.txt"), "{ledger}");
+                let got = (bytes, ledger);
+                match &want {
+                    None => want = Some(got),
+                    Some(w) => assert!(*w == got, "{jobs} workers, alongside {alongside}"),
+                }
+                let _ = std::fs::remove_dir_all(&out);
+            }
+        }
+    }
 
     fn output(lines: &str, first_id: u64) -> GroupOutput {
         GroupOutput {
