@@ -123,6 +123,17 @@ fn format_lines(curves: &[IndexCurve]) -> std::io::Result<String> {
     Ok(lines)
 }
 
+/// Makes files `names` of `dir` durable ahead of their chunk's record, which syncs them
+/// again ([`sync_files`], where an error counts): here an error is left to that sync, and
+/// a file that is not there is neither made nor waited for.
+fn sync_early(dir: &Path, names: &[String]) {
+    for n in names {
+        if let Ok(f) = std::fs::File::open(dir.join(n)) {
+            let _ = f.sync_all();
+        }
+    }
+}
+
 /// Writes the record of a computed chunk (durably: after the files it lists are made
 /// durable).
 fn write_chunk(dir: &Path, key: &str, c: &ChunkLines) -> Result<(), GenerateError> {
@@ -568,6 +579,16 @@ pub fn run(
         // worker waits at a chunk's end (at most `AHEAD` chunks beyond the one awaited).
         let (unit_done, unit_outputs) = std::sync::mpsc::channel::<UnitResult>();
         let stop = AtomicBool::new(false);
+        // Each unit's files are made durable as soon as it has written them, on a thread
+        // of their own (an fsync waits for the disk, not for a core): the chunk record's
+        // own sync (`write_chunk`) then finds them written back, so that after the last
+        // unit its chunk's sync is not all left on the run's critical path.
+        let (early_sync, to_sync) = std::sync::mpsc::channel::<Vec<String>>();
+        scope.spawn(move || {
+            for names in to_sync {
+                sync_early(&job.out, &names);
+            }
+        });
         let unit = |c: u64, g: &Group| -> Result<GroupOutput, GenerateError> {
             if interrupt.load(Ordering::Relaxed) {
                 // How many chunks are done is filled in by `finish_front`.
@@ -584,6 +605,9 @@ pub fn run(
             let rendered = renderer.render_group(job, g, &mut curves);
             let t = Instant::now();
             let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
+            if !files.is_empty() {
+                let _ = early_sync.send(files.iter().map(|f| f.name.clone()).collect());
+            }
             let t = match clocks {
                 Some(k) => PageTimings::add(&k.write, t),
                 None => t,
@@ -701,6 +725,7 @@ pub fn run(
         let (computed, reused, failed, chunk_files) =
             (done.computed, done.reused, done.failed, done.chunk_files);
         drop(records);
+        drop(early_sync);
         let written = writer
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
@@ -1078,6 +1103,32 @@ mod tests {
         fn settings(&self) -> String {
             "atlas file".into()
         }
+    }
+
+    /// A unit's files made durable early stay as they were written, and a name with no
+    /// file behind it (or a folder) is passed over: nothing is made, nothing fails.
+    #[test]
+    fn syncing_early_changes_no_file_and_makes_none() {
+        let dir = std::env::temp_dir().join(format!("coupler-sync-early-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join(PAGES_DIR)).unwrap();
+        std::fs::write(dir.join("pages/a.png"), b"page a").unwrap();
+        std::fs::write(dir.join("b.txt"), b"").unwrap();
+        let names: Vec<String> = ["pages/a.png", "pages/missing.png", "b.txt", "pages", "x/y"]
+            .map(String::from)
+            .into();
+        sync_early(&dir, &names);
+        assert_eq!(std::fs::read(dir.join("pages/a.png")).unwrap(), b"page a");
+        assert_eq!(std::fs::read(dir.join("b.txt")).unwrap(), b"");
+        assert!(!dir.join("pages/missing.png").exists());
+        assert!(!dir.join("x").exists());
+        let mut left: Vec<String> = std::fs::read_dir(dir.join(PAGES_DIR))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["a.png"]);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// Atlas files made alongside the groups are made once, not again at the end, and
