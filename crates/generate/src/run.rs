@@ -11,8 +11,9 @@ use crate::assembly::{Assembly, ChunkParts};
 use crate::chunk::{self, CHUNK_GROUPS, ChunkProblem, chunk_path, read_chunk};
 use crate::error::io_err;
 use crate::files::{
-    PAGES_DIR, check_out_dir, check_subfolders, hash_reader, manifest_file, open_regular,
-    read_manifest, remove_stale_temporaries, sync_files, write_artifact, write_file,
+    PAGES_DIR, Staged, check_out_dir, check_subfolders, hash_reader, manifest_file, open_regular,
+    read_manifest, remove_stale_temporaries, stage_artifact, sync_files, write_artifact,
+    write_file,
 };
 use crate::lock::FolderLock;
 use crate::plan::{Limits, Plan};
@@ -344,6 +345,61 @@ pub(crate) fn write_rendered(
     (files, failed)
 }
 
+/// What a renderer made, written under temporary names (or why a file was not).
+type StagedFiles = Vec<Result<Staged, PageFailure>>;
+
+/// Writes what a renderer made under temporary names ([`stage_artifact`]), to be put in
+/// place by [`write_staged`]; a file that could not be written becomes a failure.
+fn stage_rendered(dir: &Path, rendered: Rendered) -> StagedFiles {
+    rendered
+        .into_iter()
+        .map(|r| {
+            r.and_then(|a| {
+                stage_artifact(dir, &a).map_err(|e| PageFailure {
+                    page: a.name.clone(),
+                    message: error_chain(&e),
+                })
+            })
+        })
+        .collect()
+}
+
+/// [`write_rendered`] for files already written under temporary names: their names
+/// recorded in the ledger first (durably), then each put in place.
+fn write_staged(staged: StagedFiles, ledger: &Ledger) -> (Vec<FileEntry>, Vec<PageFailure>) {
+    let (mut files, mut failed) = (Vec::new(), Vec::new());
+    let names: Vec<&str> = staged
+        .iter()
+        .filter_map(|r| r.as_ref().ok().map(Staged::name))
+        .collect();
+    if let Err(e) = ledger.add(names) {
+        let message = error_chain(&e);
+        for r in staged {
+            failed.push(match r {
+                Ok(s) => PageFailure {
+                    page: s.name().to_string(),
+                    message: message.clone(),
+                },
+                Err(f) => f,
+            });
+        }
+        return (files, failed);
+    }
+    for r in staged {
+        match r.and_then(|s| {
+            let page = s.name().to_string();
+            s.commit().map_err(|e| PageFailure {
+                page,
+                message: error_chain(&e),
+            })
+        }) {
+            Ok(f) => files.push(f),
+            Err(f) => failed.push(f),
+        }
+    }
+    (files, failed)
+}
+
 /// An error and its causes, joined by `: `.
 fn error_chain(e: &dyn std::error::Error) -> String {
     let mut s = e.to_string();
@@ -523,10 +579,10 @@ pub fn run(
     };
     let shape_kind = assembly.as_ref().and_then(Assembly::record_kind);
     // A whole run's atlas files, when the renderer makes them alongside the groups: made
-    // by the pool's first task (see below), kept here and written at the end as before
-    // (the ledger records their names after the chunks', in the same order for any
-    // number of workers).
-    let alongside: Mutex<Option<Rendered>> = Mutex::new(None);
+    // by the pool's first task (see below) and written under temporary names, kept here
+    // and put in place at the end as before (the ledger records their names after the
+    // chunks', in the same order for any number of workers).
+    let alongside: Mutex<Option<StagedFiles>> = Mutex::new(None);
     // The chunks' units are computed in atlas order by all workers, a chunk's first units
     // while the last of the one before are still running (see `finish_front`); a computed
     // chunk's record is written (its pages made durable, the record written and made
@@ -639,7 +695,9 @@ pub fn run(
                 // groups, not after the last group with one worker idle.
                 let alongside = &alongside;
                 scope.spawn_fifo(move |_| {
-                    let made = renderer.render_atlas_alongside(job);
+                    let made = renderer
+                        .render_atlas_alongside(job)
+                        .map(|r| stage_rendered(&job.out, r));
                     *alongside.lock().unwrap_or_else(PoisonError::into_inner) = made;
                 });
             }
@@ -742,8 +800,10 @@ pub fn run(
     if !failed.is_empty() {
         if whole {
             // The atlas-level pages (contents) do not depend on the failed ones.
-            let made = alongside.unwrap_or_else(|| renderer.render_atlas(job));
-            let (_, atlas_failed) = write_rendered(&job.out, made, &prep.ledger);
+            let (_, atlas_failed) = match alongside {
+                Some(staged) => write_staged(staged, &prep.ledger),
+                None => write_rendered(&job.out, renderer.render_atlas(job), &prep.ledger),
+            };
             failed.extend(atlas_failed);
         }
         return Err(GenerateError::PagesFailed {
@@ -784,7 +844,7 @@ fn assemble(
     known: Vec<Option<Vec<FileEntry>>>,
     ledger: &Ledger,
     assembly: Assembly,
-    made: Option<Rendered>,
+    made: Option<StagedFiles>,
 ) -> Result<(PathBuf, usize), GenerateError> {
     let total = job.chunk_count();
     let mut files: Vec<FileEntry> = Vec::new();
@@ -814,8 +874,10 @@ fn assemble(
     });
     let assembled = assembled?;
     recorded?;
-    let made = made.unwrap_or_else(|| renderer.render_atlas(job));
-    let (atlas_files, failed) = write_rendered(&job.out, made, ledger);
+    let (atlas_files, failed) = match made {
+        Some(staged) => write_staged(staged, ledger),
+        None => write_rendered(&job.out, renderer.render_atlas(job), ledger),
+    };
     if !failed.is_empty() {
         return Err(GenerateError::PagesFailed {
             failed,
@@ -1166,6 +1228,12 @@ mod tests {
                 );
                 let manifest = read_manifest(&out).unwrap();
                 assert!(manifest.files.iter().any(|f| f.name == "atlas.txt"));
+                let temporaries: Vec<_> = std::fs::read_dir(&out)
+                    .unwrap()
+                    .map(|e| e.unwrap().file_name())
+                    .filter(|n| n.to_string_lossy().contains(".tmp-"))
+                    .collect();
+                assert!(temporaries.is_empty(), "{temporaries:?}");
                 let ledger = std::fs::read_to_string(out.join(STATE_DIR).join("files")).unwrap();
                 assert_eq!(ledger.lines().last(), Some("atlas.txt"), "{ledger}");
                 let got = (bytes, ledger);
