@@ -202,6 +202,47 @@ pub(crate) fn write_artifact(dir: &Path, a: &Artifact) -> Result<FileEntry, Gene
     Ok(FileEntry::of(&a.name, &a.bytes))
 }
 
+/// An artifact written under its temporary name beside its final path, not yet in place
+/// (see [`stage_artifact`]): put in place by [`Staged::commit`], removed if dropped first.
+pub(crate) struct Staged {
+    entry: FileEntry,
+    file: Temporary,
+}
+
+impl Staged {
+    /// Its name, relative to the atlas folder.
+    pub(crate) fn name(&self) -> &str {
+        &self.entry.name
+    }
+
+    /// Renames it into place (not yet durably, as [`write_artifact`] leaves a file).
+    pub(crate) fn commit(self) -> Result<FileEntry, GenerateError> {
+        let path = self.file.path().to_path_buf();
+        self.file.commit(false).map_err(io_err(&path))?;
+        Ok(self.entry)
+    }
+}
+
+/// [`write_artifact`] up to the rename: the bytes written under the file's temporary
+/// name, so that they need not be held in memory until the name is recorded and the file
+/// can be put in place.
+pub(crate) fn stage_artifact(dir: &Path, a: &Artifact) -> Result<Staged, GenerateError> {
+    let path = dir.join(&a.name);
+    check_name(&a.name).map_err(|m| GenerateError::Io {
+        path: path.clone(),
+        source: std::io::Error::other(m),
+    })?;
+    let mut file = Temporary::create(&path).map_err(io_err(&path))?;
+    file.buffer()
+        .write_all(&a.bytes)
+        .and_then(|()| file.close(false))
+        .map_err(io_err(&path))?;
+    Ok(Staged {
+        entry: FileEntry::of(&a.name, &a.bytes),
+        file,
+    })
+}
+
 /// Makes files `names` of `dir` durable (fsync each, in parallel, so the file system
 /// can commit them together), then the folders they are in.
 pub(crate) fn sync_files<'a>(
@@ -548,6 +589,41 @@ pub(crate) fn remove_stale_temporaries(out: &Path) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A staged file stands under no atlas name until it is committed, then under its own
+    /// with its bytes and the entry [`write_artifact`] gives; one dropped uncommitted
+    /// leaves nothing behind; a name that is not plain is refused before anything is made.
+    #[test]
+    fn staged_files_appear_only_when_committed() {
+        let dir = std::env::temp_dir().join(format!("coupler-staged-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join(PAGES_DIR)).unwrap();
+        let listing = || -> Vec<String> {
+            let mut v: Vec<String> = std::fs::read_dir(dir.join(PAGES_DIR))
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            v.sort();
+            v
+        };
+        let artifact = |name: &str, bytes: &[u8]| Artifact {
+            name: name.into(),
+            bytes: bytes.to_vec(),
+        };
+        let a = stage_artifact(&dir, &artifact("pages/a.png", b"page a")).unwrap();
+        let b = stage_artifact(&dir, &artifact("pages/b.png", b"page b")).unwrap();
+        assert_eq!(a.name(), "pages/a.png");
+        let staged = listing();
+        assert_eq!(staged.len(), 2, "{staged:?}");
+        assert!(staged.iter().all(|n| n.starts_with('.')), "{staged:?}");
+        assert_eq!(a.commit().unwrap(), FileEntry::of("pages/a.png", b"page a"));
+        assert_eq!(std::fs::read(dir.join("pages/a.png")).unwrap(), b"page a");
+        drop(b);
+        assert_eq!(listing(), ["a.png"]);
+        assert!(stage_artifact(&dir, &artifact("../c.png", b"c")).is_err());
+        assert_eq!(listing(), ["a.png"]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn names_from_records_must_be_plain() {

@@ -108,6 +108,14 @@ pub trait Renderer: Sync {
     fn render_group(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered;
     /// Files made once per atlas after all groups (e.g. a contents page).
     fn render_atlas(&self, job: &Job) -> Rendered;
+    /// The same files as [`Renderer::render_atlas`], made while the groups are: `Some`
+    /// when they depend on the job alone (not on the groups' output) and are drawn on the
+    /// calling thread. A whole run calls it on a worker as its first task, so that they
+    /// are drawn beside the groups' pages rather than after the last one, with one core
+    /// idle; `None` (the default): the run calls [`Renderer::render_atlas`] at its end.
+    fn render_atlas_alongside(&self, _job: &Job) -> Option<Rendered> {
+        None
+    }
     /// Number of pages it makes for `job` (0 for none), for the summary.
     fn pages(&self, job: &Job) -> u64;
     /// Everything about it that changes output bytes (formats, resolution…): part of the

@@ -708,6 +708,25 @@ impl PageRenderer {
     }
 
     /// The contents entries of a job.
+    /// The contents pages' files of `entries` (names relative to the atlas folder), or
+    /// the failure of the first.
+    fn contents_files(&self, entries: &[ContentsEntry]) -> Rendered {
+        match render_contents(&self.opts, &self.pool, entries) {
+            Ok(files) => files
+                .into_iter()
+                .map(|(name, bytes)| {
+                    Ok(Artifact {
+                        name: format!("pages/{name}"),
+                        bytes,
+                    })
+                })
+                .collect(),
+            Err(e) => vec![Err(
+                self.failure(self.opts.contents_file(1, self.first_format()), e)
+            )],
+        }
+    }
+
     fn contents_entries(&self, job: &Job) -> Vec<ContentsEntry> {
         let per = self.opts.setup.curves_per_page.max(1);
         job.groups()
@@ -774,20 +793,7 @@ impl Renderer for PageRenderer {
         // others (one per worker of the run) are let go first, so that the run's memory
         // peaks no higher here than while the workers draw.
         self.pool.keep(1);
-        let mut out: Rendered = match render_contents(&self.opts, &self.pool, &entries) {
-            Ok(files) => files
-                .into_iter()
-                .map(|(name, bytes)| {
-                    Ok(Artifact {
-                        name: format!("pages/{name}"),
-                        bytes,
-                    })
-                })
-                .collect(),
-            Err(e) => vec![Err(
-                self.failure(self.opts.contents_file(1, self.first_format()), e)
-            )],
-        };
+        let mut out = self.contents_files(&entries);
         // Nothing is drawn into a raster buffer after the contents.
         self.pool.keep(0);
         if self.opts.wants_pdf() {
@@ -800,6 +806,17 @@ impl Renderer for PageRenderer {
             });
         }
         out
+    }
+
+    /// The contents pages (they depend on the job alone) when they are all the atlas
+    /// files: drawn on the calling worker with the buffer it draws its pages with (the
+    /// pool is not trimmed: the workers go on drawing). An atlas PDF is drawn on a pool
+    /// of its own, after the groups ([`Renderer::render_atlas`]).
+    fn render_atlas_alongside(&self, job: &Job) -> Option<Rendered> {
+        if self.opts.wants_pdf() {
+            return None;
+        }
+        Some(self.contents_files(&self.contents_entries(job)))
     }
 
     fn pages(&self, job: &Job) -> u64 {
@@ -856,6 +873,34 @@ impl Renderer for PageRenderer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The contents pages made alongside the groups are those made at the end, name for
+    /// name and byte for byte (PNG and SVG, at a low resolution, for both quick jobs);
+    /// with a PDF wanted nothing is made alongside (the atlas PDF is drawn at the end).
+    #[test]
+    fn contents_made_alongside_are_those_made_at_the_end() {
+        for job in crate::job::quick_jobs() {
+            let mut opts = PageOptions::from_spec(&job.spec).unwrap();
+            opts.setup.dpi = 30.0;
+            opts.formats = vec![PageFormat::Png, PageFormat::Svg];
+            let files = |r: Rendered| -> Vec<(String, Vec<u8>)> {
+                r.into_iter()
+                    .map(|a| a.map(|a| (a.name, a.bytes)).unwrap())
+                    .collect()
+            };
+            let renderer = PageRenderer::new(opts.clone());
+            let alongside = files(renderer.render_atlas_alongside(&job).unwrap());
+            let at_end = files(PageRenderer::new(opts.clone()).render_atlas(&job));
+            assert!(alongside.len() >= 2, "{} files", alongside.len());
+            assert!(alongside == at_end, "{}", job.spec.name);
+            opts.formats.push(PageFormat::Pdf);
+            assert!(
+                PageRenderer::new(opts)
+                    .render_atlas_alongside(&job)
+                    .is_none()
+            );
+        }
+    }
 
     /// A group's page jobs cover its points in order, `per` each, numbered from the
     /// group's first page, each with the features of its own points (fewer when the

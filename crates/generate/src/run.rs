@@ -11,8 +11,9 @@ use crate::assembly::{Assembly, ChunkParts};
 use crate::chunk::{self, CHUNK_GROUPS, ChunkProblem, chunk_path, read_chunk};
 use crate::error::io_err;
 use crate::files::{
-    PAGES_DIR, check_out_dir, check_subfolders, hash_reader, manifest_file, open_regular,
-    read_manifest, remove_stale_temporaries, sync_files, write_artifact, write_file,
+    PAGES_DIR, Staged, check_out_dir, check_subfolders, hash_reader, manifest_file, open_regular,
+    read_manifest, remove_stale_temporaries, stage_artifact, sync_files, write_artifact,
+    write_file,
 };
 use crate::lock::FolderLock;
 use crate::plan::{Limits, Plan};
@@ -30,6 +31,7 @@ use std::collections::VecDeque;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, PoisonError};
 use std::time::Instant;
 
 /// What a run did.
@@ -120,6 +122,17 @@ fn format_lines(curves: &[IndexCurve]) -> std::io::Result<String> {
         lines.push('\n');
     }
     Ok(lines)
+}
+
+/// Makes files `names` of `dir` durable ahead of their chunk's record, which syncs them
+/// again ([`sync_files`], where an error counts): here an error is left to that sync, and
+/// a file that is not there is neither made nor waited for.
+fn sync_early(dir: &Path, names: &[String]) {
+    for n in names {
+        if let Ok(f) = std::fs::File::open(dir.join(n)) {
+            let _ = f.sync_all();
+        }
+    }
 }
 
 /// Writes the record of a computed chunk (durably: after the files it lists are made
@@ -332,6 +345,61 @@ pub(crate) fn write_rendered(
     (files, failed)
 }
 
+/// What a renderer made, written under temporary names (or why a file was not).
+type StagedFiles = Vec<Result<Staged, PageFailure>>;
+
+/// Writes what a renderer made under temporary names ([`stage_artifact`]), to be put in
+/// place by [`write_staged`]; a file that could not be written becomes a failure.
+fn stage_rendered(dir: &Path, rendered: Rendered) -> StagedFiles {
+    rendered
+        .into_iter()
+        .map(|r| {
+            r.and_then(|a| {
+                stage_artifact(dir, &a).map_err(|e| PageFailure {
+                    page: a.name.clone(),
+                    message: error_chain(&e),
+                })
+            })
+        })
+        .collect()
+}
+
+/// [`write_rendered`] for files already written under temporary names: their names
+/// recorded in the ledger first (durably), then each put in place.
+fn write_staged(staged: StagedFiles, ledger: &Ledger) -> (Vec<FileEntry>, Vec<PageFailure>) {
+    let (mut files, mut failed) = (Vec::new(), Vec::new());
+    let names: Vec<&str> = staged
+        .iter()
+        .filter_map(|r| r.as_ref().ok().map(Staged::name))
+        .collect();
+    if let Err(e) = ledger.add(names) {
+        let message = error_chain(&e);
+        for r in staged {
+            failed.push(match r {
+                Ok(s) => PageFailure {
+                    page: s.name().to_string(),
+                    message: message.clone(),
+                },
+                Err(f) => f,
+            });
+        }
+        return (files, failed);
+    }
+    for r in staged {
+        match r.and_then(|s| {
+            let page = s.name().to_string();
+            s.commit().map_err(|e| PageFailure {
+                page,
+                message: error_chain(&e),
+            })
+        }) {
+            Ok(f) => files.push(f),
+            Err(f) => failed.push(f),
+        }
+    }
+    (files, failed)
+}
+
 /// An error and its causes, joined by `: `.
 fn error_chain(e: &dyn std::error::Error) -> String {
     let mut s = e.to_string();
@@ -510,6 +578,11 @@ pub fn run(
         None
     };
     let shape_kind = assembly.as_ref().and_then(Assembly::record_kind);
+    // A whole run's atlas files, when the renderer makes them alongside the groups: made
+    // by the pool's first task (see below) and written under temporary names, kept here
+    // and put in place at the end as before (the ledger records their names after the
+    // chunks', in the same order for any number of workers).
+    let alongside: Mutex<Option<StagedFiles>> = Mutex::new(None);
     // The chunks' units are computed in atlas order by all workers, a chunk's first units
     // while the last of the one before are still running (see `finish_front`); a computed
     // chunk's record is written (its pages made durable, the record written and made
@@ -562,6 +635,16 @@ pub fn run(
         // worker waits at a chunk's end (at most `AHEAD` chunks beyond the one awaited).
         let (unit_done, unit_outputs) = std::sync::mpsc::channel::<UnitResult>();
         let stop = AtomicBool::new(false);
+        // Each unit's files are made durable as soon as it has written them, on a thread
+        // of their own (an fsync waits for the disk, not for a core): the chunk record's
+        // own sync (`write_chunk`) then finds them written back, so that after the last
+        // unit its chunk's sync is not all left on the run's critical path.
+        let (early_sync, to_sync) = std::sync::mpsc::channel::<Vec<String>>();
+        scope.spawn(move || {
+            for names in to_sync {
+                sync_early(&job.out, &names);
+            }
+        });
         let unit = |c: u64, g: &Group| -> Result<GroupOutput, GenerateError> {
             if interrupt.load(Ordering::Relaxed) {
                 // How many chunks are done is filled in by `finish_front`.
@@ -578,6 +661,9 @@ pub fn run(
             let rendered = renderer.render_group(job, g, &mut curves);
             let t = Instant::now();
             let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
+            if !files.is_empty() {
+                let _ = early_sync.send(files.iter().map(|f| f.name.clone()).collect());
+            }
             let t = match clocks {
                 Some(k) => PageTimings::add(&k.write, t),
                 None => t,
@@ -603,6 +689,18 @@ pub fn run(
             })
         };
         let result = pool.in_place_scope_fifo(|scope| -> Result<(), GenerateError> {
+            if whole {
+                // The atlas files that depend on the job alone (the contents pages) are
+                // the first task: drawn by one worker while the other starts on the
+                // groups, not after the last group with one worker idle.
+                let alongside = &alongside;
+                scope.spawn_fifo(move |_| {
+                    let made = renderer
+                        .render_atlas_alongside(job)
+                        .map(|r| stage_rendered(&job.out, r));
+                    *alongside.lock().unwrap_or_else(PoisonError::into_inner) = made;
+                });
+            }
             let mut queue: VecDeque<Admitted> = VecDeque::new();
             let finish =
                 |queue: &mut VecDeque<Admitted>, done: &mut Done| -> Result<bool, GenerateError> {
@@ -685,6 +783,7 @@ pub fn run(
         let (computed, reused, failed, chunk_files) =
             (done.computed, done.reused, done.failed, done.chunk_files);
         drop(records);
+        drop(early_sync);
         let written = writer
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
@@ -694,12 +793,17 @@ pub fn run(
         }
     })?;
     still_there(&job.out)?;
+    let alongside = alongside
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner);
     let mut failed = failed;
     if !failed.is_empty() {
         if whole {
             // The atlas-level pages (contents) do not depend on the failed ones.
-            let (_, atlas_failed) =
-                write_rendered(&job.out, renderer.render_atlas(job), &prep.ledger);
+            let (_, atlas_failed) = match alongside {
+                Some(staged) => write_staged(staged, &prep.ledger),
+                None => write_rendered(&job.out, renderer.render_atlas(job), &prep.ledger),
+            };
             failed.extend(atlas_failed);
         }
         return Err(GenerateError::PagesFailed {
@@ -709,7 +813,8 @@ pub fn run(
     }
     let (index_path, removed_files) = match assembly {
         Some(a) => {
-            let (p, removed) = assemble(job, renderer, &key, chunk_files, &prep.ledger, a)?;
+            let (p, removed) =
+                assemble(job, renderer, &key, chunk_files, &prep.ledger, a, alongside)?;
             (Some(p), removed)
         }
         None => (None, 0),
@@ -729,8 +834,9 @@ pub fn run(
 /// Puts the atlas-level files into `job.out`: the atlas pages, then the index, columns
 /// and sidecar of `assembly` (every chunk added), then `manifest.json`; then removes files
 /// of earlier runs this atlas no longer has. `known` holds the files of the chunks already
-/// verified (the others are verified here). Returns the index's path and how many old
-/// files were removed.
+/// verified (the others are verified here); `made`, the atlas files if the run made them
+/// already ([`Renderer::render_atlas_alongside`]). Returns the index's path and how many
+/// old files were removed.
 fn assemble(
     job: &Job,
     renderer: &dyn Renderer,
@@ -738,6 +844,7 @@ fn assemble(
     known: Vec<Option<Vec<FileEntry>>>,
     ledger: &Ledger,
     assembly: Assembly,
+    made: Option<StagedFiles>,
 ) -> Result<(PathBuf, usize), GenerateError> {
     let total = job.chunk_count();
     let mut files: Vec<FileEntry> = Vec::new();
@@ -767,7 +874,10 @@ fn assemble(
     });
     let assembled = assembled?;
     recorded?;
-    let (atlas_files, failed) = write_rendered(&job.out, renderer.render_atlas(job), ledger);
+    let (atlas_files, failed) = match made {
+        Some(staged) => write_staged(staged, ledger),
+        None => write_rendered(&job.out, renderer.render_atlas(job), ledger),
+    };
     if !failed.is_empty() {
         return Err(GenerateError::PagesFailed {
             failed,
@@ -995,12 +1105,146 @@ pub fn merge(
         return Err(stopped());
     }
     let assembly = Assembly::of_records(job, &job.summary(renderer.pages(job)), &key)?;
-    assemble(job, renderer, &key, chunk_files, &prep.ledger, assembly).map(|(p, _)| p)
+    assemble(
+        job,
+        renderer,
+        &key,
+        chunk_files,
+        &prep.ledger,
+        assembly,
+        None,
+    )
+    .map(|(p, _)| p)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Artifact;
+    use std::sync::atomic::AtomicUsize;
+
+    /// Index only, and one atlas file (`atlas.txt`): made alongside the groups or, with
+    /// `alongside` false, at the end; counts the calls of each.
+    #[derive(Default)]
+    struct AtlasFile {
+        alongside: bool,
+        made_alongside: AtomicUsize,
+        made_at_end: AtomicUsize,
+    }
+
+    impl AtlasFile {
+        fn made(&self, job: &Job) -> Rendered {
+            vec![Ok(Artifact {
+                name: "atlas.txt".into(),
+                bytes: format!("{} groups\n", job.groups().count()).into_bytes(),
+            })]
+        }
+    }
+
+    impl Renderer for AtlasFile {
+        fn group_files(&self, _: &Job, _: &Group) -> Option<Vec<String>> {
+            Some(Vec::new())
+        }
+        fn render_group(&self, _: &Job, _: &Group, _: &mut [IndexCurve]) -> Rendered {
+            Vec::new()
+        }
+        fn render_atlas(&self, job: &Job) -> Rendered {
+            self.made_at_end.fetch_add(1, Ordering::Relaxed);
+            self.made(job)
+        }
+        fn render_atlas_alongside(&self, job: &Job) -> Option<Rendered> {
+            if !self.alongside {
+                return None;
+            }
+            self.made_alongside.fetch_add(1, Ordering::Relaxed);
+            Some(self.made(job))
+        }
+        fn pages(&self, _: &Job) -> u64 {
+            0
+        }
+        fn settings(&self) -> String {
+            "atlas file".into()
+        }
+    }
+
+    /// A unit's files made durable early stay as they were written, and a name with no
+    /// file behind it (or a folder) is passed over: nothing is made, nothing fails.
+    #[test]
+    fn syncing_early_changes_no_file_and_makes_none() {
+        let dir = std::env::temp_dir().join(format!("coupler-sync-early-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join(PAGES_DIR)).unwrap();
+        std::fs::write(dir.join("pages/a.png"), b"page a").unwrap();
+        std::fs::write(dir.join("b.txt"), b"").unwrap();
+        let names: Vec<String> = ["pages/a.png", "pages/missing.png", "b.txt", "pages", "x/y"]
+            .map(String::from)
+            .into();
+        sync_early(&dir, &names);
+        assert_eq!(std::fs::read(dir.join("pages/a.png")).unwrap(), b"page a");
+        assert_eq!(std::fs::read(dir.join("b.txt")).unwrap(), b"");
+        assert!(!dir.join("pages/missing.png").exists());
+        assert!(!dir.join("x").exists());
+        let mut left: Vec<String> = std::fs::read_dir(dir.join(PAGES_DIR))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["a.png"]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Atlas files made alongside the groups are made once, not again at the end, and
+    /// written as those made at the end are: the same bytes, in the manifest, and recorded
+    /// in the ledger last (after the chunks' names and the root files'), so that the
+    /// ledger, too, is the same for any number of workers and either way of making them.
+    #[test]
+    fn atlas_files_made_alongside_are_written_as_at_the_end() {
+        for base in crate::job::quick_jobs() {
+            let mut want: Option<(Vec<u8>, String)> = None;
+            for (jobs, alongside) in [(1, false), (1, true), (2, true), (3, true)] {
+                let out = std::env::temp_dir().join(format!(
+                    "coupler-alongside-{}-{}-{jobs}-{alongside}",
+                    base.spec.name,
+                    std::process::id()
+                ));
+                let _ = std::fs::remove_dir_all(&out);
+                let mut job = base.clone();
+                job.out = out.clone();
+                job.jobs = jobs;
+                let r = AtlasFile {
+                    alongside,
+                    ..AtlasFile::default()
+                };
+                run(&job, &r, &|_| {}, &AtomicBool::new(false)).unwrap();
+                let made = (
+                    r.made_alongside.load(Ordering::Relaxed),
+                    r.made_at_end.load(Ordering::Relaxed),
+                );
+                assert_eq!(made, if alongside { (1, 0) } else { (0, 1) });
+                let bytes = std::fs::read(out.join("atlas.txt")).unwrap();
+                assert_eq!(
+                    bytes,
+                    format!("{} groups\n", job.groups().count()).as_bytes()
+                );
+                let manifest = read_manifest(&out).unwrap();
+                assert!(manifest.files.iter().any(|f| f.name == "atlas.txt"));
+                let temporaries: Vec<_> = std::fs::read_dir(&out)
+                    .unwrap()
+                    .map(|e| e.unwrap().file_name())
+                    .filter(|n| n.to_string_lossy().contains(".tmp-"))
+                    .collect();
+                assert!(temporaries.is_empty(), "{temporaries:?}");
+                let ledger = std::fs::read_to_string(out.join(STATE_DIR).join("files")).unwrap();
+                assert_eq!(ledger.lines().last(), Some("atlas.txt"), "{ledger}");
+                let got = (bytes, ledger);
+                match &want {
+                    None => want = Some(got),
+                    Some(w) => assert!(*w == got, "{jobs} workers, alongside {alongside}"),
+                }
+                let _ = std::fs::remove_dir_all(&out);
+            }
+        }
+    }
 
     fn output(lines: &str, first_id: u64) -> GroupOutput {
         GroupOutput {
