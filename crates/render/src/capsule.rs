@@ -361,9 +361,10 @@ impl Capsules {
     /// of adjacent blocks within a word of the block map at once, in the order of the
     /// row (a pixel of a noted block that no span reached has coverage 0, which leaves
     /// the page as it is; a run across words is composited in two pieces, split at a
-    /// multiple of 512 pixels, which changes no pixel's arithmetic nor a gray tile's
-    /// span), and marks the blocks in the target's `dirty` (not for paper): the blocks
-    /// the spans touch, as marking each span would.
+    /// multiple of 512 pixels, which changes no pixel's arithmetic), and marks the
+    /// blocks in the target's `dirty` (not for paper): the blocks the spans touch, as
+    /// marking each span would. Into the gray layer, a tile's noted blocks at once
+    /// ([`GrayLayer::add_blocks`]).
     fn flush_row(&mut self, j: usize, t: &mut Target) {
         if self.wlo >= self.whi {
             return;
@@ -373,9 +374,15 @@ impl Capsules {
         if t.ink != Ink::Paper {
             t.dirty.mark_blocks(j, wlo, &self.blocks[wlo..whi]);
         }
+        if let Some(layer) = t.layer.as_deref_mut() {
+            for w in wlo..whi {
+                let bits = std::mem::take(&mut self.blocks[w]);
+                layer.add_blocks(j, w, bits, &mut self.row);
+            }
+            return;
+        }
         let row = &mut t.data[(j - t.first) * t.width..(j - t.first + 1) * t.width];
         let (width, ink) = (t.width, t.ink);
-        let mut layer = t.layer.as_deref_mut();
         for w in wlo..whi {
             let mut bits = std::mem::take(&mut self.blocks[w]);
             while bits != 0 {
@@ -384,11 +391,7 @@ impl Capsules {
                 // The lowest run of ones cleared.
                 bits &= bits.wrapping_add(1 << s);
                 let (x0, x1) = (BLOCK * (64 * w + s), (BLOCK * (64 * w + s + n)).min(width));
-                let cov = &mut self.row[x0..x1];
-                match layer.as_deref_mut() {
-                    Some(layer) => layer.add_span(j, x0, cov),
-                    None => composite_span(&mut row[x0..x1], cov, ink),
-                }
+                composite_span(&mut row[x0..x1], &mut self.row[x0..x1], ink);
             }
         }
     }
@@ -896,7 +899,7 @@ fn composite_span(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
     let half = u16x8::splat(127);
     for (d8, c8) in dst[..lanes]
         .chunks_exact_mut(8)
-        .zip(cov[..lanes].chunks_exact(8))
+        .zip(cov[..lanes].chunks_exact_mut(8))
     {
         let (d, c) = (widen(d8), widen(c8));
         let v = if paper {
@@ -905,9 +908,9 @@ fn composite_span(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
             d + div255((u16x8::splat(255) - d) * c + half)
         };
         narrow(v, d8);
+        c8.fill(0);
     }
     composite_pixels(&mut dst[lanes..], &mut cov[lanes..], ink);
-    cov.fill(0);
 }
 
 /// Composites coverage `cov` of `ink` over `dst` and clears `cov`, pixel by pixel (the
@@ -915,20 +918,24 @@ fn composite_span(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
 fn composite_pixels(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
     match ink {
         Ink::Paper => {
-            for (d, c) in dst.iter_mut().zip(cov.iter()) {
-                let (dd, cc) = (u32::from(*d), u32::from(*c));
+            for (d, c) in dst.iter_mut().zip(cov.iter_mut()) {
+                let (dd, cc) = (u32::from(*d), u32::from(std::mem::take(c)));
                 *d = (dd - (dd * cc + 127) / 255) as u8;
             }
         }
         ink => {
             let g = u32::from(ink.level());
-            for (d, c) in dst.iter_mut().zip(cov.iter()) {
-                let (dd, cc) = (u32::from(*d), u32::from(*c));
+            for (d, c) in dst.iter_mut().zip(cov.iter_mut()) {
+                let (dd, cc) = (u32::from(*d), u32::from(std::mem::take(c)));
                 *d = (dd + ((255 - dd) * cc * g + 32_512) / 65_025) as u8;
             }
         }
     }
-    cov.fill(0);
+    // Coverage past `dst` (none in this crate's calls) is cleared too.
+    let n = dst.len().min(cov.len());
+    if n < cov.len() {
+        cov[n..].fill(0);
+    }
 }
 
 #[cfg(test)]

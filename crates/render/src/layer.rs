@@ -8,6 +8,7 @@
 //! gray (a page-sized layer was 16.8 MB per worker at 300 dpi).
 
 use crate::capsule::{div255, narrow, widen};
+use crate::dirty::BLOCK;
 use crate::raster::overprint;
 use wide::{f32x8, i16x8, i32x8, u8x16, u16x8};
 
@@ -16,6 +17,9 @@ const TILE: usize = 64;
 
 /// No tile.
 const NONE: u32 = u32::MAX;
+
+// A tile's row is a byte of a word of a row's block map ([`GrayLayer::add_blocks`]).
+const _: () = assert!(TILE == 8 * BLOCK);
 
 /// One tile: its number in the page's tile grid, its coverage and each row's span
 /// `[lo, hi)` (empty when `lo ≥ hi`), and which rows hold a span (bit `r` for row `r`).
@@ -91,6 +95,63 @@ impl GrayLayer {
         cov[x1 - x0..].fill(0);
     }
 
+    /// Merges the coverage of row buffer `row` (row `j` of the page, from its column 0)
+    /// over the blocks of [`BLOCK`] pixels set in `bits`, word `w` of the row's block map
+    /// (block `b` is bit `b % 64` of word `b / 64`), and clears them in `row`: the same
+    /// layer as [`GrayLayer::add_span`] of each run of set blocks, a tile's blocks at
+    /// once (a tile's row is 8 blocks, a byte of the word) from its first set block to
+    /// its last. The blocks between two runs of one tile are merged too: `row` holds 0
+    /// there (the caller's promise), which leaves the layer as it is (`l + (127 / 255)`
+    /// is `l`), and the tile row's span is the runs' hull either way.
+    #[inline]
+    pub(crate) fn add_blocks(&mut self, j: usize, w: usize, mut bits: u64, row: &mut [u8]) {
+        let width = self.width.min(row.len());
+        if j >= self.height {
+            return clear_blocks(w, bits, row);
+        }
+        let (ty, r) = (j / TILE, j % TILE);
+        while bits != 0 {
+            let t = bits.trailing_zeros() as usize / 8;
+            let mut byte = (bits >> (8 * t)) as u8;
+            bits &= !(0xff << (8 * t));
+            let x = (8 * w + t) * TILE;
+            if x + TILE > width {
+                // The blocks past the layer: not merged, cleared.
+                let keep = width.div_ceil(BLOCK).saturating_sub(x / BLOCK);
+                let past = if keep < 8 {
+                    byte & !((1 << keep) - 1)
+                } else {
+                    0
+                };
+                clear_blocks(w, u64::from(past) << (8 * t), row);
+                byte &= !past;
+                if byte == 0 {
+                    continue;
+                }
+                // A block across the layer's edge: its pixels past it cleared.
+                let end = (x + BLOCK * (8 - byte.leading_zeros() as usize)).min(row.len());
+                if end > width {
+                    row[width..end].fill(0);
+                }
+            }
+            let lo = BLOCK * byte.trailing_zeros() as usize;
+            let hi = (BLOCK * (8 - byte.leading_zeros() as usize)).min(width - x);
+            let at = ty * self.cols + x / TILE;
+            let k = match self.slot[at] {
+                NONE => self.new_tile(at),
+                k => k as usize,
+            };
+            let tile = &mut self.tiles[k];
+            merge(
+                &mut tile.cov[r * TILE + lo..r * TILE + hi],
+                &mut row[x + lo..x + hi],
+            );
+            let s = &mut tile.span[r];
+            *s = (s.0.min(lo as u8), s.1.max(hi as u8));
+            tile.rows |= 1 << r;
+        }
+    }
+
     /// A tile for the page's tile `at`, which has none: the index of a spare one or of a
     /// new one.
     #[cold]
@@ -140,6 +201,18 @@ impl GrayLayer {
             self.slot[at] = NONE;
         }
         self.used = 0;
+    }
+}
+
+/// Clears the blocks of `row` set in `bits`, word `w` of a row's block map (as far as
+/// `row` reaches).
+#[cold]
+fn clear_blocks(w: usize, mut bits: u64, row: &mut [u8]) {
+    while bits != 0 {
+        let x = BLOCK * (64 * w + bits.trailing_zeros() as usize);
+        bits &= bits - 1;
+        let n = row.len();
+        row[x.min(n)..(x + BLOCK).min(n)].fill(0);
     }
 }
 
@@ -270,6 +343,89 @@ mod tests {
                 *l = 0;
             }
             assert!(page == want, "round {round}");
+        }
+    }
+
+    /// [`GrayLayer::add_blocks`] is [`GrayLayer::add_span`] of each run of set blocks
+    /// (split at words, as the scan converter's row flush made them): random blocks of
+    /// random coverage (0 in the blocks not set) on rows of a page wider than a word of
+    /// the block map, its last tile partial, in random grays, flushed now and then over
+    /// a random page; the same tile rows' spans, the same pages, the row buffer cleared.
+    /// Also a row buffer wider than the layer (its blocks past the layer cleared).
+    #[test]
+    fn blocks_merge_as_their_runs() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for (w, h, extra) in [(1100usize, 150usize, 0usize), (203, 70, 0), (1100, 70, 29)] {
+            let words = w.div_ceil(BLOCK).div_ceil(64);
+            let mut page: Vec<u8> = (0..w * h).map(|_| rand() as u8).collect();
+            let mut want = page.clone();
+            let (mut got, mut reference) = (GrayLayer::new(w, h), GrayLayer::new(w, h));
+            let mut row = vec![0u8; w + extra];
+            for round in 0..40 {
+                let level = rand() as u8;
+                (got.level, reference.level) = (level, level);
+                for _ in 0..30 {
+                    let j = rand() as usize % h;
+                    let mut map = vec![0u64; words];
+                    for m in &mut map {
+                        // Sparse, dense or full words.
+                        *m = match rand() % 3 {
+                            0 => rand() & rand() & rand(),
+                            1 => rand(),
+                            _ => u64::MAX,
+                        };
+                    }
+                    let blocks = row.len().div_ceil(BLOCK);
+                    if let Some(last) = map.last_mut() {
+                        let keep = blocks - 64 * (words - 1);
+                        if keep < 64 {
+                            *last &= (1u64 << keep) - 1;
+                        }
+                    }
+                    let fill = |row: &mut Vec<u8>, rand: &mut dyn FnMut() -> u64| {
+                        row.iter_mut().for_each(|c| *c = 0);
+                        for (i, c) in row.iter_mut().enumerate() {
+                            let b = i / BLOCK;
+                            if map[b / 64] >> (b % 64) & 1 == 1 {
+                                *c = rand() as u8;
+                            }
+                        }
+                    };
+                    fill(&mut row, &mut rand);
+                    let mut copy = row.clone();
+                    for (wi, &m) in map.iter().enumerate() {
+                        got.add_blocks(j, wi, m, &mut row);
+                        let mut bits = m;
+                        while bits != 0 {
+                            let s = bits.trailing_zeros() as usize;
+                            let n = (!(bits >> s)).trailing_zeros() as usize;
+                            bits &= bits.wrapping_add(1 << s);
+                            let x0 = BLOCK * (64 * wi + s);
+                            let x1 = (BLOCK * (64 * wi + s + n)).min(copy.len());
+                            reference.add_span(j, x0, &mut copy[x0..x1]);
+                        }
+                    }
+                    assert!(row.iter().all(|&c| c == 0), "cleared, round {round}");
+                    for (at, &k) in got.slot.iter().enumerate() {
+                        let kr = reference.slot[at];
+                        assert_eq!(k == NONE, kr == NONE, "tile {at}");
+                        if k != NONE {
+                            let (a, b) = (&got.tiles[k as usize], &reference.tiles[kr as usize]);
+                            assert_eq!(a.rows, b.rows, "tile {at}");
+                            assert_eq!(a.span, b.span, "tile {at}");
+                        }
+                    }
+                }
+                got.flush(&mut page, 0);
+                reference.flush(&mut want, 0);
+                assert!(page == want, "{w} round {round}");
+            }
         }
     }
 
