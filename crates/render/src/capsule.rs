@@ -172,9 +172,9 @@ pub(crate) struct Capsules {
     spans: Vec<(u32, u32)>,
     /// A row's edges left to measure in [`Mode::Wide`]: `(segment, from, to)`.
     edges: Vec<(u32, u32, u32)>,
-    /// Per segment in [`Mode::Wide`], its intervals (outer, inner) on four rows from the
-    /// first: made four rows at a time ([`intervals4`], a row a lane).
-    ahead: Vec<(u32, [Intervals; 4])>,
+    /// Per segment in [`Mode::Wide`], its pixel spans on four rows from the first: made
+    /// four rows at a time ([`wide_spans4`], a row a lane).
+    ahead: Vec<(u32, [[u32; 4]; 4])>,
 }
 
 /// `x.floor()` without a call into libm (which the baseline x86-64 target makes of it),
@@ -268,9 +268,9 @@ impl Capsules {
             .sort_unstable_by_key(|&k| segs[k as usize].rows.0);
         self.fit(t.width);
         if r > LANES_MAX_R {
-            // No intervals made ahead yet (no row is `u32::MAX` rows past another).
+            // No spans made ahead yet (no row is `u32::MAX` rows past another).
             self.ahead.clear();
-            self.ahead.resize(segs.len(), (u32::MAX, [[None; 2]; 4]));
+            self.ahead.resize(segs.len(), (u32::MAX, [[0; 4]; 4]));
         }
         self.active.clear();
         let mut next = 0;
@@ -295,15 +295,17 @@ impl Capsules {
                 let span = match s.mode {
                     Mode::Lanes => seg_row_lanes(s, cy, r, reach, &mut self.row),
                     Mode::Wide => {
-                        // The segment's intervals on four rows at once, from this one
-                        // (the spans' order does not matter).
-                        let (from, ivs) = &mut self.ahead[k as usize];
+                        // The segment's pixel spans on four rows at once, from this
+                        // one (the spans' order does not matter).
+                        let (from, spans) = &mut self.ahead[k as usize];
                         if !(*from <= j && j - *from < 4) {
                             let cy4 = [0, 1, 2, 3].map(|m| (j + m) as f32 + 0.5);
-                            (*from, *ivs) = (j, intervals4(s, cy4, reach, r - 0.5));
+                            let w = self.row.len() as f32;
+                            (*from, *spans) = (j, wide_spans4(s, cy4, reach, r - 0.5, w));
                         }
-                        let [outer, inner] = ivs[(j - *from) as usize];
-                        seg_row_fill(k, outer, inner, r, &mut self.row, &mut self.edges)
+                        let m = (j - *from) as usize;
+                        let row_spans = spans.map(|v| v[m] as usize);
+                        seg_row_fill(k, row_spans, &mut self.row, &mut self.edges)
                     }
                     Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
                 };
@@ -557,8 +559,26 @@ fn intervals(s: &Seg, cy: f32, reach: f32, inner: f32) -> Intervals {
 /// (the lanes a branch does not choose, which may be NaN, are dropped). Their bounds may
 /// differ from `interval`'s in the sign of a zero only, which no pixel span made of them
 /// tells apart.
-#[inline]
+#[cfg(test)]
 fn intervals4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32) -> [Intervals; 4] {
+    let mut out = [[None; 2]; 4];
+    for (m, (lo, hi)) in intervals4_lanes(s, cy, reach, inner)
+        .into_iter()
+        .enumerate()
+    {
+        let (lo, hi) = (lo.to_array(), hi.to_array());
+        for (j, out) in out.iter_mut().enumerate() {
+            out[m] = (lo[j] <= hi[j]).then_some((lo[j], hi[j]));
+        }
+    }
+    out
+}
+
+/// [`intervals4`] as lanes: per distance (`reach`, `inner`) the bounds `lo` and `hi` of
+/// the four rows' intervals, a row a lane; a row without an interval has `lo = +∞` and
+/// `hi = −∞`.
+#[inline(always)]
+fn intervals4_lanes(s: &Seg, cy: [f32; 4], reach: f32, inner: f32) -> [(f32x4, f32x4); 2] {
     let ax = f32x4::splat(s.a[0]);
     let ey = f32x4::new(cy) - f32x4::splat(s.a[1]);
     let dx = f32x4::splat(s.d[0]);
@@ -580,8 +600,7 @@ fn intervals4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32) -> [Intervals; 4] {
     };
     let k = -dy;
     let across = k.simd_ne(f32x4::ZERO);
-    let mut out = [[None; 2]; 4];
-    for (m, rho) in [reach, inner].into_iter().enumerate() {
+    [reach, inner].map(|rho| {
         let (mut lo, mut hi) = (inf, ninf);
         let mut add = |ok: f32x4, a: f32x4, b: f32x4| {
             let ok = ok & a.simd_le(b);
@@ -601,12 +620,53 @@ fn intervals4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32) -> [Intervals; 4] {
         let u0 = across.bitselect(b0.fast_max(a.fast_min(b)), b0);
         let u1 = across.bitselect(b1.fast_min(a.fast_max(b)), within.bitselect(b1, ninf));
         add(body, ax + u0, ax + u1);
-        let (lo, hi) = (lo.to_array(), hi.to_array());
-        for (j, out) in out.iter_mut().enumerate() {
-            out[m] = (lo[j] <= hi[j]).then_some((lo[j], hi[j]));
+        (lo, hi)
+    })
+}
+
+/// The pixel spans of wide segment `s` ([`Mode::Wide`], within [`MODEST`]
+/// coordinates) on four rows at once (centres `cy`), a row a lane, on a row of `w`
+/// pixels: `[x0, x1, j0, j1]`, the pixels whose centre lies in its reach (`[x0, x1)`,
+/// none when `x0 ≥ x1`) and in its interior (`[j0, j1)` before [`seg_row_fill`]
+/// clamps it to the reach), as [`pixel_spans`] makes them of each row's [`intervals`]
+/// (of the reach twice when the interior has none: it then gives an empty interior
+/// all the same). Each bound is clamped to `[−1, w + 1]` before it is made a whole
+/// number, which changes no span clamped to `[0, w]` after, and keeps every lane
+/// finite (`±∞` where a row has no interval) and below 2^23 for the lanes' truncation.
+#[inline]
+fn wide_spans4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32, w: f32) -> [[u32; 4]; 4] {
+    let [(lo, hi), (ilo, ihi)] = intervals4_lanes(s, cy, reach, inner);
+    let half = f32x4::splat(0.5);
+    if w < 4_194_304.0 {
+        let (below, above) = (f32x4::splat(-1.0), f32x4::splat(w + 1.0));
+        let clamp = |x: f32x4| x.fast_max(below).fast_min(above);
+        let floor = |x: f32x4| {
+            let t = x.fast_trunc_int().round_float();
+            t - (t.simd_gt(x) & f32x4::ONE)
+        };
+        let (zero, wl) = (f32x4::ZERO, f32x4::splat(w));
+        let fit = |p: f32x4| {
+            let p = p.fast_max(zero).fast_min(wl).fast_trunc_int();
+            p.to_array().map(|p| p as u32)
+        };
+        // ceil(x) is −floor(−x).
+        [
+            fit(-floor(-clamp(lo - half))),
+            fit(floor(clamp(hi - half)) + f32x4::ONE),
+            fit(-floor(-clamp(ilo - half))),
+            fit(floor(clamp(ihi - half)) + f32x4::ONE),
+        ]
+    } else {
+        let v = [lo, hi, ilo, ihi].map(|v| v.to_array());
+        let mut out = [[0; 4]; 4];
+        for m in 0..4 {
+            let p = pixel_spans([v[0][m], v[1][m], v[2][m], v[3][m]], [0.5; 4], w);
+            for (o, p) in out.iter_mut().zip(p) {
+                o[m] = p as u32;
+            }
         }
+        out
     }
-    out
 }
 
 /// Gathers segment `s`'s coverage of the row whose centre is at `cy` into `row`
@@ -641,28 +701,20 @@ fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32,
 /// the row has filled its interior ([`measure_edges`]). The bytes are [`seg_row`]'s: a
 /// row's pixel is the maximum of the segments' coverage, which does not depend on their
 /// order, and 255 (filled) is the most.
+/// Its spans are [`wide_spans4`]'s of the row, `[x0, x1, j0, j1]`.
 #[inline]
 fn seg_row_fill(
     k: u32,
-    outer: Option<(f32, f32)>,
-    inner: Option<(f32, f32)>,
-    r: f32,
+    [x0, x1, j0, j1]: [usize; 4],
     row: &mut [u8],
     edges: &mut Vec<(u32, u32, u32)>,
 ) -> Option<(u32, u32)> {
-    let (a, b) = outer?;
-    let w = row.len() as f32;
-    let inner = inner.filter(|_| r > 0.5);
-    let (ia, ib) = inner.unwrap_or((a, b));
-    // Pixel i's centre is i + ½: both intervals' pixels at once, as `seg_row` makes them.
-    let [x0, x1, j0, j1] = pixel_spans([a, b, ia, ib], [0.5; 4], w);
     if x0 >= x1 {
         return None;
     }
-    let (mut i0, mut i1) = (x1, x1);
-    if inner.is_some() {
-        i0 = j0.clamp(x0, x1);
-        i1 = j1.clamp(i0, x1);
+    let i0 = j0.clamp(x0, x1);
+    let i1 = j1.clamp(i0, x1);
+    if i0 < i1 {
         row[i0..i1].fill(255);
     }
     for (from, to) in [(x0, i0), (i1, x1)] {
@@ -1018,11 +1070,14 @@ mod tests {
     /// A segment's intervals on four rows made at once are its [`intervals`] row by row
     /// (up to the sign of a zero, which `==` does not tell apart): segments of every
     /// slope and length within [`MODEST`] coordinates, dots, segments exactly along a
-    /// row or a column, rows through them, at their ends and beyond their reach.
+    /// row or a column, rows through them, at their ends and beyond their reach. And
+    /// their pixel spans made at once ([`wide_spans4`]) are those [`seg_row_fill`] made
+    /// of each row's intervals before, on rows of several widths (the segments across
+    /// the row's ends, and past 2^22 pixels one row at a time).
     #[test]
     fn four_rows_intervals_are_each_ones() {
         let mut rand = unit_floats(0x9e37_79b9_7f4a_7c15u64);
-        let mut found = [0; 2];
+        let (mut found, mut spanned) = ([0; 2], 0);
         for n in 0..60_000 {
             let r = [0.2, 0.5, 1.56, 3.2, 4.1, 10.41, 40.0][n % 7];
             let mut c = Capsules::default();
@@ -1053,16 +1108,51 @@ mod tests {
             let cy4 = [0.0, 1.0, 2.0, 3.0].map(|m| cy + m);
             for s in &c.segs {
                 let got = intervals4(s, cy4, reach, inner);
-                for (got, cy) in got.iter().zip(cy4) {
+                // Rows of several widths: the segments' spans across the edges too.
+                let w = [7.0, 300.0, 2500.0, 8100.0, 5_000_000.0][n % 5];
+                let spans = wide_spans4(s, cy4, reach, inner, w);
+                for (m, (got, cy)) in got.iter().zip(cy4).enumerate() {
                     let want = intervals(s, cy, reach, inner);
                     assert!(*got == want, "{s:?} cy {cy} r {r}: {got:?} {want:?}");
                     for (f, w) in found.iter_mut().zip(want) {
                         *f += usize::from(w.is_some());
                     }
+                    if r > 0.5 {
+                        let got = row_spans(spans.map(|v| v[m] as usize));
+                        let want = row_spans_reference(want, w);
+                        assert_eq!(got, want, "{s:?} cy {cy} r {r} w {w}");
+                        spanned +=
+                            usize::from(want.is_some_and(|[x0, _, i0, i1]| x0 < i0 && i0 < i1));
+                    }
                 }
             }
         }
         assert!(found.iter().all(|&f| f > 80_000), "{found:?}");
+        assert!(spanned > 10_000, "{spanned}");
+    }
+
+    /// A row's reach and interior as [`seg_row_fill`] takes them from
+    /// [`wide_spans4`]'s spans: `[x0, x1, i0, i1]`, or `None`.
+    fn row_spans([x0, x1, j0, j1]: [usize; 4]) -> Option<[usize; 4]> {
+        let i0 = j0.clamp(x0, x1.max(x0));
+        (x0 < x1).then(|| [x0, x1, i0, j1.clamp(i0, x1)])
+    }
+
+    /// [`row_spans`] as [`seg_row_fill`] made them of a row's intervals before the
+    /// spans were made four rows at a time (`r > ½`).
+    fn row_spans_reference([outer, inner]: Intervals, w: f32) -> Option<[usize; 4]> {
+        let (a, b) = outer?;
+        let (ia, ib) = inner.unwrap_or((a, b));
+        let [x0, x1, j0, j1] = pixel_spans([a, b, ia, ib], [0.5; 4], w);
+        if x0 >= x1 {
+            return None;
+        }
+        let (mut i0, mut i1) = (x1, x1);
+        if inner.is_some() {
+            i0 = j0.clamp(x0, x1);
+            i1 = j1.clamp(i0, x1);
+        }
+        Some([x0, x1, i0, i1])
     }
 
     /// Pixel spans made in lanes are those made one bound at a time with [`ceil`],
