@@ -20,6 +20,8 @@ pub(crate) struct Dirty {
     /// `u64` words per row.
     words: usize,
     bits: Vec<u64>,
+    /// The blocks of a row's last word within the width.
+    tail: u64,
     /// Rows `[lo, hi)` hold every mark (empty when nothing is marked).
     lo: usize,
     hi: usize,
@@ -34,6 +36,7 @@ impl Dirty {
             height,
             words,
             bits: vec![0; height * words],
+            tail: bit_range(0, width.div_ceil(BLOCK) - 64 * (words - 1)),
             lo: height,
             hi: 0,
         }
@@ -86,11 +89,20 @@ impl Dirty {
         if j >= self.height || w0 >= self.words {
             return;
         }
-        let blocks = self.width.div_ceil(BLOCK);
-        let row = &mut self.bits[j * self.words..(j + 1) * self.words];
+        let row = &mut self.bits[j * self.words + w0..(j + 1) * self.words];
+        let n = bits.len().min(row.len());
+        let (mut row, mut bits) = (&mut row[..n], &bits[..n]);
         let mut any = 0;
-        for (i, (w, &b)) in row[w0..].iter_mut().zip(bits).enumerate() {
-            let b = b & bit_range(0, blocks.saturating_sub(64 * (w0 + i)).min(64));
+        if n == self.words - w0 {
+            // The row's last word: no block past the width.
+            let ((w, rest), (&b, others)) =
+                (row.split_last_mut().unwrap(), bits.split_last().unwrap());
+            let b = b & self.tail;
+            *w |= b;
+            any |= b;
+            (row, bits) = (rest, others);
+        }
+        for (w, &b) in row.iter_mut().zip(bits) {
             *w |= b;
             any |= b;
         }
@@ -262,6 +274,48 @@ fn bit_range(lo: usize, hi: usize) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A row's blocks marked from words of bits are the blocks set one by one, but those
+    /// past the width: rows of widths around words of the map, bits from any word on,
+    /// sparse, dense, past the width, none.
+    #[test]
+    fn row_blocks_are_the_blocks_one_by_one() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for width in [0, 1, 8, 9, 500, 512, 513, 1100, 1536, 2550] {
+            let (mut got, mut want) = (Dirty::new(width, 6), Dirty::new(width, 6));
+            let words = got.words;
+            for _ in 0..200 {
+                let j = rand() as usize % 7;
+                let w0 = rand() as usize % (words + 1);
+                let n = rand() as usize % (words + 2);
+                let bits: Vec<u64> = (0..n)
+                    .map(|_| match rand() % 4 {
+                        0 => 0,
+                        1 => rand() & rand(),
+                        2 => rand(),
+                        _ => u64::MAX,
+                    })
+                    .collect();
+                got.mark_blocks(j, w0, &bits);
+                for (i, &b) in bits.iter().enumerate() {
+                    for k in 0..64 {
+                        let x = BLOCK * (64 * (w0 + i) + k);
+                        if b >> k & 1 == 1 && x < width && w0 < words {
+                            want.mark_px(x, j, x + 1, j + 1);
+                        }
+                    }
+                }
+                assert_eq!(got.bits, want.bits, "{width}");
+                assert_eq!((got.lo, got.hi), (want.lo, want.hi), "{width}");
+            }
+        }
+    }
 
     /// Boxes marked at once are the boxes' blocks set one by one, row by row: boxes in
     /// one word and across words, at the buffer's edges and beyond, on widths that end
