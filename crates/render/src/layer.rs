@@ -25,7 +25,7 @@ const _: () = assert!(TILE == 8 * BLOCK);
 /// `[lo, hi)` (empty when `lo ≥ hi`), and which rows hold a span (bit `r` for row `r`).
 struct Tile {
     at: u32,
-    cov: Box<[u8]>,
+    cov: Box<[u8; TILE * TILE]>,
     span: [(u8, u8); TILE],
     rows: u64,
 }
@@ -110,11 +110,14 @@ impl GrayLayer {
             return clear_blocks(w, bits, row);
         }
         let (ty, r) = (j / TILE, j % TILE);
+        // The page's tile of the word's first byte.
+        let first = ty * self.cols + 8 * w;
         while bits != 0 {
             let t = bits.trailing_zeros() as usize / 8;
             let mut byte = (bits >> (8 * t)) as u8;
             bits &= !(0xff << (8 * t));
             let x = (8 * w + t) * TILE;
+            let mut hi = BLOCK * (8 - byte.leading_zeros() as usize);
             if x + TILE > width {
                 // The blocks past the layer: not merged, cleared.
                 let keep = width.div_ceil(BLOCK).saturating_sub(x / BLOCK);
@@ -129,22 +132,23 @@ impl GrayLayer {
                     continue;
                 }
                 // A block across the layer's edge: its pixels past it cleared.
-                let end = (x + BLOCK * (8 - byte.leading_zeros() as usize)).min(row.len());
+                hi = BLOCK * (8 - byte.leading_zeros() as usize);
+                let end = (x + hi).min(row.len());
                 if end > width {
                     row[width..end].fill(0);
                 }
+                hi = hi.min(width - x);
             }
             let lo = BLOCK * byte.trailing_zeros() as usize;
-            let hi = (BLOCK * (8 - byte.leading_zeros() as usize)).min(width - x);
-            let at = ty * self.cols + x / TILE;
+            let at = first + t;
             let k = match self.slot[at] {
                 NONE => self.new_tile(at),
                 k => k as usize,
             };
             let tile = &mut self.tiles[k];
             merge(
-                &mut tile.cov[r * TILE + lo..r * TILE + hi],
-                &mut row[x + lo..x + hi],
+                &mut tile.cov[r * TILE..][..TILE][lo..hi],
+                &mut row[x..][lo..hi],
             );
             let s = &mut tile.span[r];
             *s = (s.0.min(lo as u8), s.1.max(hi as u8));
@@ -160,7 +164,7 @@ impl GrayLayer {
         if self.used == self.tiles.len() {
             self.tiles.push(Tile {
                 at: at as u32,
-                cov: vec![0; TILE * TILE].into_boxed_slice(),
+                cov: Box::new([0; TILE * TILE]),
                 span: [(u8::MAX, 0); TILE],
                 rows: 0,
             });
