@@ -50,9 +50,12 @@ struct Format {
     /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
     /// and their number.
     zrun: [(u64, u32); ZRUN_MAX as usize + 1],
-    /// The code of each symbol of a row's symbols ([`RUN`]), `code << 8 | len`; two
-    /// symbols that can follow each other fit a `put` (checked when it is made).
-    syms: [u64; SYMBOLS],
+    /// The code of each symbol of a row's symbols ([`RUN`]), and its length in
+    /// `sym_len` (two tables: a code and a length are each one load, no shift to part
+    /// them); two symbols that can follow each other fit a `put` (checked when they are
+    /// made).
+    sym_code: [u64; SYMBOLS],
+    sym_len: [u8; SYMBOLS],
 }
 
 /// The longest run of zeros [`Format::zrun`] holds: a literal 0 and three matches of 258
@@ -60,7 +63,7 @@ struct Format {
 const ZRUN_MAX: u32 = 3 * 258 + 1;
 
 /// The symbols a row is first written as ([`Bits::coded`]), each coded by its entry in
-/// [`Format::syms`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
+/// [`Format::sym_code`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
 /// (the bits of [`Format::zrun`]; `RUN` alone has no bits and pads); `MATCH` a match of
 /// 258 zeros; `REST + r` for `r < 258` the bits after the literal 0 of a run of `r + 1`
 /// zeros. A longer run of `z` zeros is the literal 0, `(z − 1) / 258` matches and
@@ -68,7 +71,7 @@ const ZRUN_MAX: u32 = 3 * 258 + 1;
 const RUN: u16 = 256;
 const MATCH: u16 = RUN + ZRUN_MAX as u16 + 1;
 const REST: u16 = MATCH + 1;
-/// The entries of [`Format::syms`] (a power of two: a symbol is masked into it).
+/// The entries of [`Format::sym_code`] (a power of two: a symbol is masked into it).
 const SYMBOLS: usize = 2048;
 
 /// The most bits [`Bits::put`] takes at once.
@@ -169,7 +172,8 @@ impl Format {
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
-            syms: [0; SYMBOLS],
+            sym_code: [0; SYMBOLS],
+            sym_len: [0; SYMBOLS],
         };
         let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
         for (z, e) in zrun.iter_mut().enumerate().skip(1) {
@@ -214,8 +218,8 @@ impl Format {
         if run + lit > PUT_MAX || 2 * other > PUT_MAX {
             return None;
         }
-        for (e, &(c, l)) in f.syms.iter_mut().zip(&syms) {
-            *e = c << 8 | u64::from(l);
+        for (k, &(c, l)) in syms.iter().enumerate() {
+            (f.sym_code[k], f.sym_len[k]) = (c, l as u8);
         }
         Some(f)
     }
@@ -503,18 +507,21 @@ impl Bits {
         if self.out.len() < room {
             self.out.resize(room.max(self.pos + (1 << 16)), 0);
         }
-        let (out, tab) = (&mut self.out[..], &f.syms);
+        let (out, code, length) = (&mut self.out[..], &f.sym_code, &f.sym_len);
         let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
         for g in syms[..8 * p.div_ceil(8)].chunks_exact(8) {
             let g: &[u16; 8] = g.try_into().expect("8 symbols");
-            let e = |k: usize| tab[usize::from(g[k]) & (SYMBOLS - 1)];
+            let e = |k: usize| {
+                let s = usize::from(g[k]) & (SYMBOLS - 1);
+                (code[s], u32::from(length[s]))
+            };
             let win: &mut [u8; 40] = (&mut out[pos..pos + 40]).try_into().expect("room");
             let mut o = 0;
             for h in 0..4 {
-                let (e0, e1) = (e(2 * h), e(2 * h + 1));
-                let bits = e0 >> 8 | (e1 >> 8) << (e0 & 0xff);
+                let ((c0, l0), (c1, l1)) = (e(2 * h), e(2 * h + 1));
+                let bits = c0 | c1 << l0;
                 let x = acc | bits << nb;
-                let k = nb + (e0 & 0xff) as u32 + (e1 & 0xff) as u32;
+                let k = nb + l0 + l1;
                 win[o..o + 8].copy_from_slice(&x.to_le_bytes());
                 o = (o + (k / 8) as usize) & 31;
                 acc = x >> (k & 0x38);
@@ -1232,8 +1239,8 @@ mod tests {
     fn symbols_code_as_the_header_says() {
         let f = Format::get();
         let entry = |s: u16| {
-            let e = f.syms[usize::from(s)];
-            (e >> 8, (e & 0xff) as u32)
+            let s = usize::from(s);
+            (f.sym_code[s], u32::from(f.sym_len[s]))
         };
         for b in 0..256u16 {
             assert_eq!(entry(b), f.sym(usize::from(b)), "literal {b}");
