@@ -844,9 +844,11 @@ impl RowDeflate {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
                     let s = 8 * i - 1;
-                    // One bounds check for the word above, read then cleared.
-                    let up: &mut [u8; 8] = (&mut above[s..s + 8]).try_into().expect("8 bytes");
-                    let v = sub_bytes(u64::from_le_bytes(*up), load(this, s));
+                    // The word above, read then cleared, and this row's: `s` in the row,
+                    // then 8 bytes from there (no sum to overflow).
+                    let up = above[s..].first_chunk_mut::<8>().expect("8 bytes");
+                    let th = this[s..].first_chunk::<8>().expect("8 bytes");
+                    let v = sub_bytes(u64::from_le_bytes(*up), u64::from_le_bytes(*th));
                     if clear {
                         *up = [0; 8];
                     }
