@@ -53,9 +53,11 @@ struct Format {
     /// The code of each symbol of a row's symbols ([`RUN`]), and its length in
     /// `sym_len` (two tables: a code and a length are each one load, no shift to part
     /// them); two symbols that can follow each other fit a `put` (checked when they are
-    /// made).
-    sym_code: [u64; SYMBOLS],
-    sym_len: [u8; SYMBOLS],
+    /// made). An entry for every `u16`, so that a symbol indexes them as it is (no mask
+    /// and no bounds check); those past the symbols' ([`SYMBOLS`]) are zero and never
+    /// read, so only the pages of the first few KiB are ever touched.
+    sym_code: Box<[u64; 1 << 16]>,
+    sym_len: Box<[u8; 1 << 16]>,
 }
 
 /// The longest run of zeros [`Format::zrun`] holds: a literal 0 and three matches of 258
@@ -71,7 +73,7 @@ const ZRUN_MAX: u32 = 3 * 258 + 1;
 const RUN: u16 = 256;
 const MATCH: u16 = RUN + ZRUN_MAX as u16 + 1;
 const REST: u16 = MATCH + 1;
-/// The entries of [`Format::sym_code`] (a power of two: a symbol is masked into it).
+/// The symbols that have codes (all below `REST + 258`, some unused).
 const SYMBOLS: usize = 2048;
 
 /// The most bits [`Bits::put`] takes at once.
@@ -172,8 +174,8 @@ impl Format {
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
-            sym_code: [0; SYMBOLS],
-            sym_len: [0; SYMBOLS],
+            sym_code: vec![0; 1 << 16].try_into().expect("2^16 entries"),
+            sym_len: vec![0; 1 << 16].try_into().expect("2^16 entries"),
         };
         let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
         for (z, e) in zrun.iter_mut().enumerate().skip(1) {
@@ -512,7 +514,7 @@ impl Bits {
         for g in syms[..8 * p.div_ceil(8)].chunks_exact(8) {
             let g: &[u16; 8] = g.try_into().expect("8 symbols");
             let e = |k: usize| {
-                let s = usize::from(g[k]) & (SYMBOLS - 1);
+                let s = usize::from(g[k]);
                 (code[s], u32::from(length[s]))
             };
             let win: &mut [u8; 40] = (&mut out[pos..pos + 40]).try_into().expect("room");
