@@ -50,14 +50,14 @@ struct Format {
     /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
     /// and their number.
     zrun: [(u64, u32); ZRUN_MAX as usize + 1],
-    /// The code of each symbol of a row's symbols ([`RUN`]), and its length in
-    /// `sym_len` (two tables: a code and a length are each one load, no shift to part
-    /// them); two symbols that can follow each other fit a `put` (checked when they are
-    /// made). An entry for every `u16`, so that a symbol indexes them as it is (no mask
-    /// and no bounds check); those past the symbols' ([`SYMBOLS`]) are zero and never
-    /// read, so only the pages of the first few KiB are ever touched.
-    sym_code: Box<[u64; 1 << 16]>,
-    sym_len: Box<[u8; 1 << 16]>,
+    /// The code of each symbol `s` of a row's symbols ([`RUN`]) at `sym[s]`, and its
+    /// length at `sym[2^16 + s]` (a code and a length are each one load, no shift to
+    /// part them, from one base); two symbols that can follow each other fit a `put`
+    /// (checked when they are made). An entry for every `u16`, so that a symbol indexes
+    /// the table as it is (no mask and no bounds check); those past the symbols'
+    /// ([`SYMBOLS`]) are zero and never read, so only the pages of the first few KiB of
+    /// each half are ever touched.
+    sym: Box<[u64; 1 << 17]>,
 }
 
 /// The longest run of zeros [`Format::zrun`] holds: a literal 0 and three matches of 258
@@ -65,7 +65,7 @@ struct Format {
 const ZRUN_MAX: u32 = 3 * 258 + 1;
 
 /// The symbols a row is first written as ([`Bits::coded`]), each coded by its entry in
-/// [`Format::sym_code`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
+/// [`Format::sym`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
 /// (the bits of [`Format::zrun`]; `RUN` alone has no bits and pads); `MATCH` a match of
 /// 258 zeros; `REST + r` for `r < 258` the bits after the literal 0 of a run of `r + 1`
 /// zeros. A longer run of `z` zeros is the literal 0, `(z − 1) / 258` matches and
@@ -174,8 +174,7 @@ impl Format {
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
-            sym_code: vec![0; 1 << 16].try_into().expect("2^16 entries"),
-            sym_len: vec![0; 1 << 16].try_into().expect("2^16 entries"),
+            sym: vec![0; 1 << 17].try_into().expect("2^17 entries"),
         };
         let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
         for (z, e) in zrun.iter_mut().enumerate().skip(1) {
@@ -221,7 +220,7 @@ impl Format {
             return None;
         }
         for (k, &(c, l)) in syms.iter().enumerate() {
-            (f.sym_code[k], f.sym_len[k]) = (c, l as u8);
+            (f.sym[k], f.sym[(1 << 16) + k]) = (c, u64::from(l));
         }
         Some(f)
     }
@@ -509,13 +508,13 @@ impl Bits {
         if self.out.len() < room {
             self.out.resize(room.max(self.pos + (1 << 16)), 0);
         }
-        let (out, code, length) = (&mut self.out[..], &f.sym_code, &f.sym_len);
+        let (out, tab) = (&mut self.out[..], &f.sym);
         let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
         for g in syms[..8 * p.div_ceil(8)].chunks_exact(8) {
             let g: &[u16; 8] = g.try_into().expect("8 symbols");
             let e = |k: usize| {
                 let s = usize::from(g[k]);
-                (code[s], u32::from(length[s]))
+                (tab[s], tab[(1 << 16) + s] as u32)
             };
             let win: &mut [u8; 40] = (&mut out[pos..pos + 40]).try_into().expect("room");
             let mut o = 0;
@@ -1253,7 +1252,7 @@ mod tests {
         let f = Format::get();
         let entry = |s: u16| {
             let s = usize::from(s);
-            (f.sym_code[s], u32::from(f.sym_len[s]))
+            (f.sym[s], f.sym[(1 << 16) + s] as u32)
         };
         for b in 0..256u16 {
             assert_eq!(entry(b), f.sym(usize::from(b)), "literal {b}");
