@@ -50,9 +50,14 @@ struct Format {
     /// The bits of a run of `z ≤ ZRUN_MAX` zeros ([`Bits::zeros`]; none for `z = 0`),
     /// and their number.
     zrun: [(u64, u32); ZRUN_MAX as usize + 1],
-    /// The code of each symbol of a row's symbols ([`RUN`]), `code << 8 | len`; two
-    /// symbols that can follow each other fit a `put` (checked when it is made).
-    syms: [u64; SYMBOLS],
+    /// The code of each symbol `s` of a row's symbols ([`RUN`]) at `sym[s]`, and its
+    /// length at `sym[2^16 + s]` (a code and a length are each one load, no shift to
+    /// part them, from one base); two symbols that can follow each other fit a `put`
+    /// (checked when they are made). An entry for every `u16`, so that a symbol indexes
+    /// the table as it is (no mask and no bounds check); those past the symbols'
+    /// ([`SYMBOLS`]) are zero and never read, so only the pages of the first few KiB of
+    /// each half are ever touched.
+    sym: Box<[u64; 1 << 17]>,
 }
 
 /// The longest run of zeros [`Format::zrun`] holds: a literal 0 and three matches of 258
@@ -60,7 +65,7 @@ struct Format {
 const ZRUN_MAX: u32 = 3 * 258 + 1;
 
 /// The symbols a row is first written as ([`Bits::coded`]), each coded by its entry in
-/// [`Format::syms`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
+/// [`Format::sym`]: `0..=255` the literal bytes; `RUN + z` a run of `z ≤ ZRUN_MAX` zeros
 /// (the bits of [`Format::zrun`]; `RUN` alone has no bits and pads); `MATCH` a match of
 /// 258 zeros; `REST + r` for `r < 258` the bits after the literal 0 of a run of `r + 1`
 /// zeros. A longer run of `z` zeros is the literal 0, `(z − 1) / 258` matches and
@@ -68,7 +73,7 @@ const ZRUN_MAX: u32 = 3 * 258 + 1;
 const RUN: u16 = 256;
 const MATCH: u16 = RUN + ZRUN_MAX as u16 + 1;
 const REST: u16 = MATCH + 1;
-/// The entries of [`Format::syms`] (a power of two: a symbol is masked into it).
+/// The symbols that have codes (all below `REST + 258`, some unused).
 const SYMBOLS: usize = 2048;
 
 /// The most bits [`Bits::put`] takes at once.
@@ -169,7 +174,7 @@ impl Format {
             dist: (reverse(dist_codes[0], dist[0]), dist[0]),
             length_symbol,
             zrun: [(0, 0); ZRUN_MAX as usize + 1],
-            syms: [0; SYMBOLS],
+            sym: vec![0; 1 << 17].try_into().expect("2^17 entries"),
         };
         let mut zrun = [(0, 0); ZRUN_MAX as usize + 1];
         for (z, e) in zrun.iter_mut().enumerate().skip(1) {
@@ -214,8 +219,8 @@ impl Format {
         if run + lit > PUT_MAX || 2 * other > PUT_MAX {
             return None;
         }
-        for (e, &(c, l)) in f.syms.iter_mut().zip(&syms) {
-            *e = c << 8 | u64::from(l);
+        for (k, &(c, l)) in syms.iter().enumerate() {
+            (f.sym[k], f.sym[(1 << 16) + k]) = (c, u64::from(l));
         }
         Some(f)
     }
@@ -503,18 +508,21 @@ impl Bits {
         if self.out.len() < room {
             self.out.resize(room.max(self.pos + (1 << 16)), 0);
         }
-        let (out, tab) = (&mut self.out[..], &f.syms);
+        let (out, tab) = (&mut self.out[..], &f.sym);
         let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
         for g in syms[..8 * p.div_ceil(8)].chunks_exact(8) {
             let g: &[u16; 8] = g.try_into().expect("8 symbols");
-            let e = |k: usize| tab[usize::from(g[k]) & (SYMBOLS - 1)];
+            let e = |k: usize| {
+                let s = usize::from(g[k]);
+                (tab[s], tab[(1 << 16) + s] as u32)
+            };
             let win: &mut [u8; 40] = (&mut out[pos..pos + 40]).try_into().expect("room");
             let mut o = 0;
             for h in 0..4 {
-                let (e0, e1) = (e(2 * h), e(2 * h + 1));
-                let bits = e0 >> 8 | (e1 >> 8) << (e0 & 0xff);
+                let ((c0, l0), (c1, l1)) = (e(2 * h), e(2 * h + 1));
+                let bits = c0 | c1 << l0;
                 let x = acc | bits << nb;
-                let k = nb + (e0 & 0xff) as u32 + (e1 & 0xff) as u32;
+                let k = nb + l0 + l1;
                 win[o..o + 8].copy_from_slice(&x.to_le_bytes());
                 o = (o + (k / 8) as usize) & 31;
                 acc = x >> (k & 0x38);
@@ -597,8 +605,17 @@ fn word_symbols<const LANES: bool>(
             }
         }
         if LANES {
-            a += la.to_array().iter().map(|&x| x as u64).sum::<u64>();
-            b += lb.to_array().iter().map(|&x| x as u64).sum::<u64>();
+            // Every lane as the unsigned number it is (at least 0, below 2^31).
+            a += la
+                .to_array()
+                .iter()
+                .map(|&x| u64::from(x as u16))
+                .sum::<u64>();
+            b += lb
+                .to_array()
+                .iter()
+                .map(|&x| u64::from(x as u32))
+                .sum::<u64>();
         }
         (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
     }
@@ -649,13 +666,13 @@ impl RowWords {
     }
 }
 
-/// `a − b` byte by byte (wrapping), in one `u64`: each byte of `a` with its top bit set
-/// minus the byte of `b` without it cannot borrow from the next byte, and the top bit
-/// of the difference is then flipped where `a`'s and `b`'s top bits are equal.
+/// `a − b` byte by byte (wrapping): the two words in the low halves of two vectors and
+/// one vector subtraction of bytes (three instructions and the two loads, where the
+/// same in one `u64`, a byte's borrow kept from the next by the top bits, took eight).
 #[inline(always)]
 fn sub_bytes(a: u64, b: u64) -> u64 {
-    const H: u64 = 0x8080_8080_8080_8080;
-    ((a | H) - (b & !H)) ^ ((a ^ !b) & H)
+    let v = |x: u64| u8x16::new(u128::from(x).to_le_bytes());
+    u128::from_le_bytes((v(a) - v(b)).to_array()) as u64
 }
 
 /// The sums of an 8-byte word's bytes `x₀..x₇` (`x₀` first in the row) that Adler-32
@@ -828,9 +845,11 @@ impl RowDeflate {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
                     let s = 8 * i - 1;
-                    // One bounds check for the word above, read then cleared.
-                    let up: &mut [u8; 8] = (&mut above[s..s + 8]).try_into().expect("8 bytes");
-                    let v = sub_bytes(u64::from_le_bytes(*up), load(this, s));
+                    // The word above, read then cleared, and this row's: `s` in the row,
+                    // then 8 bytes from there (no sum to overflow).
+                    let up = above[s..].first_chunk_mut::<8>().expect("8 bytes");
+                    let th = this[s..].first_chunk::<8>().expect("8 bytes");
+                    let v = sub_bytes(u64::from_le_bytes(*up), u64::from_le_bytes(*th));
                     if clear {
                         *up = [0; 8];
                     }
@@ -1232,8 +1251,8 @@ mod tests {
     fn symbols_code_as_the_header_says() {
         let f = Format::get();
         let entry = |s: u16| {
-            let e = f.syms[usize::from(s)];
-            (e >> 8, (e & 0xff) as u32)
+            let s = usize::from(s);
+            (f.sym[s], f.sym[(1 << 16) + s] as u32)
         };
         for b in 0..256u16 {
             assert_eq!(entry(b), f.sym(usize::from(b)), "literal {b}");
