@@ -3,14 +3,16 @@
 use super::{Crunode, Cusp, FeatureTolerances};
 use coupler_kinematics::{Circuit, CouplerPoint, CrankAngle, Curve, Mechanism};
 
-/// Position and velocity (per radian) of the coupler point at θ degrees.
+/// Position and velocity (per radian) of the coupler point at θ degrees (`k`: the
+/// mechanism's [`Mechanism::constants`]).
 pub(crate) fn at<M: Mechanism>(
     l: &M,
+    k: &M::Constants,
     circuit: Circuit,
     p: CouplerPoint,
     deg: f64,
 ) -> Option<([f64; 2], [f64; 2])> {
-    let pose = l.frame(circuit, &CrankAngle::from_degrees(deg))?;
+    let pose = l.frame_with(k, circuit, &CrankAngle::from_degrees(deg))?;
     let (m, v) = (pose.point(p), pose.velocity(p));
     (m.x.is_finite() && v.x.is_finite() && v.y.is_finite()).then_some(([m.x, m.y], [v.x, v.y]))
 }
@@ -74,6 +76,7 @@ pub fn crunodes<M: Mechanism>(
         y1.push(p[1].max(q[1]));
     }
     let mut meets = vec![false; n];
+    let consts = l.constants();
     let size = (c.x.iter().cloned().fold(f64::MIN, f64::max)
         - c.x.iter().cloned().fold(f64::MAX, f64::min))
     .hypot(
@@ -103,9 +106,10 @@ pub fn crunodes<M: Mechanism>(
             let mut t2 = (b as f64 + s) * tol.step_deg;
             let mut converged = false;
             for _ in 0..30 {
-                let (Some((m1, v1)), Some((m2, v2))) =
-                    (at(l, circuit, p, t1), at(l, circuit, p, t2))
-                else {
+                let (Some((m1, v1)), Some((m2, v2))) = (
+                    at(l, &consts, circuit, p, t1),
+                    at(l, &consts, circuit, p, t2),
+                ) else {
                     break;
                 };
                 let f = [m1[0] - m2[0], m1[1] - m2[1]];
@@ -131,8 +135,10 @@ pub fn crunodes<M: Mechanism>(
             if !converged || gap < 1e-6 {
                 continue;
             }
-            let (Some((m, v1)), Some((_, v2))) = (at(l, circuit, p, t1), at(l, circuit, p, t2))
-            else {
+            let (Some((m, v1)), Some((_, v2))) = (
+                at(l, &consts, circuit, p, t1),
+                at(l, &consts, circuit, p, t2),
+            ) else {
                 continue;
             };
             // A true crossing has distinct tangents; a curve that retraces itself (the
@@ -179,8 +185,9 @@ pub fn cusps<M: Mechanism>(
     if !(mean > 0.0 && mean.is_finite()) {
         return Vec::new();
     }
+    let consts = l.constants();
     let sp = |deg: f64| {
-        at(l, circuit, p, deg)
+        at(l, &consts, circuit, p, deg)
             .map(|(_, v)| v[0].hypot(v[1]))
             .unwrap_or(f64::INFINITY)
     };
@@ -214,7 +221,7 @@ pub fn cusps<M: Mechanism>(
             }
         }
         let t = 0.5 * (a + b);
-        let Some((m, v)) = at(l, circuit, p, t) else {
+        let Some((m, v)) = at(l, &consts, circuit, p, t) else {
             continue;
         };
         let ratio = v[0].hypot(v[1]) / mean;
