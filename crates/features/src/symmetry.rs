@@ -148,6 +148,7 @@ impl Mirror {
         stop_above: f64,
     ) -> f64 {
         let n = c.len();
+        let consts = l.constants();
         let mut worst: f64 = 0.0;
         for k in 0..n {
             let r = self.reflect(c.x[k], c.y[k]);
@@ -161,7 +162,7 @@ impl Mirror {
             let mut t = near as f64 * tol.step_deg;
             let mut dist = f64::MAX;
             for _ in 0..40 {
-                let Some((m, v)) = at(l, circuit, p, t) else {
+                let Some((m, v)) = at(l, &consts, circuit, p, t) else {
                     break;
                 };
                 let e = [m[0] - r[0], m[1] - r[1]];

@@ -172,9 +172,10 @@ impl WindowSamples {
     ) -> Result<WindowSamples, WindowError> {
         window.within_period(linkage.period_deg())?;
         let mut s = WindowSamples::default();
+        let k = linkage.constants();
         for t in window.angles() {
             let pose = linkage
-                .frame(circuit, &CrankAngle::from_degrees(t))
+                .frame_with(&k, circuit, &CrankAngle::from_degrees(t))
                 .ok_or(WindowError::NotAssembled(t))?;
             let (m, v) = (pose.point(point), pose.velocity(point));
             if !(v.x.is_finite() && v.y.is_finite()) {

@@ -192,6 +192,8 @@ pub fn distance_to_segment(p: Point2<f64>, a: Point2<f64>, b: Point2<f64>) -> f6
 /// curve regular in σ: [`dash_leg`]).
 struct Sampler<'a, M: Mechanism> {
     linkage: &'a M,
+    /// The linkage's [`Mechanism::constants`].
+    constants: M::Constants,
     circuit: Circuit,
     point: CouplerPoint,
     warp: &'a dyn Fn(f64) -> f64,
@@ -245,7 +247,11 @@ impl FrameCache {
 impl<M: Mechanism> Sampler<'_, M> {
     fn pose(&self, deg: f64) -> Result<CouplerFrame, DashError> {
         self.linkage
-            .frame(self.circuit, &CrankAngle::from_degrees(deg))
+            .frame_with(
+                &self.constants,
+                self.circuit,
+                &CrankAngle::from_degrees(deg),
+            )
             .ok_or_else(|| DashError::NotAssembled {
                 linkage: format!("{:?}", self.linkage),
                 circuit: self.circuit,
@@ -381,6 +387,7 @@ fn dash_curve_with<M: Mechanism>(
     }
     let s = Sampler {
         linkage,
+        constants: linkage.constants(),
         circuit,
         point,
         warp: &|t| t,
@@ -546,6 +553,7 @@ fn dash_leg_intervals<M: Mechanism>(
         };
         let s = Sampler {
             linkage,
+            constants: linkage.constants(),
             circuit,
             point,
             warp: &warp,

@@ -105,6 +105,8 @@ fn rules(s: &[f64], half: f64) -> (f64, f64) {
 #[derive(Clone, Debug)]
 pub struct ArcLength<M: Mechanism> {
     mechanism: M,
+    /// The mechanism's [`Mechanism::constants`].
+    constants: M::Constants,
     circuit: Circuit,
     /// Panel width, degrees.
     width_deg: f64,
@@ -144,6 +146,7 @@ impl<M: Mechanism> ArcLength<M> {
         let poses = mechanism.pose_table(circuit, &CrankTable::from_angles(angles));
         poses.all_valid().then(|| ArcLength {
             mechanism: mechanism.clone(),
+            constants: mechanism.constants(),
             circuit,
             width_deg,
             panels,
@@ -217,7 +220,10 @@ impl<M: Mechanism> ArcLength<M> {
         let mut s = [0.0; 15];
         for (sk, t) in s.iter_mut().zip(nodes()) {
             let angle = CrankAngle::from_degrees(mid + half * t);
-            let v = self.mechanism.frame(self.circuit, &angle)?.velocity(point);
+            let v = self
+                .mechanism
+                .frame_with(&self.constants, self.circuit, &angle)?
+                .velocity(point);
             *sk = v.x.hypot(v.y);
         }
         self.refined_poses += 15;

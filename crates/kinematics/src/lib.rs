@@ -47,7 +47,9 @@ pub use geared::{
 };
 pub use length::{ARC_LENGTH_PANELS_PER_TURN, ARC_LENGTH_TOL, ArcLength};
 pub use linkage::{Circuit, Class, CouplerPoint, FourBar, LinkageError};
-pub use mechanism::{Linkage, LinkageClass, Mechanism, SymmetryAxis, SymmetryReason};
+pub use mechanism::{
+    Linkage, LinkageClass, LinkageConstants, Mechanism, SymmetryAxis, SymmetryReason,
+};
 pub use pose::{
     CrankAngle, POINT_LANES, PointLanes, Pose, TOGGLE_ULPS, ToggleGaps, kahan_double_area,
     sincos_deg,

@@ -20,7 +20,7 @@
 use crate::cognates::{Cognate, cognates};
 use crate::curve::{CrankTable, PoseTable, transmission_range};
 use crate::frame::{CouplerFrame, Drawing, Joint};
-use crate::geared::{GearedFiveBar, TingClass};
+use crate::geared::{GearedFiveBar, GearedGaps, TingClass};
 use crate::linkage::{Circuit, Class, CouplerPoint, FourBar};
 use crate::pose::{CrankAngle, Pose, PoseCore, ToggleGaps};
 use nalgebra::Point2;
@@ -34,15 +34,36 @@ use std::fmt;
 /// (the table is the frames of its angles, stored as columns); `None` (a NaN row in the
 /// table) where the mechanism cannot be assembled, never a guess.
 pub trait Mechanism: Clone + fmt::Debug + fmt::Display + Send + Sync {
+    /// What [`Mechanism::frame_with`] needs of the mechanism that no angle changes (a
+    /// four-bar's [`ToggleGaps`]): computed once by [`Mechanism::constants`] for many
+    /// angles.
+    type Constants: Clone + fmt::Debug + Send + Sync;
+
+    /// The mechanism's [`Mechanism::Constants`].
+    fn constants(&self) -> Self::Constants;
+
+    /// [`Mechanism::frame`] with `constants` (this mechanism's [`Mechanism::constants`])
+    /// given, not computed again: the same frame to the bit.
+    fn frame_with(
+        &self,
+        constants: &Self::Constants,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<CouplerFrame>;
+
     /// The coupler body's frame at input angle `angle` on `circuit`, or `None` where the
     /// mechanism cannot be assembled there.
-    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame>;
+    #[inline]
+    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
+        self.frame_with(&self.constants(), circuit, angle)
+    }
 
     /// The frames at every angle of `table` as columns, shared by every coupler point
     /// (one pose per angle serves the whole grid). The default solves
     /// [`Mechanism::frame`] per angle; a mechanism may solve faster (the four-bar does).
     fn pose_table(&self, circuit: Circuit, table: &CrankTable) -> PoseTable {
-        PoseTable::from_frames(table, |angle| self.frame(circuit, angle))
+        let k = self.constants();
+        PoseTable::from_frames(table, |angle| self.frame_with(&k, circuit, angle))
     }
 
     /// The transmission angle (radians, in [0, π]) at `angle` on `circuit`, or `None`
@@ -135,9 +156,20 @@ pub enum SymmetryReason {
 }
 
 impl Mechanism for FourBar {
+    type Constants = ToggleGaps;
+
+    fn constants(&self) -> ToggleGaps {
+        ToggleGaps::of(self)
+    }
+
     #[inline]
-    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
-        let core = PoseCore::solve(self, &ToggleGaps::of(self), circuit, angle)?;
+    fn frame_with(
+        &self,
+        gaps: &ToggleGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<CouplerFrame> {
+        let core = PoseCore::solve(self, gaps, circuit, angle)?;
         Some(core.frame(angle))
     }
 
@@ -333,12 +365,41 @@ impl fmt::Display for Linkage {
     }
 }
 
+/// A [`Linkage`]'s [`Mechanism::Constants`]: its variant's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LinkageConstants {
+    /// A four-bar's toggle gaps.
+    FourBar(ToggleGaps),
+    /// A geared five-bar's gaps.
+    GearedFiveBar(GearedGaps),
+}
+
 impl Mechanism for Linkage {
-    #[inline]
-    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
+    type Constants = LinkageConstants;
+
+    fn constants(&self) -> LinkageConstants {
         match self {
-            Linkage::FourBar(l) => l.frame(circuit, angle),
-            Linkage::GearedFiveBar(l) => l.frame(circuit, angle),
+            Linkage::FourBar(l) => LinkageConstants::FourBar(l.constants()),
+            Linkage::GearedFiveBar(l) => LinkageConstants::GearedFiveBar(l.constants()),
+        }
+    }
+
+    /// Constants of the other variant (not this linkage's) are not used: the frame is
+    /// then solved with the linkage's own.
+    #[inline]
+    fn frame_with(
+        &self,
+        constants: &LinkageConstants,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<CouplerFrame> {
+        match (self, constants) {
+            (Linkage::FourBar(l), LinkageConstants::FourBar(c)) => l.frame_with(c, circuit, angle),
+            (Linkage::GearedFiveBar(l), LinkageConstants::GearedFiveBar(c)) => {
+                Mechanism::frame_with(l, c, circuit, angle)
+            }
+            (Linkage::FourBar(l), _) => l.frame(circuit, angle),
+            (Linkage::GearedFiveBar(l), _) => l.frame(circuit, angle),
         }
     }
 
@@ -526,6 +587,70 @@ mod tests {
                 assert_eq!(f.velocity(p), pose.velocity(p));
             }
         }
+    }
+
+    /// Frames solved with the constants computed once are the frames solved alone (each
+    /// computing its own), to the bit, `None` where they are: four-bars (a change point
+    /// and a non-Grashof one among them, so angles at and past toggles), geared five-bars,
+    /// and a `Linkage` given its own constants or the other variant's.
+    #[test]
+    fn frames_with_constants_computed_once_are_each_solved_alone() {
+        use crate::geared::GearRatio;
+        let geared = |n, d, phase| {
+            Linkage::from(
+                GearedFiveBar::new(2.3, 2.9, 3.4, 1.7, GearRatio::new(n, d).unwrap(), phase)
+                    .unwrap(),
+            )
+        };
+        let linkages = [
+            Linkage::from(FourBar::new(2.5, 3.0, 3.5).unwrap()),
+            Linkage::from(FourBar::new(2.0, 2.0, 1.0).unwrap()),
+            Linkage::from(FourBar::new(1.5, 2.5, 3.0).unwrap()),
+            Linkage::from(FourBar::new(0.7, 1.9, 2.2).unwrap()),
+            Linkage::from(FourBar::new(3.0, 1.2, 2.6).unwrap()),
+            geared(-1, 2, 15.0),
+            geared(2, 1, 0.0),
+            geared(-2, 1, 90.0),
+        ];
+        let other = [linkages[7].constants(), linkages[0].constants()];
+        let (mut solved, mut none) = (0, 0);
+        for l in &linkages {
+            let own = l.constants();
+            let wrong = match l {
+                Linkage::FourBar(_) => &other[0],
+                Linkage::GearedFiveBar(_) => &other[1],
+            };
+            let table = CrankTable::over(0.25, l.period_deg()).unwrap();
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                for angle in table.angles() {
+                    let alone = match l {
+                        Linkage::FourBar(b) => {
+                            Pose::solve(b, circuit, angle).map(|pose| pose.frame())
+                        }
+                        Linkage::GearedFiveBar(g) => {
+                            g.frame_with(&GearedGaps::of(g), circuit, angle)
+                        }
+                    };
+                    let text = format!("{alone:?}");
+                    assert_eq!(format!("{:?}", l.frame(circuit, angle)), text);
+                    assert_eq!(format!("{:?}", l.frame_with(&own, circuit, angle)), text);
+                    assert_eq!(format!("{:?}", l.frame_with(wrong, circuit, angle)), text);
+                    let inner = match l {
+                        Linkage::FourBar(b) => b.frame_with(&b.constants(), circuit, angle),
+                        Linkage::GearedFiveBar(g) => {
+                            Mechanism::frame_with(g, &g.constants(), circuit, angle)
+                        }
+                    };
+                    assert_eq!(format!("{inner:?}"), text);
+                    if alone.is_some() {
+                        solved += 1;
+                    } else {
+                        none += 1;
+                    }
+                }
+            }
+        }
+        assert!(solved > 5_000 && none > 500, "{solved} {none}");
     }
 
     #[test]

@@ -599,12 +599,13 @@ fn stretch<M: Mechanism>(
     span_deg: f64,
 ) -> Vec<PagePoint> {
     let n = (span_deg / 2.0).ceil().max(1.0) as usize;
+    let constants = page.linkage.constants();
     (0..=n)
         .filter_map(|k| {
             let th = start_deg + span_deg * k as f64 / n as f64;
-            let f = page
-                .linkage
-                .frame(page.circuit, &CrankAngle::from_degrees(th))?;
+            let f =
+                page.linkage
+                    .frame_with(&constants, page.circuit, &CrankAngle::from_degrees(th))?;
             let m = f.point(point);
             Some(t.map(m.x, m.y))
         })

@@ -6,6 +6,8 @@
 //! layout can place labels without a renderer.
 
 use ab_glyph::{Font, FontRef, GlyphId, OutlineCurve, PxScale};
+use std::cell::RefCell;
+use std::sync::OnceLock;
 
 /// The font file, shipped in the repository.
 pub static FONT_BYTES: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
@@ -98,8 +100,20 @@ impl Shaper {
 
     /// [`shape_line`]`(font, size, text)` of the embedded font.
     pub fn shape_line(&mut self, size: f64, text: &str) -> (Vec<PlacedGlyph>, f64) {
-        let k = size / self.upem;
         let mut out = Vec::with_capacity(text.len());
+        let x = self.shape_into(size, text, |g| out.push(g));
+        (out, x)
+    }
+
+    /// [`Shaper::shape_line`]'s width alone, no glyphs kept.
+    pub fn width(&mut self, size: f64, text: &str) -> f64 {
+        self.shape_into(size, text, |_| {})
+    }
+
+    /// Shapes `text`, each glyph to `glyph` in turn; the width.
+    #[inline]
+    fn shape_into(&mut self, size: f64, text: &str, mut glyph: impl FnMut(PlacedGlyph)) -> f64 {
+        let k = size / self.upem;
         let mut x = 0.0;
         // The previous glyph, and its ASCII code if it has one.
         let mut prev: Option<(GlyphId, Option<usize>)> = None;
@@ -125,31 +139,49 @@ impl Shaper {
                 };
                 x += f64::from(kern) * k;
             }
-            out.push(PlacedGlyph { id, x });
+            glyph(PlacedGlyph { id, x });
             x += f64::from(advance) * k;
             prev = Some((id, code));
         }
-        (out, x)
+        x
     }
 }
 
-/// Advance width of `text` at em size `size`.
+thread_local! {
+    /// This thread's shaper for [`text_width`]: the font parsed once, its ASCII glyphs
+    /// and kerning looked up once ([`Shaper`]), not per call.
+    static MEASURE: RefCell<Shaper> = RefCell::new(Shaper::new());
+}
+
+/// The embedded font's units per em, ascender and descender (unscaled), read once.
+fn vertical_metrics() -> (f64, f32, f32) {
+    static METRICS: OnceLock<(f64, f32, f32)> = OnceLock::new();
+    *METRICS.get_or_init(|| {
+        let f = embedded_font();
+        (
+            f64::from(f.units_per_em().unwrap_or(2048.0)),
+            f.ascent_unscaled(),
+            f.descent_unscaled(),
+        )
+    })
+}
+
+/// Advance width of `text` at em size `size`: [`shape_line`]'s with the embedded font,
+/// the same value to the bit.
 pub fn text_width(size: f64, text: &str) -> f64 {
-    shape_line(&embedded_font(), size, text).1
+    MEASURE.with(|s| s.borrow_mut().width(size, text))
 }
 
 /// Ascender height above the baseline at em size `size` (for boxes around text).
 pub fn ascent(size: f64) -> f64 {
-    let f = embedded_font();
-    let upem = f64::from(f.units_per_em().unwrap_or(2048.0));
-    f64::from(f.ascent_unscaled()) * size / upem
+    let (upem, ascent, _) = vertical_metrics();
+    f64::from(ascent) * size / upem
 }
 
 /// Descender depth below the baseline at em size `size` (positive).
 pub fn descent(size: f64) -> f64 {
-    let f = embedded_font();
-    let upem = f64::from(f.units_per_em().unwrap_or(2048.0));
-    -f64::from(f.descent_unscaled()) * size / upem
+    let (upem, _, descent) = vertical_metrics();
+    -f64::from(descent) * size / upem
 }
 
 /// One contour command of a glyph outline, in page units, y down.
@@ -268,5 +300,59 @@ mod tests {
         }
         // Kerning is there to keep: some ASCII pairs kern.
         assert!(shaper.kern.iter().any(|&k| k != 0.0 && !k.is_nan()));
+    }
+
+    /// `text_width`, `ascent` and `descent` (their font and tables kept) measure as the
+    /// font parsed for each call does, to the bit; on other threads too.
+    #[test]
+    fn measures_kept_are_measures_made_each_time() {
+        let mut texts: Vec<String> = (0..128u8)
+            .map(|a| {
+                (0..128u8)
+                    .flat_map(|b| [char::from(a), char::from(b)])
+                    .collect()
+            })
+            .collect();
+        texts.extend(
+            [
+                "AV To (0.25, −1.5)",
+                "θ = 0°",
+                "S 23°",
+                "",
+                "Wa.",
+                "éAVé",
+                "1",
+                "(2, 3)",
+            ]
+            .map(String::from),
+        );
+        let check = |texts: &[String]| {
+            for size in [8.0, 7.0, 6.0, 7.0 * 300.0 / 72.0, 11.3] {
+                let f = embedded_font();
+                let upem = f64::from(f.units_per_em().unwrap_or(2048.0));
+                assert_eq!(
+                    ascent(size).to_bits(),
+                    (f64::from(f.ascent_unscaled()) * size / upem).to_bits()
+                );
+                assert_eq!(
+                    descent(size).to_bits(),
+                    (-f64::from(f.descent_unscaled()) * size / upem).to_bits()
+                );
+                for t in texts {
+                    // Twice: the second time from the kept kerning.
+                    for _ in 0..2 {
+                        assert_eq!(
+                            text_width(size, t).to_bits(),
+                            shape_line(&f, size, t).1.to_bits(),
+                            "{t:?} at {size}"
+                        );
+                    }
+                }
+            }
+        };
+        check(&texts);
+        std::thread::scope(|s| {
+            s.spawn(|| check(&texts[60..]));
+        });
     }
 }

@@ -70,9 +70,20 @@ pub fn minus_sign(text: String) -> String {
 }
 
 impl Mechanism for GearedFiveBar {
+    type Constants = GearedGaps;
+
+    fn constants(&self) -> GearedGaps {
+        GearedGaps::of(self)
+    }
+
     #[inline]
-    fn frame(&self, circuit: Circuit, angle: &CrankAngle) -> Option<CouplerFrame> {
-        self.frame_with(&GearedGaps::of(self), circuit, angle)
+    fn frame_with(
+        &self,
+        gaps: &GearedGaps,
+        circuit: Circuit,
+        angle: &CrankAngle,
+    ) -> Option<CouplerFrame> {
+        GearedFiveBar::frame_with(self, gaps, circuit, angle)
     }
 
     fn pose_table(&self, circuit: Circuit, table: &CrankTable) -> PoseTable {
