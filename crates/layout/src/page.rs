@@ -804,11 +804,19 @@ impl Occupancy {
         } else {
             a[1].min(b[1])
         });
+        // The weight of every sample, at once.
+        self.marked = self
+            .marked
+            .saturating_add(u64::from(weight).saturating_mul((n as u64).saturating_add(1)));
+        let (nx, ny) = (self.nx as f64, self.ny as f64);
         for s in 0..=n {
             let t = s as f64 / n as f64;
-            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-            self.marked += u64::from(weight);
-            if let Some(k) = self.cell_of(p) {
+            // `cell_of`'s test and cell; a column or row on the grid is below `nx` or
+            // `ny`, so its truncation as a `u32` is its truncation as a `usize`.
+            let i = (a[0] + t * (b[0] - a[0]) - self.x0) / self.cell;
+            let j = (a[1] + t * (b[1] - a[1]) - self.y0) / self.cell;
+            if i >= 0.0 && j >= 0.0 && i < nx && j < ny {
+                let k = j as u32 as usize * self.nx + i as u32 as usize;
                 self.cells[k] = self.cells[k].saturating_add(weight);
             }
         }
