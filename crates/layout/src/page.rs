@@ -1497,7 +1497,9 @@ mod tests {
     /// Grids made on this thread's kept buffers (left dirty by a grid of another size
     /// just before) are fresh grids: the same cells, table and costs after each build,
     /// whether the marks since the last build reach the top of the page, only its lower
-    /// rows, or none; and an unbuilt grid's costs are a fresh one's. Rectangles on and
+    /// rows, or none, and after one long segment whose samples' weights pass `u32::MAX`
+    /// together (one sample's do not: the table then saturates); and an unbuilt grid's
+    /// costs are a fresh one's. Rectangles on and
     /// off the grid, along cell boundaries, NaN near sides.
     #[test]
     fn grids_on_kept_buffers_are_fresh_grids() {
@@ -1587,6 +1589,18 @@ mod tests {
                         );
                         same(&new, &old, &format!("phase {phase}"));
                     }
+                    // Last, one long segment whose samples' weights together (not one
+                    // sample's) pass `u32::MAX`: the saturating table from then on.
+                    let heavy = u32::MAX / 8;
+                    let (a, b) = ([frame[0], frame[1]], [frame[2], frame[3]]);
+                    new.mark_segment(a, b, heavy);
+                    old.mark_segment(a, b, heavy);
+                    assert!(new.marked > u64::from(u32::MAX));
+                    new.build();
+                    old.build();
+                    assert!(new.sat == old.0.sat, "{frame:?} {cell} heavy: table");
+                    // (No costs asked: a saturated table's differences are not sums.)
+                    assert!(new.cells == old.0.cells, "{frame:?} {cell} heavy: cells");
                 }
             }
         }
