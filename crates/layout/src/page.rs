@@ -670,6 +670,14 @@ pub fn fmt_num(x: f64) -> String {
 
 /// A coarse occupancy grid over the frame, for placing labels where they cover the least
 /// ink; queried through a summed-area table.
+///
+/// **Its buffers are kept per thread.** A page's grid (about 93 000 cells and as many
+/// table entries on a tabloid page) is taken from this thread's [`GRIDS`] and given back
+/// when dropped, so that a worker laying out page after page allocates it once: the
+/// cells are zeroed for each page; the table is not, since [`Occupancy::build`] writes
+/// every entry a query reads (its first row and column are zeroed there, the rows above
+/// the first marked one zeroed, the others summed), and a query before any build reads
+/// an empty table as a fresh grid did.
 pub(crate) struct Occupancy {
     x0: f64,
     y0: f64,
@@ -681,22 +689,81 @@ pub(crate) struct Occupancy {
     /// The weights marked so far, summed (on the grid or not): a bound on every cell and
     /// every sum of cells.
     marked: u64,
+    /// No cell of a row above this one was marked since the last build (or since the
+    /// grid was made): the table's rows up to it are those of that build (or all zero).
+    clean_rows: usize,
+    /// Whether the table has been built at least once (before that, it reads as zero).
+    built: bool,
+}
+
+/// Each thread's spare grid buffers (cells, table), reused by [`Occupancy::new`].
+const GRID_SPARES: usize = 2;
+
+thread_local! {
+    static GRIDS: std::cell::RefCell<Vec<(Vec<u32>, Vec<u32>)>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+impl Drop for Occupancy {
+    fn drop(&mut self) {
+        let bufs = (
+            std::mem::take(&mut self.cells),
+            std::mem::take(&mut self.sat),
+        );
+        // (During the thread's own teardown the spares are gone: the buffers are freed.)
+        let _ = GRIDS.try_with(|g| {
+            let mut g = g.borrow_mut();
+            if g.len() < GRID_SPARES {
+                g.push(bufs);
+            }
+        });
+    }
+}
+
+/// `⌈x⌉` as an index, for `x ≤` a small whole number (or NaN, or negative: 0): the same
+/// value as `x.ceil() as usize` without a call to `ceil` (the truncation, plus one where
+/// it fell below `x`; exact, as the truncation is a whole `f64`).
+#[inline]
+fn ceil_index(x: f64) -> usize {
+    let t = x as usize;
+    t.saturating_add(usize::from((t as f64) < x))
 }
 
 impl Occupancy {
     pub(crate) fn new(frame: [f64; 4], cell: f64) -> Occupancy {
         let nx = ((frame[2] - frame[0]) / cell).ceil() as usize + 1;
         let ny = ((frame[3] - frame[1]) / cell).ceil() as usize + 1;
+        let (mut cells, mut sat) = GRIDS
+            .try_with(|g| g.borrow_mut().pop())
+            .ok()
+            .flatten()
+            .unwrap_or_default();
+        cells.clear();
+        cells.resize(nx * ny, 0);
+        // Not zeroed: `build` writes every entry read (see the type's documentation).
+        sat.resize((nx + 1) * (ny + 1), 0);
         Occupancy {
             x0: frame[0],
             y0: frame[1],
             cell,
             nx,
             ny,
-            cells: vec![0; nx * ny],
-            sat: vec![0; (nx + 1) * (ny + 1)],
+            cells,
+            sat,
             marked: 0,
+            clean_rows: ny,
+            built: false,
         }
+    }
+
+    /// A grid on buffers of its own, zeroed (as every grid was before they were kept per
+    /// thread): the tests' reference.
+    #[cfg(test)]
+    fn fresh(frame: [f64; 4], cell: f64) -> Occupancy {
+        let mut o = Occupancy::new(frame, cell);
+        o.cells = vec![0; o.cells.len()];
+        o.sat = vec![0; o.sat.len()];
+        o
     }
 
     /// The cell of page point `p`, if on the grid. The cell's column is
@@ -710,19 +777,48 @@ impl Occupancy {
             .then(|| j as usize * self.nx + i as usize)
     }
 
+    /// Records that rows from the one holding page height `y` on (one row less, for the
+    /// rounding of a point interpolated towards `y`) may have been marked; NaN: all.
+    #[inline]
+    fn touch_rows_from(&mut self, y: f64) {
+        let j = (y - self.y0) / self.cell;
+        // `j as usize` is 0 for NaN and negative `j`.
+        let row = (j as usize).saturating_sub(1);
+        self.clean_rows = self.clean_rows.min(row);
+    }
+
     pub(crate) fn mark_point(&mut self, p: PagePoint, weight: u32) {
         self.marked += u64::from(weight);
         if let Some(k) = self.cell_of(p) {
             self.cells[k] = self.cells[k].saturating_add(weight);
+            self.clean_rows = self.clean_rows.min(k / self.nx);
         }
     }
 
     pub(crate) fn mark_segment(&mut self, a: PagePoint, b: PagePoint, weight: u32) {
         let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
-        let n = (len / (0.5 * self.cell)).ceil().max(1.0) as usize;
+        let n = ceil_index(len / (0.5 * self.cell)).max(1);
+        // Every sample's height is between the ends' up to rounding (NaN ends: all rows).
+        self.touch_rows_from(if a[1].is_nan() || b[1].is_nan() {
+            f64::NAN
+        } else {
+            a[1].min(b[1])
+        });
+        // The weight of every sample, at once.
+        self.marked = self
+            .marked
+            .saturating_add(u64::from(weight).saturating_mul((n as u64).saturating_add(1)));
+        let (nx, ny) = (self.nx as f64, self.ny as f64);
         for s in 0..=n {
             let t = s as f64 / n as f64;
-            self.mark_point([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])], weight);
+            // `cell_of`'s test and cell; a column or row on the grid is below `nx` or
+            // `ny`, so its truncation as a `u32` is its truncation as a `usize`.
+            let i = (a[0] + t * (b[0] - a[0]) - self.x0) / self.cell;
+            let j = (a[1] + t * (b[1] - a[1]) - self.y0) / self.cell;
+            if i >= 0.0 && j >= 0.0 && i < nx && j < ny {
+                let k = j as u32 as usize * self.nx + i as u32 as usize;
+                self.cells[k] = self.cells[k].saturating_add(weight);
+            }
         }
     }
 
@@ -730,12 +826,25 @@ impl Occupancy {
     /// (serial), then each added to the row above (independent, vectorised); the same
     /// saturating sums in the same order per entry. While the weights marked sum to at
     /// most `u32::MAX` (every page), no sum can saturate: plain sums then, the same
-    /// values for fewer instructions.
+    /// values for fewer instructions. Rows above the first row marked since the last
+    /// build keep their entries (the first build: zero), so a second build after a few
+    /// marks low on the page sums only the rows from there.
     pub(crate) fn build(&mut self) {
         let w = self.nx + 1;
+        let from = self.clean_rows.min(self.ny);
+        if !self.built {
+            // The table's first row and column are zero, and so are the rows above the
+            // first marked one (the buffer may hold an earlier page's table).
+            self.sat[..(from + 1) * w].fill(0);
+            for j in from + 1..=self.ny {
+                self.sat[j * w] = 0;
+            }
+        }
+        self.built = true;
+        self.clean_rows = self.ny;
         let mut run = vec![0u32; self.nx];
         if self.marked <= u64::from(u32::MAX) {
-            for j in 0..self.ny {
+            for j in from..self.ny {
                 let mut row = 0u32;
                 for (r, &c) in run
                     .iter_mut()
@@ -751,7 +860,7 @@ impl Occupancy {
             }
             return;
         }
-        for j in 0..self.ny {
+        for j in from..self.ny {
             let mut row = 0u32;
             for (r, &c) in run
                 .iter_mut()
@@ -771,7 +880,7 @@ impl Occupancy {
     /// (sampled every half cell); cells off the grid count nothing.
     pub(crate) fn segment_cost(&self, a: PagePoint, b: PagePoint) -> u64 {
         let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
-        let n = (len / (0.5 * self.cell)).ceil().max(1.0) as usize;
+        let n = ceil_index(len / (0.5 * self.cell)).max(1);
         let mut last = usize::MAX;
         let mut sum = 0u64;
         for s in 0..=n {
@@ -787,15 +896,24 @@ impl Occupancy {
     }
 
     /// Ink in a rectangle (cells it touches); `None` if it leaves the grid.
+    ///
+    /// The cells are those from `⌊(r₀ − x0) / cell⌋` to `⌈(r₂ − x0) / cell⌉` (likewise
+    /// rows), found without `floor` and `ceil` calls: a quotient `q` of the near side is
+    /// off the grid when `q < 0` (as `⌊q⌋ < 0` is), and then `⌊q⌋` is its truncation; one
+    /// of the far side is off when `q > nx` (as `⌈q⌉ > nx` is, `nx` being whole), and
+    /// then `⌈q⌉` is [`ceil_index`]'s (NaN, as before, reads as 0).
     pub(crate) fn cost(&self, r: [f64; 4]) -> Option<u64> {
-        let i0 = ((r[0] - self.x0) / self.cell).floor();
-        let j0 = ((r[1] - self.y0) / self.cell).floor();
-        let i1 = ((r[2] - self.x0) / self.cell).ceil();
-        let j1 = ((r[3] - self.y0) / self.cell).ceil();
+        let i0 = (r[0] - self.x0) / self.cell;
+        let j0 = (r[1] - self.y0) / self.cell;
+        let i1 = (r[2] - self.x0) / self.cell;
+        let j1 = (r[3] - self.y0) / self.cell;
         if i0 < 0.0 || j0 < 0.0 || i1 > self.nx as f64 || j1 > self.ny as f64 {
             return None;
         }
-        let (i0, j0, i1, j1) = (i0 as usize, j0 as usize, i1 as usize, j1 as usize);
+        if !self.built {
+            return Some(0);
+        }
+        let (i0, j0, i1, j1) = (i0 as usize, j0 as usize, ceil_index(i1), ceil_index(j1));
         let w = self.nx + 1;
         let s = |i: usize, j: usize| u64::from(self.sat[j * w + i]);
         Some(s(i1, j1) + s(i0, j0) - s(i0, j1) - s(i1, j0))
@@ -1261,6 +1379,22 @@ mod tests {
             }
         }
 
+        /// `cost` with `floor` and `ceil`, as first written.
+        fn cost(&self, r: [f64; 4]) -> Option<u64> {
+            let o = &self.0;
+            let i0 = ((r[0] - o.x0) / o.cell).floor();
+            let j0 = ((r[1] - o.y0) / o.cell).floor();
+            let i1 = ((r[2] - o.x0) / o.cell).ceil();
+            let j1 = ((r[3] - o.y0) / o.cell).ceil();
+            if i0 < 0.0 || j0 < 0.0 || i1 > o.nx as f64 || j1 > o.ny as f64 {
+                return None;
+            }
+            let (i0, j0, i1, j1) = (i0 as usize, j0 as usize, i1 as usize, j1 as usize);
+            let w = o.nx + 1;
+            let s = |i: usize, j: usize| u64::from(o.sat[j * w + i]);
+            Some(s(i1, j1) + s(i0, j0) - s(i0, j1) - s(i1, j0))
+        }
+
         fn segment_cost(&self, a: PagePoint, b: PagePoint) -> u64 {
             let o = &self.0;
             let len = libm::hypot(b[0] - a[0], b[1] - a[1]);
@@ -1305,7 +1439,7 @@ mod tests {
         ] {
             for cell in [3.0, 0.7] {
                 let mut new = Occupancy::new(frame, cell);
-                let mut old = OldOccupancy(Occupancy::new(frame, cell));
+                let mut old = OldOccupancy(Occupancy::fresh(frame, cell));
                 let special = [
                     f64::NAN,
                     f64::INFINITY,
@@ -1355,6 +1489,118 @@ mod tests {
                     for &(a, b) in &queries {
                         assert_eq!(new.segment_cost(a, b), old.segment_cost(a, b));
                     }
+                }
+            }
+        }
+    }
+
+    /// Grids made on this thread's kept buffers (left dirty by a grid of another size
+    /// just before) are fresh grids: the same cells, table and costs after each build,
+    /// whether the marks since the last build reach the top of the page, only its lower
+    /// rows, or none, and after one long segment whose samples' weights pass `u32::MAX`
+    /// together (one sample's do not: the table then saturates); and an unbuilt grid's
+    /// costs are a fresh one's. Rectangles on and
+    /// off the grid, along cell boundaries, NaN near sides.
+    #[test]
+    fn grids_on_kept_buffers_are_fresh_grids() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rand = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let frames = [
+            [36.0, 36.0, 756.0, 1188.0],
+            [0.5, -3.25, 40.0, 29.0],
+            [36.0, 36.0, 1188.0, 756.0],
+            [10.0, 20.0, 100.0, 400.0],
+        ];
+        for round in 0..3 {
+            for (f, &frame) in frames.iter().enumerate() {
+                for cell in [3.0, 0.7] {
+                    // Leave this thread's spare buffers dirty, from a grid of another size.
+                    {
+                        let other = frames[(f + 1 + round) % frames.len()];
+                        let mut dirty = Occupancy::new(other, cell);
+                        for k in 0..200 {
+                            let p = [
+                                other[0] + rand() * (other[2] - other[0]),
+                                other[1] + rand() * (other[3] - other[1]),
+                            ];
+                            dirty.mark_segment(p, [p[0] + 9.0, p[1] + 4.0], 1 + k % 7);
+                        }
+                        dirty.build();
+                    }
+                    let mut new = Occupancy::new(frame, cell);
+                    let mut old = OldOccupancy(Occupancy::fresh(frame, cell));
+                    let (w, h) = (frame[2] - frame[0], frame[3] - frame[1]);
+                    let rects: Vec<[f64; 4]> = (0..400)
+                        .map(|k| {
+                            let x = frame[0] - 5.0 + rand() * (w + 10.0);
+                            let y = frame[1] - 5.0 + rand() * (h + 10.0);
+                            let (dx, dy) = (rand() * 60.0, rand() * 20.0);
+                            match k % 8 {
+                                // On cell boundaries.
+                                0 => {
+                                    let i = (rand() * new.nx as f64).floor();
+                                    let j = (rand() * new.ny as f64).floor();
+                                    let (x, y) = (frame[0] + i * cell, frame[1] + j * cell);
+                                    [x, y, x + 3.0 * cell, y + 2.0 * cell]
+                                }
+                                // Off the grid's top left by less than a cell.
+                                1 => [frame[0] - 0.3 * cell, y, x + dx, y + dy],
+                                2 => [f64::NAN, y, x + dx, y + dy],
+                                3 => [x, f64::NAN, x + dx, y + dy],
+                                4 => [frame[0], frame[1], frame[2], frame[3]],
+                                _ => [x, y, x + dx, y + dy],
+                            }
+                        })
+                        .collect();
+                    let same = |new: &Occupancy, old: &OldOccupancy, when: &str| {
+                        assert!(new.cells == old.0.cells, "{frame:?} {cell} {when}: cells");
+                        for r in &rects {
+                            assert_eq!(new.cost(*r), old.cost(*r), "{frame:?} {cell} {when}");
+                        }
+                    };
+                    same(&new, &old, "before any build");
+                    // Marks over the whole page, then only below its middle, then none.
+                    for (phase, top) in [(0, 0.0), (1, 0.5), (2, 0.9), (3, 2.0)] {
+                        for k in 0..300u32 {
+                            let y0 = frame[1] + top * h;
+                            let p = [frame[0] + rand() * w, y0 + rand() * (frame[3] - y0)];
+                            if top > 1.0 {
+                                break;
+                            }
+                            if k % 5 == 0 {
+                                new.mark_point(p, k % 40);
+                                old.mark_point(p, k % 40);
+                            } else {
+                                let q = [p[0] + (rand() - 0.5) * 30.0, p[1] + rand() * 10.0];
+                                new.mark_segment(p, q, 1 + k % 4);
+                                old.mark_segment(p, q, 1 + k % 4);
+                            }
+                        }
+                        new.build();
+                        old.build();
+                        assert!(
+                            new.sat == old.0.sat,
+                            "{frame:?} {cell} phase {phase}: table"
+                        );
+                        same(&new, &old, &format!("phase {phase}"));
+                    }
+                    // Last, one long segment whose samples' weights together (not one
+                    // sample's) pass `u32::MAX`: the saturating table from then on.
+                    let heavy = u32::MAX / 8;
+                    let (a, b) = ([frame[0], frame[1]], [frame[2], frame[3]]);
+                    new.mark_segment(a, b, heavy);
+                    old.mark_segment(a, b, heavy);
+                    assert!(new.marked > u64::from(u32::MAX));
+                    new.build();
+                    old.build();
+                    assert!(new.sat == old.0.sat, "{frame:?} {cell} heavy: table");
+                    // (No costs asked: a saturated table's differences are not sums.)
+                    assert!(new.cells == old.0.cells, "{frame:?} {cell} heavy: cells");
                 }
             }
         }
