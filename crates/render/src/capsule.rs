@@ -921,7 +921,6 @@ impl Edge {
         if from >= to {
             return None;
         }
-        let (mut first, mut last) = (usize::MAX, 0);
         let dx = f32x4::splat(self.dx);
         let dy = f32x4::splat(self.dy);
         let py = f32x4::splat(self.py);
@@ -930,14 +929,10 @@ impl Edge {
         let ax = f32x4::splat(self.ax);
         let r = f32x4::splat(self.r);
         let half = f32x4::splat(0.5);
-        // Pixel centres less ax: from + k (k < 4) to begin with, four more each time;
-        // below 2^24 (a row's width) exact, as `(i + k) as f32`.
-        let mut x = f32x4::splat(from as f32) + f32x4::new([0.0, 1.0, 2.0, 3.0]);
-        let four = f32x4::splat(4.0);
-        for (q, px4) in row[from..to].chunks_mut(4).enumerate() {
-            let qx = x - ax;
-            x += four;
-            let (level, v) = if FINITE {
+        // Four pixels' levels (`c·255 + ½`) and their `as u8` as i32s, from their
+        // centres less ax.
+        let levels = |qx: f32x4| {
+            if FINITE {
                 let t = ((qx * dx + pdy) * inv)
                     .fast_max(f32x4::ZERO)
                     .fast_min(f32x4::ONE);
@@ -957,9 +952,23 @@ impl Edge {
                 let level = c * f32x4::splat(255.0) + half;
                 // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
                 (level, level.trunc_int().to_array())
-            };
-            let n = px4.len();
-            if FINITE && n == 4 {
+            }
+        };
+        // Pixel centres less ax: from + k (k < 4) to begin with, four more each time;
+        // below 2^24 (a row's width) exact, as `(i + k) as f32`.
+        let mut x = f32x4::splat(from as f32) + f32x4::new([0.0, 1.0, 2.0, 3.0]);
+        let four = f32x4::splat(4.0);
+        let span = &mut row[from..to];
+        let whole = span.len() - span.len() % 4;
+        let (body, tail) = span.split_at_mut(whole);
+        // The first pixel inked, and the last group of four that inked and its lanes
+        // (made the span's end once, after the loop).
+        let mut first = usize::MAX;
+        let (mut at, mut lanes) = (0, 0);
+        for (q, px4) in body.chunks_exact_mut(4).enumerate() {
+            let (level, v) = levels(x - ax);
+            x += four;
+            if FINITE {
                 // The four levels (each in 0..=255: the saturating packs keep them) as
                 // bytes, their maxima with the row's in byte lanes.
                 let b = i32x8::new([v[0], v[1], v[2], v[3], 0, 0, 0, 0]);
@@ -973,14 +982,30 @@ impl Edge {
                 }
             }
             // The lanes of level 1 or more.
-            let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << n) - 1);
+            let inked = level.simd_ge(f32x4::ONE).to_bitmask();
             if inked != 0 {
-                let i = from + 4 * q;
-                first = first.min(i + inked.trailing_zeros() as usize);
-                last = i + 32 - inked.leading_zeros() as usize;
+                if first == usize::MAX {
+                    first = from + 4 * q + inked.trailing_zeros() as usize;
+                }
+                (at, lanes) = (q, inked);
             }
         }
-        (first < last).then_some((first as u32, last as u32))
+        if !tail.is_empty() {
+            let (level, v) = levels(x - ax);
+            for (px, &v) in tail.iter_mut().zip(&v) {
+                *px = (*px).max(v as u8);
+            }
+            let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << tail.len()) - 1);
+            if inked != 0 {
+                let q = whole / 4;
+                if first == usize::MAX {
+                    first = from + 4 * q + inked.trailing_zeros() as usize;
+                }
+                (at, lanes) = (q, inked);
+            }
+        }
+        let last = from + 4 * at + 32 - lanes.leading_zeros() as usize;
+        (first != usize::MAX).then_some((first as u32, last as u32))
     }
 }
 
