@@ -654,44 +654,90 @@ fn intervals4_lanes(s: &Seg, cy: [f32; 4], reach: f32, inner: f32) -> [(f32x4, f
     let dx = f32x4::splat(s.d[0]);
     let dy = f32x4::splat(s.d[1]);
     let l = f32x4::splat(s.l);
-    let body = f32x4::splat(s.inv).simd_gt(f32x4::ZERO);
     let (ninf, inf) = (f32x4::splat(f32::NEG_INFINITY), f32x4::INFINITY);
-    let ends = [(ax, ey), (ax + dx, ey - dy)];
+    // Whether the segment has a body, and is along a row or a column, is the same in
+    // every lane: a branch each, not a mask (a mask of all ones or none selects one
+    // side whole, bit for bit).
     // The body's bounds on u = x − ax along the segment, for both distances.
     let (b0, b1) = {
         let (c0, c1) = (-ey * dy, l * l - ey * dy);
-        let (a, b) = (c0 / dx, c1 / dx);
-        let along = dx.simd_ne(f32x4::ZERO);
-        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
-        (
-            along.bitselect(ninf.fast_max(a.fast_min(b)), ninf),
-            along.bitselect(inf.fast_min(a.fast_max(b)), within.bitselect(inf, ninf)),
-        )
+        if s.d[0] != 0.0 {
+            let (a, b) = (c0 / dx, c1 / dx);
+            (ninf.fast_max(a.fast_min(b)), inf.fast_min(a.fast_max(b)))
+        } else {
+            let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+            (ninf, within.bitselect(inf, ninf))
+        }
     };
-    let k = -dy;
-    let across = k.simd_ne(f32x4::ZERO);
-    [reach, inner].map(|rho| {
-        let (mut lo, mut hi) = (inf, ninf);
+    let lanes = Lanes4 {
+        ax,
+        ey,
+        dx,
+        l,
+        k: -dy,
+        ends: [(ax, ey), (ax + dx, ey - dy)],
+        b0,
+        b1,
+        body: s.inv > 0.0,
+        across: s.d[1] != 0.0,
+    };
+    [lanes.bounds(reach), lanes.bounds(inner)]
+}
+
+/// What [`intervals4_lanes`] makes the intervals of, for each distance.
+struct Lanes4 {
+    ax: f32x4,
+    ey: f32x4,
+    dx: f32x4,
+    l: f32x4,
+    k: f32x4,
+    ends: [(f32x4, f32x4); 2],
+    b0: f32x4,
+    b1: f32x4,
+    body: bool,
+    across: bool,
+}
+
+impl Lanes4 {
+    /// The bounds `lo` and `hi` of the four rows' intervals within `rho`.
+    #[inline(always)]
+    fn bounds(&self, rho: f32) -> (f32x4, f32x4) {
+        let (ninf, inf) = (f32x4::splat(f32::NEG_INFINITY), f32x4::INFINITY);
+        let end = |&(x, y): &(f32x4, f32x4)| {
+            let q = f32x4::splat(rho * rho) - y * y;
+            let h = q.sqrt();
+            let (a, b) = (x - h, x + h);
+            (q.simd_ge(f32x4::ZERO) & a.simd_le(b), a, b)
+        };
+        // The first end's interval, where it has one (the minimum of +∞ and a bound
+        // is the bound: `minps` gives its second operand but where the first is less).
+        let (ok, a, b) = end(&self.ends[0]);
+        let (mut lo, mut hi) = (ok.bitselect(a, inf), ok.bitselect(b, ninf));
         let mut add = |ok: f32x4, a: f32x4, b: f32x4| {
-            let ok = ok & a.simd_le(b);
             lo = ok.bitselect(lo.fast_min(a), lo);
             hi = ok.bitselect(hi.fast_max(b), hi);
         };
-        for &(x, y) in &ends {
-            let q = f32x4::splat(rho * rho) - y * y;
-            let h = q.sqrt();
-            add(q.simd_ge(f32x4::ZERO), x - h, x + h);
+        let (ok, a, b) = end(&self.ends[1]);
+        add(ok, a, b);
+        if self.body {
+            // Across the segment, within the distance.
+            let c0 = f32x4::splat(-rho) * self.l - self.ey * self.dx;
+            let c1 = f32x4::splat(rho) * self.l - self.ey * self.dx;
+            let (u0, u1) = if self.across {
+                let (a, b) = (c0 / self.k, c1 / self.k);
+                (
+                    self.b0.fast_max(a.fast_min(b)),
+                    self.b1.fast_min(a.fast_max(b)),
+                )
+            } else {
+                let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+                (self.b0, within.bitselect(self.b1, ninf))
+            };
+            let (a, b) = (self.ax + u0, self.ax + u1);
+            add(a.simd_le(b), a, b);
         }
-        // Across the segment, within the distance.
-        let c0 = f32x4::splat(-rho) * l - ey * dx;
-        let c1 = f32x4::splat(rho) * l - ey * dx;
-        let (a, b) = (c0 / k, c1 / k);
-        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
-        let u0 = across.bitselect(b0.fast_max(a.fast_min(b)), b0);
-        let u1 = across.bitselect(b1.fast_min(a.fast_max(b)), within.bitselect(b1, ninf));
-        add(body, ax + u0, ax + u1);
         (lo, hi)
-    })
+    }
 }
 
 /// The pixel spans of wide segment `s` ([`Mode::Wide`], within [`MODEST`]
