@@ -1882,8 +1882,8 @@ mod tests {
             (seed >> 40) as f32 / (1u64 << 24) as f32
         };
         let pixels = |row: &mut [u8], x0: usize, x1: usize, g: Ring| {
-            for x in x0..x1 {
-                row[x] = row[x].max(g.pixel(x));
+            for (i, px) in row[x0..x1].iter_mut().enumerate() {
+                *px = (*px).max(g.pixel(x0 + i));
             }
         };
         let mut inked = 0;
