@@ -10,7 +10,7 @@
 use crate::capsule::{div255, narrow, widen};
 use crate::dirty::BLOCK;
 use crate::raster::overprint;
-use wide::{i16x8, u8x16, u16x8};
+use wide::u16x8;
 
 /// Tile side, pixels.
 const TILE: usize = 64;
@@ -244,62 +244,38 @@ fn merge(l: &mut [u8], c: &mut [u8]) {
     }
 }
 
-/// [`overprint`] of coverage `cov` in gray `g` over `dst`, sixteen pixels at a time
-/// (then eight) in 16-bit lanes ([`overprint8`]).
-#[inline]
-pub(crate) fn overprint_span(dst: &mut [u8], cov: &[u8], g: u8) {
-    let n = dst.len().min(cov.len());
-    let (dst, cov) = (&mut dst[..n], &cov[..n]);
-    let gl = u16x8::splat(u16::from(g));
-    let n16 = n - n % 16;
-    for (d16, c16) in dst[..n16]
-        .chunks_exact_mut(16)
-        .zip(cov[..n16].chunks_exact(16))
-    {
-        let mut d = [0u8; 16];
-        d.copy_from_slice(d16);
-        let mut c = [0u8; 16];
-        c.copy_from_slice(c16);
-        let (d, c) = (u8x16::new(d), u8x16::new(c));
-        let lo = overprint8(u16x8::from_u8x16_low(d), u16x8::from_u8x16_low(c), gl);
-        let hi = overprint8(u16x8::from_u8x16_high(d), u16x8::from_u8x16_high(c), gl);
-        // Each at most 255: one saturating pack, the same values.
-        let v = u8x16::narrow_i16x8(signed(lo), signed(hi));
-        d16.copy_from_slice(&v.to_array());
-    }
-    let mut lanes = n16;
-    if n - n16 >= 8 {
-        let d8 = &mut dst[n16..n16 + 8];
-        narrow(overprint8(widen(d8), widen(&cov[n16..]), gl), d8);
-        lanes += 8;
-    }
-    let g = u32::from(g);
-    for (d, &c) in dst[lanes..].iter_mut().zip(&cov[lanes..]) {
-        *d = overprint(*d, c, g);
-    }
-}
-
-/// [`overprint`] in 16-bit lanes of eight levels under `d`, coverages `c` and gray `g`.
-/// With `a = 255 − d`, `b = c·g` (at most 65025) split as `b = 255·h + l`
+/// [`overprint`] of coverage `cov` in gray `g` over `dst`, eight pixels at a time in
+/// 16-bit lanes. With `a = 255 − d`, `b = c·g` (at most 65025) split as `b = 255·h + l`
 /// (`h = b / 255`, `l < 255`), `⌊(a·b + 32512) / 65025⌋` is `⌊z / 255⌋` with
 /// `z = ⌊(a·b + 32512) / 255⌋` (a floor of a floor), and as `a·b + 32512` is
 /// `255·(a·h + 127) + a·l + 127`, `z = a·h + 127 + ⌊(a·l + 127) / 255⌋`: every term
 /// below 2^16 (`a·l + 127 ≤ 64897`, `z ≤ 65152`), each quotient a [`div255`]. Exact;
 /// tested for every `d`, `c`, `g`.
-#[inline(always)]
-fn overprint8(d: u16x8, c: u16x8, g: u16x8) -> u16x8 {
-    let (full, half) = (u16x8::splat(255), u16x8::splat(127));
-    let (a, b) = (full - d, c * g);
-    let h = div255(b);
-    let l = b - h * full;
-    let z = a * h + half + div255(a * l + half);
-    d + div255(z)
-}
-
-/// `v`'s lanes as i16s, the same bits.
-#[inline(always)]
-fn signed(v: u16x8) -> i16x8 {
-    i16x8::new(v.to_array().map(|x| x as i16))
+#[inline]
+pub(crate) fn overprint_span(dst: &mut [u8], cov: &[u8], g: u8) {
+    let n = dst.len().min(cov.len());
+    let lanes = n - n % 8;
+    let (full, gl, half) = (
+        u16x8::splat(255),
+        u16x8::splat(u16::from(g)),
+        u16x8::splat(127),
+    );
+    for (d8, c8) in dst[..lanes]
+        .chunks_exact_mut(8)
+        .zip(cov[..lanes].chunks_exact(8))
+    {
+        let (d, c) = (widen(d8), widen(c8));
+        let (a, b) = (full - d, c * gl);
+        let h = div255(b);
+        let l = b - h * full;
+        let z = a * h + half + div255(a * l + half);
+        // At most 255.
+        narrow(d + div255(z), d8);
+    }
+    let g = u32::from(g);
+    for (d, &c) in dst[lanes..n].iter_mut().zip(&cov[lanes..n]) {
+        *d = overprint(*d, c, g);
+    }
 }
 
 #[cfg(test)]
@@ -462,7 +438,7 @@ mod tests {
     }
 
     /// [`merge`] and [`overprint_span`] are their pixel-by-pixel formulas for every
-    /// level under, every coverage and every gray (and spans of every length to 40).
+    /// level under, every coverage and every gray (tails of 0–7 pixels too).
     #[test]
     fn lanes_are_the_formulas_for_every_value() {
         let under: Vec<u8> = (0..65536 + 5).map(|i| (i >> 8) as u8).collect();
@@ -483,18 +459,6 @@ mod tests {
             overprint_span(&mut got, &cov, g);
             for (i, (&d, &c)) in under.iter().zip(&cov).enumerate() {
                 assert_eq!(got[i], overprint(d, c, u32::from(g)), "{d} {c} {g}");
-            }
-        }
-        // Spans of every length to 40 (sixteen, eight and one at a time), from any
-        // pixel.
-        for len in 0..=40 {
-            for at in [0, 3, 1000, 30_001] {
-                let (d, c) = (&under[at..at + len], &cov[at + 7..at + 7 + len]);
-                let mut got = d.to_vec();
-                overprint_span(&mut got, c, 77);
-                for (i, (&d, &c)) in d.iter().zip(c).enumerate() {
-                    assert_eq!(got[i], overprint(d, c, 77), "{len} {at} {i}");
-                }
             }
         }
     }
