@@ -401,6 +401,20 @@ impl Capsules {
     /// Strokes the circle of radius `radius` about `c` (pixels) with half width `r`: a
     /// ring, the distance to the circle being `| |p − c| − radius |`.
     pub(crate) fn ring(&mut self, c: [f32; 2], radius: f32, r: f32, t: &mut Target) {
+        self.ring_with(c, radius, r, t, ring_span);
+    }
+
+    /// [`Capsules::ring`] with the pixels of an arc's span measured by `span`
+    /// ([`ring_span`], or pixel by pixel in the tests' reference).
+    #[inline(always)]
+    fn ring_with(
+        &mut self,
+        c: [f32; 2],
+        radius: f32,
+        r: f32,
+        t: &mut Target,
+        span: fn(&mut [u8], usize, usize, Ring),
+    ) {
         let reach = r.max(0.0) + 0.5;
         let outer = radius.abs() + reach;
         if !(outer.is_finite() && reach > 0.5 && c[0].is_finite() && c[1].is_finite()) {
@@ -416,6 +430,12 @@ impl Capsules {
             let dy = j as f32 + 0.5 - c[1];
             let xo = (outer * outer - dy * dy).max(0.0).sqrt();
             let xi = (inner * inner - dy * dy).max(0.0).sqrt();
+            let ring = Ring {
+                cx: c[0],
+                dy,
+                radius,
+                r,
+            };
             // The two arcs of the ring on this row: [c − xo, c − xi] and [c + xi, c + xo].
             for (a, b) in [(c[0] - xo, c[0] - xi), (c[0] + xi, c[0] + xo)] {
                 let x0 = floor(a - 1.0).clamp(0.0, w) as usize;
@@ -423,15 +443,65 @@ impl Capsules {
                 if x0 >= x1 {
                     continue;
                 }
-                for (i, px) in self.row[x0..x1].iter_mut().enumerate() {
-                    let dx = (x0 + i) as f32 + 0.5 - c[0];
-                    let d = ((dx * dx + dy * dy).sqrt() - radius).abs();
-                    *px = (*px).max(coverage(d, r));
-                }
+                span(&mut self.row, x0, x1, ring);
                 self.note((x0 as u32, x1 as u32));
             }
             self.flush_row(j, t);
         }
+    }
+}
+
+/// A ring on a row: its centre's x, the row centre's height above its centre, its
+/// radius and half width (pixels).
+#[derive(Clone, Copy)]
+struct Ring {
+    cx: f32,
+    dy: f32,
+    radius: f32,
+    r: f32,
+}
+
+impl Ring {
+    /// Pixel `x`'s coverage (the reference [`ring_span`] follows in lanes).
+    #[inline(always)]
+    fn pixel(self, x: usize) -> u8 {
+        let dx = x as f32 + 0.5 - self.cx;
+        let d = ((dx * dx + self.dy * self.dy).sqrt() - self.radius).abs();
+        coverage(d, self.r)
+    }
+}
+
+/// Pixels `[x0, x1)` of `row` ← the maximum of theirs and ring `g`'s coverage, four at a
+/// time: per lane the f32 operations of [`Ring::pixel`] in its order (IEEE operations,
+/// the same bits; `min`, `max` and the clamp as `f32`'s, NaN included, and the level's
+/// truncation `as u8`'s: a level in `[½, 255.5]`, or 0 for NaN), so the bytes are the
+/// pixel by pixel ones. A pixel's index is exact in an f32 below 2^24 (beyond, pixel by
+/// pixel).
+#[inline]
+fn ring_span(row: &mut [u8], x0: usize, x1: usize, g: Ring) {
+    let n = if x1 <= 1 << 24 { x1 - x0 } else { 0 };
+    let lanes = n - n % 4;
+    let half = f32x4::splat(0.5);
+    let (cx, dy2) = (f32x4::splat(g.cx), f32x4::splat(g.dy * g.dy));
+    let (radius, r) = (f32x4::splat(g.radius), f32x4::splat(g.r));
+    let mut x = f32x4::splat(x0 as f32) + f32x4::new([0.0, 1.0, 2.0, 3.0]);
+    let four = f32x4::splat(4.0);
+    for px4 in row[x0..x0 + lanes].chunks_exact_mut(4) {
+        let dx = x + half - cx;
+        x += four;
+        let d = ((dx * dx + dy2).sqrt() - radius).abs();
+        let c = clamp01((d + half).min(r) - (d - half).max(-r));
+        let v = (c * f32x4::splat(255.0) + half).trunc_int().to_array();
+        // The four levels (each in 0..=255: the saturating packs keep them) as bytes,
+        // their maxima with the row's in byte lanes.
+        let b = i32x8::new([v[0], v[1], v[2], v[3], 0, 0, 0, 0]);
+        let b = u8x16::narrow_i16x8(i16x8::from_i32x8_saturate(b), i16x8::ZERO);
+        let mut p = [0u8; 16];
+        p[..4].copy_from_slice(px4);
+        px4.copy_from_slice(&u8x16::new(p).max(b).to_array()[..4]);
+    }
+    for (i, px) in row[x0 + lanes..x1].iter_mut().enumerate() {
+        *px = (*px).max(g.pixel(x0 + lanes + i));
     }
 }
 
@@ -584,44 +654,90 @@ fn intervals4_lanes(s: &Seg, cy: [f32; 4], reach: f32, inner: f32) -> [(f32x4, f
     let dx = f32x4::splat(s.d[0]);
     let dy = f32x4::splat(s.d[1]);
     let l = f32x4::splat(s.l);
-    let body = f32x4::splat(s.inv).simd_gt(f32x4::ZERO);
     let (ninf, inf) = (f32x4::splat(f32::NEG_INFINITY), f32x4::INFINITY);
-    let ends = [(ax, ey), (ax + dx, ey - dy)];
+    // Whether the segment has a body, and is along a row or a column, is the same in
+    // every lane: a branch each, not a mask (a mask of all ones or none selects one
+    // side whole, bit for bit).
     // The body's bounds on u = x − ax along the segment, for both distances.
     let (b0, b1) = {
         let (c0, c1) = (-ey * dy, l * l - ey * dy);
-        let (a, b) = (c0 / dx, c1 / dx);
-        let along = dx.simd_ne(f32x4::ZERO);
-        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
-        (
-            along.bitselect(ninf.fast_max(a.fast_min(b)), ninf),
-            along.bitselect(inf.fast_min(a.fast_max(b)), within.bitselect(inf, ninf)),
-        )
+        if s.d[0] != 0.0 {
+            let (a, b) = (c0 / dx, c1 / dx);
+            (ninf.fast_max(a.fast_min(b)), inf.fast_min(a.fast_max(b)))
+        } else {
+            let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+            (ninf, within.bitselect(inf, ninf))
+        }
     };
-    let k = -dy;
-    let across = k.simd_ne(f32x4::ZERO);
-    [reach, inner].map(|rho| {
-        let (mut lo, mut hi) = (inf, ninf);
+    let lanes = Lanes4 {
+        ax,
+        ey,
+        dx,
+        l,
+        k: -dy,
+        ends: [(ax, ey), (ax + dx, ey - dy)],
+        b0,
+        b1,
+        body: s.inv > 0.0,
+        across: s.d[1] != 0.0,
+    };
+    [lanes.bounds(reach), lanes.bounds(inner)]
+}
+
+/// What [`intervals4_lanes`] makes the intervals of, for each distance.
+struct Lanes4 {
+    ax: f32x4,
+    ey: f32x4,
+    dx: f32x4,
+    l: f32x4,
+    k: f32x4,
+    ends: [(f32x4, f32x4); 2],
+    b0: f32x4,
+    b1: f32x4,
+    body: bool,
+    across: bool,
+}
+
+impl Lanes4 {
+    /// The bounds `lo` and `hi` of the four rows' intervals within `rho`.
+    #[inline(always)]
+    fn bounds(&self, rho: f32) -> (f32x4, f32x4) {
+        let (ninf, inf) = (f32x4::splat(f32::NEG_INFINITY), f32x4::INFINITY);
+        let end = |&(x, y): &(f32x4, f32x4)| {
+            let q = f32x4::splat(rho * rho) - y * y;
+            let h = q.sqrt();
+            let (a, b) = (x - h, x + h);
+            (q.simd_ge(f32x4::ZERO) & a.simd_le(b), a, b)
+        };
+        // The first end's interval, where it has one (the minimum of +∞ and a bound
+        // is the bound: `minps` gives its second operand but where the first is less).
+        let (ok, a, b) = end(&self.ends[0]);
+        let (mut lo, mut hi) = (ok.bitselect(a, inf), ok.bitselect(b, ninf));
         let mut add = |ok: f32x4, a: f32x4, b: f32x4| {
-            let ok = ok & a.simd_le(b);
             lo = ok.bitselect(lo.fast_min(a), lo);
             hi = ok.bitselect(hi.fast_max(b), hi);
         };
-        for &(x, y) in &ends {
-            let q = f32x4::splat(rho * rho) - y * y;
-            let h = q.sqrt();
-            add(q.simd_ge(f32x4::ZERO), x - h, x + h);
+        let (ok, a, b) = end(&self.ends[1]);
+        add(ok, a, b);
+        if self.body {
+            // Across the segment, within the distance.
+            let c0 = f32x4::splat(-rho) * self.l - self.ey * self.dx;
+            let c1 = f32x4::splat(rho) * self.l - self.ey * self.dx;
+            let (u0, u1) = if self.across {
+                let (a, b) = (c0 / self.k, c1 / self.k);
+                (
+                    self.b0.fast_max(a.fast_min(b)),
+                    self.b1.fast_min(a.fast_max(b)),
+                )
+            } else {
+                let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
+                (self.b0, within.bitselect(self.b1, ninf))
+            };
+            let (a, b) = (self.ax + u0, self.ax + u1);
+            add(a.simd_le(b), a, b);
         }
-        // Across the segment, within the distance.
-        let c0 = f32x4::splat(-rho) * l - ey * dx;
-        let c1 = f32x4::splat(rho) * l - ey * dx;
-        let (a, b) = (c0 / k, c1 / k);
-        let within = c0.simd_le(f32x4::ZERO) & c1.simd_ge(f32x4::ZERO);
-        let u0 = across.bitselect(b0.fast_max(a.fast_min(b)), b0);
-        let u1 = across.bitselect(b1.fast_min(a.fast_max(b)), within.bitselect(b1, ninf));
-        add(body, ax + u0, ax + u1);
         (lo, hi)
-    })
+    }
 }
 
 /// The pixel spans of wide segment `s` ([`Mode::Wide`], within [`MODEST`]
@@ -851,7 +967,6 @@ impl Edge {
         if from >= to {
             return None;
         }
-        let (mut first, mut last) = (usize::MAX, 0);
         let dx = f32x4::splat(self.dx);
         let dy = f32x4::splat(self.dy);
         let py = f32x4::splat(self.py);
@@ -860,14 +975,10 @@ impl Edge {
         let ax = f32x4::splat(self.ax);
         let r = f32x4::splat(self.r);
         let half = f32x4::splat(0.5);
-        // Pixel centres less ax: from + k (k < 4) to begin with, four more each time;
-        // below 2^24 (a row's width) exact, as `(i + k) as f32`.
-        let mut x = f32x4::splat(from as f32) + f32x4::new([0.0, 1.0, 2.0, 3.0]);
-        let four = f32x4::splat(4.0);
-        for (q, px4) in row[from..to].chunks_mut(4).enumerate() {
-            let qx = x - ax;
-            x += four;
-            let (level, v) = if FINITE {
+        // Four pixels' levels (`c·255 + ½`) and their `as u8` as i32s, from their
+        // centres less ax.
+        let levels = |qx: f32x4| {
+            if FINITE {
                 let t = ((qx * dx + pdy) * inv)
                     .fast_max(f32x4::ZERO)
                     .fast_min(f32x4::ONE);
@@ -887,9 +998,23 @@ impl Edge {
                 let level = c * f32x4::splat(255.0) + half;
                 // `as u8` of c·255 + ½ in [½, 255.5], or 0 for NaN (trunc_int's 0).
                 (level, level.trunc_int().to_array())
-            };
-            let n = px4.len();
-            if FINITE && n == 4 {
+            }
+        };
+        // Pixel centres less ax: from + k (k < 4) to begin with, four more each time;
+        // below 2^24 (a row's width) exact, as `(i + k) as f32`.
+        let mut x = f32x4::splat(from as f32) + f32x4::new([0.0, 1.0, 2.0, 3.0]);
+        let four = f32x4::splat(4.0);
+        let span = &mut row[from..to];
+        let whole = span.len() - span.len() % 4;
+        let (body, tail) = span.split_at_mut(whole);
+        // The first pixel inked, and the last group of four that inked and its lanes
+        // (made the span's end once, after the loop).
+        let mut first = usize::MAX;
+        let (mut at, mut lanes) = (0, 0);
+        for (q, px4) in body.chunks_exact_mut(4).enumerate() {
+            let (level, v) = levels(x - ax);
+            x += four;
+            if FINITE {
                 // The four levels (each in 0..=255: the saturating packs keep them) as
                 // bytes, their maxima with the row's in byte lanes.
                 let b = i32x8::new([v[0], v[1], v[2], v[3], 0, 0, 0, 0]);
@@ -903,14 +1028,30 @@ impl Edge {
                 }
             }
             // The lanes of level 1 or more.
-            let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << n) - 1);
+            let inked = level.simd_ge(f32x4::ONE).to_bitmask();
             if inked != 0 {
-                let i = from + 4 * q;
-                first = first.min(i + inked.trailing_zeros() as usize);
-                last = i + 32 - inked.leading_zeros() as usize;
+                if first == usize::MAX {
+                    first = from + 4 * q + inked.trailing_zeros() as usize;
+                }
+                (at, lanes) = (q, inked);
             }
         }
-        (first < last).then_some((first as u32, last as u32))
+        if !tail.is_empty() {
+            let (level, v) = levels(x - ax);
+            for (px, &v) in tail.iter_mut().zip(&v) {
+                *px = (*px).max(v as u8);
+            }
+            let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << tail.len()) - 1);
+            if inked != 0 {
+                let q = whole / 4;
+                if first == usize::MAX {
+                    first = from + 4 * q + inked.trailing_zeros() as usize;
+                }
+                (at, lanes) = (q, inked);
+            }
+        }
+        let last = from + 4 * at + 32 - lanes.leading_zeros() as usize;
+        (first != usize::MAX).then_some((first as u32, last as u32))
     }
 }
 
@@ -1724,6 +1865,65 @@ mod tests {
             wide > 300 && thin > 300 && crowded > 300,
             "{wide} {thin} {crowded}"
         );
+    }
+
+    /// [`ring_span`] is [`Ring::pixel`] pixel by pixel: random rings (centres on and off
+    /// the page, at fractions of a pixel; radii from 0, thin and wide, half widths below
+    /// and above ½; a few whose pixels' squared distances are infinite) on pages of widths
+    /// that are not multiples of four, drawn over each other, against the pixel by pixel
+    /// reference.
+    #[test]
+    fn rings_in_lanes_are_their_pixels() {
+        let mut seed = 0x51f1_5eed_2545_f491u64;
+        let mut rand = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let pixels = |row: &mut [u8], x0: usize, x1: usize, g: Ring| {
+            for (i, px) in row[x0..x1].iter_mut().enumerate() {
+                *px = (*px).max(g.pixel(x0 + i));
+            }
+        };
+        let mut inked = 0;
+        for (w, h) in [(97usize, 61usize), (203, 150), (5, 9)] {
+            let (mut got, mut want) = (vec![0u8; w * h], vec![0u8; w * h]);
+            let (mut got_dirty, mut want_dirty) = (Dirty::new(w, h), Dirty::new(w, h));
+            let (mut a, mut b) = (Capsules::default(), Capsules::default());
+            for n in 0..400 {
+                let mut c = [
+                    (rand() * 1.4 - 0.2) * w as f32,
+                    (rand() * 1.4 - 0.2) * h as f32,
+                ];
+                let mut radius = match n % 4 {
+                    0 => 0.0,
+                    1 => rand() * 4.0,
+                    _ => rand() * w as f32,
+                };
+                let mut r = rand() * if n % 3 == 0 { 0.6 } else { 6.0 };
+                if n % 50 == 7 {
+                    // An arc across the page whose pixels' squared distances to the
+                    // centre are infinite.
+                    c[0] = if n % 100 == 7 { -1.9e19 } else { 1.9e19 };
+                    (radius, r) = (1.9e19, 1.0e18);
+                }
+                let ink = if n % 5 == 0 { Ink::Paper } else { Ink::Black };
+                a.ring(c, radius, r, &mut target(&mut got, w, &mut got_dirty, ink));
+                b.ring_with(
+                    c,
+                    radius,
+                    r,
+                    &mut target(&mut want, w, &mut want_dirty, ink),
+                    pixels,
+                );
+                assert!(got == want, "{w}: ring {n}: {c:?} {radius} {r}");
+                assert!(a.row.iter().all(|&v| v == 0), "row buffer left clean");
+            }
+            assert_eq!(got_dirty.rows(), want_dirty.rows());
+            inked += got.iter().filter(|&&v| v != 0 && v != 255).count();
+        }
+        assert!(inked > 1000, "{inked}");
     }
 
     #[test]

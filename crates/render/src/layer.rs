@@ -10,7 +10,7 @@
 use crate::capsule::{div255, narrow, widen};
 use crate::dirty::BLOCK;
 use crate::raster::overprint;
-use wide::{f32x8, i16x8, i32x8, u8x16, u16x8};
+use wide::u16x8;
 
 /// Tile side, pixels.
 const TILE: usize = 64;
@@ -245,28 +245,32 @@ fn merge(l: &mut [u8], c: &mut [u8]) {
 }
 
 /// [`overprint`] of coverage `cov` in gray `g` over `dst`, eight pixels at a time in
-/// f32 lanes: `(255 − d)·(c·g) + 32512 < 2^24` is exact in an f32, and its quotient by
-/// 65025 (at most 255.5), correctly rounded, truncates to the integer quotient (a
-/// quotient below an integer `k + 1` lies at least 1/65025 below it, more than half an
-/// f32's ulp there, so it never rounds up to `k + 1`). Tested for every `d`, `c`, `g`.
+/// 16-bit lanes. With `a = 255 − d`, `b = c·g` (at most 65025) split as `b = 255·h + l`
+/// (`h = b / 255`, `l < 255`), `⌊(a·b + 32512) / 65025⌋` is `⌊z / 255⌋` with
+/// `z = ⌊(a·b + 32512) / 255⌋` (a floor of a floor), and as `a·b + 32512` is
+/// `255·(a·h + 127) + a·l + 127`, `z = a·h + 127 + ⌊(a·l + 127) / 255⌋`: every term
+/// below 2^16 (`a·l + 127 ≤ 64897`, `z ≤ 65152`), each quotient a [`div255`]. Exact;
+/// tested for every `d`, `c`, `g`.
 #[inline]
 pub(crate) fn overprint_span(dst: &mut [u8], cov: &[u8], g: u8) {
     let n = dst.len().min(cov.len());
     let lanes = n - n % 8;
-    let (full, gl) = (u16x8::splat(255), u16x8::splat(u16::from(g)));
-    let (round, q) = (f32x8::splat(32_512.0), f32x8::splat(65_025.0));
+    let (full, gl, half) = (
+        u16x8::splat(255),
+        u16x8::splat(u16::from(g)),
+        u16x8::splat(127),
+    );
     for (d8, c8) in dst[..lanes]
         .chunks_exact_mut(8)
         .zip(cov[..lanes].chunks_exact(8))
     {
         let (d, c) = (widen(d8), widen(c8));
-        // c·g ≤ 65025: exact in 16 bits.
-        let under = i32x8::from_u16x8(full - d).round_float();
-        let cg = i32x8::from_u16x8(c * gl).round_float();
-        let v = ((under * cg + round) / q).fast_trunc_int() + i32x8::from_u16x8(d);
-        // At most 255: one saturating pack each way.
-        let v = u8x16::narrow_i16x8(i16x8::from_i32x8_saturate(v), i16x8::ZERO);
-        d8.copy_from_slice(&v.to_array()[..8]);
+        let (a, b) = (full - d, c * gl);
+        let h = div255(b);
+        let l = b - h * full;
+        let z = a * h + half + div255(a * l + half);
+        // At most 255.
+        narrow(d + div255(z), d8);
     }
     let g = u32::from(g);
     for (d, &c) in dst[lanes..n].iter_mut().zip(&cov[lanes..n]) {
