@@ -752,10 +752,28 @@ pub(crate) struct RowDeflate {
 
 impl RowDeflate {
     /// A stream appended to `out`.
-    pub(crate) fn new(mut out: Vec<u8>) -> RowDeflate {
+    #[cfg(test)]
+    pub(crate) fn new(out: Vec<u8>) -> RowDeflate {
+        let pos = out.len();
+        RowDeflate::at(out, pos)
+    }
+
+    /// A stream written into `out` from byte `pos ≤ out.len()` on: the bytes from `pos`
+    /// on are only room to write into, whatever they hold (a buffer of an earlier page,
+    /// not zeroed again), and [`RowDeflate::finish`] gives `out` cut after the stream.
+    pub(crate) fn at(mut out: Vec<u8>, pos: usize) -> RowDeflate {
         let f = Format::get();
-        out.extend_from_slice(&f.header);
-        let mut bits = Bits::new(out);
+        let end = pos + f.header.len();
+        if out.len() < end {
+            out.resize(end, 0);
+        }
+        out[pos..end].copy_from_slice(&f.header);
+        let mut bits = Bits {
+            out,
+            pos: end,
+            acc: 0,
+            n: 0,
+        };
         bits.put(f.header_bits.0, f.header_bits.1);
         RowDeflate {
             f,
