@@ -333,10 +333,13 @@ pub(crate) fn write_rendered(
     }
     for r in rendered {
         match r.and_then(|a| {
-            write_artifact(dir, &a).map_err(|e| PageFailure {
+            let written = write_artifact(dir, &a).map_err(|e| PageFailure {
                 page: a.name.clone(),
                 message: error_chain(&e),
-            })
+            });
+            // The file's buffer, for this thread's next page (not zeroed again).
+            coupler_render::reuse_png_buffer(a.bytes);
+            written
         }) {
             Ok(f) => files.push(f),
             Err(f) => failed.push(f),

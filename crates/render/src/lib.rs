@@ -26,7 +26,7 @@ pub use diff::{
     DiffError, ImageDiff, MAX_DIFF_PIXELS, MAX_DIFF_WIDTH, diff_files, diff_images, read_image,
 };
 pub use pdf::{Bookmark, PageLabelRange, PdfError, PdfPage, PdfPageContent, write_pdf};
-pub use raster::{PngCompression, RasterPage, encode_png, encode_png_with};
+pub use raster::{PngCompression, RasterPage, encode_png, encode_png_with, reuse_png_buffer};
 pub use svg::SvgPage;
 
 use coupler_layout::{Anchor, DisplayList, Ink, PagePoint, Primitive};

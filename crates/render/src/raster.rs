@@ -752,6 +752,33 @@ fn write_png_fast(
     png.finish(ink, 0, dirty, clear)
 }
 
+/// The most buffers [`reuse_png_buffer`] keeps on a thread, and the least capacity
+/// it keeps (a page's PNG at 300 dpi is hundreds of KiB).
+const SPARE_MAX: usize = 16;
+const SPARE_LEAST: usize = 1 << 16;
+
+thread_local! {
+    /// Buffers of files already written, for the thread's next pages' PNGs: their
+    /// bytes are written over, not zeroed again, and their pages stay mapped.
+    static SPARE: std::cell::RefCell<Vec<Vec<u8>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Gives the buffer of a file that has been written (a PNG this crate made, or any
+/// other bytes) back for the next fast PNG made on this thread, which writes its
+/// file over the buffer's bytes instead of a new buffer's zeros. At most a few are
+/// kept per thread (the others are dropped), so a page's buffer is reused when the
+/// thread that draws pages writes their files. The PNG's bytes do not depend on it.
+pub fn reuse_png_buffer(buf: Vec<u8>) {
+    if buf.capacity() < SPARE_LEAST {
+        return;
+    }
+    SPARE.with_borrow_mut(|v| {
+        if v.len() < SPARE_MAX {
+            v.push(buf);
+        }
+    });
+}
+
 /// [`write_png_fast`] row by row: the rows of a page drawn band by band are encoded as
 /// each band is done ([`FastPng::rows`]), while they are in cache.
 pub(crate) struct FastPng {
@@ -779,7 +806,7 @@ impl FastPng {
         dpi: f64,
         capacity: usize,
     ) -> std::io::Result<FastPng> {
-        let mut out = Vec::with_capacity(capacity);
+        let mut out = Vec::with_capacity(64);
         out.extend_from_slice(&[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a]);
         let mut ihdr = Vec::with_capacity(13);
         ihdr.extend_from_slice(&width.to_be_bytes());
@@ -798,8 +825,18 @@ impl FastPng {
         let w = width as usize;
         let mut row = vec![0u8; w + 1];
         row[0] = 2; // Up
+        // The file is written over a buffer given back after an earlier page's file
+        // ([`reuse_png_buffer`]), whatever it holds, or into a new one.
+        let mut buf = SPARE
+            .with_borrow_mut(Vec::pop)
+            .unwrap_or_else(|| Vec::with_capacity(capacity.max(out.len())));
+        let head = out.len();
+        if buf.len() < head {
+            buf.resize(head, 0);
+        }
+        buf[..head].copy_from_slice(&out);
         Ok(FastPng {
-            z: RowDeflate::new(out),
+            z: RowDeflate::at(buf, head),
             idat,
             row,
             blank: 0,
@@ -1646,6 +1683,50 @@ mod tests {
             assert_eq!(decode(&png), gray, "dpi {dpi}, page {kind}");
             assert!(page.ink().iter().all(|&x| x == 0), "left blank");
         }
+    }
+
+    /// A page's fast PNG written over a buffer given back ([`reuse_png_buffer`]) is the
+    /// one written into a new buffer, whatever the old buffer holds and however long it
+    /// is (shorter than the PNG's header, than the PNG, or longer), drawn whole or band
+    /// by band; the buffer is taken (the thread keeps no other).
+    #[test]
+    fn a_reused_buffer_makes_the_same_png() {
+        let (w, h, dpi) = (1250u32, 833u32, 300.0);
+        let mut page = RasterPage::new(w, h, dpi).unwrap();
+        draw(&sample(), &mut page);
+        let want = page.take_png(PngCompression::Fast).unwrap();
+        assert!(want.len() > 1000, "a page with ink");
+        let dl = sample();
+        for len in [
+            0,
+            10,
+            57,
+            want.len() / 2,
+            want.len() - 1,
+            want.len() + 999,
+            3 * want.len(),
+        ] {
+            for banded in [false, true] {
+                let mut old = Vec::with_capacity(SPARE_LEAST);
+                old.resize(len, 0xa5);
+                reuse_png_buffer(old);
+                assert_eq!(SPARE.with_borrow(Vec::len), 1, "kept");
+                let got = if banded {
+                    page.render_png(&dl, PngCompression::Fast).unwrap().0
+                } else {
+                    draw(&dl, &mut page);
+                    page.take_png(PngCompression::Fast).unwrap()
+                };
+                assert!(
+                    got == want,
+                    "over {len} bytes (banded: {banded}): PNGs differ"
+                );
+                assert_eq!(SPARE.with_borrow(Vec::len), 0, "taken");
+            }
+        }
+        // Small buffers are not kept.
+        reuse_png_buffer(vec![1; 100]);
+        assert_eq!(SPARE.with_borrow(Vec::len), 0, "a small buffer kept");
     }
 
     /// fdeflate's zlib stream of a `w × h` gray image, every row filtered Up: what the

@@ -18,7 +18,7 @@
 //!   written as symbols without a branch on their bytes (a word's run of zeros one
 //!   symbol, its 8 bytes widened in one unpack and stored as literal symbols of which
 //!   those up to its trailing zeros are kept), since on anti-aliased ink the branches per word and per byte of
-//!   `fdeflate`'s loop are mispredicted; the row's symbols are then coded eight at a
+//!   `fdeflate`'s loop are mispredicted; the row's symbols are then coded sixteen at a
 //!   time from one table, so a word's bits cost what its run and its few literals do.
 //!   A page's Up-filtered row is not even stored ([`RowDeflate::up_row`]): the words
 //!   that meet the ink marks of the row and the row above are filtered eight bytes at
@@ -462,7 +462,7 @@ impl Bits {
         // matches — fewer than one per 32 words of zeros — and its rest), a padding run and
         // 8 literals, then the row's last run, its rest and padding, and the 9 symbols a
         // word's stores reach past its own.
-        let room = 12 * n + 64;
+        let room = 12 * n + 72;
         if syms.len() < room {
             syms.resize(room, 0);
         }
@@ -490,41 +490,41 @@ impl Bits {
             p + 1
         };
         // The rest, each byte a literal (zeros too), then runs of none up to a multiple of
-        // eight symbols; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
-        let win: &mut [u16; 15] = (&mut syms[p..p + 15]).try_into().expect("room");
+        // sixteen symbols; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
+        let win: &mut [u16; 23] = (&mut syms[p..p + 23]).try_into().expect("room");
         win[..8].copy_from_slice(&literals(rest));
         p += t;
-        syms[p..p + 7].fill(RUN);
+        syms[p..p + 15].fill(RUN);
         let (sum, weighted) = word_sums(rest);
         a += sum;
         b += weighted - (8 - t as u64) * sum;
         (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
-        // Then the symbols coded, eight at a time in four `put`s (two codes that can follow
-        // each other fit one), with one room check: each store is at most 7 bytes after
-        // the one before (the offsets masked to what they can be). Room for the row's bits:
-        // at most 12 a byte (a literal's; a run of zeros takes fewer), the bits pending
-        // and the 40 bytes the stores reach.
-        let room = self.pos + 2 * len + 64 + 40;
+        // Then the symbols coded, sixteen at a time in eight `put`s (two codes that can
+        // follow each other fit one), with one room check: each store is at most 7 bytes
+        // after the one before (the offsets masked to what they can be). Room for the
+        // row's bits: at most 12 a byte (a literal's; a run of zeros takes fewer), the bits
+        // pending and the 72 bytes the stores reach.
+        let room = self.pos + 2 * len + 64 + 72;
         if self.out.len() < room {
             self.out.resize(room.max(self.pos + (1 << 16)), 0);
         }
         let (out, tab) = (&mut self.out[..], &f.sym);
         let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
-        for g in syms[..8 * p.div_ceil(8)].chunks_exact(8) {
-            let g: &[u16; 8] = g.try_into().expect("8 symbols");
+        for g in syms[..16 * p.div_ceil(16)].chunks_exact(16) {
+            let g: &[u16; 16] = g.try_into().expect("16 symbols");
             let e = |k: usize| {
                 let s = usize::from(g[k]);
                 (tab[s], tab[(1 << 16) + s] as u32)
             };
-            let win: &mut [u8; 40] = (&mut out[pos..pos + 40]).try_into().expect("room");
+            let win: &mut [u8; 72] = (&mut out[pos..pos + 72]).try_into().expect("room");
             let mut o = 0;
-            for h in 0..4 {
+            for h in 0..8 {
                 let ((c0, l0), (c1, l1)) = (e(2 * h), e(2 * h + 1));
                 let bits = c0 | c1 << l0;
                 let x = acc | bits << nb;
                 let k = nb + l0 + l1;
                 win[o..o + 8].copy_from_slice(&x.to_le_bytes());
-                o = (o + (k / 8) as usize) & 31;
+                o = (o + (k / 8) as usize) & 63;
                 acc = x >> (k & 0x38);
                 nb = k & 7;
             }
@@ -752,10 +752,28 @@ pub(crate) struct RowDeflate {
 
 impl RowDeflate {
     /// A stream appended to `out`.
-    pub(crate) fn new(mut out: Vec<u8>) -> RowDeflate {
+    #[cfg(test)]
+    pub(crate) fn new(out: Vec<u8>) -> RowDeflate {
+        let pos = out.len();
+        RowDeflate::at(out, pos)
+    }
+
+    /// A stream written into `out` from byte `pos ≤ out.len()` on: the bytes from `pos`
+    /// on are only room to write into, whatever they hold (a buffer of an earlier page,
+    /// not zeroed again), and [`RowDeflate::finish`] gives `out` cut after the stream.
+    pub(crate) fn at(mut out: Vec<u8>, pos: usize) -> RowDeflate {
         let f = Format::get();
-        out.extend_from_slice(&f.header);
-        let mut bits = Bits::new(out);
+        let end = pos + f.header.len();
+        if out.len() < end {
+            out.resize(end, 0);
+        }
+        out[pos..end].copy_from_slice(&f.header);
+        let mut bits = Bits {
+            out,
+            pos: end,
+            acc: 0,
+            n: 0,
+        };
         bits.put(f.header_bits.0, f.header_bits.1);
         RowDeflate {
             f,
