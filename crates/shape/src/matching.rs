@@ -276,12 +276,6 @@ const RANK_ITERATIONS: usize = 30;
 /// An open target's candidates (best by coarse distance) that also get the exact fit's
 /// own robust start.
 const ROBUST_OPEN: usize = 64;
-/// Iterations of an open candidate's heat: the first iterations of its ranking fit (the
-/// same fit from the same start, stopped early), run on every open candidate.
-const HEAT_ITERATIONS: usize = 8;
-/// Open candidates of each reflection that go on from the heat (best by its RMS error)
-/// to the whole ranking fit; the others keep their heat's error.
-const HEAT_KEEP: usize = 128;
 
 /// Ranked matches of `target` among `curves` (with their shape codes, in the same order;
 /// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
@@ -410,45 +404,6 @@ pub fn rank_candidates(
     });
     candidates.dedup_by(|a, b| a.curve.id == b.curve.id && a.reflected == b.reflected);
     keep_each_reflection(&mut candidates, options.kept(target), |c| c.reflected);
-    let p = target.complex_points();
-    // An open target's candidates first get a heat: the first `HEAT_ITERATIONS` of their
-    // ranking fit (the same fit stopped early). Only the best `HEAT_KEEP` of each
-    // reflection by its error get the whole ranking fit; the others are ranked by their
-    // heat's error.
-    let mut heat: Vec<Option<Option<f64>>> = vec![None; candidates.len()];
-    if candidates.iter().any(|c| c.start.is_some()) {
-        // (An untimed fit does not read `allow_mirror`: the start says the reflection.)
-        let heat_options = FitOptions {
-            max_iterations: HEAT_ITERATIONS,
-            ..options.fit
-        };
-        let errors: Vec<Option<f64>> = candidates
-            .par_iter()
-            .map(|c| {
-                c.start
-                    .as_ref()
-                    .and_then(|s| fit_untimed(&p, &c.curve.curve, s, &heat_options))
-                    .map(|f| f.rms)
-            })
-            .collect();
-        let mut order: Vec<usize> = (0..candidates.len()).collect();
-        let key = |i: usize| errors[i].unwrap_or(f64::INFINITY);
-        order.sort_by(|&a, &b| {
-            key(a)
-                .total_cmp(&key(b))
-                .then(candidates[a].coarse.total_cmp(&candidates[b].coarse))
-                .then(candidates[a].curve.id.cmp(&candidates[b].curve.id))
-                .then(candidates[a].reflected.cmp(&candidates[b].reflected))
-        });
-        let mut count = [0usize; 2];
-        for i in order {
-            let k = &mut count[usize::from(candidates[i].reflected)];
-            *k += 1;
-            if *k > HEAT_KEEP {
-                heat[i] = Some(errors[i]);
-            }
-        }
-    }
     // Each candidate's place among those of its reflection: the robust starts go to the
     // best of each.
     let place: Vec<usize> = {
@@ -484,6 +439,7 @@ pub fn rank_candidates(
         max_iterations: RANK_ITERATIONS,
         ..options_of(c)
     };
+    let p = target.complex_points();
     // Every candidate gets a quick fit: closed targets on at most RANK_POINTS of the
     // target's points, open ones from their start on every point (the starts are per
     // point); the best few get the full fit. Candidates are fitted in parallel (on the
@@ -520,17 +476,15 @@ pub fn rank_candidates(
             _ => None,
         };
         let f = match &c.start {
-            Some(_) if heat[i].is_some() => None,
             Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_of(c)),
             None => traced
                 .insert(traced_of(c))
                 .as_ref()
                 .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_of(c))),
         };
-        let f = f.map(|f| f.rms).or(heat[i].flatten());
         let quick = match (f, &robust) {
-            (Some(f), Some(r)) => Some(f.min(r.rms)),
-            (Some(f), None) => Some(f),
+            (Some(f), Some(r)) => Some(f.rms.min(r.rms)),
+            (Some(f), None) => Some(f.rms),
             (None, Some(r)) => Some(r.rms),
             (None, None) => None,
         };
