@@ -40,6 +40,11 @@ const TIMED_QUERY_POINTS: usize = 32;
 const REESTIMATIONS: usize = 5;
 /// Projection steps of stage 1b (untimed), on every curve.
 const PROJECTIONS: usize = 10;
+/// Projection steps every window of stage 1b gets; then only the best
+/// [`PROJECTION_KEEP`] of each reflection of a coupler point go on to `PROJECTIONS`.
+const PROJECTION_HEAT: usize = 3;
+/// Windows of each coupler point and reflection projected to the end.
+const PROJECTION_KEEP: usize = 2;
 
 /// One linkage on one circuit at 1° crank steps over its period (360° for a four-bar,
 /// `360°·q` for a geared five-bar of ratio p/q): crank pin and coupler direction, each
@@ -740,14 +745,26 @@ impl OpenQuery {
     /// coupler's speed along its curve is far from even, so the source's misfit there is
     /// dominated by that timing error (a slide along the curve), not by its shape. This
     /// removes most of it at `O(M)` a step, cheap enough for every curve of the atlas.
-    fn project(&self, table: &Table, w: C64, hyp: &mut Hypothesis, buf: &mut Projection) {
-        if !matches!(self.layout, Layout::Untimed) || hyp.theta.is_empty() {
-            return;
+    ///
+    /// At most `steps` steps; `true` when it has settled (a step no longer lowered the
+    /// misfit, or there is nothing to do). A run of `a` steps resumed with `b` more takes
+    /// the same steps as one run of `a + b`, bit for bit (the sums are made again from the
+    /// same angles, in the same order).
+    fn project(
+        &self,
+        table: &Table,
+        w: C64,
+        hyp: &mut Hypothesis,
+        buf: &mut Projection,
+        steps: usize,
+    ) -> bool {
+        if !matches!(self.layout, Layout::Untimed) || hyp.theta.is_empty() || steps == 0 {
+            return true;
         }
         if hyp.mirror {
-            self.project_with::<true>(table, w, hyp, buf);
+            self.project_with::<true>(table, w, hyp, buf, steps)
         } else {
-            self.project_with::<false>(table, w, hyp, buf);
+            self.project_with::<false>(table, w, hyp, buf, steps)
         }
     }
 
@@ -760,8 +777,10 @@ impl OpenQuery {
         w: C64,
         hyp: &mut Hypothesis,
         buf: &mut Projection,
-    ) {
+        steps: usize,
+    ) -> bool {
         let v = usize::from(MIRROR);
+        let mut settled = false;
         let limit = (hyp.span / 8.0).max(2.0);
         let mut theta = std::mem::take(&mut hyp.theta);
         let Projection { next, at, trial_at } = buf;
@@ -776,7 +795,7 @@ impl OpenQuery {
         trial_at.extend_from_slice(at);
         let y = &self.y;
         let mut s = Sums::accumulate::<MIRROR>(at.iter().map(|&(p, e, _, _)| (p, e)), y);
-        for _ in 0..PROJECTIONS {
+        for _ in 0..steps {
             let (_, alpha) = s.at_point(v, w);
             let gamma = -alpha * (s.sp + w * s.se) / s.m;
             for (((t, n), &(p, e, dp, de)), &yj) in
@@ -800,6 +819,7 @@ impl OpenQuery {
             let trial = Sums::accumulate::<MIRROR>(moved, y);
             let misfit = trial.at_point(v, w).0;
             if misfit.partial_cmp(&hyp.misfit) != Some(std::cmp::Ordering::Less) {
+                settled = true;
                 break;
             }
             hyp.misfit = misfit;
@@ -808,6 +828,7 @@ impl OpenQuery {
             std::mem::swap(at, trial_at);
         }
         hyp.theta = theta;
+        settled
     }
 
     /// Stage 2 for one coupler point `w`: re-estimated angles (untimed) or polished start
@@ -1222,13 +1243,29 @@ pub(crate) fn open_stage1(
             // Each reflection's best window after the projection: a curve goes on once
             // per reflection, so its unreflected hypothesis is the one a query without
             // reflection keeps.
-            let hs: Vec<Hypothesis> = hs
-                .into_iter()
-                .map(|mut h| {
-                    query.project(&table, pts[k], &mut h, &mut buf);
-                    h
-                })
+            // Every window gets the first `PROJECTION_HEAT` steps; the best
+            // `PROJECTION_KEEP` of each reflection (by their misfit then) the rest, those
+            // that have not settled (stopped falling) yet: the same steps as in one run (a run resumes from its
+            // angles and misfit, and the sums are made again from the same angles).
+            let mut hs = hs;
+            let settled: Vec<bool> = hs
+                .iter_mut()
+                .map(|h| query.project(&table, pts[k], h, &mut buf, PROJECTION_HEAT))
                 .collect();
+            for mirror in [false, true] {
+                let mut order: Vec<usize> =
+                    (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
+                order.sort_by(|&a, &b| hs[a].misfit.total_cmp(&hs[b].misfit));
+                for &i in order.iter().take(PROJECTION_KEEP).filter(|&&i| !settled[i]) {
+                    query.project(
+                        &table,
+                        pts[k],
+                        &mut hs[i],
+                        &mut buf,
+                        PROJECTIONS - PROJECTION_HEAT,
+                    );
+                }
+            }
             for mirror in [false, true] {
                 let Some(h) = hs
                     .iter()
