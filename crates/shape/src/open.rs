@@ -1245,8 +1245,9 @@ pub(crate) fn open_stage1(
             // reflection keeps.
             // Every window gets the first `PROJECTION_HEAT` steps; the best
             // `PROJECTION_KEEP` of each reflection (by their misfit then) the rest, those
-            // that have not settled (stopped falling) yet: the same steps as in one run (a run resumes from its
-            // angles and misfit, and the sums are made again from the same angles).
+            // that have not settled (stopped falling) yet: the same steps as in one run
+            // (a run resumes from its angles and misfit, and the sums are made again from
+            // the same angles; tested by `a_resumed_projection_is_one_run`).
             let mut hs = hs;
             let settled: Vec<bool> = hs
                 .iter_mut()
@@ -1717,6 +1718,55 @@ mod mirror {
             );
             assert_eq!(b.len() - unreflected.len(), p.len());
         }
+    }
+
+    /// The staged projection's premise: `PROJECTION_HEAT` steps resumed with the rest
+    /// take the same steps as one run of `PROJECTIONS`, bit for bit (misfit and every
+    /// angle), for every window the scan proposes on several linkages, both reflections.
+    #[test]
+    fn a_resumed_projection_is_one_run() {
+        let curves = atlas();
+        let groups = linkage_groups(&curves);
+        let mut buf = Projection::default();
+        let mut windows = 0;
+        let mut moved = 0;
+        for case in retrieval_cases(&curves, false, 29, 3) {
+            let q = OpenQuery::new(&case.target, true).unwrap();
+            for g in groups.iter().step_by(7) {
+                let c = &curves[g.start].curve;
+                let Some(table) = Table::new(&c.linkage, c.circuit) else {
+                    continue;
+                };
+                let pts: Vec<C64> = g.clone().map(|k| w_of(&curves[k])).collect();
+                for (k, hs) in q.scan(&table, &pts).into_iter().enumerate() {
+                    for h in hs {
+                        let (mut one, mut staged) = (h.clone(), h.clone());
+                        q.project(&table, pts[k], &mut one, &mut buf, PROJECTIONS);
+                        if !q.project(&table, pts[k], &mut staged, &mut buf, PROJECTION_HEAT) {
+                            q.project(
+                                &table,
+                                pts[k],
+                                &mut staged,
+                                &mut buf,
+                                PROJECTIONS - PROJECTION_HEAT,
+                            );
+                        }
+                        let angles = |h: &Hypothesis| -> Vec<u64> {
+                            h.theta.iter().map(|t| t.to_bits()).collect()
+                        };
+                        assert_eq!(one.misfit.to_bits(), staged.misfit.to_bits());
+                        assert_eq!(angles(&one), angles(&staged));
+                        windows += 1;
+                        moved += usize::from(angles(&one) != angles(&h));
+                    }
+                }
+            }
+        }
+        // Not vacuous: many windows, and most of them moved by the projection.
+        assert!(
+            windows > 100 && 2 * moved > windows,
+            "{windows} windows, {moved} moved"
+        );
     }
 }
 
