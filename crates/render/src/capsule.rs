@@ -20,6 +20,7 @@
 
 use crate::dirty::{BLOCK, Dirty};
 use crate::layer::GrayLayer;
+use crate::pixel::{div255, narrow, widen};
 use coupler_layout::Ink;
 use wide::{f32x4, i16x8, i32x8, u8x16, u16x8};
 
@@ -1053,29 +1054,6 @@ impl Edge {
         let last = from + 4 * at + 32 - lanes.leading_zeros() as usize;
         (first != usize::MAX).then_some((first as u32, last as u32))
     }
-}
-
-/// `x / 255` in lanes, for every 16-bit `x`: `(x · 0x8081) >> 23` (tested for all).
-#[inline(always)]
-pub(crate) fn div255(x: u16x8) -> u16x8 {
-    x.mul_keep_high(u16x8::splat(0x8081))
-        .unbounded_shr_scalar(7)
-}
-
-/// Eight bytes in 16-bit lanes.
-#[inline(always)]
-pub(crate) fn widen(b: &[u8]) -> u16x8 {
-    let mut a = [0u8; 16];
-    a[..8].copy_from_slice(&b[..8]);
-    u16x8::from_u8x16_low(u8x16::new(a))
-}
-
-/// [`widen`]'s inverse: eight 16-bit lanes, each at most 255, stored as bytes into
-/// `b[..8]` (one saturating pack, the same values).
-#[inline(always)]
-pub(crate) fn narrow(v: u16x8, b: &mut [u8]) {
-    let v = i16x8::new(v.to_array().map(|x| x as i16));
-    b[..8].copy_from_slice(&u8x16::narrow_i16x8(v, i16x8::ZERO).to_array()[..8]);
 }
 
 /// Composites coverage `cov` of `ink` over `dst` and clears `cov`: `composite` of

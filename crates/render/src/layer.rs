@@ -7,9 +7,8 @@
 //! that holds coverage, so a layer costs memory and compositing time only where there is
 //! gray (a page-sized layer was 16.8 MB per worker at 300 dpi).
 
-use crate::capsule::{div255, narrow, widen};
 use crate::dirty::BLOCK;
-use crate::raster::overprint;
+use crate::pixel::{div255, narrow, overprint, widen};
 use wide::u16x8;
 
 /// Tile side, pixels.

@@ -17,6 +17,7 @@ mod diff;
 mod dirty;
 mod layer;
 mod pdf;
+mod pixel;
 mod raster;
 mod rowdeflate;
 mod svg;

@@ -5,6 +5,7 @@ use super::{Canvas, anchored_x};
 use crate::capsule::{Capsules, Target};
 use crate::dirty::Dirty;
 use crate::layer::GrayLayer;
+use crate::pixel::overprint;
 use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
@@ -656,14 +657,6 @@ fn composite_row(dst: &mut [u8], cov: &[u8], ink: Ink) {
         }
         ink => crate::layer::overprint_span(dst, cov, ink.level()),
     }
-}
-
-/// Ink of level `g` (0..=255) with coverage `c` over the page's ink `dst`: `dst` when
-/// `c` is 0.
-#[inline(always)]
-pub(crate) fn overprint(dst: u8, c: u8, g: u32) -> u8 {
-    let (d, c) = (u32::from(dst), u32::from(c));
-    (d + ((255 - d) * c * g + 32_512) / 65_025) as u8
 }
 
 /// `x ← 255 − x` over a buffer (vectorises).
