@@ -1116,9 +1116,7 @@ mod tests {
     /// The tests' seeded random numbers: xorshift64 (13, 7, 17) from `seed`.
     fn xorshift(mut seed: u64) -> impl FnMut() -> u64 {
         move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             seed
         }
     }
@@ -1854,9 +1852,7 @@ mod tests {
     fn rings_in_lanes_are_their_pixels() {
         let mut seed = 0x51f1_5eed_2545_f491u64;
         let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             (seed >> 40) as f32 / (1u64 << 24) as f32
         };
         let pixels = |row: &mut [u8], x0: usize, x1: usize, g: Ring| {

@@ -282,9 +282,7 @@ mod tests {
     fn row_blocks_are_the_blocks_one_by_one() {
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             seed
         };
         for width in [0, 1, 8, 9, 500, 512, 513, 1100, 1536, 2550] {
@@ -324,9 +322,7 @@ mod tests {
     fn boxes_mark_their_blocks_row_by_row() {
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
         let mut rand = |n: usize| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             (seed >> 33) as usize % n
         };
         for &(w, h) in &[(3300, 70), (512, 9), (513, 9), (10, 4), (1100, 30)] {

@@ -320,9 +320,7 @@ mod tests {
         let (w, h) = (203, 150);
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut rand = |n: usize| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             (seed >> 33) as usize % n
         };
         let mut page: Vec<u8> = (0..w * h).map(|_| rand(256) as u8).collect();
@@ -363,9 +361,7 @@ mod tests {
     fn blocks_merge_as_their_runs() {
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
         let mut rand = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             seed
         };
         for (w, h, extra) in [(1100usize, 150usize, 0usize), (203, 70, 0), (1100, 70, 29)] {

@@ -153,3 +153,12 @@ fn num(x: f64) -> String {
         s.to_string()
     }
 }
+
+/// The tests' random numbers: one step of Marsaglia's xorshift64 (13, 7, 17).
+#[cfg(test)]
+pub(crate) fn xorshift(mut x: u64) -> u64 {
+    x ^= x << 13;
+    x ^= x >> 7;
+    x ^= x << 17;
+    x
+}

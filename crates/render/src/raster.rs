@@ -1485,9 +1485,7 @@ mod tests {
     fn rect_rows_remembered_are_each_blended() {
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             seed
         };
         let stride = 40;

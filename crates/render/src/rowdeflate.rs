@@ -964,9 +964,7 @@ mod tests {
     fn adler_is_the_checksum_of_the_bytes() {
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut rand = |n: u64| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
+            seed = crate::xorshift(seed);
             seed % n
         };
         for _ in 0..200 {
