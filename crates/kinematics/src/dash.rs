@@ -399,13 +399,19 @@ fn dash_curve_with<M: Mechanism>(
     let count = pattern.count() * turns;
     let mut dashes = Vec::with_capacity(count);
     let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+    // Each dash's samples are gathered in one buffer for the whole curve, then copied
+    // into a list of their exact length (one allocation a dash, none grown sample by
+    // sample).
+    let mut samples = Vec::new();
     for k in 0..count {
         let (t0, t1) = pattern.interval(k);
         let base = k * DASH_SLOTS;
         let p0 = s.at_slot(Some(base), t0)?;
         let p1 = s.at_slot(Some(base + CACHED_NODES), t1)?;
-        let mut points = vec![p0];
-        s.refine(t0, p0, t1, p1, tolerance, 0, Some((base, 1)), &mut points)?;
+        samples.clear();
+        samples.push(p0);
+        s.refine(t0, p0, t1, p1, tolerance, 0, Some((base, 1)), &mut samples)?;
+        let points = samples.clone();
         for p in &points {
             bbox = [
                 bbox[0].min(p.x),
@@ -828,6 +834,65 @@ mod tests {
     /// every `f64`, sign of zero included), on four-bars and geared five-bars (a period of
     /// two turns among them), points near and far, tolerances that bisect past the
     /// cached depth; and the first point's error where one does not assemble.
+    /// A curve's dashes, their samples gathered in one buffer and copied out, are each
+    /// dash sampled on its own into a fresh list (as every dash was before): the same
+    /// points to the bit, on four-bars and a geared five-bar, both circuits, tolerances
+    /// from coarse (a few samples a dash) to fine (bisected deep), alone and together.
+    #[test]
+    fn dashes_gathered_in_one_buffer_are_each_sampled_alone() {
+        use crate::geared::{GearRatio, GearedFiveBar};
+        use crate::mechanism::Linkage;
+        let linkages = [
+            Linkage::FourBar(FourBar::new(3.0, 2.0, 3.0).unwrap()),
+            Linkage::FourBar(FourBar::new(2.5, 3.5, 3.0).unwrap()),
+            Linkage::GearedFiveBar(
+                GearedFiveBar::new(2.5, 2.2, 2.4, 0.8, GearRatio::new(3, 2).unwrap(), 30.0)
+                    .unwrap(),
+            ),
+        ];
+        let pat = DashPattern::default();
+        let (mut dashes, mut longest) = (0, 0);
+        for l in &linkages {
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                for tol in [3e-2, 1e-3, 1e-6] {
+                    let points = [
+                        CouplerPoint::new(1.5, 1.0),
+                        CouplerPoint::new(-0.5, 2.0),
+                        CouplerPoint::new(2.5, -1.5),
+                    ];
+                    let Ok(together) = dash_curves(l, circuit, &points, &pat, tol) else {
+                        continue;
+                    };
+                    for (c, &point) in together.iter().zip(&points) {
+                        let s = Sampler {
+                            linkage: l,
+                            constants: l.constants(),
+                            circuit,
+                            point,
+                            warp: &|t| t,
+                            frames: None,
+                        };
+                        let alone = dash_curve(l, circuit, point, &pat, tol).unwrap();
+                        assert_eq!(format!("{c:?}"), format!("{alone:?}"));
+                        for d in &c.dashes {
+                            let (t0, t1) = (d.theta_start, d.theta_end);
+                            let (p0, p1) = (s.at(t0).unwrap(), s.at(t1).unwrap());
+                            let mut own = vec![p0];
+                            s.refine(t0, p0, t1, p1, tol, 0, None, &mut own).unwrap();
+                            assert_eq!(format!("{:?}", d.points), format!("{own:?}"));
+                            dashes += 1;
+                            longest = longest.max(own.len());
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            dashes > 1000 && longest > 65,
+            "{dashes} dashes, {longest} samples"
+        );
+    }
+
     #[test]
     fn curves_dashed_together_are_each_dashed_alone() {
         use crate::geared::{GearRatio, GearedFiveBar};

@@ -783,7 +783,7 @@ pub fn layout_page<M: Mechanism>(
     let mut bboxes = vec![EMPTY; geometry.curves.len()];
     for pass_ghost in [true, false] {
         let mut visible = 0usize;
-        for (i, (c, dashes)) in geometry.curves.iter().zip(&page_curves).enumerate() {
+        for (i, (c, dashes)) in geometry.curves.iter().zip(&mut page_curves).enumerate() {
             if !ghost[i] {
                 visible += 1;
             }
@@ -795,6 +795,9 @@ pub fn layout_page<M: Mechanism>(
             } else {
                 CURVE_STYLES[(visible - 1) % CURVE_STYLES.len()]
             };
+            // (Each curve is drawn once, in one of the two passes: its page points are
+            // moved into the display list.)
+            let dashes = std::mem::take(dashes);
             bboxes[i] = draw_dashes(&mut dl, &t, &c.dashes, dashes, Some(0), &st, step, 0);
         }
     }

@@ -565,7 +565,7 @@ pub fn layout_classic(
                 &mut dl,
                 &t,
                 &leg.dashes,
-                &pts,
+                pts,
                 bold,
                 &CurveStyle::BLACK,
                 step,

@@ -986,7 +986,8 @@ pub(crate) fn is_quarter_dash(k: i64, step_deg: f64) -> bool {
     k > 0 && (a / 90.0).ceil() * 90.0 < a + step_deg - 1e-9
 }
 
-/// Draws dashes (`pts`: each dash's polyline already on the page) in `st`: the dash at
+/// Draws dashes (`pts`: each dash's polyline already on the page, moved into the display
+/// list's primitives, not copied) in `st`: the dash at
 /// `bold` bold, every quarter dash (by [`is_quarter_dash`] with `step_deg`, counted from
 /// `index0`) heavy, the others as one primitive; a dash shorter than a point becomes a
 /// dot at its midpoint (so a dash shrunk at a cusp still counts). Returns the ink's box.
@@ -995,7 +996,7 @@ pub(crate) fn draw_dashes(
     dl: &mut DisplayList,
     t: &WorldToPage,
     dashes: &[coupler_kinematics::Dash],
-    pts: &[Vec<PagePoint>],
+    pts: Vec<Vec<PagePoint>>,
     bold: Option<usize>,
     st: &CurveStyle,
     step_deg: f64,
@@ -1034,14 +1035,7 @@ pub(crate) fn draw_dashes(
             dl.circle(p, r, None);
             bbox = union(bbox, [p[0] - r, p[1] - r, p[0] + r, p[1] + r]);
         } else {
-            if is_bold {
-                dl.line(pts.clone(), wdt);
-            } else if is_heavy {
-                heavy.push(pts.clone());
-            } else {
-                regular.push(pts.clone());
-            }
-            for p in pts {
+            for p in &pts {
                 bbox = union(
                     bbox,
                     [
@@ -1051,6 +1045,13 @@ pub(crate) fn draw_dashes(
                         p[1] + 0.5 * wdt,
                     ],
                 );
+            }
+            if is_bold {
+                dl.line(pts, wdt);
+            } else if is_heavy {
+                heavy.push(pts);
+            } else {
+                regular.push(pts);
             }
         }
     }
@@ -1604,6 +1605,162 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// [`draw_dashes`] as it was before the dashes' page points were moved into the
+    /// display list: each polyline copied from the caller's.
+    #[allow(clippy::too_many_arguments)]
+    fn draw_dashes_copying(
+        dl: &mut DisplayList,
+        t: &WorldToPage,
+        dashes: &[coupler_kinematics::Dash],
+        pts: &[Vec<PagePoint>],
+        bold: Option<usize>,
+        st: &CurveStyle,
+        step_deg: f64,
+        index0: i64,
+    ) -> [f64; 4] {
+        let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
+        dl.ink(st.ink);
+        let mut regular: Vec<Vec<PagePoint>> = Vec::with_capacity(dashes.len());
+        let mut heavy: Vec<Vec<PagePoint>> = Vec::new();
+        for (k, (d, pts)) in dashes.iter().zip(pts).enumerate() {
+            let is_bold = bold == Some(k);
+            let is_heavy =
+                !is_bold && st.heavy > st.width && is_quarter_dash(d.index - index0, step_deg);
+            let len: f64 = pts
+                .windows(2)
+                .map(|s| libm::hypot(s[1][0] - s[0][0], s[1][1] - s[0][1]))
+                .sum();
+            let wdt = if is_bold {
+                st.bold
+            } else if is_heavy {
+                st.heavy
+            } else {
+                st.width
+            };
+            if len < style::MIN_DASH_LENGTH {
+                let mp = d.midpoint();
+                let p = t.map(mp.x, mp.y);
+                let r = if is_bold {
+                    style::START_DOT_RADIUS
+                } else {
+                    style::DOT_RADIUS.max(0.5 * wdt)
+                };
+                dl.circle(p, r, None);
+                bbox = union(bbox, [p[0] - r, p[1] - r, p[0] + r, p[1] + r]);
+            } else {
+                if is_bold {
+                    dl.line(pts.clone(), wdt);
+                } else if is_heavy {
+                    heavy.push(pts.clone());
+                } else {
+                    regular.push(pts.clone());
+                }
+                for p in pts {
+                    bbox = union(
+                        bbox,
+                        [
+                            p[0] - 0.5 * wdt,
+                            p[1] - 0.5 * wdt,
+                            p[0] + 0.5 * wdt,
+                            p[1] + 0.5 * wdt,
+                        ],
+                    );
+                }
+            }
+        }
+        dl.items.push(Primitive::Polylines {
+            lines: regular,
+            width: st.width,
+        });
+        if !heavy.is_empty() {
+            dl.items.push(Primitive::Polylines {
+                lines: heavy,
+                width: st.heavy,
+            });
+        }
+        dl.ink(Ink::Black);
+        bbox
+    }
+
+    /// Dashes whose page points are moved into the display list draw what copying them
+    /// drew: the same primitives in the same order, the same box, to the bit. Random
+    /// curves of 1–40 dashes (some shorter than a point, so drawn as dots), a bold dash
+    /// or none, styles with and without heavy quarter dashes, two dash steps and offsets.
+    #[test]
+    fn dashes_moved_draw_what_dashes_copied_drew() {
+        use coupler_kinematics::Dash;
+        use nalgebra::Point2;
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let t = WorldToPage {
+            scale: 37.5,
+            origin: [300.0, 500.0],
+        };
+        let styles = [
+            CurveStyle::BLACK,
+            CurveStyle {
+                ink: Ink::Gray(128),
+                width: 0.6,
+                heavy: 0.6,
+                bold: 1.4,
+            },
+        ];
+        let (mut dots, mut lines) = (0, 0);
+        for case in 0..400 {
+            let count = 1 + (next() * 40.0) as usize;
+            let step = if case % 2 == 0 { 10.0 } else { 5.0 };
+            let index0 = (case % 3) as i64;
+            let mut dashes = Vec::new();
+            for k in 0..count {
+                // A dash's size in world units: a few in twenty well under a point.
+                let size = if next() < 0.15 { 0.004 } else { 0.5 };
+                let (x, y) = (4.0 * next() - 2.0, 4.0 * next() - 2.0);
+                let points: Vec<Point2<f64>> = (0..1 + (next() * 9.0) as usize)
+                    .map(|_| Point2::new(x + size * next(), y + size * next()))
+                    .collect();
+                dashes.push(Dash {
+                    index: k as i64 + index0,
+                    theta_start: k as f64 * step,
+                    theta_end: (k as f64 + 0.6) * step,
+                    points,
+                });
+            }
+            let pts: Vec<Vec<PagePoint>> = dashes
+                .iter()
+                .map(|d| d.points.iter().map(|p| t.map(p.x, p.y)).collect())
+                .collect();
+            let bold = match case % 3 {
+                0 => None,
+                1 => Some(0),
+                _ => Some((next() * count as f64) as usize),
+            };
+            let st = styles[case % 2];
+            let mut want = DisplayList::new(792.0, 1224.0);
+            let want_box =
+                draw_dashes_copying(&mut want, &t, &dashes, &pts, bold, &st, step, index0);
+            let mut got = DisplayList::new(792.0, 1224.0);
+            let got_box = draw_dashes(&mut got, &t, &dashes, pts, bold, &st, step, index0);
+            assert_eq!(
+                format!("{got:?} {got_box:?}"),
+                format!("{want:?} {want_box:?}")
+            );
+            for item in &want.items {
+                match item {
+                    Primitive::Circle { .. } => dots += 1,
+                    Primitive::Polylines { lines: l, .. } => lines += l.len(),
+                    _ => {}
+                }
+            }
+        }
+        // Both kinds of dash were drawn, many times.
+        assert!(dots > 500 && lines > 3000, "{dots} dots, {lines} lines");
     }
 
     #[test]
