@@ -215,6 +215,21 @@ impl Staged {
         &self.entry.name
     }
 
+    /// Where it is written until it is put in place (its temporary name's full path).
+    pub(crate) fn staged_path(&self) -> &Path {
+        self.file.temporary_path()
+    }
+
+    /// Makes it durable under its temporary name (fsync): then putting it in place needs
+    /// only its folder made durable ([`sync_folders`]). Quick when it was already made
+    /// durable, as the run does for the contents while the groups are computed.
+    pub(crate) fn sync(&self) -> Result<(), GenerateError> {
+        let path = self.staged_path();
+        std::fs::File::open(path)
+            .and_then(|f| f.sync_all())
+            .map_err(io_err(path))
+    }
+
     /// Renames it into place (not yet durably, as [`write_artifact`] leaves a file).
     pub(crate) fn commit(self) -> Result<FileEntry, GenerateError> {
         let path = self.file.path().to_path_buf();
@@ -262,8 +277,18 @@ pub(crate) fn sync_files<'a>(
             .and_then(|f| f.sync_all())
             .map_err(io_err(&path))
     })?;
+    sync_folders(dir, names)
+}
+
+/// Makes the folders of files `names` of `dir` durable (fsync of each folder once): what
+/// [`sync_files`] does after the files, for files already durable under the temporary
+/// names they were renamed from.
+pub(crate) fn sync_folders<'a>(
+    dir: &Path,
+    names: impl IntoIterator<Item = &'a str>,
+) -> Result<(), GenerateError> {
     let mut folders: Vec<PathBuf> = names
-        .iter()
+        .into_iter()
         .map(|n| {
             dir.join(n)
                 .parent()
@@ -440,6 +465,11 @@ impl Temporary {
     /// The final path.
     pub(crate) fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The temporary path (where the file is until [`Temporary::commit`]).
+    pub(crate) fn temporary_path(&self) -> &Path {
+        &self.tmp
     }
 
     /// The file's buffer, for writing what need not be counted or hashed.

@@ -12,8 +12,8 @@ use crate::chunk::{self, CHUNK_GROUPS, ChunkProblem, chunk_path, read_chunk};
 use crate::error::io_err;
 use crate::files::{
     PAGES_DIR, Staged, check_out_dir, check_subfolders, hash_reader, manifest_file, open_regular,
-    read_manifest, remove_stale_temporaries, stage_artifact, sync_files, write_artifact,
-    write_file,
+    read_manifest, remove_stale_temporaries, stage_artifact, sync_files, sync_folders,
+    write_artifact, write_file,
 };
 use crate::lock::FolderLock;
 use crate::plan::{Limits, Plan};
@@ -126,7 +126,8 @@ fn format_lines(curves: &[IndexCurve]) -> std::io::Result<String> {
 
 /// Makes files `names` of `dir` durable ahead of their chunk's record, which syncs them
 /// again ([`sync_files`], where an error counts): here an error is left to that sync, and
-/// a file that is not there is neither made nor waited for.
+/// a file that is not there is neither made nor waited for. (A name may be a full path,
+/// as a staged file's temporary one is: `dir` is then not used.)
 fn sync_early(dir: &Path, names: &[String]) {
     for n in names {
         if let Ok(f) = std::fs::File::open(dir.join(n)) {
@@ -696,11 +697,23 @@ pub fn run(
                 // The atlas files that depend on the job alone (the contents pages) are
                 // the first task: drawn by one worker while the other starts on the
                 // groups, not after the last group with one worker idle.
-                let alongside = &alongside;
+                let (alongside, early_sync) = (&alongside, &early_sync);
                 scope.spawn_fifo(move |_| {
                     let made = renderer
                         .render_atlas_alongside(job)
                         .map(|r| stage_rendered(&job.out, r));
+                    // Their bytes made durable now, on the syncing thread, not all left to
+                    // the closing sync after the last group (where both cores wait on it).
+                    if let Some(staged) = &made {
+                        let paths: Vec<String> = staged
+                            .iter()
+                            .filter_map(|s| s.as_ref().ok())
+                            .map(|s| s.staged_path().to_string_lossy().into_owned())
+                            .collect();
+                        if !paths.is_empty() {
+                            let _ = early_sync.send(paths);
+                        }
+                    }
                     *alongside.lock().unwrap_or_else(PoisonError::into_inner) = made;
                 });
             }
@@ -877,6 +890,21 @@ fn assemble(
     });
     let assembled = assembled?;
     recorded?;
+    // Atlas files made alongside the groups are made durable under their temporary names
+    // before they are put in place (their bytes were synced early, so this is quick):
+    // after the renames only their folder needs a sync, not each file again (whose
+    // renamed inode would cost a journal commit of its own, two at a time).
+    let staged_durable = match &made {
+        Some(staged) => {
+            use rayon::prelude::*;
+            staged
+                .par_iter()
+                .filter_map(|s| s.as_ref().ok())
+                .try_for_each(Staged::sync)?;
+            true
+        }
+        None => false,
+    };
     let (atlas_files, failed) = match made {
         Some(staged) => write_staged(staged, ledger),
         None => write_rendered(&job.out, renderer.render_atlas(job), ledger),
@@ -887,7 +915,12 @@ fn assemble(
             dir: job.out.clone(),
         });
     }
-    sync_files(&job.out, atlas_files.iter().map(|f| f.name.as_str()))?;
+    let names = atlas_files.iter().map(|f| f.name.as_str());
+    if staged_durable {
+        sync_folders(&job.out, names)?;
+    } else {
+        sync_files(&job.out, names)?;
+    }
     files.extend(atlas_files);
     files.extend(assembled.entries());
     // The manifest is written and made durable (under its temporary name) while the
@@ -1193,6 +1226,30 @@ mod tests {
             .collect();
         left.sort();
         assert_eq!(left, ["a.png"]);
+        // A staged file synced early by its temporary name's full path (as the contents
+        // are) is put in place as it was written, and no temporary is left.
+        let staged = crate::files::stage_artifact(
+            &dir,
+            &Artifact {
+                name: "pages/c.png".into(),
+                bytes: b"page c".to_vec(),
+            },
+        )
+        .unwrap();
+        let path = staged.staged_path().to_string_lossy().into_owned();
+        assert!(Path::new(&path).is_absolute());
+        assert_eq!(std::fs::read(&path).unwrap(), b"page c");
+        assert!(!dir.join("pages/c.png").exists());
+        sync_early(Path::new("/nonexistent"), &[path]);
+        staged.sync().unwrap();
+        staged.commit().unwrap();
+        assert_eq!(std::fs::read(dir.join("pages/c.png")).unwrap(), b"page c");
+        let mut left: Vec<String> = std::fs::read_dir(dir.join(PAGES_DIR))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["a.png", "c.png"]);
         let _ = std::fs::remove_dir_all(&dir);
     }
 
