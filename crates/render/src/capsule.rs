@@ -303,7 +303,7 @@ impl Capsules {
                             [spans[0], spans[1]] = lanes_spans4(s, cy4, reach, w);
                             *from = j;
                         }
-                        let m = (j - *from) as usize;
+                        let m = (j - *from) as usize & 3;
                         let (x0, x1) = (spans[0][m] as usize, spans[1][m] as usize);
                         if x0 < x1 {
                             Edge::new(s, cy, r).measure::<true>(&mut self.row, x0, x1)
@@ -320,8 +320,10 @@ impl Capsules {
                             let w = self.row.len() as f32;
                             (*from, *spans) = (j, wide_spans4(s, cy4, reach, r - 0.5, w));
                         }
-                        let m = (j - *from) as usize;
-                        let row_spans = spans.map(|v| v[m] as usize);
+                        // Row j's lane (below 4: `& 3` only spares a bounds check),
+                        // its four bounds read in place.
+                        let m = (j - *from) as usize & 3;
+                        let row_spans = [0, 1, 2, 3].map(|i| spans[i][m] as usize);
                         seg_row_fill(k, row_spans, &mut self.row, &mut self.edges)
                     }
                     Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
