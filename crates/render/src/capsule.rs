@@ -173,8 +173,9 @@ pub(crate) struct Capsules {
     spans: Vec<(u32, u32)>,
     /// A row's edges left to measure in [`Mode::Wide`]: `(segment, from, to)`.
     edges: Vec<(u32, u32, u32)>,
-    /// Per segment in [`Mode::Wide`], its pixel spans on four rows from the first: made
-    /// four rows at a time ([`wide_spans4`], a row a lane).
+    /// Per segment in [`Mode::Wide`] and [`Mode::Lanes`], its pixel spans on four rows
+    /// from the first: made four rows at a time ([`wide_spans4`], [`lanes_spans4`], a
+    /// row a lane).
     ahead: Vec<(u32, [[u32; 4]; 4])>,
 }
 
@@ -268,11 +269,9 @@ impl Capsules {
         self.order
             .sort_unstable_by_key(|&k| segs[k as usize].rows.0);
         self.fit(t.width);
-        if r > LANES_MAX_R {
-            // No spans made ahead yet (no row is `u32::MAX` rows past another).
-            self.ahead.clear();
-            self.ahead.resize(segs.len(), (u32::MAX, [[0; 4]; 4]));
-        }
+        // No spans made ahead yet (no row is `u32::MAX` rows past another).
+        self.ahead.clear();
+        self.ahead.resize(segs.len(), (u32::MAX, [[0; 4]; 4]));
         self.active.clear();
         let mut next = 0;
         let mut j = 0u32;
@@ -294,7 +293,24 @@ impl Capsules {
                 let k = self.active[a];
                 let s = &segs[k as usize];
                 let span = match s.mode {
-                    Mode::Lanes => seg_row_lanes(s, cy, r, reach, &mut self.row),
+                    Mode::Lanes => {
+                        // The segment's conservative spans on four rows at once, from
+                        // this one.
+                        let (from, spans) = &mut self.ahead[k as usize];
+                        if !(*from <= j && j - *from < 4) {
+                            let cy4 = [0, 1, 2, 3].map(|m| (j + m) as f32 + 0.5);
+                            let w = self.row.len() as f32;
+                            [spans[0], spans[1]] = lanes_spans4(s, cy4, reach, w);
+                            *from = j;
+                        }
+                        let m = (j - *from) as usize & 3;
+                        let (x0, x1) = (spans[0][m] as usize, spans[1][m] as usize);
+                        if x0 < x1 {
+                            Edge::new(s, cy, r).measure::<true>(&mut self.row, x0, x1)
+                        } else {
+                            None
+                        }
+                    }
                     Mode::Wide => {
                         // The segment's pixel spans on four rows at once, from this
                         // one (the spans' order does not matter).
@@ -304,8 +320,10 @@ impl Capsules {
                             let w = self.row.len() as f32;
                             (*from, *spans) = (j, wide_spans4(s, cy4, reach, r - 0.5, w));
                         }
-                        let m = (j - *from) as usize;
-                        let row_spans = spans.map(|v| v[m] as usize);
+                        // Row j's lane (below 4: `& 3` only spares a bounds check),
+                        // its four bounds read in place.
+                        let m = (j - *from) as usize & 3;
+                        let row_spans = [0, 1, 2, 3].map(|i| spans[i][m] as usize);
                         seg_row_fill(k, row_spans, &mut self.row, &mut self.edges)
                     }
                     Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
@@ -893,8 +911,10 @@ fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: 
 }
 
 /// [`seg_row`] in [`Mode::Lanes`]: every pixel of a conservative span measured, four at
-/// a time; gives the span of the pixels it inked (the others it left as they were).
-#[inline]
+/// a time; gives the span of the pixels it inked (the others it left as they were). A
+/// stroke makes the spans four rows at a time ([`lanes_spans4`]); this row by row way is
+/// the tests' reference.
+#[cfg(test)]
 fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32, u32)> {
     let (lo, hi) = s.reach_x(cy, reach)?;
     let w = row.len() as f32;
@@ -904,6 +924,67 @@ fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option
         return None;
     }
     Edge::new(s, cy, r).measure::<true>(row, x0, x1)
+}
+
+/// The conservative spans of [`seg_row_lanes`] of segment `s` ([`Mode::Lanes`], within
+/// [`MODEST`] coordinates) on four rows at once (centres `cy`), a row a lane, on a row
+/// of `w` pixels: `[x0, x1]`, none when `x0 ≥ x1`. Per lane the f32 operations of
+/// [`Seg::reach_x`] and [`pixel_spans`] in their order (IEEE operations, the same bits),
+/// `min` and `max` without their NaN cases (every value is finite) and a row the segment
+/// does not reach (`t0 > t1`) an empty span. Values may differ from those of the row
+/// by row operations in the sign of a zero only (`t0`, `t1`), which the spans do not
+/// tell apart: `ax + t·dx` is `ax` or a nonzero sum either way, or a zero that the
+/// span's `− reach` turns into `−reach`. Every bound lies within `8192 + 4` pixels of 0
+/// (the segment's coordinates are below [`MODEST`], its reach below 4), so below 2^23
+/// for the lanes' floor; rows of 2^22 pixels or more are made one row at a time.
+#[inline]
+fn lanes_spans4(s: &Seg, cy: [f32; 4], reach: f32, w: f32) -> [[u32; 4]; 2] {
+    if w >= 4_194_304.0 {
+        let mut out = [[0; 4]; 2];
+        for (m, &cy) in cy.iter().enumerate() {
+            if let Some((lo, hi)) = s.reach_x(cy, reach) {
+                let [x0, x1, _, _] = pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
+                (out[0][m], out[1][m]) = (x0 as u32, x1 as u32);
+            }
+        }
+        return out;
+    }
+    let (zero, one) = (f32x4::ZERO, f32x4::ONE);
+    let (t0, t1) = if s.rdy != 0.0 {
+        let (cy, ay, rdy) = (f32x4::new(cy), f32x4::splat(s.a[1]), f32x4::splat(s.rdy));
+        let reach = f32x4::splat(reach);
+        let u0 = (cy - reach - ay) * rdy;
+        let u1 = (cy + reach - ay) * rdy;
+        (
+            u0.fast_min(u1).fast_max(zero),
+            u0.fast_max(u1).fast_min(one),
+        )
+    } else {
+        (zero, one)
+    };
+    let (ax, dx) = (f32x4::splat(s.a[0]), f32x4::splat(s.d[0]));
+    let (xa, xb) = (ax + t0 * dx, ax + t1 * dx);
+    let reach = f32x4::splat(reach);
+    let (lo, hi) = (xa.fast_min(xb) - reach, xa.fast_max(xb) + reach);
+    let floor = |x: f32x4| {
+        let t = x.fast_trunc_int().round_float();
+        t - (t.simd_gt(x) & one)
+    };
+    let wl = f32x4::splat(w);
+    let fit = |p: f32x4| p.fast_max(zero).fast_min(wl).fast_trunc_int();
+    // ceil(x) is −floor(−x); the pixels whose centre lies within [lo − ⅛, hi + ⅛].
+    let x0 = fit(-floor(-(lo - f32x4::splat(0.625))));
+    let x1 = fit(floor(hi - f32x4::splat(0.375)) + one);
+    // A row out of reach: no span.
+    let out = t0.simd_gt(t1).to_bitmask();
+    let (x0, x1) = (x0.to_array(), x1.to_array());
+    let mut spans = [[0; 4]; 2];
+    for m in 0..4 {
+        if out & (1 << m) == 0 {
+            (spans[0][m], spans[1][m]) = (x0[m] as u32, x1[m] as u32);
+        }
+    }
+    spans
 }
 
 /// Measures a segment's coverage of a row's pixels, four at a time: per lane the f32
@@ -1246,6 +1327,70 @@ mod tests {
         }
         assert!(found.iter().all(|&f| f > 80_000), "{found:?}");
         assert!(spanned > 10_000, "{spanned}");
+    }
+
+    /// A thin segment's conservative spans made four rows at a time ([`lanes_spans4`])
+    /// are those [`seg_row_lanes`] makes row by row ([`Seg::reach_x`] and
+    /// [`pixel_spans`], none where the segment does not reach the row): segments of every
+    /// slope and length, dots, along a row or a column and nearly, across the page's
+    /// edges and at the ends of [`MODEST`] coordinates, on rows through them, at their
+    /// ends and beyond their reach, rows of several widths (past 2^22 pixels one row at
+    /// a time).
+    #[test]
+    fn four_rows_lane_spans_are_each_ones() {
+        let mut rand = unit_floats(0x1319_8a2e_0370_7344u64);
+        let (mut spanned, mut empty) = (0, 0);
+        for n in 0..200_000 {
+            let r = [0.2, 0.5, 0.8, 1.04, 1.56, 2.6, 3.0][n % 7];
+            let a = match n % 13 {
+                0 => [-3.0 - 5.0 * rand(), 8191.0 * rand()],
+                1 => [MODEST - 0.01 - 3.0 * rand(), -8191.0 + 16_382.0 * rand()],
+                _ => [
+                    -40.0 + (MODEST - 30.0) * rand(),
+                    -40.0 + (MODEST - 30.0) * rand(),
+                ],
+            };
+            let len = [0.0, 0.02, 0.7, 3.0, 9.0, 60.0][n % 6];
+            let ang = match n % 5 {
+                0 => {
+                    [0.0, 0.5, 1e-7, 0.499_999_9, 3.0e-7, 1.0][(rand() * 6.0) as usize % 6]
+                        * std::f32::consts::PI
+                }
+                _ => rand() * std::f32::consts::TAU,
+            };
+            let mut b = [a[0] + len * ang.cos(), a[1] + len * ang.sin()];
+            if n % 11 == 0 {
+                b[0] = a[0];
+            }
+            let mut c = Capsules::default();
+            c.push(a, b);
+            let mut s = c.segs[0];
+            s.prepare(r);
+            if s.mode != Mode::Lanes {
+                continue;
+            }
+            let reach = r + 0.5;
+            let y = if n % 3 == 0 { s.a[1] + s.d[1] } else { s.a[1] };
+            let cy = (y + (rand() - 0.5) * 4.0 * (r + 2.0)).floor() + 0.5;
+            let cy4 = [0.0, 1.0, 2.0, 3.0].map(|m| cy + m);
+            let w = [7.0, 300.0, 2500.0, 8100.0, 8192.0, 5_000_000.0][n % 6];
+            let got = lanes_spans4(&s, cy4, reach, w);
+            for (m, &cy) in cy4.iter().enumerate() {
+                let want = s.reach_x(cy, reach).map(|(lo, hi)| {
+                    let [x0, x1, _, _] =
+                        pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
+                    (x0, x1)
+                });
+                let (x0, x1) = (got[0][m] as usize, got[1][m] as usize);
+                // Both the same span, or both none.
+                let g = (x0 < x1).then_some((x0, x1));
+                let want = want.filter(|(x0, x1)| x0 < x1);
+                assert_eq!(g, want, "{s:?} cy {cy} r {r} w {w}");
+                spanned += usize::from(want.is_some());
+                empty += usize::from(want.is_none());
+            }
+        }
+        assert!(spanned > 150_000 && empty > 150_000, "{spanned} {empty}");
     }
 
     /// A row's reach and interior as [`seg_row_fill`] takes them from
