@@ -357,6 +357,76 @@ fn sieve_with<const R0: bool, const R1: bool>(
     }
 }
 
+/// The indices of the nonzero entries of a sieve's `open` flags, in increasing order:
+/// eight flags read as one word, and the word's nonzero bytes gathered into a bit mask
+/// whose set bits are taken in turn, so that the points the sieve closed (most of them)
+/// cost a fraction of an instruction each instead of a test and a branch.
+struct OpenPoints<'a> {
+    chunks: std::slice::ChunksExact<'a, u8>,
+    rest: &'a [u8],
+    /// The index of the current word's first flag, and its nonzero flags as bits.
+    base: usize,
+    bits: u32,
+}
+
+impl<'a> OpenPoints<'a> {
+    fn new(open: &'a [u8]) -> OpenPoints<'a> {
+        let chunks = open.chunks_exact(8);
+        let rest = chunks.remainder();
+        OpenPoints {
+            chunks,
+            rest,
+            // The first word's index is 0: `next` adds 8 before reading it.
+            base: usize::MAX - 7,
+            bits: 0,
+        }
+    }
+
+    /// Bit `i` set when byte `i` of `word` is nonzero.
+    #[inline(always)]
+    fn mask(word: u64) -> u32 {
+        // Each byte's bits folded into its lowest bit, then the eight lowest bits
+        // gathered into the top byte by one multiplication (no carries: each product
+        // term lands on its own bit).
+        let mut x = word;
+        x |= x >> 4;
+        x |= x >> 2;
+        x |= x >> 1;
+        x &= 0x0101_0101_0101_0101;
+        (x.wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
+    }
+}
+
+impl Iterator for OpenPoints<'_> {
+    type Item = usize;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<usize> {
+        while self.bits == 0 {
+            self.base = self.base.wrapping_add(8);
+            match self.chunks.next() {
+                Some(c) => {
+                    let word = u64::from_le_bytes(c.try_into().expect("eight flags"));
+                    self.bits = OpenPoints::mask(word);
+                }
+                None => {
+                    // The last flags (fewer than eight), once.
+                    let mut word = [0u8; 8];
+                    word[..self.rest.len()].copy_from_slice(self.rest);
+                    self.rest = &[];
+                    self.bits = OpenPoints::mask(u64::from_le_bytes(word));
+                    if self.bits == 0 {
+                        return None;
+                    }
+                }
+            }
+        }
+        let i = self.bits.trailing_zeros() as usize;
+        self.bits &= self.bits - 1;
+        Some(self.base.wrapping_add(i))
+    }
+}
+
 /// What a hypothesis's [`Sums::least_misfit`] must exceed a point's bound by before the
 /// scan skips the point: far above the rounding of both values (about 10⁻⁹).
 const BOUND_MARGIN: f64 = 1e-7;
@@ -675,10 +745,8 @@ impl OpenQuery {
                     let mut offered = [false; 2];
                     // Point by point, each live reflection into its own list. A point
                     // left open is tested again with its bound of the moment.
-                    for (k, &w) in points.iter().enumerate() {
-                        if open[k] == 0 {
-                            continue;
-                        }
+                    for k in OpenPoints::new(&open) {
+                        let w = points[k];
                         let mm = Sums::model_norm(gram, w);
                         for &mirror in mirrors {
                             let v = usize::from(mirror);
@@ -1374,7 +1442,7 @@ pub(crate) fn open_stage2(
 
 #[cfg(test)]
 mod tests {
-    use super::{C64, Sums, cell};
+    use super::{C64, OpenPoints, Sums, cell};
     use crate::cases::SplitMix64;
 
     /// The scan skips a point's misfit only when it is surely above the bound: wherever
@@ -1419,6 +1487,41 @@ mod tests {
             }
         }
         assert!(skipped > 10_000, "the test reaches the skip: {skipped}");
+    }
+
+    /// `OpenPoints` gives the indices of the nonzero flags, in order, for every length
+    /// (whole words and a remainder) and random flags of every value a sieve writes.
+    #[test]
+    fn open_points_are_the_nonzero_flags() {
+        let mut rng = SplitMix64(31);
+        let mut seen = 0;
+        for n in 0..70 {
+            for density in [0.0, 0.1, 0.5, 0.9, 1.0] {
+                let open: Vec<u8> = (0..n)
+                    .map(|_| {
+                        if rng.uniform() < density {
+                            1 + (rng.next_u64() % 3) as u8
+                        } else {
+                            0
+                        }
+                    })
+                    .collect();
+                let want: Vec<usize> = (0..n).filter(|&k| open[k] != 0).collect();
+                let got: Vec<usize> = OpenPoints::new(&open).collect();
+                assert_eq!(got, want, "{open:?}");
+                seen += want.len();
+            }
+        }
+        // Every single byte value, alone in a word, is seen as nonzero exactly when it is.
+        for b in 0..=255u8 {
+            for at in 0..8 {
+                let mut open = [0u8; 8];
+                open[at] = b;
+                let got: Vec<usize> = OpenPoints::new(&open).collect();
+                assert_eq!(got, if b != 0 { vec![at] } else { vec![] });
+            }
+        }
+        assert!(seen > 1000);
     }
 
     /// Random sums as a scan makes them (32 points of a table-like curve, a centred unit
