@@ -107,6 +107,137 @@ impl Table {
 /// `(Pa, e, dPa/dθ, de/dθ)` at one angle ([`Table::with_slope`]).
 type Slope = (C64, C64, C64, C64);
 
+/// A table's values at whole degrees for stage 1's kernel sums ([`Kernel::sums`]): per
+/// degree `k = 0, 1, …` over one period and on past it (wrapped, so that a kernel's
+/// cells `base + d` need no remainder), `Pa`, `e` and `conj(Pa)·e` as `[re, im]` pairs.
+struct Grid {
+    cells: Vec<[[f64; 2]; 3]>,
+    /// Whole degrees in one period.
+    period: usize,
+}
+
+impl Grid {
+    /// Cells past the period: every kernel's reach (a span of at most a period and two
+    /// cells per point).
+    const EXTRA: usize = 4;
+
+    fn new(table: &Table) -> Grid {
+        let n = table.cells.len();
+        let cells = (0..2 * n + Grid::EXTRA)
+            .map(|k| {
+                let c = &table.cells[k % n];
+                let x = c.pa.conj() * c.e;
+                [[c.pa.re, c.pa.im], [c.e.re, c.e.im], [x.re, x.im]]
+            })
+            .collect();
+        Grid { cells, period: n }
+    }
+}
+
+/// Stage 1's sums for every **whole-degree** start of one span and sense: a hypothesis's
+/// sums are sums over the target points of table functions at `start + o_j`
+/// (`o_j = σ·Δ·x_j`), a correlation of the table with a comb of the offsets. Each
+/// offset's weight (1 for `S_P`, `S_e`, `S_Pe`; `y_j` for the `R` sums) is spread linearly
+/// onto the two whole degrees around it, so for a whole-degree start the kernel's sum of
+/// `Pa` or `e` is the sum of their linear interpolants at the points (what [`Sums::of`]
+/// adds up, to rounding), and `S_Pe` is the sum of the interpolants of the tabulated
+/// product `conj(Pa)·e` (within `O(1°²)` of [`Sums::of`]'s products of interpolants).
+/// The kernel depends on the target and the span only (not on the linkage, nor the
+/// start): its cells, at most `Δ + 2` and at most two per point, replace the points'
+/// lookups and interpolations.
+struct Kernel {
+    /// The offset of the first cell from the start, whole degrees.
+    lo: i64,
+    /// Nonzero cells: distance from `lo`, and the weight and `y`-weight's parts, each
+    /// twice (`[[w, w], [Re, Re], [Im, Im]]`: the factors of a `[re, im]` pair).
+    cells: Vec<(usize, [[f64; 2]; 3])>,
+    /// Points (the sums' `m`).
+    count: u32,
+}
+
+impl Kernel {
+    fn new(offsets: &[f64], y: &[C64]) -> Kernel {
+        let n = offsets.len().min(y.len());
+        let lo = offsets[..n]
+            .iter()
+            .map(|o| o.floor())
+            .fold(f64::INFINITY, f64::min);
+        let lo = if lo.is_finite() { lo as i64 } else { 0 };
+        let mut dense: Vec<(f64, C64)> = Vec::new();
+        for (&o, &yj) in offsets.iter().zip(y) {
+            let k = o.floor();
+            let t = o - k;
+            let d = (k as i64 - lo) as usize;
+            if dense.len() < d + 2 {
+                dense.resize(d + 2, (0.0, C64::new(0.0, 0.0)));
+            }
+            dense[d].0 += 1.0 - t;
+            dense[d].1 += yj * (1.0 - t);
+            dense[d + 1].0 += t;
+            dense[d + 1].1 += yj * t;
+        }
+        // The weights are at least 0: a cell of weight 0 has `y`-weight 0 as well.
+        let cells = dense
+            .into_iter()
+            .enumerate()
+            .filter(|(_, (w, _))| *w != 0.0)
+            .map(|(d, (w, wy))| (d, [[w; 2], [wy.re; 2], [wy.im; 2]]))
+            .collect();
+        Kernel {
+            lo,
+            cells,
+            count: n as u32,
+        }
+    }
+
+    /// Cells past the start's base that [`Kernel::sums`] reads.
+    fn reach(&self) -> usize {
+        self.cells.last().map_or(0, |c| c.0 + 1)
+    }
+
+    /// The sums at the whole-degree `start` (any integer) on `grid`; the reflection's
+    /// `R` sums come from the same two products per cell as the others.
+    #[inline(always)]
+    fn sums(&self, grid: &Grid, start: i64) -> Sums {
+        let base = (start + self.lo).rem_euclid(grid.period as i64) as usize;
+        let cells = &grid.cells[base..];
+        // `[re, im]` pairs: `Σ w·Pa`, `Σ w·e`, `Σ w·conj(Pa)·e`, and `Σ Re(y)·Pa`,
+        // `Σ Im(y)·Pa`, `Σ Re(y)·e`, `Σ Im(y)·e`, from which the `R` sums are formed.
+        let mut acc = [[0.0f64; 2]; 7];
+        // `acc += f·v` on both parts of a pair.
+        #[inline(always)]
+        fn mac(acc: &mut [f64; 2], f: [f64; 2], v: [f64; 2]) {
+            acc[0] += f[0] * v[0];
+            acc[1] += f[1] * v[1];
+        }
+        for &(d, [w, a, b]) in &self.cells {
+            let [p, e, x] = cells[d];
+            mac(&mut acc[0], w, p);
+            mac(&mut acc[1], w, e);
+            mac(&mut acc[2], w, x);
+            mac(&mut acc[3], a, p);
+            mac(&mut acc[4], b, p);
+            mac(&mut acc[5], a, e);
+            mac(&mut acc[6], b, e);
+        }
+        let c = |v: [f64; 2]| C64::new(v[0], v[1]);
+        // `y = a + ib`: `Σ conj(P)·y = (ΣaP_re + ΣbP_im) + i(ΣbP_re − ΣaP_im)` and
+        // `Σ conj(P)·conj(y) = conj(Σ P·y)`, `Σ P·y = (ΣaP_re − ΣbP_im) + i(ΣbP_re + ΣaP_im)`.
+        let plain = |a: [f64; 2], b: [f64; 2]| C64::new(a[0] + b[1], b[0] - a[1]);
+        let mirror = |a: [f64; 2], b: [f64; 2]| C64::new(a[0] - b[1], -(b[0] + a[1]));
+        Sums {
+            m: f64::from(self.count),
+            sp: c(acc[0]),
+            se: c(acc[1]),
+            spe: c(acc[2]),
+            r: [
+                [plain(acc[3], acc[4]), plain(acc[5], acc[6])],
+                [mirror(acc[3], acc[4]), mirror(acc[5], acc[6])],
+            ],
+        }
+    }
+}
+
 /// The 1° cell of an input angle (any finite value) and the fraction into it: `deg`
 /// modulo the table's `period` (whole degrees: 360 for a four-bar, `360·q` for a geared
 /// five-bar) split into whole and fractional degrees, without a floating-point remainder
@@ -354,6 +485,76 @@ fn sieve_with<const R0: bool, const R1: bool>(
             o |= u8::from(!(pos & (q1 < bar1[k] * mm))) << 1;
         }
         open[k] = o;
+    }
+}
+
+/// The indices of the nonzero entries of a sieve's `open` flags, in increasing order:
+/// eight flags read as one word, and the word's nonzero bytes gathered into a bit mask
+/// whose set bits are taken in turn, so that the points the sieve closed (most of them)
+/// cost a fraction of an instruction each instead of a test and a branch.
+struct OpenPoints<'a> {
+    chunks: std::slice::ChunksExact<'a, u8>,
+    rest: &'a [u8],
+    /// The index of the current word's first flag, and its nonzero flags as bits.
+    base: usize,
+    bits: u32,
+}
+
+impl<'a> OpenPoints<'a> {
+    fn new(open: &'a [u8]) -> OpenPoints<'a> {
+        let chunks = open.chunks_exact(8);
+        let rest = chunks.remainder();
+        OpenPoints {
+            chunks,
+            rest,
+            // The first word's index is 0: `next` adds 8 before reading it.
+            base: usize::MAX - 7,
+            bits: 0,
+        }
+    }
+
+    /// Bit `i` set when byte `i` of `word` is nonzero.
+    #[inline(always)]
+    fn mask(word: u64) -> u32 {
+        // Each byte's bits folded into its lowest bit, then the eight lowest bits
+        // gathered into the top byte by one multiplication (no carries: each product
+        // term lands on its own bit).
+        let mut x = word;
+        x |= x >> 4;
+        x |= x >> 2;
+        x |= x >> 1;
+        x &= 0x0101_0101_0101_0101;
+        (x.wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
+    }
+}
+
+impl Iterator for OpenPoints<'_> {
+    type Item = usize;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<usize> {
+        while self.bits == 0 {
+            self.base = self.base.wrapping_add(8);
+            match self.chunks.next() {
+                Some(c) => {
+                    let word = u64::from_le_bytes(c.try_into().expect("eight flags"));
+                    self.bits = OpenPoints::mask(word);
+                }
+                None => {
+                    // The last flags (fewer than eight), once.
+                    let mut word = [0u8; 8];
+                    word[..self.rest.len()].copy_from_slice(self.rest);
+                    self.rest = &[];
+                    self.bits = OpenPoints::mask(u64::from_le_bytes(word));
+                    if self.bits == 0 {
+                        return None;
+                    }
+                }
+            }
+        }
+        let i = self.bits.trailing_zeros() as usize;
+        self.bits &= self.bits - 1;
+        Some(self.base.wrapping_add(i))
     }
 }
 
@@ -631,6 +832,7 @@ impl OpenQuery {
         let pts = PointColumns::new(points);
         let mut open = vec![0u8; n];
         let mut offsets = vec![0.0; self.x.len()];
+        let grid = Grid::new(table);
         for span in self.spans(period) {
             let h = match self.layout {
                 Layout::Angles { .. } => 3.0,
@@ -643,14 +845,14 @@ impl OpenQuery {
                 for (o, &x) in offsets.iter_mut().zip(&self.x) {
                     *o = sense * span * x;
                 }
+                // The starts are whole degrees (the nearest to every `h`-th), so that one
+                // kernel serves them all.
+                let kernel = Kernel::new(&offsets, &self.y);
+                debug_assert!(kernel.reach() <= grid.cells.len() - grid.period);
                 for i in 0..count {
-                    let start = i as f64 * h;
-                    let sums = Sums::of(
-                        table,
-                        offsets.iter().map(|&o| start + o),
-                        &self.y,
-                        self.allow_mirror,
-                    );
+                    let whole = (i as f64 * h).round();
+                    let start = whole;
+                    let sums = kernel.sums(&grid, whole as i64);
                     let gram = sums.gram();
                     // A reflection whose least misfit over every coupler point is above
                     // every point's bound of that reflection would be refused by every
@@ -675,10 +877,8 @@ impl OpenQuery {
                     let mut offered = [false; 2];
                     // Point by point, each live reflection into its own list. A point
                     // left open is tested again with its bound of the moment.
-                    for (k, &w) in points.iter().enumerate() {
-                        if open[k] == 0 {
-                            continue;
-                        }
+                    for k in OpenPoints::new(&open) {
+                        let w = points[k];
                         let mm = Sums::model_norm(gram, w);
                         for &mirror in mirrors {
                             let v = usize::from(mirror);
@@ -1374,7 +1574,7 @@ pub(crate) fn open_stage2(
 
 #[cfg(test)]
 mod tests {
-    use super::{C64, Sums, cell};
+    use super::{C64, OpenPoints, Sums, cell};
     use crate::cases::SplitMix64;
 
     /// The scan skips a point's misfit only when it is surely above the bound: wherever
@@ -1419,6 +1619,41 @@ mod tests {
             }
         }
         assert!(skipped > 10_000, "the test reaches the skip: {skipped}");
+    }
+
+    /// `OpenPoints` gives the indices of the nonzero flags, in order, for every length
+    /// (whole words and a remainder) and random flags of every value a sieve writes.
+    #[test]
+    fn open_points_are_the_nonzero_flags() {
+        let mut rng = SplitMix64(31);
+        let mut seen = 0;
+        for n in 0..70 {
+            for density in [0.0, 0.1, 0.5, 0.9, 1.0] {
+                let open: Vec<u8> = (0..n)
+                    .map(|_| {
+                        if rng.uniform() < density {
+                            1 + (rng.next_u64() % 3) as u8
+                        } else {
+                            0
+                        }
+                    })
+                    .collect();
+                let want: Vec<usize> = (0..n).filter(|&k| open[k] != 0).collect();
+                let got: Vec<usize> = OpenPoints::new(&open).collect();
+                assert_eq!(got, want, "{open:?}");
+                seen += want.len();
+            }
+        }
+        // Every single byte value, alone in a word, is seen as nonzero exactly when it is.
+        for b in 0..=255u8 {
+            for at in 0..8 {
+                let mut open = [0u8; 8];
+                open[at] = b;
+                let got: Vec<usize> = OpenPoints::new(&open).collect();
+                assert_eq!(got, if b != 0 { vec![at] } else { vec![] });
+            }
+        }
+        assert!(seen > 1000);
     }
 
     /// Random sums as a scan makes them (32 points of a table-like curve, a centred unit
@@ -1692,6 +1927,59 @@ mod mirror {
             c.start.mirrored,
             c.start.theta.iter().map(|t| t.to_bits()).collect(),
         )
+    }
+
+    /// Stage 1's kernel sums at whole-degree starts are the sums of the linear
+    /// interpolants [`Sums::of`] makes, to rounding, for `Pa`, `e` and the `R` sums of
+    /// both reflections; `S_Pe` (the interpolant of the tabulated product, not the product
+    /// of interpolants) within `O(1°²)`: over four linkages, random targets, spans,
+    /// senses and starts (also negative and past a period).
+    #[test]
+    fn kernel_sums_are_the_interpolated_sums() {
+        let curves = atlas();
+        let mut rng = crate::cases::SplitMix64(41);
+        let (mut worst, mut worst_pe, mut tried) = (0.0f64, 0.0f64, 0);
+        for g in linkage_groups(&curves) {
+            let c = &curves[g.start].curve;
+            let table = Table::new(&c.linkage, c.circuit).unwrap();
+            let grid = Grid::new(&table);
+            for _ in 0..40 {
+                let m = 2 + (rng.next_u64() % 40) as usize;
+                let mut x: Vec<f64> = (0..m).map(|_| rng.uniform()).collect();
+                x.sort_by(f64::total_cmp);
+                (x[0], x[m - 1]) = (0.0, 1.0);
+                let y: Vec<C64> = (0..m)
+                    .map(|_| C64::new(rng.normal(), rng.normal()))
+                    .collect();
+                let y = centred_unit(&y).unwrap();
+                let span = 30.0 + 330.0 * rng.uniform();
+                let sense = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+                let offsets: Vec<f64> = x.iter().map(|&x| sense * span * x).collect();
+                let kernel = Kernel::new(&offsets, &y);
+                assert!(kernel.reach() <= grid.cells.len() - grid.period);
+                for start in (-400..800).step_by(37) {
+                    let k = kernel.sums(&grid, start);
+                    let want =
+                        Sums::of(&table, offsets.iter().map(|&o| start as f64 + o), &y, true);
+                    assert_eq!(k.m, want.m);
+                    let mut d = (k.sp - want.sp).norm().max((k.se - want.se).norm());
+                    for v in 0..2 {
+                        for i in 0..2 {
+                            d = d.max((k.r[v][i] - want.r[v][i]).norm());
+                        }
+                    }
+                    worst = worst.max(d);
+                    worst_pe = worst_pe.max((k.spe - want.spe).norm() / m as f64);
+                    tried += 1;
+                }
+            }
+        }
+        assert!(tried > 5000, "{tried}");
+        assert!(worst < 1e-12, "{worst}");
+        // The two differ by `Σ t(1 − t)·ΔPa·conj(Δe)`-like terms: each at most a quarter
+        // of the product of two 1° differences of unit vectors turning at most a few
+        // times faster than the crank, so at most about 10⁻³ a point.
+        assert!(worst_pe < 1e-3 && worst_pe > 0.0, "{worst_pe}");
     }
 
     /// With reflection allowed, the unreflected candidates are exactly, in order, those
