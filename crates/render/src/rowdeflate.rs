@@ -574,7 +574,8 @@ impl Bits {
         // its own terms, independent of the others ([`word_symbols`]).
         let r = len as u64;
         let (a, b) = (u64::from(adler.a), u64::from(adler.b));
-        let b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
+        // Below 2^33, reduced with the words' sums.
+        let b = b + (r % ADLER_MOD) * a;
         // First the row as symbols: the pending run of zeros starts at byte `zero` (the
         // bytes before it are written) and the symbols are `syms[..p]`. The words' sums
         // in 16-bit lanes when the weights `len − p` fit them.
@@ -628,7 +629,7 @@ const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
 /// in `syms` from `p` on ([`Bits::coded`]), and their bytes added to the Adler-32 sums
 /// `(a, b)` as `a += Σ xₚ`, `b += Σ (r − p)·xₚ` (the byte `xₚ` at `p`). Gives the end of
 /// the symbols, the end of the last word's ink (where the pending run of zeros starts)
-/// and the sums, reduced.
+/// and the sums (reduced after every 64 words).
 ///
 /// With `LANES` (rows of at most [`LANE_ROW`] bytes) a word's sums are taken from its
 /// literals' 16-bit lanes, the ones the symbols are stored from: `a`'s lanes add the
@@ -936,18 +937,18 @@ impl RowDeflate {
             }
             // Word `i ≥ 1` is pixels `8i − 1..8i + 7`: blocks `i − 1` and `i`. The words
             // are apart, so the row above can be cleared as it is read.
+            // The two rows' mark words taken together (one bounds check for all), word 0
+            // (done above) left out of the first and the words past `n` out of the last.
             let (ma, mb) = marks;
             let last = n.div_ceil(64) - 1;
-            let mut carry = 0;
-            for k in 0..=last {
-                let m = ma[k] | mb[k];
-                let mut c = m | m << 1 | carry;
-                carry = m >> 63;
-                if k == 0 {
-                    c &= !1;
-                }
-                if k == last && n % 64 != 0 {
-                    c &= (1 << (n % 64)) - 1;
+            let tail = u64::MAX >> ((64 - n % 64) % 64);
+            let (mut carry, mut first) = (0, !1u64);
+            for (k, (&a, &b)) in ma[..=last].iter().zip(&mb[..=last]).enumerate() {
+                let m = a | b;
+                let mut c = (m | m << 1 | carry) & first;
+                (carry, first) = (m >> 63, u64::MAX);
+                if k == last {
+                    c &= tail;
                 }
                 while c != 0 {
                     let i = 64 * k + c.trailing_zeros() as usize;
