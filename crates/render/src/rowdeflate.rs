@@ -953,7 +953,9 @@ impl RowDeflate {
                 while c != 0 {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
-                    let s = 8 * i - 1;
+                    // Never past `w − 8` (`i < n`, so `8i + 7 ≤ 8n − 1 ≤ w`): saying so
+                    // lets the compiler drop the reads' bounds checks.
+                    let s = (8 * i - 1).min(w - 8);
                     // The word above, read then cleared, and this row's: `s` in the row,
                     // then 8 bytes from there (no sum to overflow).
                     let up = above[s..].first_chunk_mut::<8>().expect("8 bytes");
