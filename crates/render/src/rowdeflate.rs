@@ -559,11 +559,11 @@ impl Bits {
         let list = &list[..cnt];
         debug_assert!(t < 8 && rest.checked_shr(8 * t as u32).unwrap_or(0) == 0);
         debug_assert!(list.windows(2).all(|w| w[0].0 < w[1].0) && list.iter().all(|w| w.0 < n));
-        // Room for the row's symbols: per word at most a long run (a literal 0, its
-        // matches — fewer than one per 32 words of zeros — and its rest), a padding run and
-        // 8 literals, then the row's last run, its rest and padding, and the 9 symbols a
-        // word's stores reach past its own.
-        let room = *pending + 12 * n + 72;
+        // Room for the row's symbols after those pending: per word at most a long run (a
+        // literal 0, its matches — fewer than one per 32 words of zeros — and its rest),
+        // two run symbols and 8 literals, then the row's last run and its rest, the
+        // symbols a word's stores reach past its own, and a group moved to the start.
+        let room = *pending + 12 * n + 72 + GROUP;
         if syms.len() < room {
             syms.resize(room, 0);
         }
@@ -574,7 +574,7 @@ impl Bits {
         // its own terms, independent of the others ([`word_symbols`]).
         let r = len as u64;
         let (a, b) = (u64::from(adler.a), u64::from(adler.b));
-        // Below 2^33, reduced with the words' sums.
+        // Below 2^33, reduced at the row's end.
         let b = b + (r % ADLER_MOD) * a;
         // First the row as symbols: the pending run of zeros starts at byte `zero` (the
         // bytes before it are written) and the symbols are `syms[..p]`. The words' sums
@@ -613,7 +613,9 @@ impl Bits {
         }
         let done = GROUP * (p / GROUP);
         self.code_groups(f, &syms[..done]);
-        syms.copy_within(done..p, 0);
+        // (A whole group moved, the same few stores whatever the count.)
+        let left: [u16; GROUP] = syms[done..done + GROUP].try_into().expect("room");
+        syms[..GROUP].copy_from_slice(&left);
         *pending = p - done;
     }
 }
@@ -629,7 +631,7 @@ const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
 /// in `syms` from `p` on ([`Bits::coded`]), and their bytes added to the Adler-32 sums
 /// `(a, b)` as `a += Σ xₚ`, `b += Σ (r − p)·xₚ` (the byte `xₚ` at `p`). Gives the end of
 /// the symbols, the end of the last word's ink (where the pending run of zeros starts)
-/// and the sums (reduced after every 64 words).
+/// and the sums, not reduced (below 2^40, from `a` below 2^16 and `b` below 2^33).
 ///
 /// With `LANES` (rows of at most [`LANE_ROW`] bytes) a word's sums are taken from its
 /// literals' 16-bit lanes, the ones the symbols are stored from: `a`'s lanes add the
@@ -637,8 +639,10 @@ const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
 /// them in pairs into 32-bit lanes. They are added up every 64 words: a lane of `a`
 /// then holds at most 64·255 = 16,320 (below 2^15) and one of `b` at most
 /// 64·2·255·(2^15 − 1) = 1,069,515,840 (below 2^31), all of them at least 0 (the
-/// bytes past a word's ink, whose weights may be below 0, are zeros). Without, each
-/// word's sums are taken in a `u64` ([`word_sums`]): `b` grows by at most
+/// bytes past a word's ink, whose weights may be below 0, are zeros). So each 64 words
+/// add less than 2^17 to `a` and 2^33 to `b`, and a row has at most 64 times 64 words:
+/// the sums are left for the row's end to reduce. Without lanes, each word's sums are
+/// taken in a `u64` ([`word_sums`]) and reduced every 64 words: `b` grows by at most
 /// 64·(r·2040 + 2040) between reductions.
 #[inline(always)]
 fn word_symbols<const LANES: bool>(
@@ -704,7 +708,9 @@ fn word_symbols<const LANES: bool>(
                 .map(|&x| u64::from(x as u32))
                 .sum::<u64>();
         }
-        (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
+        if !LANES {
+            (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
+        }
     }
     (p, zero, a, b)
 }
