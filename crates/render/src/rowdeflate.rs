@@ -16,10 +16,12 @@
 //!   are read twice: once to list those not all zero (each word stored at the list's
 //!   end, which moves on only if it is not zero: no branch), then the listed ones are
 //!   written as symbols without a branch on their bytes (a word's run of zeros one
-//!   symbol, its 8 bytes widened in one unpack and stored as literal symbols of which
-//!   those up to its trailing zeros are kept), since on anti-aliased ink the branches per word and per byte of
-//!   `fdeflate`'s loop are mispredicted; the row's symbols are then coded sixteen at a
-//!   time from one table, so a word's bits cost what its run and its few literals do.
+//!   symbol, or two, its 8 bytes widened in one unpack and stored as literal symbols of
+//!   which those up to its trailing zeros are kept), since on anti-aliased ink the
+//!   branches per word and per byte of `fdeflate`'s loop are mispredicted; the symbols
+//!   are then coded twenty-four at a time, three to a store, from one table (a row's
+//!   last few with the next row's), so a word's bits cost what its run and its few
+//!   literals do.
 //!   A page's Up-filtered row is not even stored ([`RowDeflate::up_row`]): the words
 //!   that meet the ink marks of the row and the row above are filtered eight bytes at
 //!   once from the ink and go straight to the coder.
@@ -75,6 +77,38 @@ const MATCH: u16 = RUN + ZRUN_MAX as u16 + 1;
 const REST: u16 = MATCH + 1;
 /// The symbols that have codes (all below `REST + 258`, some unused).
 const SYMBOLS: usize = 2048;
+
+/// The symbols [`Bits::code_groups`] codes at a time.
+const GROUP: usize = 24;
+
+/// The longest run of zeros written as one symbol (`RUN + z`: a literal 0 and at most
+/// one length, at most 20 bits); a longer one up to [`ZRUN_MAX`] is two, the literal 0
+/// and one or two matches of 258 (`RUN + 1 + 258q`, the run of `1 + 258q` zeros) and
+/// the rest (`REST + r`, or `MATCH` for the run of `3·258 + 1`), so that three symbols
+/// that can follow each other fit a put.
+const RUN_ONE: u32 = 259;
+
+/// The symbols of a run of `z ≤ ZRUN_MAX` zeros at `RUN_SYMBOLS[z]`: the first in bits
+/// 0–15, the second in bits 16–31 and their number (0 for `z = 0`, 1 up to
+/// [`RUN_ONE`], else 2) in bits 62–63.
+const RUN_SYMBOLS: [u64; ZRUN_MAX as usize + 1] = run_symbols();
+
+const fn run_symbols() -> [u64; ZRUN_MAX as usize + 1] {
+    let mut t = [0u64; ZRUN_MAX as usize + 1];
+    let mut z = 1;
+    while z <= ZRUN_MAX {
+        t[z as usize] = if z <= RUN_ONE {
+            (RUN as u64 + z as u64) | 1 << 62
+        } else {
+            let q = if z > 2 * 258 { 2 } else { 1 };
+            let r = z - 1 - 258 * q;
+            let second = if r == 258 { MATCH } else { REST + r as u16 };
+            (RUN as u64 + 1 + 258 * q as u64) | (second as u64) << 16 | 2 << 62
+        };
+        z += 1;
+    }
+    t
+}
 
 /// The most bits [`Bits::put`] takes at once.
 const PUT_MAX: u32 = 56;
@@ -207,16 +241,26 @@ impl Format {
             }
             syms[usize::from(REST) + r] = (c >> zl, l - zl);
         }
-        // Two symbols that can follow each other fit a `put`: a run (of `RUN + z`) and
-        // a literal, or two of the literals, matches and rests. (A run is always next to
-        // literals, or to `RUN` alone, which has no bits, and so is a rest.)
+        // Three symbols that can follow each other fit a `put` ([`Bits::code_groups`]).
+        // A run of up to `RUN_ONE` zeros (`RUN + z`) is written between literals (a
+        // word's, the row's rest, the filter byte of the next row coded by `up_row`) or
+        // padding `RUN`s (no bits); a longer one up to `ZRUN_MAX` is `RUN + 1 + 258q`
+        // then `REST + r` (or `MATCH`), after a literal and before one; a longer one
+        // still is the literal 0, matches and a rest, between literals. So three in a
+        // row are at most two runs and a literal, a run, a rest or match and a literal,
+        // or three of the literals, matches and rests.
         let most = |r: std::ops::Range<u16>| {
             let r = usize::from(r.start)..usize::from(r.end);
             syms[r].iter().map(|e| e.1).max().unwrap_or(0)
         };
-        let (lit, run) = (most(0..RUN), most(RUN..MATCH));
+        let lit = most(0..RUN);
+        let run = RUN_SYMBOLS[1..]
+            .iter()
+            .map(|&e| syms[e as u16 as usize].1)
+            .max()
+            .unwrap_or(0);
         let other = most(MATCH..REST + 258).max(lit);
-        if run + lit > PUT_MAX || 2 * other > PUT_MAX {
+        if 2 * run + lit > PUT_MAX || run + other + lit > PUT_MAX || 3 * other > PUT_MAX {
             return None;
         }
         for (k, &(c, l)) in syms.iter().enumerate() {
@@ -421,6 +465,10 @@ impl Bits {
         adler: &mut Adler,
         words: &mut RowWords,
     ) {
+        // A row of any filter type may begin with a run of zeros, so its symbols are not
+        // coded beside another row's ([`RowWords::pending`]): none are pending before it
+        // or after it.
+        self.flush(f, words);
         let n = row.len() / 8;
         let list = words.begin(n);
         let (mut cnt, mut next) = (0, 0);
@@ -437,6 +485,55 @@ impl Bits {
         let mut r = [0u8; 8];
         r[..rest.len()].copy_from_slice(rest);
         self.coded(f, words, n, cnt, (u64::from_le_bytes(r), rest.len()), adler);
+        self.flush(f, words);
+    }
+
+    /// Codes the symbols left pending ([`RowWords::pending`]), padded with `RUN`s (no
+    /// bits) to a whole group: the bits written are then all the rows'.
+    fn flush(&mut self, f: &Format, words: &mut RowWords) {
+        let p = words.pending;
+        if p == 0 {
+            return;
+        }
+        words.syms[p..GROUP].fill(RUN);
+        if self.out.len() < self.pos + 72 {
+            self.out.resize(self.pos + (1 << 16), 0);
+        }
+        self.code_groups(f, &words.syms[..GROUP]);
+        words.pending = 0;
+    }
+
+    /// Codes `syms` (whole groups of [`GROUP`] symbols), twenty-four at a time in eight
+    /// `put`s (three codes that can follow each other fit one: checked when the table
+    /// is made), with one room check: each store is at most 7 bytes after the one
+    /// before (the offsets masked to what they can be). `out` must have room for their
+    /// bits and the 72 bytes the stores reach.
+    #[inline(always)]
+    fn code_groups(&mut self, f: &Format, syms: &[u16]) {
+        let (out, tab) = (&mut self.out[..], &f.sym);
+        let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
+        for g in syms.chunks_exact(GROUP) {
+            let g: &[u16; GROUP] = g.try_into().expect("a group");
+            let e = |k: usize| {
+                let s = usize::from(g[k]);
+                (tab[s], tab[(1 << 16) + s] as u32)
+            };
+            let win: &mut [u8; 72] = (&mut out[pos..pos + 72]).try_into().expect("room");
+            let mut o = 0;
+            for h in 0..8 {
+                let ((c0, l0), (c1, l1), (c2, l2)) = (e(3 * h), e(3 * h + 1), e(3 * h + 2));
+                let l01 = l0 + l1;
+                let bits = c0 | c1 << l0 | c2 << l01;
+                let x = acc | bits << nb;
+                let k = nb + l01 + l2;
+                win[o..o + 8].copy_from_slice(&x.to_le_bytes());
+                o = (o + (k / 8) as usize) & 63;
+                acc = x >> (k & 0x38);
+                nb = k & 7;
+            }
+            pos += o;
+        }
+        (self.pos, self.acc, self.n) = (pos, acc, nb);
     }
 
     /// A row of `n` whole 8-byte words and then the bytes `rest`, as
@@ -454,15 +551,19 @@ impl Bits {
         (rest, t): (u64, usize),
         adler: &mut Adler,
     ) {
-        let RowWords { list, syms } = words;
+        let RowWords {
+            list,
+            syms,
+            pending,
+        } = words;
         let list = &list[..cnt];
         debug_assert!(t < 8 && rest.checked_shr(8 * t as u32).unwrap_or(0) == 0);
         debug_assert!(list.windows(2).all(|w| w[0].0 < w[1].0) && list.iter().all(|w| w.0 < n));
-        // Room for the row's symbols: per word at most a long run (a literal 0, its
-        // matches — fewer than one per 32 words of zeros — and its rest), a padding run and
-        // 8 literals, then the row's last run, its rest and padding, and the 9 symbols a
-        // word's stores reach past its own.
-        let room = 12 * n + 72;
+        // Room for the row's symbols after those pending: per word at most a long run (a
+        // literal 0, its matches — fewer than one per 32 words of zeros — and its rest),
+        // two run symbols and 8 literals, then the row's last run and its rest, the
+        // symbols a word's stores reach past its own, and a group moved to the start.
+        let room = *pending + 12 * n + 72 + GROUP;
         if syms.len() < room {
             syms.resize(room, 0);
         }
@@ -473,64 +574,49 @@ impl Bits {
         // its own terms, independent of the others ([`word_symbols`]).
         let r = len as u64;
         let (a, b) = (u64::from(adler.a), u64::from(adler.b));
-        let b = (b + (r % ADLER_MOD) * a) % ADLER_MOD;
+        // Below 2^33, reduced at the row's end.
+        let b = b + (r % ADLER_MOD) * a;
         // First the row as symbols: the pending run of zeros starts at byte `zero` (the
         // bytes before it are written) and the symbols are `syms[..p]`. The words' sums
         // in 16-bit lanes when the weights `len − p` fit them.
         let (mut p, zero, mut a, mut b) = if len <= LANE_ROW {
-            word_symbols::<true>(list, syms, r, (a, b))
+            word_symbols::<true>(list, syms, *pending, r, (a, b))
         } else {
-            word_symbols::<false>(list, syms, r, (a, b))
+            word_symbols::<false>(list, syms, *pending, r, (a, b))
         };
         let run = (8 * n - zero) as u32;
         p = if run > ZRUN_MAX {
             long_run(syms, p, run)
         } else {
-            syms[p] = RUN + run as u16;
-            p + 1
+            let e = RUN_SYMBOLS[run as usize];
+            (syms[p], syms[p + 1]) = (e as u16, (e >> 16) as u16);
+            p + (e >> 62) as usize
         };
-        // The rest, each byte a literal (zeros too), then runs of none up to a multiple of
-        // sixteen symbols; its bytes at `p = 8n + k` add `(len − p)·x = (t − k)·x` to `b`.
-        let win: &mut [u16; 23] = (&mut syms[p..p + 23]).try_into().expect("room");
-        win[..8].copy_from_slice(&literals(rest));
+        // The rest, each byte a literal (zeros too); its bytes at `p = 8n + k` add
+        // `(len − p)·x = (t − k)·x` to `b`.
+        let win: &mut [u16; 8] = (&mut syms[p..p + 8]).try_into().expect("room");
+        win.copy_from_slice(&literals(rest));
         p += t;
-        syms[p..p + 15].fill(RUN);
         let (sum, weighted) = word_sums(rest);
         a += sum;
         b += weighted - (8 - t as u64) * sum;
         (adler.a, adler.b) = ((a % ADLER_MOD) as u32, (b % ADLER_MOD) as u32);
-        // Then the symbols coded, sixteen at a time in eight `put`s (two codes that can
-        // follow each other fit one), with one room check: each store is at most 7 bytes
-        // after the one before (the offsets masked to what they can be). Room for the
-        // row's bits: at most 12 a byte (a literal's; a run of zeros takes fewer), the bits
-        // pending and the 72 bytes the stores reach.
-        let room = self.pos + 2 * len + 64 + 72;
+        // Then the row's whole groups of symbols coded ([`Bits::code_groups`]), and the
+        // symbols after them moved to the start, pending: the next row's follow them (a
+        // row coded by [`RowDeflate::up_row`] begins with its filter byte's literal), so no
+        // row's symbols are padded. Room for the row's bits: at most 12 a byte (a
+        // literal's; a run of zeros takes fewer), the bits pending, the symbols pending
+        // (at most 8 `put`s) and the 72 bytes the stores reach.
+        let room = self.pos + 2 * len + 64 + 64 + 72;
         if self.out.len() < room {
             self.out.resize(room.max(self.pos + (1 << 16)), 0);
         }
-        let (out, tab) = (&mut self.out[..], &f.sym);
-        let (mut pos, mut acc, mut nb) = (self.pos, self.acc, self.n);
-        for g in syms[..16 * p.div_ceil(16)].chunks_exact(16) {
-            let g: &[u16; 16] = g.try_into().expect("16 symbols");
-            let e = |k: usize| {
-                let s = usize::from(g[k]);
-                (tab[s], tab[(1 << 16) + s] as u32)
-            };
-            let win: &mut [u8; 72] = (&mut out[pos..pos + 72]).try_into().expect("room");
-            let mut o = 0;
-            for h in 0..8 {
-                let ((c0, l0), (c1, l1)) = (e(2 * h), e(2 * h + 1));
-                let bits = c0 | c1 << l0;
-                let x = acc | bits << nb;
-                let k = nb + l0 + l1;
-                win[o..o + 8].copy_from_slice(&x.to_le_bytes());
-                o = (o + (k / 8) as usize) & 63;
-                acc = x >> (k & 0x38);
-                nb = k & 7;
-            }
-            pos += o;
-        }
-        (self.pos, self.acc, self.n) = (pos, acc, nb);
+        let done = GROUP * (p / GROUP);
+        self.code_groups(f, &syms[..done]);
+        // (A whole group moved, the same few stores whatever the count.)
+        let left: [u16; GROUP] = syms[done..done + GROUP].try_into().expect("room");
+        syms[..GROUP].copy_from_slice(&left);
+        *pending = p - done;
     }
 }
 
@@ -542,10 +628,10 @@ const LANE_ROW: usize = i16::MAX as usize;
 const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
 
 /// The inked words `list` (index and value, in order) of a row of `r` bytes as symbols
-/// at the start of `syms` ([`Bits::coded`]), and their bytes added to the Adler-32 sums
+/// in `syms` from `p` on ([`Bits::coded`]), and their bytes added to the Adler-32 sums
 /// `(a, b)` as `a += Σ xₚ`, `b += Σ (r − p)·xₚ` (the byte `xₚ` at `p`). Gives the end of
 /// the symbols, the end of the last word's ink (where the pending run of zeros starts)
-/// and the sums, reduced.
+/// and the sums, not reduced (below 2^40, from `a` below 2^16 and `b` below 2^33).
 ///
 /// With `LANES` (rows of at most [`LANE_ROW`] bytes) a word's sums are taken from its
 /// literals' 16-bit lanes, the ones the symbols are stored from: `a`'s lanes add the
@@ -553,17 +639,20 @@ const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
 /// them in pairs into 32-bit lanes. They are added up every 64 words: a lane of `a`
 /// then holds at most 64·255 = 16,320 (below 2^15) and one of `b` at most
 /// 64·2·255·(2^15 − 1) = 1,069,515,840 (below 2^31), all of them at least 0 (the
-/// bytes past a word's ink, whose weights may be below 0, are zeros). Without, each
-/// word's sums are taken in a `u64` ([`word_sums`]): `b` grows by at most
+/// bytes past a word's ink, whose weights may be below 0, are zeros). So each 64 words
+/// add less than 2^17 to `a` and 2^33 to `b`, and a row has at most 64 times 64 words:
+/// the sums are left for the row's end to reduce. Without lanes, each word's sums are
+/// taken in a `u64` ([`word_sums`]) and reduced every 64 words: `b` grows by at most
 /// 64·(r·2040 + 2040) between reductions.
 #[inline(always)]
 fn word_symbols<const LANES: bool>(
     list: &[(usize, u64)],
     syms: &mut [u16],
+    p: usize,
     r: u64,
     (mut a, mut b): (u64, u64),
 ) -> (usize, usize, u64, u64) {
-    let (mut zero, mut p) = (0usize, 0usize);
+    let (mut zero, mut p) = (0usize, p);
     for part in list.chunks(64) {
         let (mut la, mut lb) = (i16x8::ZERO, i32x4::ZERO);
         for &(i, v) in part {
@@ -572,7 +661,8 @@ fn word_symbols<const LANES: bool>(
             // run. No branch on the bytes (only runs longer than `ZRUN_MAX` take the
             // long way): the run is one symbol (none when the run is empty), and the
             // literals are the word shifted down past the run's bytes, all 8 stored as
-            // symbols, of which the `c` that are the word's are kept.
+            // symbols, of which the `c` that are the word's are kept. (A run longer than
+            // `RUN_ONE` is two symbols: [`RUN_SYMBOLS`].)
             let run = (8 * i - zero) as u32;
             let (lead, tail) = (v.trailing_zeros() / 8, v.leading_zeros() / 8);
             let from = if run > 0 { lead } else { 0 };
@@ -586,11 +676,12 @@ fn word_symbols<const LANES: bool>(
             } else {
                 z
             };
-            // The run's symbol is kept only if the run is not empty.
-            let has = usize::from(z > 0);
+            // The run's symbols (none if the run is empty), then the literals after them.
+            let e = RUN_SYMBOLS[z as usize];
+            let has = (e >> 62) as usize;
             let lits = i16x8::from_u8x16_low(u8x16::new(u128::from(u).to_le_bytes()));
-            let win: &mut [u16; 9] = (&mut syms[p..p + 9]).try_into().expect("room");
-            win[0] = RUN + z as u16;
+            let win: &mut [u16; 11] = (&mut syms[p..p + 11]).try_into().expect("room");
+            (win[0], win[1]) = (e as u16, (e >> 16) as u16);
             win[has..has + 8].copy_from_slice(&lits.to_array().map(|x| x as u16));
             p += has + c as usize;
             if LANES {
@@ -617,7 +708,9 @@ fn word_symbols<const LANES: bool>(
                 .map(|&x| u64::from(x as u32))
                 .sum::<u64>();
         }
-        (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
+        if !LANES {
+            (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
+        }
     }
     (p, zero, a, b)
 }
@@ -654,6 +747,10 @@ pub(crate) struct RowWords {
     list: Vec<(usize, u64)>,
     /// The row's symbols ([`RUN`]).
     syms: Vec<u16>,
+    /// The symbols at the start of `syms` not yet coded (fewer than a [`GROUP`]): the
+    /// end of the rows coded before, to be coded with the next row's symbols, or
+    /// padded ([`Bits::flush`]) before any other bits are written.
+    pending: usize,
 }
 
 impl RowWords {
@@ -846,23 +943,25 @@ impl RowDeflate {
             }
             // Word `i ≥ 1` is pixels `8i − 1..8i + 7`: blocks `i − 1` and `i`. The words
             // are apart, so the row above can be cleared as it is read.
+            // The two rows' mark words taken together (one bounds check for all), word 0
+            // (done above) left out of the first and the words past `n` out of the last.
             let (ma, mb) = marks;
             let last = n.div_ceil(64) - 1;
-            let mut carry = 0;
-            for k in 0..=last {
-                let m = ma[k] | mb[k];
-                let mut c = m | m << 1 | carry;
-                carry = m >> 63;
-                if k == 0 {
-                    c &= !1;
-                }
-                if k == last && n % 64 != 0 {
-                    c &= (1 << (n % 64)) - 1;
+            let tail = u64::MAX >> ((64 - n % 64) % 64);
+            let (mut carry, mut first) = (0, !1u64);
+            for (k, (&a, &b)) in ma[..=last].iter().zip(&mb[..=last]).enumerate() {
+                let m = a | b;
+                let mut c = (m | m << 1 | carry) & first;
+                (carry, first) = (m >> 63, u64::MAX);
+                if k == last {
+                    c &= tail;
                 }
                 while c != 0 {
                     let i = 64 * k + c.trailing_zeros() as usize;
                     c &= c - 1;
-                    let s = 8 * i - 1;
+                    // Never past `w − 8` (`i < n`, so `8i + 7 ≤ 8n − 1 ≤ w`): saying so
+                    // lets the compiler drop the reads' bounds checks.
+                    let s = (8 * i - 1).min(w - 8);
                     // The word above, read then cleared, and this row's: `s` in the row,
                     // then 8 bytes from there (no sum to overflow).
                     let up = above[s..].first_chunk_mut::<8>().expect("8 bytes");
@@ -893,6 +992,7 @@ impl RowDeflate {
             return;
         }
         let f = self.f;
+        self.bits.flush(f, &mut self.words);
         let fresh = !matches!(&self.blank, Some((l, t, ..)) if *l == len && *t == filter);
         if fresh {
             let mut row = vec![0u8; len];
@@ -927,6 +1027,7 @@ impl RowDeflate {
 
     /// Ends the stream (end of block, padding, Adler-32) and gives the buffer back.
     pub(crate) fn finish(mut self) -> Vec<u8> {
+        self.bits.flush(self.f, &mut self.words);
         let (c, l) = self.f.sym(256);
         self.bits.put(c, l);
         let mut out = self.bits.into_bytes();
@@ -1261,7 +1362,8 @@ mod tests {
     }
 
     /// The symbol table's codes: each literal's is its code in `fdeflate`'s header, and
-    /// every run of zeros up to past `258·8`, as symbols ([`RUN`], or the long way), has
+    /// every run of zeros up to past `258·8`, as symbols ([`RUN_SYMBOLS`], or the long
+    /// way), has
     /// the bits `fdeflate` gives it ([`Bits::zeros_by_symbol`]).
     #[test]
     fn symbols_code_as_the_header_says() {
@@ -1280,9 +1382,13 @@ mod tests {
             let end = if z > ZRUN_MAX {
                 long_run(&mut syms, 0, z)
             } else {
-                syms[0] = RUN + z as u16;
-                1
+                let e = RUN_SYMBOLS[z as usize];
+                (syms[0], syms[1]) = (e as u16, (e >> 16) as u16);
+                (e >> 62) as usize
             };
+            if z <= ZRUN_MAX {
+                assert_eq!(end, 1 + usize::from(z > RUN_ONE), "symbols of a run of {z}");
+            }
             let mut got = Bits::new(Vec::new());
             for &s in &syms[..end] {
                 let (c, l) = entry(s);
@@ -1293,19 +1399,20 @@ mod tests {
     }
 
     /// Rows where the symbols' codes are as long as they get (the longest literal, after
-    /// the runs with the longest codes, at every offset of a word): the stores of eight
-    /// symbols reach furthest from where they start, and the stream is `fdeflate`'s.
+    /// the runs of one and of two symbols with the longest codes, at every offset of a
+    /// word): the stores of eight `put`s reach furthest from where they start, and the
+    /// stream is `fdeflate`'s.
     #[test]
     fn the_longest_codes_match() {
         let f = Format::get();
         let longest = |r: std::ops::Range<usize>| r.max_by_key(|&s| f.len[s]).unwrap();
         let b = longest(1..256) as u8;
-        let z = (1..=ZRUN_MAX as usize)
-            .max_by_key(|&z| f.zrun[z].1)
-            .unwrap();
+        // The longest run of one symbol, and of two.
+        let one = (1..=RUN_ONE as usize).max_by_key(|&z| f.zrun[z].1);
+        let two = (RUN_ONE as usize + 1..=ZRUN_MAX as usize).max_by_key(|&z| f.zrun[z].1);
         let mut rows = Vec::new();
         let mut coder = RowDeflate::new(Vec::new());
-        for lits in 1..20 {
+        for (lits, z) in (1..20).flat_map(|l| [(l, one.unwrap()), (l, two.unwrap())]) {
             for lead in 0..8 {
                 let mut row = vec![b; 1 + lead];
                 for _ in 0..12 {
@@ -1317,5 +1424,105 @@ mod tests {
             }
         }
         assert!(coder.finish() == reference(&rows), "streams differ");
+    }
+
+    /// Up rows whose symbols are coded together with the next rows' (a row's last
+    /// symbols pending until a group is whole), between blank rows and generic rows
+    /// that first code what is pending: runs of zeros around one and two symbols' limits
+    /// and 258's multiples, the longest literals, rows of every length modulo a group.
+    /// The stream is `fdeflate`'s of the whole filtered rows, byte for byte.
+    #[test]
+    fn symbols_pending_across_rows_match() {
+        use crate::dirty::Dirty;
+        let f = Format::get();
+        // Ink whose filtered byte (above − this, the row above blank) has the longest code.
+        let b = (1..256usize).max_by_key(|&s| f.len[s]).unwrap() as u8;
+        let ink_of = |x: u8| 0u8.wrapping_sub(x);
+        let mut seed = 0x3c6e_f372_fe94_f82bu64;
+        for w in [300usize, 1031, 1039, 2600] {
+            let h = 90;
+            let mut ink = vec![0u8; w * h];
+            let mut dirty = Dirty::new(w, h);
+            for j in 0..h {
+                if j % 9 == 5 || j % 9 == 6 || j % 13 == 0 {
+                    continue; // blank rows, alone or two (then a blank filtered row)
+                }
+                let mut x = (lcg(&mut seed) % 40) as usize;
+                while x < w {
+                    let n = 1 + (lcg(&mut seed) % 11) as usize;
+                    for k in x..(x + n).min(w) {
+                        ink[j * w + k] = if lcg(&mut seed) % 4 == 0 {
+                            (lcg(&mut seed) % 256) as u8
+                        } else {
+                            ink_of(b)
+                        };
+                    }
+                    dirty.mark_px(x, j, (x + n).min(w), j + 1);
+                    let gaps = [
+                        1, 3, 8, 258, 259, 260, 261, 516, 517, 518, 774, 775, 776, 777,
+                    ];
+                    x += n + gaps[(lcg(&mut seed) % 14) as usize];
+                }
+            }
+            let mut rows = Vec::new();
+            for j in 0..h {
+                let mut row = vec![2u8; w + 1];
+                for x in 0..w {
+                    let above = if j == 0 { 0 } else { ink[(j - 1) * w + x] };
+                    row[1 + x] = above.wrapping_sub(ink[j * w + x]);
+                }
+                rows.push(row);
+            }
+            let mut z = RowDeflate::new(Vec::new());
+            z.row(&rows[0], std::iter::once((0, w + 1)));
+            let mut blank = 0;
+            for j in 1..h {
+                if dirty.row_pair_blank(j) {
+                    blank += 1;
+                    continue;
+                }
+                z.blank_rows(w + 1, 2, blank);
+                blank = 0;
+                if j % 17 == 0 {
+                    // A row of another filter type after pending symbols, beginning with
+                    // a run of zeros (of two symbols, or of one) and a few inked bytes.
+                    let row = &mut rows[j];
+                    row[0] = 0;
+                    let run = [300, 700, 200][(j / 17) % 3].min(w);
+                    row[1..run].fill(0);
+                    z.row(row, std::iter::once((0, w + 1)));
+                    continue;
+                }
+                let (above, this) = ink[(j - 1) * w..(j + 1) * w].split_at_mut(w);
+                z.up_row(above, this, dirty.row_pair_words(j), false);
+            }
+            z.blank_rows(w + 1, 2, blank);
+            assert!(z.finish() == reference(&rows), "width {w}: streams differ");
+        }
+        // Up rows that end with a run of two symbols, then a row beginning with one of
+        // two symbols, the rows' symbols at every offset of a `put`'s three.
+        let w = 607;
+        let (mut rows, mut z) = (Vec::new(), RowDeflate::new(Vec::new()));
+        for (ups, px) in (1..7).flat_map(|u| (1..8).map(move |p| (u, p))) {
+            let mut ink = vec![0u8; 2 * w];
+            for _ in 0..ups {
+                for x in 0..px {
+                    ink[w + x] = ink[x].wrapping_add(1 + (lcg(&mut seed) % 200) as u8);
+                }
+                let mut row = vec![2u8; w + 1];
+                for x in 0..w {
+                    row[1 + x] = ink[x].wrapping_sub(ink[w + x]);
+                }
+                let (above, this) = ink.split_at_mut(w);
+                let marks = [1u64; 10];
+                z.up_row(above, this, (&marks, &marks), false);
+                rows.push(row);
+                ink.copy_within(w.., 0);
+            }
+            let row = vec![0u8; w + 1];
+            z.row(&row, std::iter::empty());
+            rows.push(row);
+        }
+        assert!(z.finish() == reference(&rows), "streams differ");
     }
 }
