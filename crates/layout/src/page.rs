@@ -1607,11 +1607,14 @@ mod tests {
         }
     }
 
-    /// [`draw_dashes`] as it was before the dashes' page points were moved into the
-    /// display list: each polyline copied from the caller's.
+    /// What [`draw_dashes`] must draw, stated dash by dash: the curve's ink; in dash
+    /// order, a dot for each dash shorter than `MIN_DASH_LENGTH` (at its midpoint; the
+    /// start dot's radius for the bold one, else half the stroke but at least a dot) and
+    /// a polyline of its own for the bold dash; then the regular dashes as one
+    /// primitive and the heavy quarter dashes (if any) as another; black ink again. The
+    /// box holds every dot and every stroke's half width around its points.
     #[allow(clippy::too_many_arguments)]
-    fn draw_dashes_copying(
-        dl: &mut DisplayList,
+    fn dashes_as_stated(
         t: &WorldToPage,
         dashes: &[coupler_kinematics::Dash],
         pts: &[Vec<PagePoint>],
@@ -1619,77 +1622,69 @@ mod tests {
         st: &CurveStyle,
         step_deg: f64,
         index0: i64,
-    ) -> [f64; 4] {
-        let mut bbox = [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY];
-        dl.ink(st.ink);
-        let mut regular: Vec<Vec<PagePoint>> = Vec::with_capacity(dashes.len());
-        let mut heavy: Vec<Vec<PagePoint>> = Vec::new();
-        for (k, (d, pts)) in dashes.iter().zip(pts).enumerate() {
-            let is_bold = bold == Some(k);
-            let is_heavy =
-                !is_bold && st.heavy > st.width && is_quarter_dash(d.index - index0, step_deg);
-            let len: f64 = pts
+    ) -> (Vec<Primitive>, [f64; 4]) {
+        let mut items = vec![Primitive::Ink(st.ink)];
+        let (mut regular, mut heavy) = (Vec::new(), Vec::new());
+        let mut extents: Vec<(PagePoint, f64)> = Vec::new();
+        for (k, (d, line)) in dashes.iter().zip(pts).enumerate() {
+            let length: f64 = line
                 .windows(2)
                 .map(|s| libm::hypot(s[1][0] - s[0][0], s[1][1] - s[0][1]))
                 .sum();
-            let wdt = if is_bold {
-                st.bold
-            } else if is_heavy {
-                st.heavy
-            } else {
-                st.width
+            let quarter = is_quarter_dash(d.index - index0, step_deg);
+            let (width, list) = match (bold == Some(k), st.heavy > st.width && quarter) {
+                (true, _) => (st.bold, None),
+                (false, true) => (st.heavy, Some(&mut heavy)),
+                (false, false) => (st.width, Some(&mut regular)),
             };
-            if len < style::MIN_DASH_LENGTH {
-                let mp = d.midpoint();
-                let p = t.map(mp.x, mp.y);
-                let r = if is_bold {
-                    style::START_DOT_RADIUS
-                } else {
-                    style::DOT_RADIUS.max(0.5 * wdt)
+            if length < style::MIN_DASH_LENGTH {
+                let center = t.map(d.midpoint().x, d.midpoint().y);
+                let radius = match list {
+                    None => style::START_DOT_RADIUS,
+                    Some(_) => style::DOT_RADIUS.max(0.5 * width),
                 };
-                dl.circle(p, r, None);
-                bbox = union(bbox, [p[0] - r, p[1] - r, p[0] + r, p[1] + r]);
-            } else {
-                if is_bold {
-                    dl.line(pts.clone(), wdt);
-                } else if is_heavy {
-                    heavy.push(pts.clone());
-                } else {
-                    regular.push(pts.clone());
-                }
-                for p in pts {
-                    bbox = union(
-                        bbox,
-                        [
-                            p[0] - 0.5 * wdt,
-                            p[1] - 0.5 * wdt,
-                            p[0] + 0.5 * wdt,
-                            p[1] + 0.5 * wdt,
-                        ],
-                    );
-                }
+                items.push(Primitive::Circle {
+                    center,
+                    radius,
+                    width: None,
+                });
+                extents.push((center, radius));
+                continue;
+            }
+            extents.extend(line.iter().map(|&p| (p, 0.5 * width)));
+            match list {
+                None => items.push(Primitive::Polyline {
+                    points: line.clone(),
+                    width,
+                }),
+                Some(list) => list.push(line.clone()),
             }
         }
-        dl.items.push(Primitive::Polylines {
+        items.push(Primitive::Polylines {
             lines: regular,
             width: st.width,
         });
         if !heavy.is_empty() {
-            dl.items.push(Primitive::Polylines {
+            items.push(Primitive::Polylines {
                 lines: heavy,
                 width: st.heavy,
             });
         }
-        dl.ink(Ink::Black);
-        bbox
+        items.push(Primitive::Ink(Ink::Black));
+        let bbox = extents.iter().fold(
+            [f64::INFINITY, f64::INFINITY, -f64::INFINITY, -f64::INFINITY],
+            |b, &(p, r)| union(b, [p[0] - r, p[1] - r, p[0] + r, p[1] + r]),
+        );
+        (items, bbox)
     }
 
-    /// Dashes whose page points are moved into the display list draw what copying them
-    /// drew: the same primitives in the same order, the same box, to the bit. Random
+    /// Dashes whose page points are moved into the display list draw what is stated
+    /// for them: the same primitives in the same order, the same box, to the bit. Random
     /// curves of 1–40 dashes (some shorter than a point, so drawn as dots), a bold dash
-    /// or none, styles with and without heavy quarter dashes, two dash steps and offsets.
+    /// or none, styles with and without heavy quarter dashes and strokes wider than a
+    /// dot, two dash steps and offsets.
     #[test]
-    fn dashes_moved_draw_what_dashes_copied_drew() {
+    fn dashes_draw_as_stated() {
         use coupler_kinematics::Dash;
         use nalgebra::Point2;
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
@@ -1710,6 +1705,13 @@ mod tests {
                 width: 0.6,
                 heavy: 0.6,
                 bold: 1.4,
+            },
+            // Strokes wider than a dot: a short dash's dot is half the stroke.
+            CurveStyle {
+                ink: Ink::Gray(64),
+                width: 1.8,
+                heavy: 2.4,
+                bold: 3.0,
             },
         ];
         let (mut dots, mut lines) = (0, 0);
@@ -1741,17 +1743,15 @@ mod tests {
                 1 => Some(0),
                 _ => Some((next() * count as f64) as usize),
             };
-            let st = styles[case % 2];
-            let mut want = DisplayList::new(792.0, 1224.0);
-            let want_box =
-                draw_dashes_copying(&mut want, &t, &dashes, &pts, bold, &st, step, index0);
+            let st = styles[(case / 6) % 3];
+            let (want, want_box) = dashes_as_stated(&t, &dashes, &pts, bold, &st, step, index0);
             let mut got = DisplayList::new(792.0, 1224.0);
             let got_box = draw_dashes(&mut got, &t, &dashes, pts, bold, &st, step, index0);
             assert_eq!(
-                format!("{got:?} {got_box:?}"),
+                format!("{:?} {got_box:?}", got.items),
                 format!("{want:?} {want_box:?}")
             );
-            for item in &want.items {
+            for item in &want {
                 match item {
                     Primitive::Circle { .. } => dots += 1,
                     Primitive::Polylines { lines: l, .. } => lines += l.len(),
