@@ -624,8 +624,8 @@ impl Bits {
 /// takes in 16-bit lanes.
 const LANE_ROW: usize = i16::MAX as usize;
 
-/// The weights `−j` of a word's bytes `j = 0..8` beside the weight of its first.
-const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
+/// The offsets `j` of a word's bytes `j = 0..8` from its first.
+const RAMP: [u64; 8] = [0, 1, 2, 3, 4, 5, 6, 7];
 
 /// The inked words `list` (index and value, in order) of a row of `r` bytes as symbols
 /// in `syms` from `p` on ([`Bits::coded`]), and their bytes added to the Adler-32 sums
@@ -634,14 +634,17 @@ const RAMP: i16x8 = i16x8::new([0, -1, -2, -3, -4, -5, -6, -7]);
 /// and the sums, not reduced (below 2^40, from `a` below 2^16 and `b` below 2^33).
 ///
 /// With `LANES` (rows of at most [`LANE_ROW`] bytes) a word's sums are taken from its
-/// literals' 16-bit lanes, the ones the symbols are stored from: `a`'s lanes add the
-/// bytes and `b`'s multiply them by `r − p` (at most `2^15 − 1`, an `i16`) and add
-/// them in pairs into 32-bit lanes. They are added up every 64 words: a lane of `a`
-/// then holds at most 64·255 = 16,320 (below 2^15) and one of `b` at most
-/// 64·2·255·(2^15 − 1) = 1,069,515,840 (below 2^31), all of them at least 0 (the
-/// bytes past a word's ink, whose weights may be below 0, are zeros). So each 64 words
-/// add less than 2^17 to `a` and 2^33 to `b`, and a row has at most 64 times 64 words:
-/// the sums are left for the row's end to reduce. Without lanes, each word's sums are
+/// literals' 16-bit lanes, the ones the symbols are stored from, its literals starting
+/// at `q` (`q + j` for lane `j`, `q < r ≤ 2^15 − 1`, an `i16`): `a`'s lanes add the bytes
+/// and `b`'s multiply them by `q` and add them in pairs into 32-bit lanes. Every 64
+/// words they are added up: `Σ xₚ` is `a`'s lanes' sum `A`, and `Σ (r − p)·xₚ` is
+/// `r·A − P − Σ j·aⱼ` (`P` the sum of `b`'s lanes, `aⱼ` `a`'s lane `j`), a number at least
+/// 0 taken in wrapping `u64` arithmetic. A lane of `a` holds at most 64·255 = 16,320
+/// (below 2^15) and one of `b` at most 64·2·255·(2^15 − 1) = 1,069,515,840 (below
+/// 2^31), all of them at least 0. Each 64 words add less than 2^17 to `a` and 2^33 to
+/// `b` (the bytes past a word's ink, whose weights `r − p` may be below 0, are zeros),
+/// and a row has at most 64 times 64 words: the sums are left for the row's end to
+/// reduce. Without lanes, each word's sums are
 /// taken in a `u64` ([`word_sums`]) and reduced every 64 words: `b` grows by at most
 /// 64·(r·2040 + 2040) between reductions.
 #[inline(always)]
@@ -685,10 +688,11 @@ fn word_symbols<const LANES: bool>(
             win[has..has + 8].copy_from_slice(&lits.to_array().map(|x| x as u16));
             p += has + c as usize;
             if LANES {
-                // The literals' first byte is at `8i + from`.
-                let first = (r - (8 * i) as u64 - u64::from(from)) as i16;
+                // The literals' first byte is at `q = 8i + from`; the rest of each
+                // byte's weight `r − q − j` is taken every 64 words.
+                let q = (8 * i) as i16 + from as i16;
                 la += lits;
-                lb += lits.dot(i16x8::splat(first) + RAMP);
+                lb += lits.dot(i16x8::splat(q));
             } else {
                 let (sum, weighted) = word_sums(v);
                 a += sum;
@@ -697,16 +701,12 @@ fn word_symbols<const LANES: bool>(
         }
         if LANES {
             // Every lane as the unsigned number it is (at least 0, below 2^31).
-            a += la
-                .to_array()
-                .iter()
-                .map(|&x| u64::from(x as u16))
-                .sum::<u64>();
-            b += lb
-                .to_array()
-                .iter()
-                .map(|&x| u64::from(x as u32))
-                .sum::<u64>();
+            let la = la.to_array().map(|x| u64::from(x as u16));
+            let sum: u64 = la.iter().sum();
+            let ramp: u64 = la.iter().zip(RAMP).map(|(&x, j)| j * x).sum();
+            let firsts: u64 = lb.to_array().iter().map(|&x| u64::from(x as u32)).sum();
+            a += sum;
+            b = b.wrapping_add((r * sum).wrapping_sub(firsts).wrapping_sub(ramp));
         }
         if !LANES {
             (a, b) = (a % ADLER_MOD, b % ADLER_MOD);
@@ -1348,6 +1348,69 @@ mod tests {
             rows.push(mixed);
         }
         assert!(z.finish() == reference(&rows), "streams differ");
+    }
+
+    /// The words' Adler-32 sums taken in lanes (each 64 words' `r·A − P − Σ j·aⱼ`) are
+    /// the sums taken word by word in a `u64` and the sums of the bytes by hand:
+    /// rows up to [`LANE_ROW`] bytes, runs of inked words longer than 64 (every
+    /// offset of the 64-word parts), words with leading and trailing zero bytes
+    /// after a run of zeros and right after the word before, bytes of 255.
+    #[test]
+    fn lane_sums_are_the_weighted_bytes() {
+        let mut seed = 0x6a09_e667_f3bc_c908u64;
+        for r in [9usize, 64, 520, 1031, 4100, 20_000, LANE_ROW - 7, LANE_ROW] {
+            let n = r / 8;
+            for round in 0..6 {
+                let mut list = Vec::new();
+                for i in 0..n {
+                    let x = lcg(&mut seed);
+                    if round > 0 && x % (1 + round as u64) != 0 {
+                        continue;
+                    }
+                    let mut v = 0u64;
+                    let (from, to) = ((x >> 3) % 8, 8 - (x >> 6) % 8);
+                    for j in from..to.max(from + 1) {
+                        let b = if round == 5 {
+                            255
+                        } else {
+                            lcg(&mut seed) as u8 | 1
+                        };
+                        v |= u64::from(b) << (8 * j);
+                    }
+                    list.push((i, v));
+                }
+                let (a0, b0) = (lcg(&mut seed) % ADLER_MOD, lcg(&mut seed) % ADLER_MOD);
+                let (mut a, mut b) = (a0, b0);
+                for &(i, v) in &list {
+                    for j in 0..8 {
+                        let x = (v >> (8 * j)) & 0xff;
+                        a += x;
+                        b += (r - 8 * i - j) as u64 * x;
+                    }
+                }
+                let mut syms = vec![0u16; 12 * n + 72 + GROUP];
+                let lanes = word_symbols::<true>(&list, &mut syms, 0, r as u64, (a0, b0));
+                let mut other = vec![0u16; 12 * n + 72 + GROUP];
+                let words = word_symbols::<false>(&list, &mut other, 0, r as u64, (a0, b0));
+                assert_eq!(
+                    (lanes.0, lanes.1),
+                    (words.0, words.1),
+                    "r {r} round {round}"
+                );
+                assert_eq!(syms[..lanes.0], other[..words.0], "r {r} round {round}");
+                let m = |(_, _, a, b): (usize, usize, u64, u64)| (a % ADLER_MOD, b % ADLER_MOD);
+                assert_eq!(
+                    m(lanes),
+                    (a % ADLER_MOD, b % ADLER_MOD),
+                    "r {r} round {round}"
+                );
+                assert_eq!(
+                    m(words),
+                    (a % ADLER_MOD, b % ADLER_MOD),
+                    "r {r} round {round}"
+                );
+            }
+        }
     }
 
     /// An empty stream and a stream of one byte are `fdeflate`'s too.
