@@ -89,6 +89,20 @@ impl Dirty {
         if j >= self.height || w0 >= self.words {
             return;
         }
+        if let [b] = *bits {
+            // One word (most of a stroke's rows): that word alone.
+            let b = if w0 + 1 == self.words {
+                b & self.tail
+            } else {
+                b
+            };
+            self.bits[j * self.words + w0] |= b;
+            if b != 0 {
+                self.lo = self.lo.min(j);
+                self.hi = self.hi.max(j + 1);
+            }
+            return;
+        }
         let row = &mut self.bits[j * self.words + w0..(j + 1) * self.words];
         let n = bits.len().min(row.len());
         let (mut row, mut bits) = (&mut row[..n], &bits[..n]);
