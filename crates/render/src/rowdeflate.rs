@@ -1050,6 +1050,21 @@ mod tests {
     }
 
     /// A small deterministic generator.
+    /// The PNG rows (filter byte 2, Up) of an ink layer `w` by `h` as the page stores it
+    /// (0 = paper): each byte the ink above minus its own, the first row against zero.
+    fn up_rows(ink: &[u8], w: usize, h: usize) -> Vec<Vec<u8>> {
+        (0..h)
+            .map(|j| {
+                let mut row = vec![2u8; w + 1];
+                for x in 0..w {
+                    let above = if j == 0 { 0 } else { ink[(j - 1) * w + x] };
+                    row[1 + x] = above.wrapping_sub(ink[j * w + x]);
+                }
+                row
+            })
+            .collect()
+    }
+
     fn lcg(s: &mut u64) -> u64 {
         *s = s
             .wrapping_mul(6_364_136_223_846_793_005)
@@ -1277,15 +1292,7 @@ mod tests {
                     }
                 }
             }
-            let mut rows = Vec::new();
-            for j in 0..h {
-                let mut row = vec![2u8; w + 1];
-                for x in 0..w {
-                    let above = if j == 0 { 0 } else { ink[(j - 1) * w + x] };
-                    row[1 + x] = above.wrapping_sub(ink[j * w + x]);
-                }
-                rows.push(row);
-            }
+            let rows = up_rows(&ink, w, h);
             // The encoder clears the row above as it reads it, or `clear_row` after.
             let clear = w % 2 == 1;
             let mut z = RowDeflate::new(Vec::new());
@@ -1527,15 +1534,7 @@ mod tests {
                     x += n + gaps[(lcg(&mut seed) % 14) as usize];
                 }
             }
-            let mut rows = Vec::new();
-            for j in 0..h {
-                let mut row = vec![2u8; w + 1];
-                for x in 0..w {
-                    let above = if j == 0 { 0 } else { ink[(j - 1) * w + x] };
-                    row[1 + x] = above.wrapping_sub(ink[j * w + x]);
-                }
-                rows.push(row);
-            }
+            let mut rows = up_rows(&ink, w, h);
             let mut z = RowDeflate::new(Vec::new());
             z.row(&rows[0], std::iter::once((0, w + 1)));
             let mut blank = 0;
