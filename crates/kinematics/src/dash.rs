@@ -830,10 +830,6 @@ mod tests {
         }
     }
 
-    /// `dash_curves` gives each point's `dash_curve`, bit for bit (the `Debug` text of
-    /// every `f64`, sign of zero included), on four-bars and geared five-bars (a period of
-    /// two turns among them), points near and far, tolerances that bisect past the
-    /// cached depth; and the first point's error where one does not assemble.
     /// A curve's dashes, their samples gathered in one buffer and copied out, are each
     /// dash sampled on its own into a fresh list (as every dash was before): the same
     /// points to the bit, on four-bars and a geared five-bar, both circuits, tolerances
@@ -893,6 +889,10 @@ mod tests {
         );
     }
 
+    /// `dash_curves` gives each point's `dash_curve`, bit for bit (the `Debug` text of
+    /// every `f64`, sign of zero included), on four-bars and geared five-bars (a period of
+    /// two turns among them), points near and far, tolerances that bisect past the
+    /// cached depth; and the first point's error where one does not assemble.
     #[test]
     fn curves_dashed_together_are_each_dashed_alone() {
         use crate::geared::{GearRatio, GearedFiveBar};

@@ -916,14 +916,20 @@ fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: 
 /// the tests' reference.
 #[cfg(test)]
 fn seg_row_lanes(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32, u32)> {
-    let (lo, hi) = s.reach_x(cy, reach)?;
-    let w = row.len() as f32;
-    // The pixels whose centre i + ½ lies within [lo − ⅛, hi + ⅛].
-    let [x0, x1, _, _] = pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
+    let (x0, x1) = lanes_span(s, cy, reach, row.len() as f32)?;
     if x0 >= x1 {
         return None;
     }
     Edge::new(s, cy, r).measure::<true>(row, x0, x1)
+}
+
+/// The conservative span `[x0, x1)` of segment `s` on the row of centre `cy` and `w`
+/// pixels in [`Mode::Lanes`]: the pixels whose centre i + ½ lies within [lo − ⅛, hi + ⅛]
+/// of its reach (none when the segment does not reach the row; empty when `x0 ≥ x1`).
+fn lanes_span(s: &Seg, cy: f32, reach: f32, w: f32) -> Option<(usize, usize)> {
+    let (lo, hi) = s.reach_x(cy, reach)?;
+    let [x0, x1, _, _] = pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
+    Some((x0, x1))
 }
 
 /// The conservative spans of [`seg_row_lanes`] of segment `s` ([`Mode::Lanes`], within
@@ -942,8 +948,7 @@ fn lanes_spans4(s: &Seg, cy: [f32; 4], reach: f32, w: f32) -> [[u32; 4]; 2] {
     if w >= 4_194_304.0 {
         let mut out = [[0; 4]; 2];
         for (m, &cy) in cy.iter().enumerate() {
-            if let Some((lo, hi)) = s.reach_x(cy, reach) {
-                let [x0, x1, _, _] = pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
+            if let Some((x0, x1)) = lanes_span(s, cy, reach, w) {
                 (out[0][m], out[1][m]) = (x0 as u32, x1 as u32);
             }
         }
@@ -1376,11 +1381,7 @@ mod tests {
             let w = [7.0, 300.0, 2500.0, 8100.0, 8192.0, 5_000_000.0][n % 6];
             let got = lanes_spans4(&s, cy4, reach, w);
             for (m, &cy) in cy4.iter().enumerate() {
-                let want = s.reach_x(cy, reach).map(|(lo, hi)| {
-                    let [x0, x1, _, _] =
-                        pixel_spans([lo, hi, lo, hi], [0.625, 0.375, 0.625, 0.375], w);
-                    (x0, x1)
-                });
+                let want = lanes_span(&s, cy, reach, w);
                 let (x0, x1) = (got[0][m] as usize, got[1][m] as usize);
                 // Both the same span, or both none.
                 let g = (x0 < x1).then_some((x0, x1));

@@ -850,9 +850,8 @@ impl OpenQuery {
                 let kernel = Kernel::new(&offsets, &self.y);
                 debug_assert!(kernel.reach() <= grid.cells.len() - grid.period);
                 for i in 0..count {
-                    let whole = (i as f64 * h).round();
-                    let start = whole;
-                    let sums = kernel.sums(&grid, whole as i64);
+                    let start = (i as f64 * h).round();
+                    let sums = kernel.sums(&grid, start as i64);
                     let gram = sums.gram();
                     // A reflection whose least misfit over every coupler point is above
                     // every point's bound of that reflection would be refused by every
