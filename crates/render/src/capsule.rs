@@ -11,12 +11,13 @@
 //! joins and crossing dashes of one stroke are never inked twice, as with a non-zero fill
 //! of the stroke's outline.
 //!
-//! Rows are swept once per stroke with the segments that reach them; a row's coverage is
-//! gathered in a one-row buffer (maximum over segments) and composited into the page at
-//! once, only over the spans the segments reach: no page-sized layer, no outline, no
-//! supersampling. Everything is in f32 arithmetic that depends only on the input (no
-//! threads, no platform-dependent functions: `sqrt` is exact), so pages are
-//! byte-deterministic.
+//! Rows are swept once per stroke; a segment makes its coverage of up to [`RING`] rows
+//! at a time, from the first row it reaches, into that many one-row buffers (maximum
+//! over segments), and a row is composited into the page at once when every segment
+//! that reaches it has been made there, only over the spans the segments reach: no
+//! page-sized layer, no outline, no supersampling. Everything is in f32 arithmetic that
+//! depends only on the input (no threads, no platform-dependent functions: `sqrt` is
+//! exact), so pages are byte-deterministic.
 
 use crate::dirty::{BLOCK, Dirty};
 use crate::layer::GrayLayer;
@@ -155,28 +156,64 @@ pub(crate) struct Target<'a> {
 /// and within `r − ½` (its interior) of the segment ([`intervals`]).
 type Intervals = [Option<(f32, f32)>; 2];
 
-/// Scratch of the scan converter, reused from stroke to stroke (a few kilobytes).
+/// Rows of coverage a stroke gathers at once: a segment's rows are made [`RING`] at a
+/// time (its state kept across them), into the row buffers of rows `j .. j + RING`,
+/// row `j` in buffer `j % RING`; row `j` is composited once every segment that reaches
+/// it has been made there.
+const RING: usize = 8;
+
+/// Scratch of the scan converter, reused from stroke to stroke (some ten kilobytes).
 #[derive(Default)]
 pub(crate) struct Capsules {
     segs: Vec<Seg>,
     order: Vec<u32>,
+    /// The active segments of the tests' reference row loop.
+    #[cfg(test)]
     active: Vec<u32>,
-    row: Vec<u8>,
-    /// The blocks ([`BLOCK`] pixels, the dirty map's) of the row buffer that hold the
-    /// row's spans: block `b` is bit `b % 64` of word `b / 64`; words `[wlo, whi)` may
-    /// hold bits (see [`Capsules::note`]).
-    blocks: Vec<u64>,
-    wlo: usize,
-    whi: usize,
+    /// [`RING`] row buffers of `width` pixels (all 0 between rows), and the blocks
+    /// each holds coverage in.
+    rows: [Vec<u8>; RING],
+    notes: [Notes; RING],
     /// A row's spans, for the reference row loop of the tests.
     #[cfg(test)]
     spans: Vec<(u32, u32)>,
-    /// A row's edges left to measure in [`Mode::Wide`]: `(segment, from, to)`.
-    edges: Vec<(u32, u32, u32)>,
-    /// Per segment in [`Mode::Wide`] and [`Mode::Lanes`], its pixel spans on four rows
-    /// from the first: made four rows at a time ([`wide_spans4`], [`lanes_spans4`], a
-    /// row a lane).
-    ahead: Vec<(u32, [[u32; 4]; 4])>,
+    /// Per row buffer, the row's edges left to measure in [`Mode::Wide`]:
+    /// `(segment, from, to)`.
+    edges: [Vec<(u32, u32, u32)>; RING],
+    /// Per row buffer, the segments whose next rows start at its row (made up to
+    /// [`RING`] rows before), and the ones due on the row being made.
+    wake: [Vec<u32>; RING],
+    due: Vec<u32>,
+}
+
+/// The blocks ([`BLOCK`] pixels, the dirty map's) of a row buffer that hold the row's
+/// spans: block `b` is bit `b % 64` of word `b / 64`; words `[lo, hi)` may hold bits
+/// (see [`Notes::note`]).
+#[derive(Default)]
+struct Notes {
+    blocks: Vec<u64>,
+    lo: usize,
+    hi: usize,
+}
+
+impl Notes {
+    /// Notes that the row buffer holds coverage in pixels `[x0, x1)` (`x0 < x1`, within
+    /// the row): their blocks are composited by [`Capsules::flush_row`].
+    #[inline(always)]
+    fn note(&mut self, (x0, x1): (u32, u32)) {
+        let (b0, b1) = (x0 as usize / BLOCK, (x1 as usize - 1) / BLOCK);
+        let (w0, w1) = (b0 / 64, b1 / 64);
+        self.lo = self.lo.min(w0);
+        self.hi = self.hi.max(w1 + 1);
+        let blocks = &mut self.blocks;
+        if w0 == w1 {
+            blocks[w0] |= (u64::MAX << (b0 % 64)) & (u64::MAX >> (63 - b1 % 64));
+        } else {
+            blocks[w0] |= u64::MAX << (b0 % 64);
+            blocks[w0 + 1..w1].fill(u64::MAX);
+            blocks[w1] |= u64::MAX >> (63 - b1 % 64);
+        }
+    }
 }
 
 /// `x.floor()` without a call into libm (which the baseline x86-64 target makes of it),
@@ -269,116 +306,119 @@ impl Capsules {
         self.order
             .sort_unstable_by_key(|&k| segs[k as usize].rows.0);
         self.fit(t.width);
-        // No spans made ahead yet (no row is `u32::MAX` rows past another).
-        self.ahead.clear();
-        self.ahead.resize(segs.len(), (u32::MAX, [[0; 4]; 4]));
-        self.active.clear();
         let mut next = 0;
         let mut j = 0u32;
-        // The first row past an active segment's rows (the active list changes only
-        // there and where segments enter).
-        let mut ends = u32::MAX;
-        while next < self.order.len() || !self.active.is_empty() {
-            if self.active.is_empty() {
-                j = j.max(segs[self.order[next] as usize].rows.0);
+        // Rows `[j, until)` may hold coverage; `pending` segments wait in `wake`.
+        let (mut until, mut pending) = (0u32, 0usize);
+        loop {
+            if j >= until && pending == 0 {
+                // Every row buffer composited: on to the next segment's first row.
+                let Some(&k) = self.order.get(next) else {
+                    break;
+                };
+                j = j.max(segs[k as usize].rows.0);
             }
+            let at = j as usize % RING;
+            std::mem::swap(&mut self.due, &mut self.wake[at]);
+            pending -= self.due.len();
             while next < self.order.len() && segs[self.order[next] as usize].rows.0 <= j {
-                self.active.push(self.order[next]);
-                ends = ends.min(segs[self.order[next] as usize].rows.1);
+                self.due.push(self.order[next]);
                 next += 1;
             }
-            self.edges.clear();
-            let cy = j as f32 + 0.5;
-            for a in 0..self.active.len() {
-                let k = self.active[a];
+            for i in 0..self.due.len() {
+                let k = self.due[i];
                 let s = &segs[k as usize];
-                let span = match s.mode {
-                    Mode::Lanes => {
-                        // The segment's conservative spans on four rows at once, from
-                        // this one.
-                        let (from, spans) = &mut self.ahead[k as usize];
-                        if !(*from <= j && j - *from < 4) {
-                            let cy4 = [0, 1, 2, 3].map(|m| (j + m) as f32 + 0.5);
-                            let w = self.row.len() as f32;
-                            [spans[0], spans[1]] = lanes_spans4(s, cy4, reach, w);
-                            *from = j;
-                        }
-                        let m = (j - *from) as usize & 3;
-                        let (x0, x1) = (spans[0][m] as usize, spans[1][m] as usize);
-                        if x0 < x1 {
-                            Edge::new(s, cy, r).measure::<true>(&mut self.row, x0, x1)
-                        } else {
-                            None
-                        }
-                    }
-                    Mode::Wide => {
-                        // The segment's pixel spans on four rows at once, from this
-                        // one (the spans' order does not matter).
-                        let (from, spans) = &mut self.ahead[k as usize];
-                        if !(*from <= j && j - *from < 4) {
-                            let cy4 = [0, 1, 2, 3].map(|m| (j + m) as f32 + 0.5);
-                            let w = self.row.len() as f32;
-                            (*from, *spans) = (j, wide_spans4(s, cy4, reach, r - 0.5, w));
-                        }
-                        // Row j's lane (below 4: `& 3` only spares a bounds check),
-                        // its four bounds read in place.
-                        let m = (j - *from) as usize & 3;
-                        let row_spans = [0, 1, 2, 3].map(|i| spans[i][m] as usize);
-                        seg_row_fill(k, row_spans, &mut self.row, &mut self.edges)
-                    }
-                    Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
-                };
-                if let Some(span) = span {
-                    self.note(span);
+                // Its rows from this one, up to RING of them.
+                let end = j.saturating_add(RING as u32).min(s.rows.1);
+                self.run(s, k, j, end, r, reach);
+                until = until.max(end);
+                if end < s.rows.1 {
+                    // Its next rows, once this row buffer is free (`end − j ≤ RING`).
+                    self.wake[end as usize % RING].push(k);
+                    pending += 1;
                 }
             }
-            if !self.edges.is_empty() {
-                measure_edges(&segs, &self.edges, cy, r, &mut self.row);
+            self.due.clear();
+            if !self.edges[at].is_empty() {
+                let row = &mut self.rows[at];
+                measure_edges(&segs, &self.edges[at], j as f32 + 0.5, r, row);
+                self.edges[at].clear();
             }
             self.flush_row(j as usize, t);
-            if ends <= j + 1 {
-                ends = u32::MAX;
-                self.active.retain(|&k| {
-                    let end = segs[k as usize].rows.1;
-                    if end > j + 1 {
-                        ends = ends.min(end);
-                    }
-                    end > j + 1
-                });
-            }
             j += 1;
         }
         segs.clear();
         self.segs = segs;
     }
 
-    /// Sizes the row buffer and its block map for rows of `width` pixels.
+    /// Makes segment `s`'s (`k`'s) coverage of rows `[j, end)` (`end − j ≤ RING`) in
+    /// their row buffers and notes their spans; in [`Mode::Wide`] leaves their edges in
+    /// `edges` (see [`seg_row_fill`]).
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // a row's lane of four rows' spans
+    fn run(&mut self, s: &Seg, k: u32, j: u32, end: u32, r: f32, reach: f32) {
+        let w = self.rows[0].len() as f32;
+        match s.mode {
+            Mode::Lanes => {
+                // The segment's conservative spans four rows at a time.
+                for i in (j..end).step_by(4) {
+                    let cy4 = [0, 1, 2, 3].map(|m| (i + m) as f32 + 0.5);
+                    let [x0, x1] = lanes_spans4(s, cy4, reach, w);
+                    for m in 0..(end - i).min(4) as usize {
+                        let (x0, x1) = (x0[m] as usize, x1[m] as usize);
+                        if x0 < x1 {
+                            let at = (i as usize + m) % RING;
+                            let row = &mut self.rows[at];
+                            if let Some(span) = Edge::new(s, cy4[m], r).measure::<true>(row, x0, x1)
+                            {
+                                self.notes[at].note(span);
+                            }
+                        }
+                    }
+                }
+            }
+            Mode::Wide => {
+                // The segment's pixel spans four rows at a time (the spans' order does
+                // not matter).
+                for i in (j..end).step_by(4) {
+                    let cy4 = [0, 1, 2, 3].map(|m| (i + m) as f32 + 0.5);
+                    let spans = wide_spans4(s, cy4, reach, r - 0.5, w);
+                    for m in 0..(end - i).min(4) as usize {
+                        let at = (i as usize + m) % RING;
+                        let row = &mut self.rows[at];
+                        let row_spans = [0, 1, 2, 3].map(|b| spans[b][m] as usize);
+                        if let Some(span) = seg_row_fill(k, row_spans, row, &mut self.edges[at]) {
+                            self.notes[at].note(span);
+                        }
+                    }
+                }
+            }
+            Mode::Exact => {
+                for i in j..end {
+                    let at = i as usize % RING;
+                    let row = &mut self.rows[at];
+                    if let Some(span) = seg_row(s, i as f32 + 0.5, r, reach, row) {
+                        self.notes[at].note(span);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Sizes the row buffers and their block maps for rows of `width` pixels (all 0
+    /// between rows, so resized in place).
     fn fit(&mut self, width: usize) {
-        if self.row.len() != width {
-            self.row = vec![0; width];
-            self.blocks = vec![0; width.div_ceil(BLOCK).div_ceil(64).max(1)];
-            (self.wlo, self.whi) = (self.blocks.len(), 0);
+        if self.rows[0].len() != width || self.notes[0].blocks.is_empty() {
+            let words = width.div_ceil(BLOCK).div_ceil(64).max(1);
+            for (row, notes) in self.rows.iter_mut().zip(&mut self.notes) {
+                row.resize(width, 0);
+                notes.blocks.resize(words, 0);
+                (notes.lo, notes.hi) = (words, 0);
+            }
         }
     }
 
-    /// Notes that the row buffer holds coverage in pixels `[x0, x1)` (`x0 < x1`, within
-    /// the row): their blocks are composited by [`Capsules::flush_row`].
-    #[inline(always)]
-    fn note(&mut self, (x0, x1): (u32, u32)) {
-        let (b0, b1) = (x0 as usize / BLOCK, (x1 as usize - 1) / BLOCK);
-        let (w0, w1) = (b0 / 64, b1 / 64);
-        self.wlo = self.wlo.min(w0);
-        self.whi = self.whi.max(w1 + 1);
-        if w0 == w1 {
-            self.blocks[w0] |= (u64::MAX << (b0 % 64)) & (u64::MAX >> (63 - b1 % 64));
-        } else {
-            self.blocks[w0] |= u64::MAX << (b0 % 64);
-            self.blocks[w0 + 1..w1].fill(u64::MAX);
-            self.blocks[w1] |= u64::MAX >> (63 - b1 % 64);
-        }
-    }
-
-    /// Composites the row buffer's noted blocks into row `j` and clears them: each run
+    /// Composites row `j`'s buffer's noted blocks into row `j` and clears them: each run
     /// of adjacent blocks within a word of the block map at once, in the order of the
     /// row (a pixel of a noted block that no span reached has coverage 0, which leaves
     /// the page as it is; a run across words is composited in two pieces, split at a
@@ -387,32 +427,35 @@ impl Capsules {
     /// marking each span would. Into the gray layer, a tile's noted blocks at once
     /// ([`GrayLayer::add_blocks`]).
     fn flush_row(&mut self, j: usize, t: &mut Target) {
-        if self.wlo >= self.whi {
+        let at = j % RING;
+        let notes = &mut self.notes[at];
+        if notes.lo >= notes.hi {
             return;
         }
-        let (wlo, whi) = (self.wlo, self.whi);
-        (self.wlo, self.whi) = (self.blocks.len(), 0);
+        let (wlo, whi) = (notes.lo, notes.hi);
+        (notes.lo, notes.hi) = (notes.blocks.len(), 0);
+        let blocks = &mut notes.blocks[wlo..whi];
+        let cov = &mut self.rows[at];
         if t.ink != Ink::Paper {
-            t.dirty.mark_blocks(j, wlo, &self.blocks[wlo..whi]);
+            t.dirty.mark_blocks(j, wlo, blocks);
         }
         if let Some(layer) = t.layer.as_deref_mut() {
-            for w in wlo..whi {
-                let bits = std::mem::take(&mut self.blocks[w]);
-                layer.add_blocks(j, w, bits, &mut self.row);
+            for (w, bits) in (wlo..).zip(blocks) {
+                layer.add_blocks(j, w, std::mem::take(bits), cov);
             }
             return;
         }
         let row = &mut t.data[(j - t.first) * t.width..(j - t.first + 1) * t.width];
         let (width, ink) = (t.width, t.ink);
-        for w in wlo..whi {
-            let mut bits = std::mem::take(&mut self.blocks[w]);
+        for (w, bits) in (wlo..).zip(blocks) {
+            let mut bits = std::mem::take(bits);
             while bits != 0 {
                 let s = bits.trailing_zeros() as usize;
                 let n = (!(bits >> s)).trailing_zeros() as usize;
                 // The lowest run of ones cleared.
                 bits &= bits.wrapping_add(1 << s);
                 let (x0, x1) = (BLOCK * (64 * w + s), (BLOCK * (64 * w + s + n)).min(width));
-                composite_span(&mut row[x0..x1], &mut self.row[x0..x1], ink);
+                composite_span(&mut row[x0..x1], &mut cov[x0..x1], ink);
             }
         }
     }
@@ -462,8 +505,9 @@ impl Capsules {
                 if x0 >= x1 {
                     continue;
                 }
-                span(&mut self.row, x0, x1, ring);
-                self.note((x0 as u32, x1 as u32));
+                let at = j % RING;
+                span(&mut self.rows[at], x0, x1, ring);
+                self.notes[at].note((x0 as u32, x1 as u32));
             }
             self.flush_row(j, t);
         }
@@ -1597,7 +1641,10 @@ mod tests {
                     }
                 }
             }
-            assert!(c.row.iter().all(|&v| v == 0), "row buffer left clean");
+            assert!(
+                c.rows.iter().flatten().all(|&v| v == 0),
+                "row buffer left clean"
+            );
         }
     }
 
@@ -1813,12 +1860,13 @@ mod tests {
                 }
                 self.spans.clear();
                 let cy = j as f32 + 0.5;
+                let row = &mut self.rows[0];
                 for &k in &self.active {
                     let s = &segs[k as usize];
                     let span = match s.mode {
-                        Mode::Lanes => seg_row_lanes(s, cy, r, reach, &mut self.row),
-                        Mode::Wide if s.covered(cy, reach, &self.row) => None,
-                        Mode::Wide | Mode::Exact => seg_row(s, cy, r, reach, &mut self.row),
+                        Mode::Lanes => seg_row_lanes(s, cy, r, reach, row),
+                        Mode::Wide if s.covered(cy, reach, row) => None,
+                        Mode::Wide | Mode::Exact => seg_row(s, cy, r, reach, row),
                     };
                     if let Some(span) = span {
                         self.spans.push(span);
@@ -1850,8 +1898,8 @@ mod tests {
                 }
                 let (x0, x1) = (x0 as usize, x1 as usize);
                 match t.layer.as_deref_mut() {
-                    Some(layer) => layer.add_span(j, x0, &mut self.row[x0..x1]),
-                    None => composite_pixels(&mut row[x0..x1], &mut self.row[x0..x1], t.ink),
+                    Some(layer) => layer.add_span(j, x0, &mut self.rows[0][x0..x1]),
+                    None => composite_pixels(&mut row[x0..x1], &mut self.rows[0][x0..x1], t.ink),
                 }
                 if t.ink != Ink::Paper {
                     t.dirty.mark_px(x0, j, x1, j + 1);
@@ -1866,13 +1914,14 @@ mod tests {
     /// scattered segments and dots, thin ([`Mode::Lanes`]) and wide ([`Mode::Wide`]),
     /// over blank and inked pages, drawn whole and band by band (segments entering and
     /// leaving mid-band, rows clipped), one stroke after another with the same scratch,
-    /// on pages narrower and wider than a word of the block map.
+    /// on pages narrower and wider than a word of the block map; segments of a row or a
+    /// few and of many runs of [`RING`] rows, entering while others are mid-run.
     #[test]
     fn strokes_match_the_reference_row_loop() {
         let mut rand = unit_floats(0x5851_f42d_4c95_7f2du64);
-        let (mut wide, mut thin, mut crowded) = (0, 0, 0);
+        let (mut wide, mut thin, mut crowded, mut long) = (0, 0, 0, 0);
         // One scratch for every stroke, as a page's (nothing of a stroke may be left for
-        // the next: the intervals made ahead for rows of a wide segment).
+        // the next: rows made ahead, segments waiting for their next rows).
         let mut c = Capsules::default();
         for n in 0..1500 {
             // Now and then a page wider than a word of the block map (512 pixels).
@@ -1973,7 +2022,10 @@ mod tests {
             }
             assert!(got == want, "stroke {n}: r {r}, {} segments", pts.len());
             assert_eq!(got_dirty.rows(), want_dirty.rows(), "stroke {n}");
-            assert!(c.row.iter().all(|&v| v == 0), "row buffer left clean");
+            assert!(
+                c.rows.iter().flatten().all(|&v| v == 0),
+                "row buffer left clean"
+            );
             if got != under {
                 if r > LANES_MAX_R {
                     wide += 1;
@@ -1981,11 +2033,14 @@ mod tests {
                     thin += 1;
                 }
                 crowded += usize::from(pts.len() > 20);
+                // A segment over three runs of rows or more.
+                let tall = |(a, b): &([f32; 2], [f32; 2])| (a[1] - b[1]).abs() > 3.0 * RING as f32;
+                long += usize::from(pts.iter().any(tall));
             }
         }
         assert!(
-            wide > 300 && thin > 300 && crowded > 300,
-            "{wide} {thin} {crowded}"
+            wide > 300 && thin > 300 && crowded > 300 && long > 300,
+            "{wide} {thin} {crowded} {long}"
         );
     }
 
@@ -2038,7 +2093,10 @@ mod tests {
                     pixels,
                 );
                 assert!(got == want, "{w}: ring {n}: {c:?} {radius} {r}");
-                assert!(a.row.iter().all(|&v| v == 0), "row buffer left clean");
+                assert!(
+                    a.rows.iter().flatten().all(|&v| v == 0),
+                    "row buffer left clean"
+                );
             }
             assert_eq!(got_dirty.rows(), want_dirty.rows());
             inked += got.iter().filter(|&&v| v != 0 && v != 255).count();
