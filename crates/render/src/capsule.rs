@@ -160,7 +160,7 @@ type Intervals = [Option<(f32, f32)>; 2];
 /// time (its state kept across them), into the row buffers of rows `j .. j + RING`,
 /// row `j` in buffer `j % RING`; row `j` is composited once every segment that reaches
 /// it has been made there.
-const RING: usize = 8;
+const RING: usize = 16;
 
 /// Scratch of the scan converter, reused from stroke to stroke (some ten kilobytes).
 #[derive(Default)]
