@@ -170,20 +170,27 @@ pub(crate) struct Capsules {
     /// The active segments of the tests' reference row loop.
     #[cfg(test)]
     active: Vec<u32>,
-    /// [`RING`] row buffers of `width` pixels (all 0 between rows), and the blocks
-    /// each holds coverage in.
-    rows: [Vec<u8>; RING],
-    notes: [Notes; RING],
+    /// [`RING`] row buffers, row `j`'s at `j % RING`.
+    slots: [Slot; RING],
     /// A row's spans, for the reference row loop of the tests.
     #[cfg(test)]
     spans: Vec<(u32, u32)>,
-    /// Per row buffer, the row's edges left to measure in [`Mode::Wide`]:
-    /// `(segment, from, to)`.
-    edges: [Vec<(u32, u32, u32)>; RING],
-    /// Per row buffer, the segments whose next rows start at its row (made up to
-    /// [`RING`] rows before), and the ones due on the row being made.
-    wake: [Vec<u32>; RING],
+    /// The segments due on the row being made.
     due: Vec<u32>,
+}
+
+/// A row buffer of [`Capsules`], and what goes with it.
+#[derive(Default)]
+struct Slot {
+    /// The row's coverage, `width` pixels (all 0 between rows).
+    row: Vec<u8>,
+    /// The blocks it holds coverage in.
+    notes: Notes,
+    /// The row's edges left to measure in [`Mode::Wide`]: `(segment, from, to)`.
+    edges: Vec<(u32, u32, u32)>,
+    /// The segments whose next rows start at its row (made up to [`RING`] rows
+    /// before).
+    wake: Vec<u32>,
 }
 
 /// The blocks ([`BLOCK`] pixels, the dirty map's) of a row buffer that hold the row's
@@ -319,7 +326,7 @@ impl Capsules {
                 j = j.max(segs[k as usize].rows.0);
             }
             let at = j as usize % RING;
-            std::mem::swap(&mut self.due, &mut self.wake[at]);
+            std::mem::swap(&mut self.due, &mut self.slots[at].wake);
             pending -= self.due.len();
             while next < self.order.len() && segs[self.order[next] as usize].rows.0 <= j {
                 self.due.push(self.order[next]);
@@ -334,15 +341,15 @@ impl Capsules {
                 until = until.max(end);
                 if end < s.rows.1 {
                     // Its next rows, once this row buffer is free (`end − j ≤ RING`).
-                    self.wake[end as usize % RING].push(k);
+                    self.slots[end as usize % RING].wake.push(k);
                     pending += 1;
                 }
             }
             self.due.clear();
-            if !self.edges[at].is_empty() {
-                let row = &mut self.rows[at];
-                measure_edges(&segs, &self.edges[at], j as f32 + 0.5, r, row);
-                self.edges[at].clear();
+            let slot = &mut self.slots[at];
+            if !slot.edges.is_empty() {
+                measure_edges(&segs, &slot.edges, j as f32 + 0.5, r, &mut slot.row);
+                slot.edges.clear();
             }
             self.flush_row(j as usize, t);
             j += 1;
@@ -357,7 +364,7 @@ impl Capsules {
     #[inline]
     #[allow(clippy::needless_range_loop)] // a row's lane of four rows' spans
     fn run(&mut self, s: &Seg, k: u32, j: u32, end: u32, r: f32, reach: f32) {
-        let w = self.rows[0].len() as f32;
+        let w = self.slots[0].row.len() as f32;
         match s.mode {
             Mode::Lanes => {
                 // The segment's conservative spans four rows at a time.
@@ -368,10 +375,10 @@ impl Capsules {
                         let (x0, x1) = (x0[m] as usize, x1[m] as usize);
                         if x0 < x1 {
                             let at = (i as usize + m) % RING;
-                            let row = &mut self.rows[at];
-                            if let Some(span) = Edge::new(s, cy4[m], r).measure::<true>(row, x0, x1)
-                            {
-                                self.notes[at].note(span);
+                            let slot = &mut self.slots[at];
+                            let edge = Edge::new(s, cy4[m], r);
+                            if let Some(span) = edge.measure::<true>(&mut slot.row, x0, x1) {
+                                slot.notes.note(span);
                             }
                         }
                     }
@@ -385,10 +392,12 @@ impl Capsules {
                     let spans = wide_spans4(s, cy4, reach, r - 0.5, w);
                     for m in 0..(end - i).min(4) as usize {
                         let at = (i as usize + m) % RING;
-                        let row = &mut self.rows[at];
+                        let Slot {
+                            row, notes, edges, ..
+                        } = &mut self.slots[at];
                         let row_spans = [0, 1, 2, 3].map(|b| spans[b][m] as usize);
-                        if let Some(span) = seg_row_fill(k, row_spans, row, &mut self.edges[at]) {
-                            self.notes[at].note(span);
+                        if let Some(span) = seg_row_fill(k, row_spans, row, edges) {
+                            notes.note(span);
                         }
                     }
                 }
@@ -396,9 +405,9 @@ impl Capsules {
             Mode::Exact => {
                 for i in j..end {
                     let at = i as usize % RING;
-                    let row = &mut self.rows[at];
-                    if let Some(span) = seg_row(s, i as f32 + 0.5, r, reach, row) {
-                        self.notes[at].note(span);
+                    let slot = &mut self.slots[at];
+                    if let Some(span) = seg_row(s, i as f32 + 0.5, r, reach, &mut slot.row) {
+                        slot.notes.note(span);
                     }
                 }
             }
@@ -408,9 +417,9 @@ impl Capsules {
     /// Sizes the row buffers and their block maps for rows of `width` pixels (all 0
     /// between rows, so resized in place).
     fn fit(&mut self, width: usize) {
-        if self.rows[0].len() != width || self.notes[0].blocks.is_empty() {
+        if self.slots[0].row.len() != width || self.slots[0].notes.blocks.is_empty() {
             let words = width.div_ceil(BLOCK).div_ceil(64).max(1);
-            for (row, notes) in self.rows.iter_mut().zip(&mut self.notes) {
+            for Slot { row, notes, .. } in &mut self.slots {
                 row.resize(width, 0);
                 notes.blocks.resize(words, 0);
                 (notes.lo, notes.hi) = (words, 0);
@@ -427,15 +436,15 @@ impl Capsules {
     /// marking each span would. Into the gray layer, a tile's noted blocks at once
     /// ([`GrayLayer::add_blocks`]).
     fn flush_row(&mut self, j: usize, t: &mut Target) {
-        let at = j % RING;
-        let notes = &mut self.notes[at];
+        let Slot {
+            row: cov, notes, ..
+        } = &mut self.slots[j % RING];
         if notes.lo >= notes.hi {
             return;
         }
         let (wlo, whi) = (notes.lo, notes.hi);
         (notes.lo, notes.hi) = (notes.blocks.len(), 0);
         let blocks = &mut notes.blocks[wlo..whi];
-        let cov = &mut self.rows[at];
         if t.ink != Ink::Paper {
             t.dirty.mark_blocks(j, wlo, blocks);
         }
@@ -506,8 +515,9 @@ impl Capsules {
                     continue;
                 }
                 let at = j % RING;
-                span(&mut self.rows[at], x0, x1, ring);
-                self.notes[at].note((x0 as u32, x1 as u32));
+                let slot = &mut self.slots[at];
+                span(&mut slot.row, x0, x1, ring);
+                slot.notes.note((x0 as u32, x1 as u32));
             }
             self.flush_row(j, t);
         }
@@ -1642,7 +1652,7 @@ mod tests {
                 }
             }
             assert!(
-                c.rows.iter().flatten().all(|&v| v == 0),
+                c.slots.iter().all(|s| s.row.iter().all(|&v| v == 0)),
                 "row buffer left clean"
             );
         }
@@ -1860,7 +1870,7 @@ mod tests {
                 }
                 self.spans.clear();
                 let cy = j as f32 + 0.5;
-                let row = &mut self.rows[0];
+                let row = &mut self.slots[0].row;
                 for &k in &self.active {
                     let s = &segs[k as usize];
                     let span = match s.mode {
@@ -1898,8 +1908,10 @@ mod tests {
                 }
                 let (x0, x1) = (x0 as usize, x1 as usize);
                 match t.layer.as_deref_mut() {
-                    Some(layer) => layer.add_span(j, x0, &mut self.rows[0][x0..x1]),
-                    None => composite_pixels(&mut row[x0..x1], &mut self.rows[0][x0..x1], t.ink),
+                    Some(layer) => layer.add_span(j, x0, &mut self.slots[0].row[x0..x1]),
+                    None => {
+                        composite_pixels(&mut row[x0..x1], &mut self.slots[0].row[x0..x1], t.ink)
+                    }
                 }
                 if t.ink != Ink::Paper {
                     t.dirty.mark_px(x0, j, x1, j + 1);
@@ -2023,7 +2035,7 @@ mod tests {
             assert!(got == want, "stroke {n}: r {r}, {} segments", pts.len());
             assert_eq!(got_dirty.rows(), want_dirty.rows(), "stroke {n}");
             assert!(
-                c.rows.iter().flatten().all(|&v| v == 0),
+                c.slots.iter().all(|s| s.row.iter().all(|&v| v == 0)),
                 "row buffer left clean"
             );
             if got != under {
@@ -2094,7 +2106,7 @@ mod tests {
                 );
                 assert!(got == want, "{w}: ring {n}: {c:?} {radius} {r}");
                 assert!(
-                    a.rows.iter().flatten().all(|&v| v == 0),
+                    a.slots.iter().all(|s| s.row.iter().all(|&v| v == 0)),
                     "row buffer left clean"
                 );
             }
