@@ -878,33 +878,49 @@ fn assemble(
             }
         }
     }
-    // The index's, columns' and sidecar's closing fsyncs and the ledger's record of the
-    // root files side by side: both must be durable before anything is put in place.
-    let (assembled, recorded) = std::thread::scope(|s| {
-        let record = s.spawn(|| ledger.add(ROOT_FILES));
+    // Side by side, as none needs another and all must be done before anything is put in
+    // place: the index's, columns' and sidecar's closing fsyncs; the ledger's record of the
+    // root files and, after them (the order they had when recorded apart), of the atlas
+    // files made alongside; and those files made durable under their temporary names
+    // (their bytes were synced early, so this is quick). After the renames only their
+    // folder then needs a sync, not each file again (whose renamed inode would cost a
+    // journal commit of its own, two at a time).
+    let staged_names: Vec<&str> = made
+        .iter()
+        .flatten()
+        .filter_map(|s| s.as_ref().ok().map(Staged::name))
+        .collect();
+    let (assembled, recorded, staged_synced) = std::thread::scope(|s| {
+        let record = s.spawn(|| ledger.add(ROOT_FILES.into_iter().chain(staged_names)));
+        let staged = made.as_ref().map(|staged| {
+            s.spawn(|| {
+                use rayon::prelude::*;
+                staged
+                    .par_iter()
+                    .filter_map(|s| s.as_ref().ok())
+                    .try_for_each(Staged::sync)
+            })
+        });
         let assembled = assembly.finish();
         let recorded = record
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (assembled, recorded)
+        let staged_synced = staged.map(|h| {
+            h.join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+        });
+        (assembled, recorded, staged_synced)
     });
     let assembled = assembled?;
     recorded?;
-    // Atlas files made alongside the groups are made durable under their temporary names
-    // before they are put in place (their bytes were synced early, so this is quick):
-    // after the renames only their folder needs a sync, not each file again (whose
-    // renamed inode would cost a journal commit of its own, two at a time).
-    let staged_durable = match &made {
-        Some(staged) => {
-            use rayon::prelude::*;
-            staged
-                .par_iter()
-                .filter_map(|s| s.as_ref().ok())
-                .try_for_each(Staged::sync)?;
+    let staged_durable = match staged_synced {
+        Some(synced) => {
+            synced?;
             true
         }
         None => false,
     };
+    // (Made alongside, their names are recorded already: the ledger is not synced again.)
     let (atlas_files, failed) = match made {
         Some(staged) => write_staged(staged, ledger),
         None => write_rendered(&job.out, renderer.render_atlas(job), ledger),
@@ -915,24 +931,33 @@ fn assemble(
             dir: job.out.clone(),
         });
     }
-    let names = atlas_files.iter().map(|f| f.name.as_str());
-    if staged_durable {
-        sync_folders(&job.out, names)?;
-    } else {
-        sync_files(&job.out, names)?;
-    }
+    let atlas_names: Vec<String> = atlas_files.iter().map(|f| f.name.clone()).collect();
     files.extend(atlas_files);
     files.extend(assembled.entries());
-    // The manifest is written and made durable (under its temporary name) while the
-    // files it lists are put in place; it is put in place after them.
-    let (committed, manifest) = std::thread::scope(|s| {
+    // Side by side: the atlas files made durable in place (their folder synced, or each
+    // file and its folder), the index's files renamed into place (durably), and the
+    // manifest written and made durable under its temporary name; the manifest is put in
+    // place after all of them.
+    let (committed, manifest, placed) = std::thread::scope(|s| {
         let manifest = s.spawn(|| manifest_file(&job.out, key, files.clone()));
+        let placed = s.spawn(|| {
+            let names = atlas_names.iter().map(String::as_str);
+            if staged_durable {
+                sync_folders(&job.out, names)
+            } else {
+                sync_files(&job.out, names)
+            }
+        });
         let committed = assembled.commit(&job.out);
         let manifest = manifest
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (committed, manifest)
+        let placed = placed
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (committed, manifest, placed)
     });
+    placed?;
     committed?;
     let manifest_path = job.out.join("manifest.json");
     manifest?.commit(true).map_err(io_err(&manifest_path))?;
