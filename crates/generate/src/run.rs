@@ -158,6 +158,26 @@ struct GroupOutput {
 /// worker that finds no unit left in a chunk starts the next chunk's units.
 const AHEAD: usize = 1;
 
+/// The run's last units, per worker, whose pages are drawn as tasks any worker may take
+/// ([`Renderer::render_group_shared`]): once no unit is left to start, a free worker draws
+/// some of the pages of those still running instead of waiting for them (a unit is a
+/// group of several pages; at the run's end one worker would otherwise wait up to a whole
+/// group for the other). Earlier units are drawn by the worker that took them, each page
+/// in its cache.
+const SHARED_TAIL_UNITS: u64 = 4;
+
+/// Whether unit `k` of chunk `c` is among the run's last units ([`SHARED_TAIL_UNITS`] per
+/// worker, counted back from the last unit of `last_chunk`, the last chunk the run
+/// computes, in a job of `units` units): none with one worker.
+fn in_shared_tail(c: u64, k: usize, last_chunk: u64, units: u64, workers: usize) -> bool {
+    if workers < 2 {
+        return false;
+    }
+    let last = ((last_chunk + 1) * CHUNK_GROUPS as u64).min(units);
+    let unit = c * CHUNK_GROUPS as u64 + k as u64;
+    unit < last && last - unit <= SHARED_TAIL_UNITS * workers as u64
+}
+
 /// One unit's output, by chunk and place in it (a panic carried as its payload).
 type UnitResult = (
     u64,
@@ -649,7 +669,12 @@ pub fn run(
                 sync_early(&job.out, &names);
             }
         });
-        let unit = |c: u64, g: &Group| -> Result<GroupOutput, GenerateError> {
+        // The last chunk this run computes (for the shared tail).
+        let last_chunk = (0..total)
+            .rev()
+            .find(|&c| job.shard.owns(c as usize))
+            .unwrap_or(0);
+        let unit = |c: u64, k: usize, g: &Group| -> Result<GroupOutput, GenerateError> {
             if interrupt.load(Ordering::Relaxed) {
                 // How many chunks are done is filled in by `finish_front`.
                 return Err(GenerateError::Interrupted {
@@ -662,7 +687,11 @@ pub fn run(
             let t = Instant::now();
             let mut curves = compute_group(&table, g, features, &dash)?;
             let index_time = t.elapsed();
-            let rendered = renderer.render_group(job, g, &mut curves);
+            let rendered = if in_shared_tail(c, k, last_chunk, job.unit_count(), job.jobs) {
+                renderer.render_group_shared(job, g, &mut curves)
+            } else {
+                renderer.render_group(job, g, &mut curves)
+            };
             let t = Instant::now();
             let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
             if !files.is_empty() {
@@ -779,7 +808,7 @@ pub fn run(
                             // (which would otherwise wait for this unit forever).
                             let out =
                                 std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                                    unit(c, &g)
+                                    unit(c, k, &g)
                                 }));
                             let _ = sender.send((c, k, out));
                         });
@@ -1329,6 +1358,28 @@ mod tests {
                 let _ = std::fs::remove_dir_all(&out);
             }
         }
+    }
+
+    /// The shared tail is the run's last units, four per worker, counted back from the
+    /// last unit of the last chunk it computes (a short last chunk included), and none
+    /// with one worker.
+    #[test]
+    fn the_shared_tail_is_the_last_units_of_the_last_chunk_computed() {
+        let g = CHUNK_GROUPS as u64;
+        let tail = |last_chunk: u64, units: u64, workers: usize| -> Vec<u64> {
+            (0..units.div_ceil(g))
+                .flat_map(|c| (0..CHUNK_GROUPS).map(move |k| (c, k)))
+                .filter(|&(c, k)| in_shared_tail(c, k, last_chunk, units, workers))
+                .map(|(c, k)| c * g + k as u64)
+                .collect()
+        };
+        assert_eq!(tail(5, 175, 2), (167..175).collect::<Vec<_>>());
+        assert_eq!(tail(5, 175, 3), (163..175).collect::<Vec<_>>());
+        assert_eq!(tail(5, 161, 2), (153..161).collect::<Vec<_>>());
+        assert_eq!(tail(0, 3, 2), (0..3).collect::<Vec<_>>());
+        // A shard whose last chunk is not the job's: its own last chunk's last units.
+        assert_eq!(tail(3, 175, 2), (120..128).collect::<Vec<_>>());
+        assert!(tail(5, 175, 1).is_empty());
     }
 
     fn output(lines: &str, first_id: u64) -> GroupOutput {
