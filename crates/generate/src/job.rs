@@ -106,6 +106,14 @@ pub type Rendered = Vec<Result<Artifact, PageFailure>>;
 pub trait Renderer: Sync {
     /// The pages of one group; may record each curve's place (`curves[i].page`).
     fn render_group(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered;
+    /// [`Renderer::render_group`] with the group's pages drawn as tasks of the calling
+    /// worker's rayon pool, so that a worker with nothing else to do draws some: the same
+    /// files in the same order. The run asks it for its last few units, where a worker
+    /// that finds no unit left would otherwise wait for the other's last group. The
+    /// default draws them as `render_group` does.
+    fn render_group_shared(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered {
+        self.render_group(job, group, curves)
+    }
     /// Files made once per atlas after all groups (e.g. a contents page).
     fn render_atlas(&self, job: &Job) -> Rendered;
     /// The same files as [`Renderer::render_atlas`], made while the groups are: `Some`

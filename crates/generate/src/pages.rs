@@ -743,17 +743,34 @@ impl PageRenderer {
     }
 }
 
-impl Renderer for PageRenderer {
-    fn render_group(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered {
+impl PageRenderer {
+    /// `group`'s pages ([`Renderer::render_group`]); with `shared`, drawn as rayon tasks
+    /// (whichever worker of the pool is free draws some), else one after another on the
+    /// calling thread. Each page is a pure function of its job, and the pages are taken
+    /// in their order either way, so the files and the curves' places are the same.
+    fn group_pages(
+        &self,
+        job: &Job,
+        group: &Group,
+        curves: &mut [IndexCurve],
+        shared: bool,
+    ) -> Rendered {
         let per = self.opts.setup.curves_per_page.max(1);
         let page_count = job.pages();
         let features: Vec<Option<CurveFeatures>> =
             curves.iter().map(|c| c.features.clone()).collect();
+        let jobs: Vec<PageJob<'_>> =
+            PageJob::of_group(group, per, page_count, Some(&self.tables), &features).collect();
+        let render = |pj: &PageJob<'_>| render_page(&self.opts, &self.pool, &self.timings, pj);
+        let pages: Vec<Result<RenderedPage, PageError>> = if shared {
+            jobs.par_iter().with_max_len(1).map(render).collect()
+        } else {
+            jobs.iter().map(render).collect()
+        };
         let mut out = Vec::new();
-        let pages = PageJob::of_group(group, per, page_count, Some(&self.tables), &features);
-        for (k, pj) in pages.enumerate() {
+        for (k, (pj, page)) in jobs.iter().zip(pages).enumerate() {
             let number = pj.number;
-            let page = match render_page(&self.opts, &self.pool, &self.timings, &pj) {
+            let page = match page {
                 Ok(page) => page,
                 Err(e) => {
                     out.push(Err(
@@ -785,6 +802,18 @@ impl Renderer for PageRenderer {
             }));
         }
         out
+    }
+}
+
+impl Renderer for PageRenderer {
+    fn render_group(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered {
+        self.group_pages(job, group, curves, false)
+    }
+
+    /// The group's pages as rayon tasks, so that a worker of the run's pool with no unit
+    /// left draws some of them (see [`Renderer::render_group_shared`]).
+    fn render_group_shared(&self, job: &Job, group: &Group, curves: &mut [IndexCurve]) -> Rendered {
+        self.group_pages(job, group, curves, true)
     }
 
     fn render_atlas(&self, job: &Job) -> Rendered {
@@ -900,6 +929,54 @@ mod tests {
                     .is_none()
             );
         }
+    }
+
+    /// A group's pages drawn as shared tasks (on pools of two and of three workers, as the
+    /// run's last units are) are the files drawn one after another, name for name, byte
+    /// for byte and in the same order, and the curves are given the same places.
+    #[test]
+    fn a_groups_pages_drawn_as_shared_tasks_are_those_drawn_in_turn() {
+        let mut jobs = crate::job::quick_jobs();
+        jobs.push(Job::new(Spec::default_atlas(), "default", "unused", 1));
+        let files = |r: Rendered| -> Vec<(String, Vec<u8>)> {
+            r.into_iter()
+                .map(|a| a.map(|a| (a.name, a.bytes)).unwrap())
+                .collect()
+        };
+        let mut several = 0;
+        for job in jobs {
+            let mut opts = PageOptions::from_spec(&job.spec).unwrap();
+            opts.setup.dpi = 72.0;
+            opts.formats = vec![PageFormat::Png, PageFormat::Svg];
+            let per = opts.setup.curves_per_page;
+            let renderer = PageRenderer::new(opts);
+            let table = AngleTables::new(job.spec.sampling.crank_step_deg).unwrap();
+            let tolerances = job
+                .spec
+                .features
+                .enabled
+                .then_some(&job.spec.features.tolerances);
+            let dash = job.spec.sampling.dash_pattern();
+            for group in job.groups().take(2) {
+                let curves = compute_group(&table, &group, tolerances, &dash).unwrap();
+                let mut alone = curves.clone();
+                let want = files(renderer.render_group(&job, &group, &mut alone));
+                assert!(alone.iter().all(|c| c.page.is_some()));
+                several += usize::from(group.points.len() > 2 * per);
+                for threads in [2, 3] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let mut shared = curves.clone();
+                    let got = pool
+                        .install(|| files(renderer.render_group_shared(&job, &group, &mut shared)));
+                    assert!(got == want, "{} on {threads} workers", job.spec.name);
+                    assert!(shared == alone, "{} on {threads} workers", job.spec.name);
+                }
+            }
+        }
+        assert!(several >= 2, "the test needs groups of several pages");
     }
 
     /// A group's page jobs cover its points in order, `per` each, numbered from the

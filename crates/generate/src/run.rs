@@ -158,6 +158,26 @@ struct GroupOutput {
 /// worker that finds no unit left in a chunk starts the next chunk's units.
 const AHEAD: usize = 1;
 
+/// The run's last units, per worker, whose pages are drawn as tasks any worker may take
+/// ([`Renderer::render_group_shared`]): once no unit is left to start, a free worker draws
+/// some of the pages of those still running instead of waiting for them (a unit is a
+/// group of several pages; at the run's end one worker would otherwise wait up to a whole
+/// group for the other). Earlier units are drawn by the worker that took them, each page
+/// in its cache.
+const SHARED_TAIL_UNITS: u64 = 4;
+
+/// Whether unit `k` of chunk `c` is among the run's last units ([`SHARED_TAIL_UNITS`] per
+/// worker, counted back from the last unit of `last_chunk`, the last chunk the run
+/// computes, in a job of `units` units): none with one worker.
+fn in_shared_tail(c: u64, k: usize, last_chunk: u64, units: u64, workers: usize) -> bool {
+    if workers < 2 {
+        return false;
+    }
+    let last = ((last_chunk + 1) * CHUNK_GROUPS as u64).min(units);
+    let unit = c * CHUNK_GROUPS as u64 + k as u64;
+    unit < last && last - unit <= SHARED_TAIL_UNITS * workers as u64
+}
+
 /// One unit's output, by chunk and place in it (a panic carried as its payload).
 type UnitResult = (
     u64,
@@ -649,7 +669,12 @@ pub fn run(
                 sync_early(&job.out, &names);
             }
         });
-        let unit = |c: u64, g: &Group| -> Result<GroupOutput, GenerateError> {
+        // The last chunk this run computes (for the shared tail).
+        let last_chunk = (0..total)
+            .rev()
+            .find(|&c| job.shard.owns(c as usize))
+            .unwrap_or(0);
+        let unit = |c: u64, k: usize, g: &Group| -> Result<GroupOutput, GenerateError> {
             if interrupt.load(Ordering::Relaxed) {
                 // How many chunks are done is filled in by `finish_front`.
                 return Err(GenerateError::Interrupted {
@@ -662,7 +687,11 @@ pub fn run(
             let t = Instant::now();
             let mut curves = compute_group(&table, g, features, &dash)?;
             let index_time = t.elapsed();
-            let rendered = renderer.render_group(job, g, &mut curves);
+            let rendered = if in_shared_tail(c, k, last_chunk, job.unit_count(), job.jobs) {
+                renderer.render_group_shared(job, g, &mut curves)
+            } else {
+                renderer.render_group(job, g, &mut curves)
+            };
             let t = Instant::now();
             let (files, failed) = write_rendered(&job.out, rendered, &prep.ledger);
             if !files.is_empty() {
@@ -779,7 +808,7 @@ pub fn run(
                             // (which would otherwise wait for this unit forever).
                             let out =
                                 std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                                    unit(c, &g)
+                                    unit(c, k, &g)
                                 }));
                             let _ = sender.send((c, k, out));
                         });
@@ -878,33 +907,49 @@ fn assemble(
             }
         }
     }
-    // The index's, columns' and sidecar's closing fsyncs and the ledger's record of the
-    // root files side by side: both must be durable before anything is put in place.
-    let (assembled, recorded) = std::thread::scope(|s| {
-        let record = s.spawn(|| ledger.add(ROOT_FILES));
+    // Side by side, as none needs another and all must be done before anything is put in
+    // place: the index's, columns' and sidecar's closing fsyncs; the ledger's record of the
+    // root files and, after them (the order they had when recorded apart), of the atlas
+    // files made alongside; and those files made durable under their temporary names
+    // (their bytes were synced early, so this is quick). After the renames only their
+    // folder then needs a sync, not each file again (whose renamed inode would cost a
+    // journal commit of its own, two at a time).
+    let staged_names: Vec<&str> = made
+        .iter()
+        .flatten()
+        .filter_map(|s| s.as_ref().ok().map(Staged::name))
+        .collect();
+    let (assembled, recorded, staged_synced) = std::thread::scope(|s| {
+        let record = s.spawn(|| ledger.add(ROOT_FILES.into_iter().chain(staged_names)));
+        let staged = made.as_ref().map(|staged| {
+            s.spawn(|| {
+                use rayon::prelude::*;
+                staged
+                    .par_iter()
+                    .filter_map(|s| s.as_ref().ok())
+                    .try_for_each(Staged::sync)
+            })
+        });
         let assembled = assembly.finish();
         let recorded = record
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (assembled, recorded)
+        let staged_synced = staged.map(|h| {
+            h.join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+        });
+        (assembled, recorded, staged_synced)
     });
     let assembled = assembled?;
     recorded?;
-    // Atlas files made alongside the groups are made durable under their temporary names
-    // before they are put in place (their bytes were synced early, so this is quick):
-    // after the renames only their folder needs a sync, not each file again (whose
-    // renamed inode would cost a journal commit of its own, two at a time).
-    let staged_durable = match &made {
-        Some(staged) => {
-            use rayon::prelude::*;
-            staged
-                .par_iter()
-                .filter_map(|s| s.as_ref().ok())
-                .try_for_each(Staged::sync)?;
+    let staged_durable = match staged_synced {
+        Some(synced) => {
+            synced?;
             true
         }
         None => false,
     };
+    // (Made alongside, their names are recorded already: the ledger is not synced again.)
     let (atlas_files, failed) = match made {
         Some(staged) => write_staged(staged, ledger),
         None => write_rendered(&job.out, renderer.render_atlas(job), ledger),
@@ -915,24 +960,33 @@ fn assemble(
             dir: job.out.clone(),
         });
     }
-    let names = atlas_files.iter().map(|f| f.name.as_str());
-    if staged_durable {
-        sync_folders(&job.out, names)?;
-    } else {
-        sync_files(&job.out, names)?;
-    }
+    let atlas_names: Vec<String> = atlas_files.iter().map(|f| f.name.clone()).collect();
     files.extend(atlas_files);
     files.extend(assembled.entries());
-    // The manifest is written and made durable (under its temporary name) while the
-    // files it lists are put in place; it is put in place after them.
-    let (committed, manifest) = std::thread::scope(|s| {
+    // Side by side: the atlas files made durable in place (their folder synced, or each
+    // file and its folder), the index's files renamed into place (durably), and the
+    // manifest written and made durable under its temporary name; the manifest is put in
+    // place after all of them.
+    let (committed, manifest, placed) = std::thread::scope(|s| {
         let manifest = s.spawn(|| manifest_file(&job.out, key, files.clone()));
+        let placed = s.spawn(|| {
+            let names = atlas_names.iter().map(String::as_str);
+            if staged_durable {
+                sync_folders(&job.out, names)
+            } else {
+                sync_files(&job.out, names)
+            }
+        });
         let committed = assembled.commit(&job.out);
         let manifest = manifest
             .join()
             .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (committed, manifest)
+        let placed = placed
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (committed, manifest, placed)
     });
+    placed?;
     committed?;
     let manifest_path = job.out.join("manifest.json");
     manifest?.commit(true).map_err(io_err(&manifest_path))?;
@@ -1304,6 +1358,28 @@ mod tests {
                 let _ = std::fs::remove_dir_all(&out);
             }
         }
+    }
+
+    /// The shared tail is the run's last units, four per worker, counted back from the
+    /// last unit of the last chunk it computes (a short last chunk included), and none
+    /// with one worker.
+    #[test]
+    fn the_shared_tail_is_the_last_units_of_the_last_chunk_computed() {
+        let g = CHUNK_GROUPS as u64;
+        let tail = |last_chunk: u64, units: u64, workers: usize| -> Vec<u64> {
+            (0..units.div_ceil(g))
+                .flat_map(|c| (0..CHUNK_GROUPS).map(move |k| (c, k)))
+                .filter(|&(c, k)| in_shared_tail(c, k, last_chunk, units, workers))
+                .map(|(c, k)| c * g + k as u64)
+                .collect()
+        };
+        assert_eq!(tail(5, 175, 2), (167..175).collect::<Vec<_>>());
+        assert_eq!(tail(5, 175, 3), (163..175).collect::<Vec<_>>());
+        assert_eq!(tail(5, 161, 2), (153..161).collect::<Vec<_>>());
+        assert_eq!(tail(0, 3, 2), (0..3).collect::<Vec<_>>());
+        // A shard whose last chunk is not the job's: its own last chunk's last units.
+        assert_eq!(tail(3, 175, 2), (120..128).collect::<Vec<_>>());
+        assert!(tail(5, 175, 1).is_empty());
     }
 
     fn output(lines: &str, first_id: u64) -> GroupOutput {
