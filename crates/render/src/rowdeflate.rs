@@ -506,8 +506,9 @@ impl Bits {
     /// Codes `syms` (whole groups of [`GROUP`] symbols), twenty-four at a time in eight
     /// `put`s (three codes that can follow each other fit one: checked when the table
     /// is made), with one room check: each store is at most 7 bytes after the one
-    /// before (the offsets masked to what they can be). `out` must have room for their
-    /// bits and the 72 bytes the stores reach.
+    /// before (it moves on by the whole bytes of at most 63 bits, `k & 0x38`, so the
+    /// compiler sees every offset in the window without a mask). `out` must have room
+    /// for their bits and the 72 bytes the stores reach.
     #[inline(always)]
     fn code_groups(&mut self, f: &Format, syms: &[u16]) {
         let (out, tab) = (&mut self.out[..], &f.sym);
@@ -527,8 +528,11 @@ impl Bits {
                 let x = acc | bits << nb;
                 let k = nb + l01 + l2;
                 win[o..o + 8].copy_from_slice(&x.to_le_bytes());
-                o = (o + (k / 8) as usize) & 63;
-                acc = x >> (k & 0x38);
+                // The whole bytes' bits (`k < 64`: at most 7 bytes): the `h`th store's
+                // offset is at most 7h, which the compiler sees (no mask, no check).
+                let whole = k & 0x38;
+                o += (whole / 8) as usize;
+                acc = x >> whole;
                 nb = k & 7;
             }
             pos += o;
