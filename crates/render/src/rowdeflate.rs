@@ -982,7 +982,9 @@ impl RowDeflate {
             let t = w + 1 - 8 * n;
             let v = sub_bytes(load(above, w - 8), load(this, w - 8));
             if clear {
-                above[w - t..].fill(0);
+                // The last `t` bytes cleared in the last 8 (one store, not a fill).
+                let end = above[w - 8..].first_chunk_mut::<8>().expect("8 bytes");
+                *end = (u64::from_le_bytes(*end) & u64::MAX >> (8 * t)).to_le_bytes();
             }
             (v.checked_shr(8 * (8 - t) as u32).unwrap_or(0), t)
         };
