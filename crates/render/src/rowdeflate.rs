@@ -767,12 +767,18 @@ impl RowWords {
     }
 }
 
-/// `a − b` byte by byte (wrapping): the two words in the low halves of two vectors and
-/// one vector subtraction of bytes (three instructions and the two loads, where the
-/// same in one `u64`, a byte's borrow kept from the next by the top bits, took eight).
+/// `a − b` byte by byte (wrapping), of two words as they are stored (the first byte
+/// first): each read straight into the low half of a vector, then one vector
+/// subtraction of bytes (where the same in one `u64`, a byte's borrow kept from the
+/// next by the top bits, took eight instructions, and a word read into a register
+/// first took two more moves).
 #[inline(always)]
-fn sub_bytes(a: u64, b: u64) -> u64 {
-    let v = |x: u64| u8x16::new(u128::from(x).to_le_bytes());
+fn sub_bytes(a: &[u8; 8], b: &[u8; 8]) -> u64 {
+    let v = |x: &[u8; 8]| {
+        let mut y = [0u8; 16];
+        y[..8].copy_from_slice(x);
+        u8x16::new(y)
+    };
     u128::from_le_bytes((v(a) - v(b)).to_array()) as u64
 }
 
@@ -912,8 +918,9 @@ impl RowDeflate {
         const UP: u8 = 2;
         let w = this.len();
         assert_eq!(above.len(), w, "rows of one width");
-        let load =
-            |row: &[u8], s: usize| u64::from_le_bytes(row[s..s + 8].try_into().expect("8 bytes"));
+        fn word(row: &[u8], s: usize) -> &[u8; 8] {
+            row[s..].first_chunk().expect("8 bytes")
+        }
         // The row is `w + 1` bytes: `n` whole words, then `t < 8` bytes, `rest`.
         let n = (w + 1) / 8;
         let list = self.words.begin(n);
@@ -939,7 +946,7 @@ impl RowDeflate {
             // Word 0: the filter byte, then pixels 0..7 (pixel 7 is word 1's).
             list[0] = (
                 0,
-                sub_bytes(load(above, 0), load(this, 0)) << 8 | u64::from(UP),
+                sub_bytes(word(above, 0), word(this, 0)) << 8 | u64::from(UP),
             );
             cnt = 1;
             if clear {
@@ -970,7 +977,7 @@ impl RowDeflate {
                     // then 8 bytes from there (no sum to overflow).
                     let up = above[s..].first_chunk_mut::<8>().expect("8 bytes");
                     let th = this[s..].first_chunk::<8>().expect("8 bytes");
-                    let v = sub_bytes(u64::from_le_bytes(*up), u64::from_le_bytes(*th));
+                    let v = sub_bytes(up, th);
                     if clear {
                         *up = [0; 8];
                     }
@@ -980,7 +987,7 @@ impl RowDeflate {
             }
             // The rest: pixels `8n − 1..w`, the last `t` of the row's last 8.
             let t = w + 1 - 8 * n;
-            let v = sub_bytes(load(above, w - 8), load(this, w - 8));
+            let v = sub_bytes(word(above, w - 8), word(this, w - 8));
             if clear {
                 // The last `t` bytes cleared in the last 8 (one store, not a fill).
                 let end = above[w - 8..].first_chunk_mut::<8>().expect("8 bytes");
@@ -1240,7 +1247,8 @@ mod tests {
                     // The other lanes hold other pairs, so a borrow would show.
                     let (x, y) = (0x00ff_7f80_01fe_ff00u64, 0xff00_807f_fe01_00ffu64);
                     let (mx, my) = (!(0xffu64 << (8 * lane)), 8 * lane);
-                    let got = sub_bytes(x & mx | u64::from(a) << my, y & mx | u64::from(b) << my);
+                    let (x, y) = (x & mx | u64::from(a) << my, y & mx | u64::from(b) << my);
+                    let got = sub_bytes(&x.to_le_bytes(), &y.to_le_bytes());
                     assert_eq!((got >> my) as u8, d, "{a} − {b} in lane {lane}");
                     for o in (0..8).filter(|&o| o != lane) {
                         let (xo, yo) = ((x >> (8 * o)) as u8, (y >> (8 * o)) as u8);
