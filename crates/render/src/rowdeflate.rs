@@ -568,6 +568,8 @@ impl Bits {
         // two run symbols and 8 literals, then the row's last run and its rest, the
         // symbols a word's stores reach past its own, and a group moved to the start.
         let room = *pending + 12 * n + 72 + GROUP;
+        // (A row taken in lanes has room in the first `LANE_SYMS`: see there.)
+        let room = room.max(LANE_SYMS + 16);
         if syms.len() < room {
             syms.resize(room, 0);
         }
@@ -628,6 +630,11 @@ impl Bits {
 /// takes in 16-bit lanes.
 const LANE_ROW: usize = i16::MAX as usize;
 
+/// The symbols of a row of at most [`LANE_ROW`] bytes (and those pending before it)
+/// are all below this place ([`word_symbols`]).
+const LANE_SYMS: usize = 1 << 16;
+const _: () = assert!(12 * LANE_ROW.div_ceil(8) + 72 + 2 * GROUP <= LANE_SYMS);
+
 /// The offsets `j` of a word's bytes `j = 0..8` from its first.
 const RAMP: [u64; 8] = [0, 1, 2, 3, 4, 5, 6, 7];
 
@@ -660,6 +667,14 @@ fn word_symbols<const LANES: bool>(
     (mut a, mut b): (u64, u64),
 ) -> (usize, usize, u64, u64) {
     let (mut zero, mut p) = (0usize, p);
+    // A row in lanes (at most `LANE_ROW` bytes: fewer than 2^12 words) has its symbols
+    // in the first `LANE_SYMS` (at most 12 a word and 72 + `GROUP` more, with those
+    // pending): a word's window is masked to them, which changes nothing and lets the
+    // compiler drop its bounds checks (with the room checked here once).
+    assert!(
+        !LANES || syms.len() >= LANE_SYMS + 16,
+        "room for a row's symbols"
+    );
     for part in list.chunks(64) {
         let (mut la, mut lb) = (i16x8::ZERO, i32x4::ZERO);
         for &(i, v) in part {
@@ -687,7 +702,8 @@ fn word_symbols<const LANES: bool>(
             let e = RUN_SYMBOLS[z as usize];
             let has = (e >> 62) as usize;
             let lits = i16x8::from_u8x16_low(u8x16::new(u128::from(u).to_le_bytes()));
-            let win: &mut [u16; 11] = (&mut syms[p..p + 11]).try_into().expect("room");
+            let at = if LANES { p & (LANE_SYMS - 1) } else { p };
+            let win: &mut [u16; 11] = (&mut syms[at..at + 11]).try_into().expect("room");
             (win[0], win[1]) = (e as u16, (e >> 16) as u16);
             win[has..has + 8].copy_from_slice(&lits.to_array().map(|x| x as u16));
             p += has + c as usize;
@@ -886,7 +902,7 @@ impl RowDeflate {
             f,
             bits,
             adler: Adler::new(),
-            words: RowWords::default(),
+            words: WORDS.take().unwrap_or_default(),
             blank: None,
         }
     }
@@ -1010,13 +1026,15 @@ impl RowDeflate {
         if fresh {
             let mut row = vec![0u8; len];
             row[0] = filter;
+            // (Coded with the stream's own room: nothing is pending after the flush
+            // above, nor after the row.)
             let mut b = Bits::new(Vec::new());
             b.row(
                 f,
                 &row,
                 std::iter::once((0, 1)),
                 &mut Adler::new(),
-                &mut RowWords::default(),
+                &mut self.words,
             );
             let (words, total) = b.into_words();
             self.blank = Some((len, filter, words, total));
@@ -1045,8 +1063,17 @@ impl RowDeflate {
         self.bits.put(c, l);
         let mut out = self.bits.into_bytes();
         out.extend_from_slice(&self.adler.finish().to_be_bytes());
+        // Nothing pending: the next stream made on this thread takes the room as it is.
+        WORDS.set(Some(self.words));
         out
     }
+}
+
+thread_local! {
+    /// The room for the rows' words and symbols ([`RowWords`]) of the last stream
+    /// finished on the thread (a row in lanes takes [`LANE_SYMS`] symbols' room), for
+    /// the next: made and zeroed once per thread, not once per page.
+    static WORDS: std::cell::Cell<Option<RowWords>> = const { std::cell::Cell::new(None) };
 }
 
 #[cfg(test)]
@@ -1409,7 +1436,8 @@ mod tests {
                         b += (r - 8 * i - j) as u64 * x;
                     }
                 }
-                let mut syms = vec![0u16; 12 * n + 72 + GROUP];
+                // (Rows in lanes are given the room of the longest.)
+                let mut syms = vec![0u16; (12 * n + 72 + GROUP).max(LANE_SYMS + 16)];
                 let lanes = word_symbols::<true>(&list, &mut syms, 0, r as u64, (a0, b0));
                 let mut other = vec![0u16; 12 * n + 72 + GROUP];
                 let words = word_symbols::<false>(&list, &mut other, 0, r as u64, (a0, b0));
