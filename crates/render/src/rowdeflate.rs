@@ -506,8 +506,9 @@ impl Bits {
     /// Codes `syms` (whole groups of [`GROUP`] symbols), twenty-four at a time in eight
     /// `put`s (three codes that can follow each other fit one: checked when the table
     /// is made), with one room check: each store is at most 7 bytes after the one
-    /// before (the offsets masked to what they can be). `out` must have room for their
-    /// bits and the 72 bytes the stores reach.
+    /// before (it moves on by the whole bytes of at most 63 bits, `k & 0x38`, so the
+    /// compiler sees every offset in the window without a mask). `out` must have room
+    /// for their bits and the 72 bytes the stores reach.
     #[inline(always)]
     fn code_groups(&mut self, f: &Format, syms: &[u16]) {
         let (out, tab) = (&mut self.out[..], &f.sym);
@@ -527,8 +528,11 @@ impl Bits {
                 let x = acc | bits << nb;
                 let k = nb + l01 + l2;
                 win[o..o + 8].copy_from_slice(&x.to_le_bytes());
-                o = (o + (k / 8) as usize) & 63;
-                acc = x >> (k & 0x38);
+                // The whole bytes' bits (`k < 64`: at most 7 bytes): the `h`th store's
+                // offset is at most 7h, which the compiler sees (no mask, no check).
+                let whole = k & 0x38;
+                o += (whole / 8) as usize;
+                acc = x >> whole;
                 nb = k & 7;
             }
             pos += o;
@@ -564,6 +568,8 @@ impl Bits {
         // two run symbols and 8 literals, then the row's last run and its rest, the
         // symbols a word's stores reach past its own, and a group moved to the start.
         let room = *pending + 12 * n + 72 + GROUP;
+        // (A row taken in lanes has room in the first `LANE_SYMS`: see there.)
+        let room = room.max(LANE_SYMS + 16);
         if syms.len() < room {
             syms.resize(room, 0);
         }
@@ -624,6 +630,11 @@ impl Bits {
 /// takes in 16-bit lanes.
 const LANE_ROW: usize = i16::MAX as usize;
 
+/// The symbols of a row of at most [`LANE_ROW`] bytes (and those pending before it)
+/// are all below this place ([`word_symbols`]).
+const LANE_SYMS: usize = 1 << 16;
+const _: () = assert!(12 * LANE_ROW.div_ceil(8) + 72 + 2 * GROUP <= LANE_SYMS);
+
 /// The offsets `j` of a word's bytes `j = 0..8` from its first.
 const RAMP: [u64; 8] = [0, 1, 2, 3, 4, 5, 6, 7];
 
@@ -656,6 +667,14 @@ fn word_symbols<const LANES: bool>(
     (mut a, mut b): (u64, u64),
 ) -> (usize, usize, u64, u64) {
     let (mut zero, mut p) = (0usize, p);
+    // A row in lanes (at most `LANE_ROW` bytes: fewer than 2^12 words) has its symbols
+    // in the first `LANE_SYMS` (at most 12 a word and 72 + `GROUP` more, with those
+    // pending): a word's window is masked to them, which changes nothing and lets the
+    // compiler drop its bounds checks (with the room checked here once).
+    assert!(
+        !LANES || syms.len() >= LANE_SYMS + 16,
+        "room for a row's symbols"
+    );
     for part in list.chunks(64) {
         let (mut la, mut lb) = (i16x8::ZERO, i32x4::ZERO);
         for &(i, v) in part {
@@ -683,7 +702,8 @@ fn word_symbols<const LANES: bool>(
             let e = RUN_SYMBOLS[z as usize];
             let has = (e >> 62) as usize;
             let lits = i16x8::from_u8x16_low(u8x16::new(u128::from(u).to_le_bytes()));
-            let win: &mut [u16; 11] = (&mut syms[p..p + 11]).try_into().expect("room");
+            let at = if LANES { p & (LANE_SYMS - 1) } else { p };
+            let win: &mut [u16; 11] = (&mut syms[at..at + 11]).try_into().expect("room");
             (win[0], win[1]) = (e as u16, (e >> 16) as u16);
             win[has..has + 8].copy_from_slice(&lits.to_array().map(|x| x as u16));
             p += has + c as usize;
@@ -763,12 +783,18 @@ impl RowWords {
     }
 }
 
-/// `a − b` byte by byte (wrapping): the two words in the low halves of two vectors and
-/// one vector subtraction of bytes (three instructions and the two loads, where the
-/// same in one `u64`, a byte's borrow kept from the next by the top bits, took eight).
+/// `a − b` byte by byte (wrapping), of two words as they are stored (the first byte
+/// first): each read straight into the low half of a vector, then one vector
+/// subtraction of bytes (where the same in one `u64`, a byte's borrow kept from the
+/// next by the top bits, took eight instructions, and a word read into a register
+/// first took two more moves).
 #[inline(always)]
-fn sub_bytes(a: u64, b: u64) -> u64 {
-    let v = |x: u64| u8x16::new(u128::from(x).to_le_bytes());
+fn sub_bytes(a: &[u8; 8], b: &[u8; 8]) -> u64 {
+    let v = |x: &[u8; 8]| {
+        let mut y = [0u8; 16];
+        y[..8].copy_from_slice(x);
+        u8x16::new(y)
+    };
     u128::from_le_bytes((v(a) - v(b)).to_array()) as u64
 }
 
@@ -876,7 +902,7 @@ impl RowDeflate {
             f,
             bits,
             adler: Adler::new(),
-            words: RowWords::default(),
+            words: WORDS.take().unwrap_or_default(),
             blank: None,
         }
     }
@@ -908,8 +934,9 @@ impl RowDeflate {
         const UP: u8 = 2;
         let w = this.len();
         assert_eq!(above.len(), w, "rows of one width");
-        let load =
-            |row: &[u8], s: usize| u64::from_le_bytes(row[s..s + 8].try_into().expect("8 bytes"));
+        fn word(row: &[u8], s: usize) -> &[u8; 8] {
+            row[s..].first_chunk().expect("8 bytes")
+        }
         // The row is `w + 1` bytes: `n` whole words, then `t < 8` bytes, `rest`.
         let n = (w + 1) / 8;
         let list = self.words.begin(n);
@@ -935,7 +962,7 @@ impl RowDeflate {
             // Word 0: the filter byte, then pixels 0..7 (pixel 7 is word 1's).
             list[0] = (
                 0,
-                sub_bytes(load(above, 0), load(this, 0)) << 8 | u64::from(UP),
+                sub_bytes(word(above, 0), word(this, 0)) << 8 | u64::from(UP),
             );
             cnt = 1;
             if clear {
@@ -966,7 +993,7 @@ impl RowDeflate {
                     // then 8 bytes from there (no sum to overflow).
                     let up = above[s..].first_chunk_mut::<8>().expect("8 bytes");
                     let th = this[s..].first_chunk::<8>().expect("8 bytes");
-                    let v = sub_bytes(u64::from_le_bytes(*up), u64::from_le_bytes(*th));
+                    let v = sub_bytes(up, th);
                     if clear {
                         *up = [0; 8];
                     }
@@ -976,9 +1003,11 @@ impl RowDeflate {
             }
             // The rest: pixels `8n − 1..w`, the last `t` of the row's last 8.
             let t = w + 1 - 8 * n;
-            let v = sub_bytes(load(above, w - 8), load(this, w - 8));
+            let v = sub_bytes(word(above, w - 8), word(this, w - 8));
             if clear {
-                above[w - t..].fill(0);
+                // The last `t` bytes cleared in the last 8 (one store, not a fill).
+                let end = above[w - 8..].first_chunk_mut::<8>().expect("8 bytes");
+                *end = (u64::from_le_bytes(*end) & u64::MAX >> (8 * t)).to_le_bytes();
             }
             (v.checked_shr(8 * (8 - t) as u32).unwrap_or(0), t)
         };
@@ -997,13 +1026,15 @@ impl RowDeflate {
         if fresh {
             let mut row = vec![0u8; len];
             row[0] = filter;
+            // (Coded with the stream's own room: nothing is pending after the flush
+            // above, nor after the row.)
             let mut b = Bits::new(Vec::new());
             b.row(
                 f,
                 &row,
                 std::iter::once((0, 1)),
                 &mut Adler::new(),
-                &mut RowWords::default(),
+                &mut self.words,
             );
             let (words, total) = b.into_words();
             self.blank = Some((len, filter, words, total));
@@ -1032,8 +1063,17 @@ impl RowDeflate {
         self.bits.put(c, l);
         let mut out = self.bits.into_bytes();
         out.extend_from_slice(&self.adler.finish().to_be_bytes());
+        // Nothing pending: the next stream made on this thread takes the room as it is.
+        WORDS.set(Some(self.words));
         out
     }
+}
+
+thread_local! {
+    /// The room for the rows' words and symbols ([`RowWords`]) of the last stream
+    /// finished on the thread (a row in lanes takes [`LANE_SYMS`] symbols' room), for
+    /// the next: made and zeroed once per thread, not once per page.
+    static WORDS: std::cell::Cell<Option<RowWords>> = const { std::cell::Cell::new(None) };
 }
 
 #[cfg(test)]
@@ -1234,7 +1274,8 @@ mod tests {
                     // The other lanes hold other pairs, so a borrow would show.
                     let (x, y) = (0x00ff_7f80_01fe_ff00u64, 0xff00_807f_fe01_00ffu64);
                     let (mx, my) = (!(0xffu64 << (8 * lane)), 8 * lane);
-                    let got = sub_bytes(x & mx | u64::from(a) << my, y & mx | u64::from(b) << my);
+                    let (x, y) = (x & mx | u64::from(a) << my, y & mx | u64::from(b) << my);
+                    let got = sub_bytes(&x.to_le_bytes(), &y.to_le_bytes());
                     assert_eq!((got >> my) as u8, d, "{a} − {b} in lane {lane}");
                     for o in (0..8).filter(|&o| o != lane) {
                         let (xo, yo) = ((x >> (8 * o)) as u8, (y >> (8 * o)) as u8);
@@ -1395,7 +1436,8 @@ mod tests {
                         b += (r - 8 * i - j) as u64 * x;
                     }
                 }
-                let mut syms = vec![0u16; 12 * n + 72 + GROUP];
+                // (Rows in lanes are given the room of the longest.)
+                let mut syms = vec![0u16; (12 * n + 72 + GROUP).max(LANE_SYMS + 16)];
                 let lanes = word_symbols::<true>(&list, &mut syms, 0, r as u64, (a0, b0));
                 let mut other = vec![0u16; 12 * n + 72 + GROUP];
                 let words = word_symbols::<false>(&list, &mut other, 0, r as u64, (a0, b0));
