@@ -1190,12 +1190,17 @@ impl OpenQuery {
             }));
             let from_cell = &mut back[j * cells..(j + 1) * cells];
             let mut run = (f64::INFINITY, 0u32);
-            for g in 0..cells {
-                if cost[g] < run.0 {
-                    run = (cost[g], g as u32);
+            // The three rows as slices of one length (no bounds test in the loop).
+            let rows = cost[..cells]
+                .iter()
+                .zip(&mut next[..cells])
+                .zip(from_cell.iter_mut());
+            for (g, ((&c, nx), fc)) in rows.enumerate() {
+                if c < run.0 {
+                    run = (c, g as u32);
                 }
-                from_cell[g] = run.1;
-                next[g] += run.0;
+                *fc = run.1;
+                *nx += run.0;
             }
             std::mem::swap(cost, next);
         }
