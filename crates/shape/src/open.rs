@@ -148,11 +148,22 @@ impl Grid {
 struct Kernel {
     /// The offset of the first cell from the start, whole degrees.
     lo: i64,
-    /// Nonzero cells: distance from `lo`, and the weight and `y`-weight's parts, each
-    /// twice (`[[w, w], [Re, Re], [Im, Im]]`: the factors of a `[re, im]` pair).
-    cells: Vec<(usize, [[f64; 2]; 3])>,
+    /// Nonzero cells.
+    cells: Vec<KernelCell>,
     /// Points (the sums' `m`).
     count: u32,
+}
+
+/// One nonzero cell of a [`Kernel`]: its distance from `lo`, and the factors of the
+/// seven `[re, im]` pair sums of [`Kernel::sums`], each twice, flat and in the order of
+/// its accumulators (`w` three times, then `Re y·w`, `Im y·w`, `Re y·w`, `Im y·w`), so that
+/// the sums are one plain multiply-add per lane (two lanes a vector instruction: the grid
+/// cell's pairs are gathered into the same order).
+#[derive(Clone, Copy)]
+#[repr(C, align(16))]
+struct KernelCell {
+    factors: [f64; 14],
+    d: usize,
 }
 
 impl Kernel {
@@ -181,7 +192,13 @@ impl Kernel {
             .into_iter()
             .enumerate()
             .filter(|(_, (w, _))| *w != 0.0)
-            .map(|(d, (w, wy))| (d, [[w; 2], [wy.re; 2], [wy.im; 2]]))
+            .map(|(d, (w, wy))| {
+                let (a, b) = (wy.re, wy.im);
+                KernelCell {
+                    factors: [w, w, w, w, w, w, a, a, b, b, a, a, b, b],
+                    d,
+                }
+            })
             .collect();
         Kernel {
             lo,
@@ -192,7 +209,25 @@ impl Kernel {
 
     /// Cells past the start's base that [`Kernel::sums`] reads.
     fn reach(&self) -> usize {
-        self.cells.last().map_or(0, |c| c.0 + 1)
+        self.cells.last().map_or(0, |c| c.d + 1)
+    }
+
+    /// The seven pair sums of [`Kernel::sums`], flat: one multiply-add per lane and cell,
+    /// in cell order. Not inlined: inlined, the compiler mixed the pairs' lanes
+    /// across accumulators (40 instructions a cell instead of 29).
+    #[inline(never)]
+    fn flat_sums(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [f64; 14] {
+        let mut flat = [0.0f64; 14];
+        for c in kernel {
+            let [p, e, x] = grid[c.d];
+            let g = [
+                p[0], p[1], e[0], e[1], x[0], x[1], p[0], p[1], p[0], p[1], e[0], e[1], e[0], e[1],
+            ];
+            for ((acc, f), g) in flat.iter_mut().zip(&c.factors).zip(g) {
+                *acc += f * g;
+            }
+        }
+        flat
     }
 
     /// The sums at the whole-degree `start` (any integer) on `grid`; the reflection's
@@ -203,23 +238,8 @@ impl Kernel {
         let cells = &grid.cells[base..];
         // `[re, im]` pairs: `Σ w·Pa`, `Σ w·e`, `Σ w·conj(Pa)·e`, and `Σ Re(y)·Pa`,
         // `Σ Im(y)·Pa`, `Σ Re(y)·e`, `Σ Im(y)·e`, from which the `R` sums are formed.
-        let mut acc = [[0.0f64; 2]; 7];
-        // `acc += f·v` on both parts of a pair.
-        #[inline(always)]
-        fn mac(acc: &mut [f64; 2], f: [f64; 2], v: [f64; 2]) {
-            acc[0] += f[0] * v[0];
-            acc[1] += f[1] * v[1];
-        }
-        for &(d, [w, a, b]) in &self.cells {
-            let [p, e, x] = cells[d];
-            mac(&mut acc[0], w, p);
-            mac(&mut acc[1], w, e);
-            mac(&mut acc[2], w, x);
-            mac(&mut acc[3], a, p);
-            mac(&mut acc[4], b, p);
-            mac(&mut acc[5], a, e);
-            mac(&mut acc[6], b, e);
-        }
+        let flat = Kernel::flat_sums(&self.cells, cells);
+        let acc: [[f64; 2]; 7] = std::array::from_fn(|i| [flat[2 * i], flat[2 * i + 1]]);
         let c = |v: [f64; 2]| C64::new(v[0], v[1]);
         // `y = a + ib`: `Σ conj(P)·y = (ΣaP_re + ΣbP_im) + i(ΣbP_re − ΣaP_im)` and
         // `Σ conj(P)·conj(y) = conj(Σ P·y)`, `Σ P·y = (ΣaP_re − ΣbP_im) + i(ΣbP_re + ΣaP_im)`.
@@ -1170,12 +1190,17 @@ impl OpenQuery {
             }));
             let from_cell = &mut back[j * cells..(j + 1) * cells];
             let mut run = (f64::INFINITY, 0u32);
-            for g in 0..cells {
-                if cost[g] < run.0 {
-                    run = (cost[g], g as u32);
+            // The three rows as slices of one length (no bounds test in the loop).
+            let rows = cost[..cells]
+                .iter()
+                .zip(&mut next[..cells])
+                .zip(from_cell.iter_mut());
+            for (g, ((&c, nx), fc)) in rows.enumerate() {
+                if c < run.0 {
+                    run = (c, g as u32);
                 }
-                from_cell[g] = run.1;
-                next[g] += run.0;
+                *fc = run.1;
+                *nx += run.0;
             }
             std::mem::swap(cost, next);
         }
@@ -1979,6 +2004,73 @@ mod mirror {
         // of the product of two 1° differences of unit vectors turning at most a few
         // times faster than the crank, so at most about 10⁻³ a point.
         assert!(worst_pe < 1e-3 && worst_pe > 0.0, "{worst_pe}");
+    }
+
+    /// [`Kernel::sums`] from flat lanes gives the sums of the loop it replaced (a
+    /// multiply-add per `[re, im]` pair, the factors `[[w, w], [Re, Re], [Im, Im]]`
+    /// beside each cell), bit for bit: over four linkages, random targets, spans, senses
+    /// and starts.
+    #[test]
+    fn kernel_sums_as_first_written() {
+        fn first_written(kernel: &Kernel, grid: &Grid, start: i64) -> [[f64; 2]; 7] {
+            let base = (start + kernel.lo).rem_euclid(grid.period as i64) as usize;
+            let cells = &grid.cells[base..];
+            let mut acc = [[0.0f64; 2]; 7];
+            fn mac(acc: &mut [f64; 2], f: [f64; 2], v: [f64; 2]) {
+                acc[0] += f[0] * v[0];
+                acc[1] += f[1] * v[1];
+            }
+            for c in &kernel.cells {
+                let f = c.factors;
+                let (w, a, b) = ([f[0], f[1]], [f[6], f[7]], [f[8], f[9]]);
+                let [p, e, x] = cells[c.d];
+                mac(&mut acc[0], w, p);
+                mac(&mut acc[1], w, e);
+                mac(&mut acc[2], w, x);
+                mac(&mut acc[3], a, p);
+                mac(&mut acc[4], b, p);
+                mac(&mut acc[5], a, e);
+                mac(&mut acc[6], b, e);
+            }
+            acc
+        }
+        let curves = atlas();
+        let mut rng = crate::cases::SplitMix64(43);
+        let mut tried = 0;
+        for g in linkage_groups(&curves) {
+            let c = &curves[g.start].curve;
+            let table = Table::new(&c.linkage, c.circuit).unwrap();
+            let grid = Grid::new(&table);
+            for _ in 0..20 {
+                let m = 2 + (rng.next_u64() % 40) as usize;
+                let mut x: Vec<f64> = (0..m).map(|_| rng.uniform()).collect();
+                x.sort_by(f64::total_cmp);
+                let y: Vec<C64> = (0..m)
+                    .map(|_| C64::new(rng.normal(), rng.normal()))
+                    .collect();
+                let y = centred_unit(&y).unwrap();
+                let span = 30.0 + 330.0 * rng.uniform();
+                let sense = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+                let offsets: Vec<f64> = x.iter().map(|&x| sense * span * x).collect();
+                let kernel = Kernel::new(&offsets, &y);
+                for c in &kernel.cells {
+                    let f = c.factors;
+                    assert!(f[..6].iter().all(|&v| v.to_bits() == f[0].to_bits()));
+                    assert_eq!([f[6], f[7], f[8], f[9]], [f[10], f[11], f[12], f[13]]);
+                }
+                for start in (-400..800).step_by(29) {
+                    let base = (start + kernel.lo).rem_euclid(grid.period as i64) as usize;
+                    let flat = Kernel::flat_sums(&kernel.cells, &grid.cells[base..]);
+                    let want = first_written(&kernel, &grid, start);
+                    for (i, pair) in want.iter().enumerate() {
+                        assert_eq!(flat[2 * i].to_bits(), pair[0].to_bits());
+                        assert_eq!(flat[2 * i + 1].to_bits(), pair[1].to_bits());
+                    }
+                    tried += 1;
+                }
+            }
+        }
+        assert!(tried > 2000, "{tried}");
     }
 
     /// With reflection allowed, the unreflected candidates are exactly, in order, those
