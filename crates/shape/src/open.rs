@@ -1953,6 +1953,28 @@ mod mirror {
         )
     }
 
+    /// A random target of 2 to 41 points for the kernel tests: its offsets along a span
+    /// of 30° to 360° in either sense (the first at 0 and the last at the span when
+    /// `pinned`), and its points centred and scaled to unit size.
+    fn random_kernel_target(
+        rng: &mut crate::cases::SplitMix64,
+        pinned: bool,
+    ) -> (Vec<f64>, Vec<C64>) {
+        let m = 2 + (rng.next_u64() % 40) as usize;
+        let mut x: Vec<f64> = (0..m).map(|_| rng.uniform()).collect();
+        x.sort_by(f64::total_cmp);
+        if pinned {
+            (x[0], x[m - 1]) = (0.0, 1.0);
+        }
+        let y: Vec<C64> = (0..m)
+            .map(|_| C64::new(rng.normal(), rng.normal()))
+            .collect();
+        let y = centred_unit(&y).unwrap();
+        let span = 30.0 + 330.0 * rng.uniform();
+        let sense = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+        (x.iter().map(|&x| sense * span * x).collect(), y)
+    }
+
     /// Stage 1's kernel sums at whole-degree starts are the sums of the linear
     /// interpolants [`Sums::of`] makes, to rounding, for `Pa`, `e` and the `R` sums of
     /// both reflections; `S_Pe` (the interpolant of the tabulated product, not the product
@@ -1968,17 +1990,8 @@ mod mirror {
             let table = Table::new(&c.linkage, c.circuit).unwrap();
             let grid = Grid::new(&table);
             for _ in 0..40 {
-                let m = 2 + (rng.next_u64() % 40) as usize;
-                let mut x: Vec<f64> = (0..m).map(|_| rng.uniform()).collect();
-                x.sort_by(f64::total_cmp);
-                (x[0], x[m - 1]) = (0.0, 1.0);
-                let y: Vec<C64> = (0..m)
-                    .map(|_| C64::new(rng.normal(), rng.normal()))
-                    .collect();
-                let y = centred_unit(&y).unwrap();
-                let span = 30.0 + 330.0 * rng.uniform();
-                let sense = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
-                let offsets: Vec<f64> = x.iter().map(|&x| sense * span * x).collect();
+                let (offsets, y) = random_kernel_target(&mut rng, true);
+                let m = y.len();
                 let kernel = Kernel::new(&offsets, &y);
                 assert!(kernel.reach() <= grid.cells.len() - grid.period);
                 for start in (-400..800).step_by(37) {
@@ -2042,16 +2055,7 @@ mod mirror {
             let table = Table::new(&c.linkage, c.circuit).unwrap();
             let grid = Grid::new(&table);
             for _ in 0..20 {
-                let m = 2 + (rng.next_u64() % 40) as usize;
-                let mut x: Vec<f64> = (0..m).map(|_| rng.uniform()).collect();
-                x.sort_by(f64::total_cmp);
-                let y: Vec<C64> = (0..m)
-                    .map(|_| C64::new(rng.normal(), rng.normal()))
-                    .collect();
-                let y = centred_unit(&y).unwrap();
-                let span = 30.0 + 330.0 * rng.uniform();
-                let sense = if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
-                let offsets: Vec<f64> = x.iter().map(|&x| sense * span * x).collect();
+                let (offsets, y) = random_kernel_target(&mut rng, false);
                 let kernel = Kernel::new(&offsets, &y);
                 for c in &kernel.cells {
                     let f = c.factors;
