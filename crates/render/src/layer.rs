@@ -248,8 +248,9 @@ fn merge(l: &mut [u8], c: &mut [u8]) {
 /// (`h = b / 255`, `l < 255`), `⌊(a·b + 32512) / 65025⌋` is `⌊z / 255⌋` with
 /// `z = ⌊(a·b + 32512) / 255⌋` (a floor of a floor), and as `a·b + 32512` is
 /// `255·(a·h + 127) + a·l + 127`, `z = a·h + 127 + ⌊(a·l + 127) / 255⌋`: every term
-/// below 2^16 (`a·l + 127 ≤ 64897`, `z ≤ 65152`), each quotient a [`div255`]. Exact;
-/// tested for every `d`, `c`, `g`.
+/// below 2^16 (`a·l + 127 ≤ 64897`, `z ≤ 65152`), each quotient a [`div255`]. Eight
+/// pixels of paper (`d = 0`) take `⌊(b + 127) / 255⌋`, the same. Exact; tested for
+/// every `d`, `c`, `g`.
 #[inline]
 pub(crate) fn overprint_span(dst: &mut [u8], cov: &[u8], g: u8) {
     let n = dst.len().min(cov.len());
@@ -263,8 +264,16 @@ pub(crate) fn overprint_span(dst: &mut [u8], cov: &[u8], g: u8) {
         .chunks_exact_mut(8)
         .zip(cov[..lanes].chunks_exact(8))
     {
-        let (d, c) = (widen(d8), widen(c8));
-        let (a, b) = (full - d, c * gl);
+        let c = widen(c8);
+        let b = c * gl;
+        if u64::from_ne_bytes(d8.try_into().unwrap_or([1; 8])) == 0 {
+            // Paper under all eight (d = 0, a = 255): z = 255·h + 127 + l, so the
+            // level is h + ⌊(l + 127) / 255⌋ = ⌊(b + 127) / 255⌋.
+            narrow(div255(b + half), d8);
+            continue;
+        }
+        let d = widen(d8);
+        let a = full - d;
         let h = div255(b);
         let l = b - h * full;
         let z = a * h + half + div255(a * l + half);
@@ -433,7 +442,8 @@ mod tests {
     }
 
     /// [`merge`] and [`overprint_span`] are their pixel-by-pixel formulas for every
-    /// level under, every coverage and every gray (tails of 0–7 pixels too).
+    /// level under, every coverage and every gray (tails of 0–7 pixels too; the first
+    /// 256 pixels, paper under, take [`overprint_span`]'s way for eight of paper).
     #[test]
     fn lanes_are_the_formulas_for_every_value() {
         let under: Vec<u8> = (0..65536 + 5).map(|i| (i >> 8) as u8).collect();
