@@ -639,8 +639,8 @@ fn composite(dst: u8, c: u8, ink: Ink) -> u8 {
 /// [`composite`] over a row: `dst[i] ← composite(dst[i], cov[i], ink)`, the ink chosen
 /// once, not per pixel, so that each loop vectorises. Paper and black (whose
 /// `(255·x + 32512) / 65025` is `(x + 127) / 255`: `255·(x + 127) + 127` leaves less
-/// than 65025 over the quotient's multiple) fit 16-bit lanes; grays take f32 lanes
-/// ([`crate::layer::overprint_span`]).
+/// than 65025 over the quotient's multiple) fit 16-bit lanes; so do grays, their
+/// quotient split in two ([`crate::layer::overprint_span`]).
 fn composite_row(dst: &mut [u8], cov: &[u8], ink: Ink) {
     match ink {
         Ink::Paper => {
