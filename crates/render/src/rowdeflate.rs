@@ -580,14 +580,16 @@ impl Bits {
         // its own terms, independent of the others ([`word_symbols`]).
         let r = len as u64;
         let (a, b) = (u64::from(adler.a), u64::from(adler.b));
-        // Below 2^33, reduced at the row's end.
-        let b = b + (r % ADLER_MOD) * a;
+        // Below 2^33, reduced at the row's end (a row in lanes is shorter than
+        // `ADLER_MOD`: its length needs no reduction).
+        const _: () = assert!((LANE_ROW as u64) < ADLER_MOD);
         // First the row as symbols: the pending run of zeros starts at byte `zero` (the
         // bytes before it are written) and the symbols are `syms[..p]`. The words' sums
         // in 16-bit lanes when the weights `len − p` fit them.
         let (mut p, zero, mut a, mut b) = if len <= LANE_ROW {
-            word_symbols::<true>(list, syms, *pending, r, (a, b))
+            word_symbols::<true>(list, syms, *pending, r, (a, b + r * a))
         } else {
+            let b = b + (r % ADLER_MOD) * a;
             word_symbols::<false>(list, syms, *pending, r, (a, b))
         };
         let run = (8 * n - zero) as u32;
