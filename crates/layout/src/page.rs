@@ -1344,6 +1344,17 @@ pub fn footer_settings(setup: &PageSetup) -> String {
 mod tests {
     use super::*;
 
+    /// Uniform floats in `[0, 1)` from a xorshift generator seeded with `seed` (the
+    /// tests' random cases, the same sequence for the same seed).
+    fn unit_floats(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     /// The occupancy grid as it was written first (`floor` per sample, the table in one
     /// loop): the reference for the faster one.
     struct OldOccupancy(Occupancy);
@@ -1504,13 +1515,7 @@ mod tests {
     /// off the grid, along cell boundaries, NaN near sides.
     #[test]
     fn grids_on_kept_buffers_are_fresh_grids() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rand = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rand = unit_floats(0x9e37_79b9_7f4a_7c15);
         let frames = [
             [36.0, 36.0, 756.0, 1188.0],
             [0.5, -3.25, 40.0, 29.0],
@@ -1687,13 +1692,7 @@ mod tests {
     fn dashes_draw_as_stated() {
         use coupler_kinematics::Dash;
         use nalgebra::Point2;
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = unit_floats(0x9e37_79b9_7f4a_7c15);
         let t = WorldToPage {
             scale: 37.5,
             origin: [300.0, 500.0],
