@@ -156,13 +156,14 @@ struct Kernel {
 
 /// One nonzero cell of a [`Kernel`]: its distance from `lo`, and the factors of the
 /// seven `[re, im]` pair sums of [`Kernel::sums`], each twice, flat and in the order of
-/// its accumulators (`w` three times, then `Re y·w`, `Im y·w`, `Re y·w`, `Im y·w`), so that
-/// the sums are one plain multiply-add per lane (two lanes a vector instruction: the grid
-/// cell's pairs are gathered into the same order).
+/// the lanes of [`Kernel::flat_sums`]: `w` four times (for `Pa` and `e`), `Re y·w` four
+/// times, `Im y·w` four times (each again for `Pa` and `e`), then `w` twice (for
+/// `conj(Pa)·e`) and two zeros, so that the sums are one plain multiply-add per lane
+/// and the grid cell's values are read as they lie (`Pa` and `e` side by side).
 #[derive(Clone, Copy)]
-#[repr(C, align(16))]
+#[repr(C, align(32))]
 struct KernelCell {
-    factors: [f64; 14],
+    factors: [f64; 16],
     d: usize,
 }
 
@@ -195,7 +196,7 @@ impl Kernel {
             .map(|(d, (w, wy))| {
                 let (a, b) = (wy.re, wy.im);
                 KernelCell {
-                    factors: [w, w, w, w, w, w, a, a, b, b, a, a, b, b],
+                    factors: [w, w, w, w, a, a, a, a, b, b, b, b, w, w, 0.0, 0.0],
                     d,
                 }
             })
@@ -212,34 +213,116 @@ impl Kernel {
         self.cells.last().map_or(0, |c| c.d + 1)
     }
 
-    /// The seven pair sums of [`Kernel::sums`], flat: one multiply-add per lane and cell,
-    /// in cell order. Not inlined: inlined, the compiler mixed the pairs' lanes
-    /// across accumulators (40 instructions a cell instead of 29).
+    /// The seven pair sums of [`Kernel::sums`] (`Σ w·Pa`, `Σ w·e`, `Σ w·conj(Pa)·e`,
+    /// `Σ Re(y)·Pa`, `Σ Im(y)·Pa`, `Σ Re(y)·e`, `Σ Im(y)·e`): one multiply-add per lane
+    /// and cell, in cell order, sixteen lanes (two of them zero) in the order of
+    /// [`KernelCell`]'s factors. Not inlined: inlined, the compiler mixed the pairs'
+    /// lanes across accumulators.
     #[inline(never)]
-    fn flat_sums(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [f64; 14] {
-        let mut flat = [0.0f64; 14];
+    fn flat_sums(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [[f64; 2]; 7] {
+        Kernel::flat_sums_body(kernel, grid)
+    }
+
+    /// [`Kernel::flat_sums`] in AVX2 vectors (called only where the processor has it):
+    /// the same operations in the same order, lane by lane (a multiply, then an add;
+    /// never fused), the sixteen lanes in three vectors of four and one of two (compiled
+    /// from the plain loop, the lanes were shuffled across vectors: more instructions
+    /// a cell than the baseline's pairs).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn flat_sums_avx2(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [[f64; 2]; 7] {
+        use std::arch::x86_64::{
+            _mm_add_pd, _mm_loadu_pd, _mm_mul_pd, _mm_setzero_pd, _mm_storeu_pd, _mm256_add_pd,
+            _mm256_loadu_pd, _mm256_mul_pd, _mm256_setzero_pd, _mm256_storeu_pd,
+        };
+        let (mut l0, mut l1, mut l2) = (
+            _mm256_setzero_pd(),
+            _mm256_setzero_pd(),
+            _mm256_setzero_pd(),
+        );
+        let mut l3 = _mm_setzero_pd();
+        for c in kernel {
+            let g = &grid[c.d];
+            let f = &c.factors;
+            // SAFETY: `g` is six `f64` in a row (`Pa`, `e`, `conj(Pa)·e`), of which the
+            // first four and the last two are read; `f` is sixteen, all read.
+            #[allow(unsafe_code)]
+            let (pe, x, f0, f1, f2, f3) = unsafe {
+                (
+                    _mm256_loadu_pd(g.as_ptr().cast()),
+                    _mm_loadu_pd(g[2].as_ptr()),
+                    _mm256_loadu_pd(f.as_ptr()),
+                    _mm256_loadu_pd(f[4..].as_ptr()),
+                    _mm256_loadu_pd(f[8..].as_ptr()),
+                    _mm_loadu_pd(f[12..].as_ptr()),
+                )
+            };
+            l0 = _mm256_add_pd(l0, _mm256_mul_pd(f0, pe));
+            l1 = _mm256_add_pd(l1, _mm256_mul_pd(f1, pe));
+            l2 = _mm256_add_pd(l2, _mm256_mul_pd(f2, pe));
+            l3 = _mm_add_pd(l3, _mm_mul_pd(f3, x));
+        }
+        let mut l = [[0.0f64; 4]; 4];
+        // SAFETY: each store writes four (the last two) `f64` into its own array.
+        #[allow(unsafe_code)]
+        unsafe {
+            _mm256_storeu_pd(l[0].as_mut_ptr(), l0);
+            _mm256_storeu_pd(l[1].as_mut_ptr(), l1);
+            _mm256_storeu_pd(l[2].as_mut_ptr(), l2);
+            _mm_storeu_pd(l[3].as_mut_ptr(), l3);
+        }
+        Kernel::lanes_to_pairs(l)
+    }
+
+    /// The lanes of [`Kernel::flat_sums`] as its seven pairs.
+    #[inline(always)]
+    fn lanes_to_pairs(l: [[f64; 4]; 4]) -> [[f64; 2]; 7] {
+        let [[a, b, c, d], [e, f, g, h], [i, j, k, m], [n, o, _, _]] = l;
+        [[a, b], [c, d], [n, o], [e, f], [i, j], [g, h], [k, m]]
+    }
+
+    /// The body of [`Kernel::flat_sums`].
+    #[inline(always)]
+    fn flat_sums_body(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [[f64; 2]; 7] {
+        // Four lanes of four: `w·(Pa, e)`, `Re y·(Pa, e)`, `Im y·(Pa, e)`, `w·(conj(Pa)·e, 0)`.
+        let mut l = [[0.0f64; 4]; 4];
         for c in kernel {
             let [p, e, x] = grid[c.d];
-            let g = [
-                p[0], p[1], e[0], e[1], x[0], x[1], p[0], p[1], p[0], p[1], e[0], e[1], e[0], e[1],
-            ];
-            for ((acc, f), g) in flat.iter_mut().zip(&c.factors).zip(g) {
-                *acc += f * g;
+            let pe = [p[0], p[1], e[0], e[1]];
+            let x0 = [x[0], x[1], 0.0, 0.0];
+            let f = &c.factors;
+            for i in 0..4 {
+                l[0][i] += f[i] * pe[i];
+                l[1][i] += f[4 + i] * pe[i];
+                l[2][i] += f[8 + i] * pe[i];
+                l[3][i] += f[12 + i] * x0[i];
             }
         }
-        flat
+        Kernel::lanes_to_pairs(l)
     }
 
     /// The sums at the whole-degree `start` (any integer) on `grid`; the reflection's
     /// `R` sums come from the same two products per cell as the others.
     #[inline(always)]
-    fn sums(&self, grid: &Grid, start: i64) -> Sums {
+    fn sums<const AVX2: bool>(&self, grid: &Grid, start: i64) -> Sums {
         let base = (start + self.lo).rem_euclid(grid.period as i64) as usize;
         let cells = &grid.cells[base..];
         // `[re, im]` pairs: `Σ w·Pa`, `Σ w·e`, `Σ w·conj(Pa)·e`, and `Σ Re(y)·Pa`,
         // `Σ Im(y)·Pa`, `Σ Re(y)·e`, `Σ Im(y)·e`, from which the `R` sums are formed.
-        let flat = Kernel::flat_sums(&self.cells, cells);
-        let acc: [[f64; 2]; 7] = std::array::from_fn(|i| [flat[2 * i], flat[2 * i + 1]]);
+        #[cfg(target_arch = "x86_64")]
+        let acc = if AVX2 {
+            // SAFETY: `AVX2` is set only on the path that found the processor to have
+            // AVX2 ([`linkage_stage1`]); `flat_sums_avx2` has no other requirement.
+            #[allow(unsafe_code)]
+            unsafe {
+                Kernel::flat_sums_avx2(&self.cells, cells)
+            }
+        } else {
+            Kernel::flat_sums(&self.cells, cells)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let acc = Kernel::flat_sums(&self.cells, cells);
         let c = |v: [f64; 2]| C64::new(v[0], v[1]);
         // `y = a + ib`: `Σ conj(P)·y = (ΣaP_re + ΣbP_im) + i(ΣbP_re − ΣaP_im)` and
         // `Σ conj(P)·conj(y) = conj(Σ P·y)`, `Σ P·y = (ΣaP_re − ΣbP_im) + i(ΣbP_re + ΣaP_im)`.
@@ -646,7 +729,7 @@ const WINDOWS: usize = 6;
 
 /// Keeps `list` (best first) the `WINDOWS` best pairwise distinct windows offered, on a
 /// linkage of the given `period`.
-#[inline]
+#[inline(always)]
 fn offer(list: &mut Vec<Window>, h: Window, period: f64) {
     if !h.misfit.is_finite() || (list.len() == WINDOWS && h.misfit >= list[WINDOWS - 1].misfit) {
         return;
@@ -833,7 +916,17 @@ impl OpenQuery {
     /// the unreflected list before the reflected one. Each reflection has its own lists
     /// and bounds, so the unreflected lists are the same, bit for bit, with reflection
     /// allowed or not: a reflected window never pushes an unreflected one out.
+    /// (The baseline instruction set's path, for tests; the query runs
+    /// [`linkage_stage1`].)
+    #[cfg(test)]
     fn scan(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
+        self.scan_with::<false>(table, points)
+    }
+
+    /// [`OpenQuery::scan`], the kernel's sums by [`Kernel::flat_sums_avx2`] when `AVX2`
+    /// (inlined into [`linkage_stage1`]'s AVX2 body only).
+    #[inline(always)]
+    fn scan_with<const AVX2: bool>(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
         let mirrors: &[bool] = if self.allow_mirror {
             &[false, true]
         } else {
@@ -871,7 +964,7 @@ impl OpenQuery {
                 debug_assert!(kernel.reach() <= grid.cells.len() - grid.period);
                 for i in 0..count {
                     let start = (i as f64 * h).round();
-                    let sums = kernel.sums(&grid, start as i64);
+                    let sums = kernel.sums::<AVX2>(&grid, start as i64);
                     let gram = sums.gram();
                     // A reflection whose least misfit over every coupler point is above
                     // every point's bound of that reflection would be refused by every
@@ -969,6 +1062,7 @@ impl OpenQuery {
     /// misfit, or there is nothing to do). A run of `a` steps resumed with `b` more takes
     /// the same steps as one run of `a + b`, bit for bit (the sums are made again from the
     /// same angles, in the same order).
+    #[inline(always)]
     fn project(
         &self,
         table: &Table,
@@ -990,6 +1084,7 @@ impl OpenQuery {
     /// [`OpenQuery::project`] for a reflected match (`MIRROR`) or not, decided at compile
     /// time. Each step's trial angles are looked up and summed in one pass (each sum adds
     /// the points in the same order as in separate passes: the same values, bit for bit).
+    #[inline(always)]
     fn project_with<const MIRROR: bool>(
         &self,
         table: &Table,
@@ -1009,7 +1104,9 @@ impl OpenQuery {
         // the sums from it: every angle is looked up once ([`Table::with_slope`] gives the
         // same `Pa` and `e` as [`Table::at`], so the same sums as [`Sums::of`]).
         at.clear();
-        at.extend(theta.iter().map(|&t| table.with_slope(t)));
+        for &t in &theta {
+            at.push(table.with_slope(t));
+        }
         trial_at.clear();
         trial_at.extend_from_slice(at);
         let y = &self.y;
@@ -1463,54 +1560,115 @@ pub(crate) fn open_stage1(
             continue;
         };
         let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
-        for (k, hs) in query.scan(&table, &pts).into_iter().enumerate() {
-            // Each reflection's best window after the projection: a curve goes on once
-            // per reflection, so its unreflected hypothesis is the one a query without
-            // reflection keeps.
-            // Every window gets the first `PROJECTION_HEAT` steps; the best
-            // `PROJECTION_KEEP` of each reflection (by their misfit then) the rest, those
-            // that have not settled (stopped falling) yet: the same steps as in one run
-            // (a run resumes from its angles and misfit, and the sums are made again from
-            // the same angles; tested by `a_resumed_projection_is_one_run`).
-            let mut hs = hs;
-            let settled: Vec<bool> = hs
-                .iter_mut()
-                .map(|h| query.project(&table, pts[k], h, &mut buf, PROJECTION_HEAT))
-                .collect();
-            for mirror in [false, true] {
-                let mut order: Vec<usize> =
-                    (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
-                order.sort_by(|&a, &b| hs[a].misfit.total_cmp(&hs[b].misfit));
-                for &i in order.iter().take(PROJECTION_KEEP).filter(|&&i| !settled[i]) {
-                    query.project(
-                        &table,
-                        pts[k],
-                        &mut hs[i],
-                        &mut buf,
-                        PROJECTIONS - PROJECTION_HEAT,
-                    );
-                }
-            }
-            for mirror in [false, true] {
-                let Some(h) = hs
-                    .iter()
-                    .filter(|h| h.mirror == mirror)
-                    .min_by(|a, b| a.misfit.total_cmp(&b.misfit))
-                else {
-                    continue;
-                };
-                if h.misfit.is_finite() {
-                    stage1.push(Stage1 {
-                        group: a,
-                        index: a + k,
-                        hyp: h.clone(),
-                    });
-                }
-            }
-        }
+        linkage_stage1(query, &table, &pts, a, &mut buf, &mut stage1);
     }
     truncate_stage1(&mut stage1, keep);
     stage1
+}
+
+/// Stage 1 and its projections on one linkage (`table`, its coupler points `pts`, the
+/// first of them curve `a` of the atlas): each curve's best window of each reflection,
+/// pushed onto `out`.
+///
+/// **Four lanes where the processor has them.** On x86-64 with AVX2 (checked at run
+/// time) the same code is compiled for AVX2 and run instead (the sieve's points four a
+/// vector instead of two, the three-operand forms of the other arithmetic). Rust never
+/// fuses a multiply and an add without being asked, and every operation is the same
+/// IEEE-754 operation in the same order, so every value is the same, bit for bit, on
+/// either path.
+fn linkage_stage1(
+    query: &OpenQuery,
+    table: &Table,
+    pts: &[C64],
+    a: usize,
+    buf: &mut Projection,
+    out: &mut Vec<Stage1>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: `linkage_stage1_avx2` needs AVX2, which the processor was just found
+        // to have; it has no other requirement (it is the safe body compiled for AVX2).
+        #[allow(unsafe_code)]
+        unsafe {
+            linkage_stage1_avx2(query, table, pts, a, buf, out)
+        };
+        return;
+    }
+    linkage_stage1_body::<false>(query, table, pts, a, buf, out)
+}
+
+/// [`linkage_stage1_body`] compiled for AVX2 (called only where the processor has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn linkage_stage1_avx2(
+    query: &OpenQuery,
+    table: &Table,
+    pts: &[C64],
+    a: usize,
+    buf: &mut Projection,
+    out: &mut Vec<Stage1>,
+) {
+    linkage_stage1_body::<true>(query, table, pts, a, buf, out)
+}
+
+/// [`linkage_stage1`] itself, inlined into each of its two callers so that each is
+/// compiled for its own instruction set (`AVX2`: the kernel's sums by
+/// [`Kernel::flat_sums_avx2`]).
+#[inline(always)]
+fn linkage_stage1_body<const AVX2: bool>(
+    query: &OpenQuery,
+    table: &Table,
+    pts: &[C64],
+    a: usize,
+    buf: &mut Projection,
+    out: &mut Vec<Stage1>,
+) {
+    for (k, hs) in query.scan_with::<AVX2>(table, pts).into_iter().enumerate() {
+        // Each reflection's best window after the projection: a curve goes on once
+        // per reflection, so its unreflected hypothesis is the one a query without
+        // reflection keeps.
+        // Every window gets the first `PROJECTION_HEAT` steps; the best
+        // `PROJECTION_KEEP` of each reflection (by their misfit then) the rest, those
+        // that have not settled (stopped falling) yet: the same steps as in one run
+        // (a run resumes from its angles and misfit, and the sums are made again from
+        // the same angles; tested by `a_resumed_projection_is_one_run`).
+        // (Plain loops: a closure passed to a generic adapter is compiled apart from
+        // this body, for the baseline instruction set.)
+        let mut hs = hs;
+        let mut settled = Vec::with_capacity(hs.len());
+        for h in hs.iter_mut() {
+            settled.push(query.project(table, pts[k], h, buf, PROJECTION_HEAT));
+        }
+        for mirror in [false, true] {
+            let mut order: Vec<usize> = (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
+            order.sort_by(|&a, &b| hs[a].misfit.total_cmp(&hs[b].misfit));
+            for &i in order.iter().take(PROJECTION_KEEP).filter(|&&i| !settled[i]) {
+                query.project(
+                    table,
+                    pts[k],
+                    &mut hs[i],
+                    buf,
+                    PROJECTIONS - PROJECTION_HEAT,
+                );
+            }
+        }
+        for mirror in [false, true] {
+            let Some(h) = hs
+                .iter()
+                .filter(|h| h.mirror == mirror)
+                .min_by(|a, b| a.misfit.total_cmp(&b.misfit))
+            else {
+                continue;
+            };
+            if h.misfit.is_finite() {
+                out.push(Stage1 {
+                    group: a,
+                    index: a + k,
+                    hyp: h.clone(),
+                });
+            }
+        }
+    }
 }
 
 /// The best `stage2_count(keep)` of `stage1` by misfit (ties by index) **of each
@@ -1995,7 +2153,7 @@ mod mirror {
                 let kernel = Kernel::new(&offsets, &y);
                 assert!(kernel.reach() <= grid.cells.len() - grid.period);
                 for start in (-400..800).step_by(37) {
-                    let k = kernel.sums(&grid, start);
+                    let k = kernel.sums::<false>(&grid, start);
                     let want =
                         Sums::of(&table, offsets.iter().map(|&o| start as f64 + o), &y, true);
                     assert_eq!(k.m, want.m);
@@ -2035,7 +2193,7 @@ mod mirror {
             }
             for c in &kernel.cells {
                 let f = c.factors;
-                let (w, a, b) = ([f[0], f[1]], [f[6], f[7]], [f[8], f[9]]);
+                let (w, a, b) = ([f[0], f[1]], [f[4], f[5]], [f[8], f[9]]);
                 let [p, e, x] = cells[c.d];
                 mac(&mut acc[0], w, p);
                 mac(&mut acc[1], w, e);
@@ -2059,16 +2217,26 @@ mod mirror {
                 let kernel = Kernel::new(&offsets, &y);
                 for c in &kernel.cells {
                     let f = c.factors;
-                    assert!(f[..6].iter().all(|&v| v.to_bits() == f[0].to_bits()));
-                    assert_eq!([f[6], f[7], f[8], f[9]], [f[10], f[11], f[12], f[13]]);
+                    let same =
+                        |i: &[usize], j: usize| i.iter().all(|&i| f[i].to_bits() == f[j].to_bits());
+                    assert!(same(&[1, 2, 3, 12, 13], 0));
+                    assert!(same(&[5, 6, 7], 4));
+                    assert!(same(&[9, 10, 11], 8));
+                    assert_eq!([f[14], f[15]], [0.0, 0.0]);
                 }
                 for start in (-400..800).step_by(29) {
                     let base = (start + kernel.lo).rem_euclid(grid.period as i64) as usize;
-                    let flat = Kernel::flat_sums(&kernel.cells, &grid.cells[base..]);
                     let want = first_written(&kernel, &grid, start);
-                    for (i, pair) in want.iter().enumerate() {
-                        assert_eq!(flat[2 * i].to_bits(), pair[0].to_bits());
-                        assert_eq!(flat[2 * i + 1].to_bits(), pair[1].to_bits());
+                    let bits = |a: [[f64; 2]; 7]| a.map(|p| p.map(f64::to_bits));
+                    let flat = Kernel::flat_sums(&kernel.cells, &grid.cells[base..]);
+                    assert_eq!(bits(flat), bits(want));
+                    #[cfg(target_arch = "x86_64")]
+                    if std::arch::is_x86_feature_detected!("avx2") {
+                        // SAFETY: the processor was just found to have AVX2.
+                        #[allow(unsafe_code)]
+                        let flat =
+                            unsafe { Kernel::flat_sums_avx2(&kernel.cells, &grid.cells[base..]) };
+                        assert_eq!(bits(flat), bits(want));
                     }
                     tried += 1;
                 }
@@ -2101,6 +2269,52 @@ mod mirror {
             );
             assert_eq!(b.len() - unreflected.len(), p.len());
         }
+    }
+
+    /// Stage 1 on the processor's fastest path ([`linkage_stage1`]: AVX2 where the
+    /// processor has it) gives the same windows as on the baseline path, bit for bit
+    /// (misfit, start, span, sense, reflection and every angle), over every linkage of
+    /// the test atlas and several targets, both reflections.
+    #[test]
+    fn stage1_is_the_same_on_every_path() {
+        let curves = atlas();
+        let groups = linkage_groups(&curves);
+        let key = |s: &Stage1| {
+            let h = &s.hyp;
+            let mut v = vec![
+                s.index as u64,
+                s.group as u64,
+                u64::from(h.mirror),
+                h.misfit.to_bits(),
+                h.start.to_bits(),
+                h.span.to_bits(),
+                h.sense.to_bits(),
+            ];
+            v.extend(h.theta.iter().map(|t| t.to_bits()));
+            v
+        };
+        let mut kept = 0;
+        for case in retrieval_cases(&curves, false, 31, 4) {
+            let q = OpenQuery::new(&case.target, true).unwrap();
+            let (mut fast, mut base) = (Vec::new(), Vec::new());
+            let (mut b1, mut b2) = (Projection::default(), Projection::default());
+            for g in &groups {
+                let c = &curves[g.start].curve;
+                let Some(table) = Table::new(&c.linkage, c.circuit) else {
+                    continue;
+                };
+                let pts: Vec<C64> = g.clone().map(|k| w_of(&curves[k])).collect();
+                linkage_stage1(&q, &table, &pts, g.start, &mut b1, &mut fast);
+                linkage_stage1_body::<false>(&q, &table, &pts, g.start, &mut b2, &mut base);
+            }
+            assert_eq!(fast.len(), base.len());
+            for (a, b) in fast.iter().zip(&base) {
+                assert_eq!(key(a), key(b));
+            }
+            kept += fast.len();
+        }
+        // Not vacuous: every curve has a window of each reflection.
+        assert!(kept >= 8 * curves.len(), "{kept} of {}", curves.len());
     }
 
     /// The staged projection's premise: `PROJECTION_HEAT` steps resumed with the rest
