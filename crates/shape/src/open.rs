@@ -67,9 +67,17 @@ struct TableCell {
 
 impl Table {
     fn new(linkage: &Linkage, circuit: Circuit) -> Option<Table> {
-        let period = linkage.period_deg();
-        let crank = CrankTable::over(1.0, period)?;
-        let t = linkage.pose_table(circuit, &crank);
+        Cranks::default().table(linkage, circuit)
+    }
+
+    /// [`Table::new`] from the crank angles of its `period` at 1° steps.
+    fn with_crank(
+        linkage: &Linkage,
+        circuit: Circuit,
+        period: f64,
+        crank: &CrankTable,
+    ) -> Option<Table> {
+        let t = linkage.pose_table(circuit, crank);
         if !t.all_valid() {
             return None;
         }
@@ -101,6 +109,23 @@ impl Table {
         let (k, t) = cell(deg, self.cells.len());
         let c = &self.cells[k];
         (c.pa + c.dpa * t, c.e + c.de * t, c.dpa, c.de)
+    }
+}
+
+/// The crank angles of [`Table::new`] (1° steps over a period), kept between linkages:
+/// they are the same for every linkage of one period.
+#[derive(Default)]
+struct Cranks(Option<(f64, Option<CrankTable>)>);
+
+impl Cranks {
+    /// [`Table::new`], the crank angles made again only when the period changes.
+    fn table(&mut self, linkage: &Linkage, circuit: Circuit) -> Option<Table> {
+        let period = linkage.period_deg();
+        if self.0.as_ref().is_none_or(|(p, _)| *p != period) {
+            self.0 = Some((period, CrankTable::over(1.0, period)));
+        }
+        let crank = self.0.as_ref()?.1.as_ref()?;
+        Table::with_crank(linkage, circuit, period, crank)
     }
 }
 
@@ -807,6 +832,22 @@ pub(crate) struct OpenQuery {
     allow_mirror: bool,
 }
 
+/// The scan's passes for one period ([`OpenQuery::passes`]), made once per query and
+/// period instead of once per linkage.
+struct Passes {
+    /// The period they were made for, degrees of input.
+    period: f64,
+    list: Vec<Pass>,
+}
+
+/// One span and sense of the scan: its kernel and its whole-degree starts.
+struct Pass {
+    span: f64,
+    sense: f64,
+    kernel: Kernel,
+    starts: Vec<f64>,
+}
+
 /// A stage-1 or stage-2 hypothesis on one linkage.
 #[derive(Clone, Debug)]
 struct Hypothesis {
@@ -920,13 +961,49 @@ impl OpenQuery {
     /// [`linkage_stage1`].)
     #[cfg(test)]
     fn scan(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
-        self.scan_with::<false>(table, points)
+        self.scan_with::<false>(&self.passes(table.period), table, points)
+    }
+
+    /// The scan's passes on a linkage of the given `period`: every span and sense with
+    /// its kernel and its starts. They depend on the target and the period only, so one
+    /// list serves every linkage of that period.
+    fn passes(&self, period: f64) -> Passes {
+        let mut list = Vec::new();
+        let mut offsets = vec![0.0; self.x.len()];
+        for span in self.spans(period) {
+            let h = match self.layout {
+                Layout::Angles { .. } => 3.0,
+                _ => (span / 16.0).max(3.0),
+            };
+            let count = (period / h).ceil() as usize;
+            let h = period / count as f64;
+            for sense in [1.0, -1.0] {
+                // `θ_j = start + σ·Δ·x_j` as `thetas` gives it, the products made once.
+                for (o, &x) in offsets.iter_mut().zip(&self.x) {
+                    *o = sense * span * x;
+                }
+                // The starts are whole degrees (the nearest to every `h`-th), so that one
+                // kernel serves them all.
+                list.push(Pass {
+                    span,
+                    sense,
+                    kernel: Kernel::new(&offsets, &self.y),
+                    starts: (0..count).map(|i| (i as f64 * h).round()).collect(),
+                });
+            }
+        }
+        Passes { period, list }
     }
 
     /// [`OpenQuery::scan`], the kernel's sums by [`Kernel::flat_sums_avx2`] when `AVX2`
     /// (inlined into [`linkage_stage1`]'s AVX2 body only).
     #[inline(always)]
-    fn scan_with<const AVX2: bool>(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
+    fn scan_with<const AVX2: bool>(
+        &self,
+        passes: &Passes,
+        table: &Table,
+        points: &[C64],
+    ) -> Vec<Vec<Hypothesis>> {
         let mirrors: &[bool] = if self.allow_mirror {
             &[false, true]
         } else {
@@ -944,83 +1021,68 @@ impl OpenQuery {
         let period = table.period;
         let pts = PointColumns::new(points);
         let mut open = vec![0u8; n];
-        let mut offsets = vec![0.0; self.x.len()];
+        debug_assert_eq!(passes.period, period);
         let grid = Grid::new(table);
-        for span in self.spans(period) {
-            let h = match self.layout {
-                Layout::Angles { .. } => 3.0,
-                _ => (span / 16.0).max(3.0),
-            };
-            let count = (period / h).ceil() as usize;
-            let h = period / count as f64;
-            for sense in [1.0, -1.0] {
-                // `θ_j = start + σ·Δ·x_j` as `thetas` gives it, the products made once.
-                for (o, &x) in offsets.iter_mut().zip(&self.x) {
-                    *o = sense * span * x;
+        for pass in &passes.list {
+            let (span, sense, kernel) = (pass.span, pass.sense, &pass.kernel);
+            debug_assert!(kernel.reach() <= grid.cells.len() - grid.period);
+            for &start in &pass.starts {
+                let sums = kernel.sums::<AVX2>(&grid, start as i64);
+                let gram = sums.gram();
+                // A reflection whose least misfit over every coupler point is above
+                // every point's bound of that reflection would be refused by every
+                // list: skipped whole.
+                let mut live = [false; 2];
+                for &mirror in mirrors {
+                    let v = usize::from(mirror);
+                    // Live unless surely above (a NaN keeps it live).
+                    live[v] = sums
+                        .least_misfit(gram, v)
+                        .partial_cmp(&(most[v] + BOUND_MARGIN))
+                        != Some(std::cmp::Ordering::Greater);
                 }
-                // The starts are whole degrees (the nearest to every `h`-th), so that one
-                // kernel serves them all.
-                let kernel = Kernel::new(&offsets, &self.y);
-                debug_assert!(kernel.reach() <= grid.cells.len() - grid.period);
-                for i in 0..count {
-                    let start = (i as f64 * h).round();
-                    let sums = kernel.sums::<AVX2>(&grid, start as i64);
-                    let gram = sums.gram();
-                    // A reflection whose least misfit over every coupler point is above
-                    // every point's bound of that reflection would be refused by every
-                    // list: skipped whole.
-                    let mut live = [false; 2];
+                if !live[0] && !live[1] {
+                    continue;
+                }
+                // Which points each reflection may offer to, all points in one
+                // branch-free pass: bit `v` of `open[k]` is clear when the misfit
+                // at point `k` is surely above its bound for reflection `v` (the
+                // test of [`Sums::surely_above`], the same values bit for bit).
+                sieve(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
+                let mut offered = [false; 2];
+                // Point by point, each live reflection into its own list. A point
+                // left open is tested again with its bound of the moment.
+                for k in OpenPoints::new(&open) {
+                    let w = points[k];
+                    let mm = Sums::model_norm(gram, w);
                     for &mirror in mirrors {
                         let v = usize::from(mirror);
-                        // Live unless surely above (a NaN keeps it live).
-                        live[v] = sums
-                            .least_misfit(gram, v)
-                            .partial_cmp(&(most[v] + BOUND_MARGIN))
-                            != Some(std::cmp::Ordering::Greater);
-                    }
-                    if !live[0] && !live[1] {
-                        continue;
-                    }
-                    // Which points each reflection may offer to, all points in one
-                    // branch-free pass: bit `v` of `open[k]` is clear when the misfit
-                    // at point `k` is surely above its bound for reflection `v` (the
-                    // test of [`Sums::surely_above`], the same values bit for bit).
-                    sieve(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
-                    let mut offered = [false; 2];
-                    // Point by point, each live reflection into its own list. A point
-                    // left open is tested again with its bound of the moment.
-                    for k in OpenPoints::new(&open) {
-                        let w = points[k];
-                        let mm = Sums::model_norm(gram, w);
-                        for &mirror in mirrors {
-                            let v = usize::from(mirror);
-                            if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[v][k]) {
-                                continue;
-                            }
-                            let m = sums.misfit_with(mm, v, w);
-                            offered[v] = true;
-                            let list = &mut best[v][k];
-                            offer(
-                                list,
-                                Window {
-                                    misfit: m,
-                                    mirror,
-                                    start,
-                                    span,
-                                    sense,
-                                },
-                                period,
-                            );
-                            if list.len() == WINDOWS {
-                                worst[v][k] = list[WINDOWS - 1].misfit;
-                                bar[v][k] = 1.0 - worst[v][k] - 1e-9;
-                            }
+                        if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[v][k]) {
+                            continue;
+                        }
+                        let m = sums.misfit_with(mm, v, w);
+                        offered[v] = true;
+                        let list = &mut best[v][k];
+                        offer(
+                            list,
+                            Window {
+                                misfit: m,
+                                mirror,
+                                start,
+                                span,
+                                sense,
+                            },
+                            period,
+                        );
+                        if list.len() == WINDOWS {
+                            worst[v][k] = list[WINDOWS - 1].misfit;
+                            bar[v][k] = 1.0 - worst[v][k] - 1e-9;
                         }
                     }
-                    for v in 0..2 {
-                        if offered[v] {
-                            most[v] = worst[v].iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                        }
+                }
+                for v in 0..2 {
+                    if offered[v] {
+                        most[v] = worst[v].iter().copied().fold(f64::NEG_INFINITY, f64::max);
                     }
                 }
             }
@@ -1550,17 +1612,24 @@ pub(crate) fn open_stage1(
 ) -> Vec<Stage1> {
     let mut stage1: Vec<Stage1> = Vec::new();
     let mut buf = Projection::default();
+    // The scan's passes, made again only when the period changes (geared five-bars).
+    let mut passes: Option<Passes> = None;
+    let mut cranks = Cranks::default();
     for g in groups {
         let (a, b) = (g.start, g.end);
         let Some(first) = curves.get(a) else {
             continue;
         };
         let c = &first.curve;
-        let Some(table) = Table::new(&c.linkage, c.circuit) else {
+        let Some(table) = cranks.table(&c.linkage, c.circuit) else {
             continue;
         };
         let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
-        linkage_stage1(query, &table, &pts, a, &mut buf, &mut stage1);
+        if passes.as_ref().is_none_or(|p| p.period != table.period) {
+            passes = Some(query.passes(table.period));
+        }
+        let passes = passes.as_ref().expect("made above");
+        linkage_stage1(query, passes, &table, &pts, a, &mut buf, &mut stage1);
     }
     truncate_stage1(&mut stage1, keep);
     stage1
@@ -1578,6 +1647,7 @@ pub(crate) fn open_stage1(
 /// either path.
 fn linkage_stage1(
     query: &OpenQuery,
+    passes: &Passes,
     table: &Table,
     pts: &[C64],
     a: usize,
@@ -1590,11 +1660,11 @@ fn linkage_stage1(
         // to have; it has no other requirement (it is the safe body compiled for AVX2).
         #[allow(unsafe_code)]
         unsafe {
-            linkage_stage1_avx2(query, table, pts, a, buf, out)
+            linkage_stage1_avx2(query, passes, table, pts, a, buf, out)
         };
         return;
     }
-    linkage_stage1_body::<false>(query, table, pts, a, buf, out)
+    linkage_stage1_body::<false>(query, passes, table, pts, a, buf, out)
 }
 
 /// [`linkage_stage1_body`] compiled for AVX2 (called only where the processor has it).
@@ -1602,13 +1672,14 @@ fn linkage_stage1(
 #[target_feature(enable = "avx2")]
 fn linkage_stage1_avx2(
     query: &OpenQuery,
+    passes: &Passes,
     table: &Table,
     pts: &[C64],
     a: usize,
     buf: &mut Projection,
     out: &mut Vec<Stage1>,
 ) {
-    linkage_stage1_body::<true>(query, table, pts, a, buf, out)
+    linkage_stage1_body::<true>(query, passes, table, pts, a, buf, out)
 }
 
 /// [`linkage_stage1`] itself, inlined into each of its two callers so that each is
@@ -1617,13 +1688,18 @@ fn linkage_stage1_avx2(
 #[inline(always)]
 fn linkage_stage1_body<const AVX2: bool>(
     query: &OpenQuery,
+    passes: &Passes,
     table: &Table,
     pts: &[C64],
     a: usize,
     buf: &mut Projection,
     out: &mut Vec<Stage1>,
 ) {
-    for (k, hs) in query.scan_with::<AVX2>(table, pts).into_iter().enumerate() {
+    for (k, hs) in query
+        .scan_with::<AVX2>(passes, table, pts)
+        .into_iter()
+        .enumerate()
+    {
         // Each reflection's best window after the projection: a curve goes on once
         // per reflection, so its unreflected hypothesis is the one a query without
         // reflection keeps.
@@ -1717,6 +1793,7 @@ pub(crate) fn open_stage2(
         .par_chunks(STAGE2_PART)
         .flat_map_iter(|part| {
             let mut table: Option<(usize, Table)> = None;
+            let mut cranks = Cranks::default();
             let mut dp = Programme::default();
             let mut out = Vec::with_capacity(part.len());
             for s in part {
@@ -1725,7 +1802,7 @@ pub(crate) fn open_stage2(
                 };
                 if table.as_ref().is_none_or(|t| t.0 != s.group) {
                     let c = &curve.curve;
-                    table = Table::new(&c.linkage, c.circuit).map(|t| (s.group, t));
+                    table = cranks.table(&c.linkage, c.circuit).map(|t| (s.group, t));
                 }
                 let Some((_, t)) = &table else { continue };
                 let p = query.polish(t, w_of(curve), &s.hyp, &mut dp);
@@ -2304,8 +2381,11 @@ mod mirror {
                     continue;
                 };
                 let pts: Vec<C64> = g.clone().map(|k| w_of(&curves[k])).collect();
-                linkage_stage1(&q, &table, &pts, g.start, &mut b1, &mut fast);
-                linkage_stage1_body::<false>(&q, &table, &pts, g.start, &mut b2, &mut base);
+                let passes = q.passes(table.period);
+                linkage_stage1(&q, &passes, &table, &pts, g.start, &mut b1, &mut fast);
+                linkage_stage1_body::<false>(
+                    &q, &passes, &table, &pts, g.start, &mut b2, &mut base,
+                );
             }
             assert_eq!(fast.len(), base.len());
             for (a, b) in fast.iter().zip(&base) {
