@@ -1211,7 +1211,45 @@ impl OpenQuery {
 
     /// Stage 2 for one coupler point `w`: re-estimated angles (untimed) or polished start
     /// and step (timed).
+    ///
+    /// **Four lanes where the processor has them**: on x86-64 with AVX2 (checked at run
+    /// time) the same code compiled for AVX2 runs instead (the dynamic programme's
+    /// distances four cells a vector), the same operations in the same order, so the same
+    /// values bit for bit (as [`linkage_stage1`]).
     fn polish(&self, table: &Table, w: C64, hyp: &Hypothesis, dp: &mut Programme) -> Hypothesis {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `polish_avx2` needs AVX2, which the processor was just found to
+            // have; it has no other requirement (the safe body compiled for AVX2).
+            #[allow(unsafe_code)]
+            return unsafe { self.polish_avx2(table, w, hyp, dp) };
+        }
+        self.polish_body(table, w, hyp, dp)
+    }
+
+    /// [`OpenQuery::polish_body`] compiled for AVX2 (called only where the processor has
+    /// it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn polish_avx2(
+        &self,
+        table: &Table,
+        w: C64,
+        hyp: &Hypothesis,
+        dp: &mut Programme,
+    ) -> Hypothesis {
+        self.polish_body(table, w, hyp, dp)
+    }
+
+    /// [`OpenQuery::polish`] itself, inlined into each of its two callers.
+    #[inline(always)]
+    fn polish_body(
+        &self,
+        table: &Table,
+        w: C64,
+        hyp: &Hypothesis,
+        dp: &mut Programme,
+    ) -> Hypothesis {
         let v = usize::from(hyp.mirror);
         let mut out = hyp.clone();
         match self.layout {
@@ -1279,6 +1317,7 @@ impl OpenQuery {
     /// Moves each point's angle to the nearest point of the fitted curve near it, keeping
     /// the order. `dp` holds the dynamic programme's buffers between calls.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn reproject(
         &self,
         table: &Table,
@@ -1330,9 +1369,16 @@ impl OpenQuery {
         };
         // cost[g]: the least Σ|y_i − c(θ_i)|² over points 0..=j with θ_j = cell g and the
         // cells not decreasing; back[j·cells + g]: the cell of point j − 1 on that path.
-        cost.clear();
+        // (Plain loops over buffers of their length: an adapter's closure would be
+        // compiled apart, for the baseline instruction set.)
         let y0 = target(0);
-        cost.extend((0..cells).map(|g| dist(g, y0)));
+        cost.clear();
+        cost.resize(cells, 0.0);
+        for (g, c) in cost.iter_mut().enumerate() {
+            *c = dist(g, y0);
+        }
+        next.clear();
+        next.resize(cells, 0.0);
         // Every entry read below (rows 1 to n − 1) is written first: the buffer is only
         // grown, never cleared.
         if back.len() < n * cells {
@@ -1342,11 +1388,10 @@ impl OpenQuery {
             let yj = target(j);
             // The distances first (a pass the compiler can vectorise), then the running
             // least of the previous costs.
-            next.clear();
-            next.extend(re[..cells].iter().zip(&im[..cells]).map(|(&r, &i)| {
+            for ((nx, &r), &i) in next[..cells].iter_mut().zip(&re[..cells]).zip(&im[..cells]) {
                 let (dr, di) = (r - yj.re, i - yj.im);
-                dr * dr + di * di
-            }));
+                *nx = dr * dr + di * di;
+            }
             let from_cell = &mut back[j * cells..(j + 1) * cells];
             let mut run = (f64::INFINITY, 0u32);
             // The three rows as slices of one length (no bounds test in the loop).
