@@ -803,8 +803,143 @@ struct Programme {
 #[derive(Default)]
 struct Projection {
     next: Vec<f64>,
-    at: Vec<Slope>,
-    trial_at: Vec<Slope>,
+    at: Vec<Flat>,
+    trial_at: Vec<Flat>,
+}
+
+/// [`Table::with_slope`]'s values flat: `Pa`, `e`, `dPa/dθ`, `de/dθ`, each real then
+/// imaginary (so that four points' values are read into vectors as they lie).
+type Flat = [f64; 8];
+
+/// [`Slope`] as [`Flat`].
+#[inline(always)]
+fn flat((p, e, dp, de): Slope) -> Flat {
+    [p.re, p.im, e.re, e.im, dp.re, dp.im, de.re, de.im]
+}
+
+/// `(Pa, e)` of a [`Flat`].
+#[inline(always)]
+fn pa_e(a: &Flat) -> (C64, C64) {
+    (C64::new(a[0], a[1]), C64::new(a[2], a[3]))
+}
+
+/// One projection step at one point ([`OpenQuery::project_with`]): the angle `t` moved
+/// along the fitted curve `α·(Pa + w·e) + γ` towards the target point `y` (conjugated
+/// when `MIRROR`), by `Re((y − c)·conj(d))/|d|²` clamped to `±limit`.
+#[inline(always)]
+fn step_point<const MIRROR: bool>(
+    (alpha, gamma, w, limit): (C64, C64, C64, f64),
+    t: f64,
+    a: &Flat,
+    yj: C64,
+) -> f64 {
+    let (p, e) = pa_e(a);
+    let (dp, de) = (C64::new(a[4], a[5]), C64::new(a[6], a[7]));
+    let c = alpha * (p + w * e) + gamma;
+    let d = alpha * (dp + w * de);
+    let d2 = d.norm_sqr();
+    let yj = if MIRROR { yj.conj() } else { yj };
+    if d2 > 0.0 {
+        t + (((yj - c) * d.conj()).re / d2).clamp(-limit, limit)
+    } else {
+        t
+    }
+}
+
+/// [`step_point`] at four points a time in AVX2 vectors (called only where the
+/// processor has it), each lane the same operations in the same order as `num-complex`
+/// forms them (a multiply, then an add or a subtraction: never fused; a conjugate a
+/// sign flip; the clamp's two ordered tests): the same values, bit for bit. Returns how
+/// many of the first points it did (a multiple of four); the caller does the rest.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn step_avx2<const MIRROR: bool>(
+    (alpha, gamma, w, limit): (C64, C64, C64, f64),
+    theta: &[f64],
+    at: &[Flat],
+    y: &[C64],
+    next: &mut [f64],
+) -> usize {
+    use std::arch::x86_64::{
+        _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_pd, _mm256_blendv_pd, _mm256_cmp_pd, _mm256_div_pd,
+        _mm256_loadu_pd, _mm256_mul_pd, _mm256_permute2f128_pd, _mm256_permute4x64_pd,
+        _mm256_set1_pd, _mm256_setzero_pd, _mm256_storeu_pd, _mm256_sub_pd, _mm256_unpackhi_pd,
+        _mm256_unpacklo_pd, _mm256_xor_pd,
+    };
+    let n = theta.len().min(at.len()).min(y.len()).min(next.len());
+    let (add, sub, mul) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd);
+    let (wr, wi) = (_mm256_set1_pd(w.re), _mm256_set1_pd(w.im));
+    let (ar, ai) = (_mm256_set1_pd(alpha.re), _mm256_set1_pd(alpha.im));
+    let (gr, gi) = (_mm256_set1_pd(gamma.re), _mm256_set1_pd(gamma.im));
+    let (lim, nlim) = (_mm256_set1_pd(limit), _mm256_set1_pd(-limit));
+    let (zero, sign) = (_mm256_setzero_pd(), _mm256_set1_pd(-0.0));
+    let mut j = 0;
+    while j + 4 <= n {
+        let (a, th, yy) = (&at[j..j + 4], &theta[j..j + 4], &y[j..j + 4]);
+        // SAFETY: each load reads four `f64` in a row inside its slice: half of one
+        // point's `Flat`, four angles, two points' `C64` (`repr(C)`: re, im).
+        #[allow(unsafe_code)]
+        let (r, d, t, y01, y23) = unsafe {
+            let r = |k: usize, h: usize| _mm256_loadu_pd(a[k][h..].as_ptr());
+            (
+                [r(0, 0), r(1, 0), r(2, 0), r(3, 0)],
+                [r(0, 4), r(1, 4), r(2, 4), r(3, 4)],
+                _mm256_loadu_pd(th.as_ptr()),
+                _mm256_loadu_pd(yy[..2].as_ptr().cast()),
+                _mm256_loadu_pd(yy[2..].as_ptr().cast()),
+            )
+        };
+        // Four rows `(x_re, x_im, z_re, z_im)` into four columns of the points.
+        let columns = |r: [_; 4]| {
+            let (lo01, hi01) = (
+                _mm256_unpacklo_pd(r[0], r[1]),
+                _mm256_unpackhi_pd(r[0], r[1]),
+            );
+            let (lo23, hi23) = (
+                _mm256_unpacklo_pd(r[2], r[3]),
+                _mm256_unpackhi_pd(r[2], r[3]),
+            );
+            (
+                _mm256_permute2f128_pd::<0x20>(lo01, lo23),
+                _mm256_permute2f128_pd::<0x20>(hi01, hi23),
+                _mm256_permute2f128_pd::<0x31>(lo01, lo23),
+                _mm256_permute2f128_pd::<0x31>(hi01, hi23),
+            )
+        };
+        let (pr, pi, er, ei) = columns(r);
+        let (dpr, dpi, der, dei) = columns(d);
+        // `y0 y2 y1 y3` after the unpacks, put in order.
+        let yr = _mm256_permute4x64_pd::<0xD8>(_mm256_unpacklo_pd(y01, y23));
+        let yi = _mm256_permute4x64_pd::<0xD8>(_mm256_unpackhi_pd(y01, y23));
+        let yi = if MIRROR { _mm256_xor_pd(yi, sign) } else { yi };
+        // `c = α·(Pa + w·e) + γ`.
+        let (we_r, we_i) = (sub(mul(wr, er), mul(wi, ei)), add(mul(wr, ei), mul(wi, er)));
+        let (qr, qi) = (add(pr, we_r), add(pi, we_i));
+        let cr = add(sub(mul(ar, qr), mul(ai, qi)), gr);
+        let ci = add(add(mul(ar, qi), mul(ai, qr)), gi);
+        // `d = α·(Pa′ + w·e′)`, `|d|²`.
+        let (wd_r, wd_i) = (
+            sub(mul(wr, der), mul(wi, dei)),
+            add(mul(wr, dei), mul(wi, der)),
+        );
+        let (sr, si) = (add(dpr, wd_r), add(dpi, wd_i));
+        let (dr, di) = (sub(mul(ar, sr), mul(ai, si)), add(mul(ar, si), mul(ai, sr)));
+        let d2 = add(mul(dr, dr), mul(di, di));
+        // `Re((y − c)·conj(d))/|d|²`, `conj(d) = (dr, −di)`.
+        let (ur, ui) = (sub(yr, cr), sub(yi, ci));
+        let q = _mm256_div_pd(sub(mul(ur, dr), mul(ui, _mm256_xor_pd(di, sign))), d2);
+        let q = _mm256_blendv_pd(q, nlim, _mm256_cmp_pd::<_CMP_LT_OQ>(q, nlim));
+        let q = _mm256_blendv_pd(q, lim, _mm256_cmp_pd::<_CMP_GT_OQ>(q, lim));
+        let moved = _mm256_blendv_pd(t, add(t, q), _mm256_cmp_pd::<_CMP_GT_OQ>(d2, zero));
+        // SAFETY: four `f64` in a row inside `next[j..j + 4]`.
+        #[allow(unsafe_code)]
+        unsafe {
+            _mm256_storeu_pd(next[j..j + 4].as_mut_ptr(), moved)
+        };
+        j += 4;
+    }
+    j
 }
 
 /// How the query's crank angles are laid out.
@@ -1125,7 +1260,7 @@ impl OpenQuery {
     /// the same steps as one run of `a + b`, bit for bit (the sums are made again from the
     /// same angles, in the same order).
     #[inline(always)]
-    fn project(
+    fn project<const AVX2: bool>(
         &self,
         table: &Table,
         w: C64,
@@ -1137,9 +1272,9 @@ impl OpenQuery {
             return true;
         }
         if hyp.mirror {
-            self.project_with::<true>(table, w, hyp, buf, steps)
+            self.project_with::<true, AVX2>(table, w, hyp, buf, steps)
         } else {
-            self.project_with::<false>(table, w, hyp, buf, steps)
+            self.project_with::<false, AVX2>(table, w, hyp, buf, steps)
         }
     }
 
@@ -1147,7 +1282,7 @@ impl OpenQuery {
     /// time. Each step's trial angles are looked up and summed in one pass (each sum adds
     /// the points in the same order as in separate passes: the same values, bit for bit).
     #[inline(always)]
-    fn project_with<const MIRROR: bool>(
+    fn project_with<const MIRROR: bool, const AVX2: bool>(
         &self,
         table: &Table,
         w: C64,
@@ -1167,32 +1302,36 @@ impl OpenQuery {
         // same `Pa` and `e` as [`Table::at`], so the same sums as [`Sums::of`]).
         at.clear();
         for &t in &theta {
-            at.push(table.with_slope(t));
+            at.push(flat(table.with_slope(t)));
         }
         trial_at.clear();
         trial_at.extend_from_slice(at);
         let y = &self.y;
-        let mut s = Sums::accumulate::<MIRROR>(at.iter().map(|&(p, e, _, _)| (p, e)), y);
+        let mut s = Sums::accumulate::<MIRROR>(at.iter().map(pa_e), y);
+        let n = theta.len().min(y.len());
         for _ in 0..steps {
             let (_, alpha) = s.at_point(v, w);
             let gamma = -alpha * (s.sp + w * s.se) / s.m;
-            for (((t, n), &(p, e, dp, de)), &yj) in
-                theta.iter().zip(next.iter_mut()).zip(at.iter()).zip(y)
-            {
-                let c = alpha * (p + w * e) + gamma;
-                let d = alpha * (dp + w * de);
-                let d2 = d.norm_sqr();
-                let yj = if MIRROR { yj.conj() } else { yj };
-                *n = if d2 > 0.0 {
-                    *t + (((yj - c) * d.conj()).re / d2).clamp(-limit, limit)
-                } else {
-                    *t
-                };
+            let fit = (alpha, gamma, w, limit);
+            // The first points four at a time where AVX2 runs, the rest one by one.
+            #[allow(unused_mut)]
+            let mut done = 0;
+            #[cfg(target_arch = "x86_64")]
+            if AVX2 {
+                // SAFETY: `AVX2` is set only on the path that found the processor to
+                // have AVX2 ([`linkage_stage1`]); `step_avx2` has no other requirement.
+                #[allow(unsafe_code)]
+                {
+                    done = unsafe { step_avx2::<MIRROR>(fit, &theta, at, y, next) };
+                }
+            }
+            for j in done..n {
+                next[j] = step_point::<MIRROR>(fit, theta[j], &at[j], y[j]);
             }
             // The trial angles' lookups and the sums from them in one pass.
             let moved = next.iter().zip(trial_at.iter_mut()).map(|(&n, a)| {
-                *a = table.with_slope(n);
-                (a.0, a.1)
+                *a = flat(table.with_slope(n));
+                pa_e(a)
             });
             let trial = Sums::accumulate::<MIRROR>(moved, y);
             let misfit = trial.at_point(v, w).0;
@@ -1758,13 +1897,13 @@ fn linkage_stage1_body<const AVX2: bool>(
         let mut hs = hs;
         let mut settled = Vec::with_capacity(hs.len());
         for h in hs.iter_mut() {
-            settled.push(query.project(table, pts[k], h, buf, PROJECTION_HEAT));
+            settled.push(query.project::<AVX2>(table, pts[k], h, buf, PROJECTION_HEAT));
         }
         for mirror in [false, true] {
             let mut order: Vec<usize> = (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
             order.sort_by(|&a, &b| hs[a].misfit.total_cmp(&hs[b].misfit));
             for &i in order.iter().take(PROJECTION_KEEP).filter(|&&i| !settled[i]) {
-                query.project(
+                query.project::<AVX2>(
                     table,
                     pts[k],
                     &mut hs[i],
@@ -2463,9 +2602,15 @@ mod mirror {
                 for (k, hs) in q.scan(&table, &pts).into_iter().enumerate() {
                     for h in hs {
                         let (mut one, mut staged) = (h.clone(), h.clone());
-                        q.project(&table, pts[k], &mut one, &mut buf, PROJECTIONS);
-                        if !q.project(&table, pts[k], &mut staged, &mut buf, PROJECTION_HEAT) {
-                            q.project(
+                        q.project::<false>(&table, pts[k], &mut one, &mut buf, PROJECTIONS);
+                        if !q.project::<false>(
+                            &table,
+                            pts[k],
+                            &mut staged,
+                            &mut buf,
+                            PROJECTION_HEAT,
+                        ) {
+                            q.project::<false>(
                                 &table,
                                 pts[k],
                                 &mut staged,
