@@ -103,12 +103,23 @@ impl Table {
         (c.pa + c.dpa * t, c.e + c.de * t)
     }
 
-    /// `(Pa, e, dPa/dθ, de/dθ)` at `deg` (derivatives per degree, of the interpolant).
-    #[inline]
-    fn with_slope(&self, deg: f64) -> Slope {
+    /// `Pa`, `e`, `dPa/dθ`, `de/dθ` at `deg` (derivatives per degree, of the
+    /// interpolant) as [`Flat`]: `Pa + dPa·t` and `e + de·t` lane by lane, as
+    /// `num-complex` forms them (the same values as [`Table::at`]).
+    #[inline(always)]
+    fn flat_at(&self, deg: f64) -> Flat {
         let (k, t) = cell(deg, self.cells.len());
         let c = &self.cells[k];
-        (c.pa + c.dpa * t, c.e + c.de * t, c.dpa, c.de)
+        [
+            c.pa.re + c.dpa.re * t,
+            c.pa.im + c.dpa.im * t,
+            c.e.re + c.de.re * t,
+            c.e.im + c.de.im * t,
+            c.dpa.re,
+            c.dpa.im,
+            c.de.re,
+            c.de.im,
+        ]
     }
 }
 
@@ -128,9 +139,6 @@ impl Cranks {
         Table::with_crank(linkage, circuit, period, crank)
     }
 }
-
-/// `(Pa, e, dPa/dθ, de/dθ)` at one angle ([`Table::with_slope`]).
-type Slope = (C64, C64, C64, C64);
 
 /// A table's values at whole degrees for stage 1's kernel sums ([`Kernel::sums`]): per
 /// degree `k = 0, 1, …` over one period and on past it (wrapped, so that a kernel's
@@ -807,15 +815,9 @@ struct Projection {
     trial_at: Vec<Flat>,
 }
 
-/// [`Table::with_slope`]'s values flat: `Pa`, `e`, `dPa/dθ`, `de/dθ`, each real then
-/// imaginary (so that four points' values are read into vectors as they lie).
+/// [`Table::flat_at`]'s values: `Pa`, `e`, `dPa/dθ`, `de/dθ`, each real then imaginary
+/// (so that four points' values are read into vectors as they lie).
 type Flat = [f64; 8];
-
-/// [`Slope`] as [`Flat`].
-#[inline(always)]
-fn flat((p, e, dp, de): Slope) -> Flat {
-    [p.re, p.im, e.re, e.im, dp.re, dp.im, de.re, de.im]
-}
 
 /// `(Pa, e)` of a [`Flat`].
 #[inline(always)]
@@ -1298,11 +1300,11 @@ impl OpenQuery {
         next.clear();
         next.extend_from_slice(&theta);
         // The table at `theta` (each step's trial lookups become the next step's), and
-        // the sums from it: every angle is looked up once ([`Table::with_slope`] gives the
+        // the sums from it: every angle is looked up once ([`Table::flat_at`] gives the
         // same `Pa` and `e` as [`Table::at`], so the same sums as [`Sums::of`]).
-        at.clear();
-        for &t in &theta {
-            at.push(flat(table.with_slope(t)));
+        at.resize(theta.len(), [0.0; 8]);
+        for (a, &t) in at.iter_mut().zip(&theta) {
+            *a = table.flat_at(t);
         }
         trial_at.clear();
         trial_at.extend_from_slice(at);
@@ -1330,7 +1332,7 @@ impl OpenQuery {
             }
             // The trial angles' lookups and the sums from them in one pass.
             let moved = next.iter().zip(trial_at.iter_mut()).map(|(&n, a)| {
-                *a = flat(table.with_slope(n));
+                *a = table.flat_at(n);
                 pa_e(a)
             });
             let trial = Sums::accumulate::<MIRROR>(moved, y);
