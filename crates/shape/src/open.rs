@@ -2583,6 +2583,36 @@ mod mirror {
         assert!(kept >= 8 * curves.len(), "{kept} of {}", curves.len());
     }
 
+    /// Stage 2's re-estimation on the processor's fastest path ([`OpenQuery::polish`]:
+    /// AVX2 where the processor has it) gives the same hypothesis as on the baseline path,
+    /// bit for bit (misfit and every angle), for every curve stage 1 keeps on the test
+    /// atlas, several targets, both reflections.
+    #[test]
+    fn polish_is_the_same_on_every_path() {
+        let curves = atlas();
+        let groups = linkage_groups(&curves);
+        let (mut dp1, mut dp2) = (Programme::default(), Programme::default());
+        let mut moved = 0;
+        let mut tried = 0;
+        for case in retrieval_cases(&curves, false, 37, 3) {
+            let q = OpenQuery::new(&case.target, true).unwrap();
+            for s in open_stage1(&q, &curves, &groups, 64) {
+                let c = &curves[s.index].curve;
+                let table = Table::new(&c.linkage, c.circuit).unwrap();
+                let w = w_of(&curves[s.index]);
+                let fast = q.polish(&table, w, &s.hyp, &mut dp1);
+                let base = q.polish_body(&table, w, &s.hyp, &mut dp2);
+                assert_eq!(fast.misfit.to_bits(), base.misfit.to_bits());
+                let bits = |h: &Hypothesis| h.theta.iter().map(|t| t.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fast), bits(&base));
+                moved += usize::from(bits(&fast) != bits(&s.hyp));
+                tried += 1;
+            }
+        }
+        // Not vacuous: many curves, most of them re-estimated.
+        assert!(tried > 300 && 2 * moved > tried, "{moved} of {tried} moved");
+    }
+
     /// The staged projection's premise: `PROJECTION_HEAT` steps resumed with the rest
     /// take the same steps as one run of `PROJECTIONS`, bit for bit (misfit and every
     /// angle), for every window the scan proposes on several linkages, both reflections.
