@@ -56,12 +56,14 @@ struct Table {
     period: f64,
 }
 
-/// `Pa` and `e` at the start of a 1° cell and their differences across it.
+/// `Pa` and `e` at the start of a 1° cell and their differences across it (in the order
+/// of [`Flat`], so that [`Table::flat_at`] reads and writes them as they lie).
 #[derive(Clone, Copy)]
+#[repr(C)]
 struct TableCell {
     pa: C64,
-    dpa: C64,
     e: C64,
+    dpa: C64,
     de: C64,
 }
 
