@@ -56,20 +56,30 @@ struct Table {
     period: f64,
 }
 
-/// `Pa` and `e` at the start of a 1° cell and their differences across it.
+/// `Pa` and `e` at the start of a 1° cell and their differences across it (in the order
+/// of [`Flat`], so that [`Table::flat_at`] reads and writes them as they lie).
 #[derive(Clone, Copy)]
+#[repr(C)]
 struct TableCell {
     pa: C64,
-    dpa: C64,
     e: C64,
+    dpa: C64,
     de: C64,
 }
 
 impl Table {
     fn new(linkage: &Linkage, circuit: Circuit) -> Option<Table> {
-        let period = linkage.period_deg();
-        let crank = CrankTable::over(1.0, period)?;
-        let t = linkage.pose_table(circuit, &crank);
+        Cranks::default().table(linkage, circuit)
+    }
+
+    /// [`Table::new`] from the crank angles of its `period` at 1° steps.
+    fn with_crank(
+        linkage: &Linkage,
+        circuit: Circuit,
+        period: f64,
+        crank: &CrankTable,
+    ) -> Option<Table> {
+        let t = linkage.pose_table(circuit, crank);
         if !t.all_valid() {
             return None;
         }
@@ -95,17 +105,42 @@ impl Table {
         (c.pa + c.dpa * t, c.e + c.de * t)
     }
 
-    /// `(Pa, e, dPa/dθ, de/dθ)` at `deg` (derivatives per degree, of the interpolant).
-    #[inline]
-    fn with_slope(&self, deg: f64) -> Slope {
+    /// `Pa`, `e`, `dPa/dθ`, `de/dθ` at `deg` (derivatives per degree, of the
+    /// interpolant) as [`Flat`]: `Pa + dPa·t` and `e + de·t` lane by lane, as
+    /// `num-complex` forms them (the same values as [`Table::at`]).
+    #[inline(always)]
+    fn flat_at(&self, deg: f64) -> Flat {
         let (k, t) = cell(deg, self.cells.len());
         let c = &self.cells[k];
-        (c.pa + c.dpa * t, c.e + c.de * t, c.dpa, c.de)
+        [
+            c.pa.re + c.dpa.re * t,
+            c.pa.im + c.dpa.im * t,
+            c.e.re + c.de.re * t,
+            c.e.im + c.de.im * t,
+            c.dpa.re,
+            c.dpa.im,
+            c.de.re,
+            c.de.im,
+        ]
     }
 }
 
-/// `(Pa, e, dPa/dθ, de/dθ)` at one angle ([`Table::with_slope`]).
-type Slope = (C64, C64, C64, C64);
+/// The crank angles of [`Table::new`] (1° steps over a period), kept between linkages:
+/// they are the same for every linkage of one period.
+#[derive(Default)]
+struct Cranks(Option<(f64, Option<CrankTable>)>);
+
+impl Cranks {
+    /// [`Table::new`], the crank angles made again only when the period changes.
+    fn table(&mut self, linkage: &Linkage, circuit: Circuit) -> Option<Table> {
+        let period = linkage.period_deg();
+        if self.0.as_ref().is_none_or(|(p, _)| *p != period) {
+            self.0 = Some((period, CrankTable::over(1.0, period)));
+        }
+        let crank = self.0.as_ref()?.1.as_ref()?;
+        Table::with_crank(linkage, circuit, period, crank)
+    }
+}
 
 /// A table's values at whole degrees for stage 1's kernel sums ([`Kernel::sums`]): per
 /// degree `k = 0, 1, …` over one period and on past it (wrapped, so that a kernel's
@@ -156,13 +191,14 @@ struct Kernel {
 
 /// One nonzero cell of a [`Kernel`]: its distance from `lo`, and the factors of the
 /// seven `[re, im]` pair sums of [`Kernel::sums`], each twice, flat and in the order of
-/// its accumulators (`w` three times, then `Re y·w`, `Im y·w`, `Re y·w`, `Im y·w`), so that
-/// the sums are one plain multiply-add per lane (two lanes a vector instruction: the grid
-/// cell's pairs are gathered into the same order).
+/// the lanes of [`Kernel::flat_sums`]: `w` four times (for `Pa` and `e`), `Re y·w` four
+/// times, `Im y·w` four times (each again for `Pa` and `e`), then `w` twice (for
+/// `conj(Pa)·e`) and two zeros, so that the sums are one plain multiply-add per lane
+/// and the grid cell's values are read as they lie (`Pa` and `e` side by side).
 #[derive(Clone, Copy)]
-#[repr(C, align(16))]
+#[repr(C, align(32))]
 struct KernelCell {
-    factors: [f64; 14],
+    factors: [f64; 16],
     d: usize,
 }
 
@@ -195,7 +231,7 @@ impl Kernel {
             .map(|(d, (w, wy))| {
                 let (a, b) = (wy.re, wy.im);
                 KernelCell {
-                    factors: [w, w, w, w, w, w, a, a, b, b, a, a, b, b],
+                    factors: [w, w, w, w, a, a, a, a, b, b, b, b, w, w, 0.0, 0.0],
                     d,
                 }
             })
@@ -212,34 +248,116 @@ impl Kernel {
         self.cells.last().map_or(0, |c| c.d + 1)
     }
 
-    /// The seven pair sums of [`Kernel::sums`], flat: one multiply-add per lane and cell,
-    /// in cell order. Not inlined: inlined, the compiler mixed the pairs' lanes
-    /// across accumulators (40 instructions a cell instead of 29).
+    /// The seven pair sums of [`Kernel::sums`] (`Σ w·Pa`, `Σ w·e`, `Σ w·conj(Pa)·e`,
+    /// `Σ Re(y)·Pa`, `Σ Im(y)·Pa`, `Σ Re(y)·e`, `Σ Im(y)·e`): one multiply-add per lane
+    /// and cell, in cell order, sixteen lanes (two of them zero) in the order of
+    /// [`KernelCell`]'s factors. Not inlined: inlined, the compiler mixed the pairs'
+    /// lanes across accumulators.
     #[inline(never)]
-    fn flat_sums(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [f64; 14] {
-        let mut flat = [0.0f64; 14];
+    fn flat_sums(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [[f64; 2]; 7] {
+        Kernel::flat_sums_body(kernel, grid)
+    }
+
+    /// [`Kernel::flat_sums`] in AVX2 vectors (called only where the processor has it):
+    /// the same operations in the same order, lane by lane (a multiply, then an add;
+    /// never fused), the sixteen lanes in three vectors of four and one of two (compiled
+    /// from the plain loop, the lanes were shuffled across vectors: more instructions
+    /// a cell than the baseline's pairs).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn flat_sums_avx2(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [[f64; 2]; 7] {
+        use std::arch::x86_64::{
+            _mm_add_pd, _mm_loadu_pd, _mm_mul_pd, _mm_setzero_pd, _mm_storeu_pd, _mm256_add_pd,
+            _mm256_loadu_pd, _mm256_mul_pd, _mm256_setzero_pd, _mm256_storeu_pd,
+        };
+        let (mut l0, mut l1, mut l2) = (
+            _mm256_setzero_pd(),
+            _mm256_setzero_pd(),
+            _mm256_setzero_pd(),
+        );
+        let mut l3 = _mm_setzero_pd();
+        for c in kernel {
+            let g = &grid[c.d];
+            let f = &c.factors;
+            // SAFETY: `g` is six `f64` in a row (`Pa`, `e`, `conj(Pa)·e`), of which the
+            // first four and the last two are read; `f` is sixteen, all read.
+            #[allow(unsafe_code)]
+            let (pe, x, f0, f1, f2, f3) = unsafe {
+                (
+                    _mm256_loadu_pd(g.as_ptr().cast()),
+                    _mm_loadu_pd(g[2].as_ptr()),
+                    _mm256_loadu_pd(f.as_ptr()),
+                    _mm256_loadu_pd(f[4..].as_ptr()),
+                    _mm256_loadu_pd(f[8..].as_ptr()),
+                    _mm_loadu_pd(f[12..].as_ptr()),
+                )
+            };
+            l0 = _mm256_add_pd(l0, _mm256_mul_pd(f0, pe));
+            l1 = _mm256_add_pd(l1, _mm256_mul_pd(f1, pe));
+            l2 = _mm256_add_pd(l2, _mm256_mul_pd(f2, pe));
+            l3 = _mm_add_pd(l3, _mm_mul_pd(f3, x));
+        }
+        let mut l = [[0.0f64; 4]; 4];
+        // SAFETY: each store writes four (the last two) `f64` into its own array.
+        #[allow(unsafe_code)]
+        unsafe {
+            _mm256_storeu_pd(l[0].as_mut_ptr(), l0);
+            _mm256_storeu_pd(l[1].as_mut_ptr(), l1);
+            _mm256_storeu_pd(l[2].as_mut_ptr(), l2);
+            _mm_storeu_pd(l[3].as_mut_ptr(), l3);
+        }
+        Kernel::lanes_to_pairs(l)
+    }
+
+    /// The lanes of [`Kernel::flat_sums`] as its seven pairs.
+    #[inline(always)]
+    fn lanes_to_pairs(l: [[f64; 4]; 4]) -> [[f64; 2]; 7] {
+        let [[a, b, c, d], [e, f, g, h], [i, j, k, m], [n, o, _, _]] = l;
+        [[a, b], [c, d], [n, o], [e, f], [i, j], [g, h], [k, m]]
+    }
+
+    /// The body of [`Kernel::flat_sums`].
+    #[inline(always)]
+    fn flat_sums_body(kernel: &[KernelCell], grid: &[[[f64; 2]; 3]]) -> [[f64; 2]; 7] {
+        // Four lanes of four: `w·(Pa, e)`, `Re y·(Pa, e)`, `Im y·(Pa, e)`, `w·(conj(Pa)·e, 0)`.
+        let mut l = [[0.0f64; 4]; 4];
         for c in kernel {
             let [p, e, x] = grid[c.d];
-            let g = [
-                p[0], p[1], e[0], e[1], x[0], x[1], p[0], p[1], p[0], p[1], e[0], e[1], e[0], e[1],
-            ];
-            for ((acc, f), g) in flat.iter_mut().zip(&c.factors).zip(g) {
-                *acc += f * g;
+            let pe = [p[0], p[1], e[0], e[1]];
+            let x0 = [x[0], x[1], 0.0, 0.0];
+            let f = &c.factors;
+            for i in 0..4 {
+                l[0][i] += f[i] * pe[i];
+                l[1][i] += f[4 + i] * pe[i];
+                l[2][i] += f[8 + i] * pe[i];
+                l[3][i] += f[12 + i] * x0[i];
             }
         }
-        flat
+        Kernel::lanes_to_pairs(l)
     }
 
     /// The sums at the whole-degree `start` (any integer) on `grid`; the reflection's
     /// `R` sums come from the same two products per cell as the others.
     #[inline(always)]
-    fn sums(&self, grid: &Grid, start: i64) -> Sums {
+    fn sums<const AVX2: bool>(&self, grid: &Grid, start: i64) -> Sums {
         let base = (start + self.lo).rem_euclid(grid.period as i64) as usize;
         let cells = &grid.cells[base..];
         // `[re, im]` pairs: `Σ w·Pa`, `Σ w·e`, `Σ w·conj(Pa)·e`, and `Σ Re(y)·Pa`,
         // `Σ Im(y)·Pa`, `Σ Re(y)·e`, `Σ Im(y)·e`, from which the `R` sums are formed.
-        let flat = Kernel::flat_sums(&self.cells, cells);
-        let acc: [[f64; 2]; 7] = std::array::from_fn(|i| [flat[2 * i], flat[2 * i + 1]]);
+        #[cfg(target_arch = "x86_64")]
+        let acc = if AVX2 {
+            // SAFETY: `AVX2` is set only on the path that found the processor to have
+            // AVX2 ([`linkage_stage1`]); `flat_sums_avx2` has no other requirement.
+            #[allow(unsafe_code)]
+            unsafe {
+                Kernel::flat_sums_avx2(&self.cells, cells)
+            }
+        } else {
+            Kernel::flat_sums(&self.cells, cells)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let acc = Kernel::flat_sums(&self.cells, cells);
         let c = |v: [f64; 2]| C64::new(v[0], v[1]);
         // `y = a + ib`: `Σ conj(P)·y = (ΣaP_re + ΣbP_im) + i(ΣbP_re − ΣaP_im)` and
         // `Σ conj(P)·conj(y) = conj(Σ P·y)`, `Σ P·y = (ΣaP_re − ΣbP_im) + i(ΣbP_re + ΣaP_im)`.
@@ -646,7 +764,7 @@ const WINDOWS: usize = 6;
 
 /// Keeps `list` (best first) the `WINDOWS` best pairwise distinct windows offered, on a
 /// linkage of the given `period`.
-#[inline]
+#[inline(always)]
 fn offer(list: &mut Vec<Window>, h: Window, period: f64) {
     if !h.misfit.is_finite() || (list.len() == WINDOWS && h.misfit >= list[WINDOWS - 1].misfit) {
         return;
@@ -695,8 +813,137 @@ struct Programme {
 #[derive(Default)]
 struct Projection {
     next: Vec<f64>,
-    at: Vec<Slope>,
-    trial_at: Vec<Slope>,
+    at: Vec<Flat>,
+    trial_at: Vec<Flat>,
+}
+
+/// [`Table::flat_at`]'s values: `Pa`, `e`, `dPa/dθ`, `de/dθ`, each real then imaginary
+/// (so that four points' values are read into vectors as they lie).
+type Flat = [f64; 8];
+
+/// `(Pa, e)` of a [`Flat`].
+#[inline(always)]
+fn pa_e(a: &Flat) -> (C64, C64) {
+    (C64::new(a[0], a[1]), C64::new(a[2], a[3]))
+}
+
+/// One projection step at one point ([`OpenQuery::project_with`]): the angle `t` moved
+/// along the fitted curve `α·(Pa + w·e) + γ` towards the target point `y` (conjugated
+/// when `MIRROR`), by `Re((y − c)·conj(d))/|d|²` clamped to `±limit`.
+#[inline(always)]
+fn step_point<const MIRROR: bool>(
+    (alpha, gamma, w, limit): (C64, C64, C64, f64),
+    t: f64,
+    a: &Flat,
+    yj: C64,
+) -> f64 {
+    let (p, e) = pa_e(a);
+    let (dp, de) = (C64::new(a[4], a[5]), C64::new(a[6], a[7]));
+    let c = alpha * (p + w * e) + gamma;
+    let d = alpha * (dp + w * de);
+    let d2 = d.norm_sqr();
+    let yj = if MIRROR { yj.conj() } else { yj };
+    if d2 > 0.0 {
+        t + (((yj - c) * d.conj()).re / d2).clamp(-limit, limit)
+    } else {
+        t
+    }
+}
+
+/// [`step_point`] at four points a time in AVX2 vectors (called only where the
+/// processor has it), each lane the same operations in the same order as `num-complex`
+/// forms them (a multiply, then an add or a subtraction: never fused; a conjugate a
+/// sign flip; the clamp's two ordered tests): the same values, bit for bit. Returns how
+/// many of the first points it did (a multiple of four); the caller does the rest.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn step_avx2<const MIRROR: bool>(
+    (alpha, gamma, w, limit): (C64, C64, C64, f64),
+    theta: &[f64],
+    at: &[Flat],
+    y: &[C64],
+    next: &mut [f64],
+) -> usize {
+    use std::arch::x86_64::{
+        _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_pd, _mm256_blendv_pd, _mm256_cmp_pd, _mm256_div_pd,
+        _mm256_loadu_pd, _mm256_mul_pd, _mm256_permute2f128_pd, _mm256_permute4x64_pd,
+        _mm256_set1_pd, _mm256_setzero_pd, _mm256_storeu_pd, _mm256_sub_pd, _mm256_unpackhi_pd,
+        _mm256_unpacklo_pd, _mm256_xor_pd,
+    };
+    let n = theta.len().min(at.len()).min(y.len()).min(next.len());
+    let (add, sub, mul) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd);
+    let (wr, wi) = (_mm256_set1_pd(w.re), _mm256_set1_pd(w.im));
+    let (ar, ai) = (_mm256_set1_pd(alpha.re), _mm256_set1_pd(alpha.im));
+    let (gr, gi) = (_mm256_set1_pd(gamma.re), _mm256_set1_pd(gamma.im));
+    let (lim, nlim) = (_mm256_set1_pd(limit), _mm256_set1_pd(-limit));
+    let (zero, sign) = (_mm256_setzero_pd(), _mm256_set1_pd(-0.0));
+    let mut j = 0;
+    while j + 4 <= n {
+        let (a, th, yy) = (&at[j..j + 4], &theta[j..j + 4], &y[j..j + 4]);
+        // SAFETY: each load reads four `f64` in a row inside its slice: half of one
+        // point's `Flat`, four angles, two points' `C64` (`repr(C)`: re, im).
+        #[allow(unsafe_code)]
+        let (r, d, t, y01, y23) = unsafe {
+            let r = |k: usize, h: usize| _mm256_loadu_pd(a[k][h..].as_ptr());
+            (
+                [r(0, 0), r(1, 0), r(2, 0), r(3, 0)],
+                [r(0, 4), r(1, 4), r(2, 4), r(3, 4)],
+                _mm256_loadu_pd(th.as_ptr()),
+                _mm256_loadu_pd(yy[..2].as_ptr().cast()),
+                _mm256_loadu_pd(yy[2..].as_ptr().cast()),
+            )
+        };
+        // Four rows `(x_re, x_im, z_re, z_im)` into four columns of the points.
+        let columns = |r: [_; 4]| {
+            let (lo01, hi01) = (
+                _mm256_unpacklo_pd(r[0], r[1]),
+                _mm256_unpackhi_pd(r[0], r[1]),
+            );
+            let (lo23, hi23) = (
+                _mm256_unpacklo_pd(r[2], r[3]),
+                _mm256_unpackhi_pd(r[2], r[3]),
+            );
+            (
+                _mm256_permute2f128_pd::<0x20>(lo01, lo23),
+                _mm256_permute2f128_pd::<0x20>(hi01, hi23),
+                _mm256_permute2f128_pd::<0x31>(lo01, lo23),
+                _mm256_permute2f128_pd::<0x31>(hi01, hi23),
+            )
+        };
+        let (pr, pi, er, ei) = columns(r);
+        let (dpr, dpi, der, dei) = columns(d);
+        // `y0 y2 y1 y3` after the unpacks, put in order.
+        let yr = _mm256_permute4x64_pd::<0xD8>(_mm256_unpacklo_pd(y01, y23));
+        let yi = _mm256_permute4x64_pd::<0xD8>(_mm256_unpackhi_pd(y01, y23));
+        let yi = if MIRROR { _mm256_xor_pd(yi, sign) } else { yi };
+        // `c = α·(Pa + w·e) + γ`.
+        let (we_r, we_i) = (sub(mul(wr, er), mul(wi, ei)), add(mul(wr, ei), mul(wi, er)));
+        let (qr, qi) = (add(pr, we_r), add(pi, we_i));
+        let cr = add(sub(mul(ar, qr), mul(ai, qi)), gr);
+        let ci = add(add(mul(ar, qi), mul(ai, qr)), gi);
+        // `d = α·(Pa′ + w·e′)`, `|d|²`.
+        let (wd_r, wd_i) = (
+            sub(mul(wr, der), mul(wi, dei)),
+            add(mul(wr, dei), mul(wi, der)),
+        );
+        let (sr, si) = (add(dpr, wd_r), add(dpi, wd_i));
+        let (dr, di) = (sub(mul(ar, sr), mul(ai, si)), add(mul(ar, si), mul(ai, sr)));
+        let d2 = add(mul(dr, dr), mul(di, di));
+        // `Re((y − c)·conj(d))/|d|²`, `conj(d) = (dr, −di)`.
+        let (ur, ui) = (sub(yr, cr), sub(yi, ci));
+        let q = _mm256_div_pd(sub(mul(ur, dr), mul(ui, _mm256_xor_pd(di, sign))), d2);
+        let q = _mm256_blendv_pd(q, nlim, _mm256_cmp_pd::<_CMP_LT_OQ>(q, nlim));
+        let q = _mm256_blendv_pd(q, lim, _mm256_cmp_pd::<_CMP_GT_OQ>(q, lim));
+        let moved = _mm256_blendv_pd(t, add(t, q), _mm256_cmp_pd::<_CMP_GT_OQ>(d2, zero));
+        // SAFETY: four `f64` in a row inside `next[j..j + 4]`.
+        #[allow(unsafe_code)]
+        unsafe {
+            _mm256_storeu_pd(next[j..j + 4].as_mut_ptr(), moved)
+        };
+        j += 4;
+    }
+    j
 }
 
 /// How the query's crank angles are laid out.
@@ -722,6 +969,22 @@ pub(crate) struct OpenQuery {
     target_x: Vec<f64>,
     layout: Layout,
     allow_mirror: bool,
+}
+
+/// The scan's passes for one period ([`OpenQuery::passes`]), made once per query and
+/// period instead of once per linkage.
+struct Passes {
+    /// The period they were made for, degrees of input.
+    period: f64,
+    list: Vec<Pass>,
+}
+
+/// One span and sense of the scan: its kernel and its whole-degree starts.
+struct Pass {
+    span: f64,
+    sense: f64,
+    kernel: Kernel,
+    starts: Vec<f64>,
 }
 
 /// A stage-1 or stage-2 hypothesis on one linkage.
@@ -833,7 +1096,53 @@ impl OpenQuery {
     /// the unreflected list before the reflected one. Each reflection has its own lists
     /// and bounds, so the unreflected lists are the same, bit for bit, with reflection
     /// allowed or not: a reflected window never pushes an unreflected one out.
+    /// (The baseline instruction set's path, for tests; the query runs
+    /// [`linkage_stage1`].)
+    #[cfg(test)]
     fn scan(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
+        self.scan_with::<false>(&self.passes(table.period), table, points)
+    }
+
+    /// The scan's passes on a linkage of the given `period`: every span and sense with
+    /// its kernel and its starts. They depend on the target and the period only, so one
+    /// list serves every linkage of that period.
+    fn passes(&self, period: f64) -> Passes {
+        let mut list = Vec::new();
+        let mut offsets = vec![0.0; self.x.len()];
+        for span in self.spans(period) {
+            let h = match self.layout {
+                Layout::Angles { .. } => 3.0,
+                _ => (span / 16.0).max(3.0),
+            };
+            let count = (period / h).ceil() as usize;
+            let h = period / count as f64;
+            for sense in [1.0, -1.0] {
+                // `θ_j = start + σ·Δ·x_j` as `thetas` gives it, the products made once.
+                for (o, &x) in offsets.iter_mut().zip(&self.x) {
+                    *o = sense * span * x;
+                }
+                // The starts are whole degrees (the nearest to every `h`-th), so that one
+                // kernel serves them all.
+                list.push(Pass {
+                    span,
+                    sense,
+                    kernel: Kernel::new(&offsets, &self.y),
+                    starts: (0..count).map(|i| (i as f64 * h).round()).collect(),
+                });
+            }
+        }
+        Passes { period, list }
+    }
+
+    /// [`OpenQuery::scan`], the kernel's sums by [`Kernel::flat_sums_avx2`] when `AVX2`
+    /// (inlined into [`linkage_stage1`]'s AVX2 body only).
+    #[inline(always)]
+    fn scan_with<const AVX2: bool>(
+        &self,
+        passes: &Passes,
+        table: &Table,
+        points: &[C64],
+    ) -> Vec<Vec<Hypothesis>> {
         let mirrors: &[bool] = if self.allow_mirror {
             &[false, true]
         } else {
@@ -851,83 +1160,68 @@ impl OpenQuery {
         let period = table.period;
         let pts = PointColumns::new(points);
         let mut open = vec![0u8; n];
-        let mut offsets = vec![0.0; self.x.len()];
+        debug_assert_eq!(passes.period, period);
         let grid = Grid::new(table);
-        for span in self.spans(period) {
-            let h = match self.layout {
-                Layout::Angles { .. } => 3.0,
-                _ => (span / 16.0).max(3.0),
-            };
-            let count = (period / h).ceil() as usize;
-            let h = period / count as f64;
-            for sense in [1.0, -1.0] {
-                // `θ_j = start + σ·Δ·x_j` as `thetas` gives it, the products made once.
-                for (o, &x) in offsets.iter_mut().zip(&self.x) {
-                    *o = sense * span * x;
+        for pass in &passes.list {
+            let (span, sense, kernel) = (pass.span, pass.sense, &pass.kernel);
+            debug_assert!(kernel.reach() <= grid.cells.len() - grid.period);
+            for &start in &pass.starts {
+                let sums = kernel.sums::<AVX2>(&grid, start as i64);
+                let gram = sums.gram();
+                // A reflection whose least misfit over every coupler point is above
+                // every point's bound of that reflection would be refused by every
+                // list: skipped whole.
+                let mut live = [false; 2];
+                for &mirror in mirrors {
+                    let v = usize::from(mirror);
+                    // Live unless surely above (a NaN keeps it live).
+                    live[v] = sums
+                        .least_misfit(gram, v)
+                        .partial_cmp(&(most[v] + BOUND_MARGIN))
+                        != Some(std::cmp::Ordering::Greater);
                 }
-                // The starts are whole degrees (the nearest to every `h`-th), so that one
-                // kernel serves them all.
-                let kernel = Kernel::new(&offsets, &self.y);
-                debug_assert!(kernel.reach() <= grid.cells.len() - grid.period);
-                for i in 0..count {
-                    let start = (i as f64 * h).round();
-                    let sums = kernel.sums(&grid, start as i64);
-                    let gram = sums.gram();
-                    // A reflection whose least misfit over every coupler point is above
-                    // every point's bound of that reflection would be refused by every
-                    // list: skipped whole.
-                    let mut live = [false; 2];
+                if !live[0] && !live[1] {
+                    continue;
+                }
+                // Which points each reflection may offer to, all points in one
+                // branch-free pass: bit `v` of `open[k]` is clear when the misfit
+                // at point `k` is surely above its bound for reflection `v` (the
+                // test of [`Sums::surely_above`], the same values bit for bit).
+                sieve(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
+                let mut offered = [false; 2];
+                // Point by point, each live reflection into its own list. A point
+                // left open is tested again with its bound of the moment.
+                for k in OpenPoints::new(&open) {
+                    let w = points[k];
+                    let mm = Sums::model_norm(gram, w);
                     for &mirror in mirrors {
                         let v = usize::from(mirror);
-                        // Live unless surely above (a NaN keeps it live).
-                        live[v] = sums
-                            .least_misfit(gram, v)
-                            .partial_cmp(&(most[v] + BOUND_MARGIN))
-                            != Some(std::cmp::Ordering::Greater);
-                    }
-                    if !live[0] && !live[1] {
-                        continue;
-                    }
-                    // Which points each reflection may offer to, all points in one
-                    // branch-free pass: bit `v` of `open[k]` is clear when the misfit
-                    // at point `k` is surely above its bound for reflection `v` (the
-                    // test of [`Sums::surely_above`], the same values bit for bit).
-                    sieve(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
-                    let mut offered = [false; 2];
-                    // Point by point, each live reflection into its own list. A point
-                    // left open is tested again with its bound of the moment.
-                    for k in OpenPoints::new(&open) {
-                        let w = points[k];
-                        let mm = Sums::model_norm(gram, w);
-                        for &mirror in mirrors {
-                            let v = usize::from(mirror);
-                            if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[v][k]) {
-                                continue;
-                            }
-                            let m = sums.misfit_with(mm, v, w);
-                            offered[v] = true;
-                            let list = &mut best[v][k];
-                            offer(
-                                list,
-                                Window {
-                                    misfit: m,
-                                    mirror,
-                                    start,
-                                    span,
-                                    sense,
-                                },
-                                period,
-                            );
-                            if list.len() == WINDOWS {
-                                worst[v][k] = list[WINDOWS - 1].misfit;
-                                bar[v][k] = 1.0 - worst[v][k] - 1e-9;
-                            }
+                        if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[v][k]) {
+                            continue;
+                        }
+                        let m = sums.misfit_with(mm, v, w);
+                        offered[v] = true;
+                        let list = &mut best[v][k];
+                        offer(
+                            list,
+                            Window {
+                                misfit: m,
+                                mirror,
+                                start,
+                                span,
+                                sense,
+                            },
+                            period,
+                        );
+                        if list.len() == WINDOWS {
+                            worst[v][k] = list[WINDOWS - 1].misfit;
+                            bar[v][k] = 1.0 - worst[v][k] - 1e-9;
                         }
                     }
-                    for v in 0..2 {
-                        if offered[v] {
-                            most[v] = worst[v].iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                        }
+                }
+                for v in 0..2 {
+                    if offered[v] {
+                        most[v] = worst[v].iter().copied().fold(f64::NEG_INFINITY, f64::max);
                     }
                 }
             }
@@ -969,7 +1263,8 @@ impl OpenQuery {
     /// misfit, or there is nothing to do). A run of `a` steps resumed with `b` more takes
     /// the same steps as one run of `a + b`, bit for bit (the sums are made again from the
     /// same angles, in the same order).
-    fn project(
+    #[inline(always)]
+    fn project<const AVX2: bool>(
         &self,
         table: &Table,
         w: C64,
@@ -981,16 +1276,17 @@ impl OpenQuery {
             return true;
         }
         if hyp.mirror {
-            self.project_with::<true>(table, w, hyp, buf, steps)
+            self.project_with::<true, AVX2>(table, w, hyp, buf, steps)
         } else {
-            self.project_with::<false>(table, w, hyp, buf, steps)
+            self.project_with::<false, AVX2>(table, w, hyp, buf, steps)
         }
     }
 
     /// [`OpenQuery::project`] for a reflected match (`MIRROR`) or not, decided at compile
     /// time. Each step's trial angles are looked up and summed in one pass (each sum adds
     /// the points in the same order as in separate passes: the same values, bit for bit).
-    fn project_with<const MIRROR: bool>(
+    #[inline(always)]
+    fn project_with<const MIRROR: bool, const AVX2: bool>(
         &self,
         table: &Table,
         w: C64,
@@ -1006,34 +1302,40 @@ impl OpenQuery {
         next.clear();
         next.extend_from_slice(&theta);
         // The table at `theta` (each step's trial lookups become the next step's), and
-        // the sums from it: every angle is looked up once ([`Table::with_slope`] gives the
+        // the sums from it: every angle is looked up once ([`Table::flat_at`] gives the
         // same `Pa` and `e` as [`Table::at`], so the same sums as [`Sums::of`]).
-        at.clear();
-        at.extend(theta.iter().map(|&t| table.with_slope(t)));
+        at.resize(theta.len(), [0.0; 8]);
+        for (a, &t) in at.iter_mut().zip(&theta) {
+            *a = table.flat_at(t);
+        }
         trial_at.clear();
         trial_at.extend_from_slice(at);
         let y = &self.y;
-        let mut s = Sums::accumulate::<MIRROR>(at.iter().map(|&(p, e, _, _)| (p, e)), y);
+        let mut s = Sums::accumulate::<MIRROR>(at.iter().map(pa_e), y);
+        let n = theta.len().min(y.len());
         for _ in 0..steps {
             let (_, alpha) = s.at_point(v, w);
             let gamma = -alpha * (s.sp + w * s.se) / s.m;
-            for (((t, n), &(p, e, dp, de)), &yj) in
-                theta.iter().zip(next.iter_mut()).zip(at.iter()).zip(y)
-            {
-                let c = alpha * (p + w * e) + gamma;
-                let d = alpha * (dp + w * de);
-                let d2 = d.norm_sqr();
-                let yj = if MIRROR { yj.conj() } else { yj };
-                *n = if d2 > 0.0 {
-                    *t + (((yj - c) * d.conj()).re / d2).clamp(-limit, limit)
-                } else {
-                    *t
-                };
+            let fit = (alpha, gamma, w, limit);
+            // The first points four at a time where AVX2 runs, the rest one by one.
+            #[allow(unused_mut)]
+            let mut done = 0;
+            #[cfg(target_arch = "x86_64")]
+            if AVX2 {
+                // SAFETY: `AVX2` is set only on the path that found the processor to
+                // have AVX2 ([`linkage_stage1`]); `step_avx2` has no other requirement.
+                #[allow(unsafe_code)]
+                {
+                    done = unsafe { step_avx2::<MIRROR>(fit, &theta, at, y, next) };
+                }
+            }
+            for j in done..n {
+                next[j] = step_point::<MIRROR>(fit, theta[j], &at[j], y[j]);
             }
             // The trial angles' lookups and the sums from them in one pass.
             let moved = next.iter().zip(trial_at.iter_mut()).map(|(&n, a)| {
-                *a = table.with_slope(n);
-                (a.0, a.1)
+                *a = table.flat_at(n);
+                pa_e(a)
             });
             let trial = Sums::accumulate::<MIRROR>(moved, y);
             let misfit = trial.at_point(v, w).0;
@@ -1052,7 +1354,45 @@ impl OpenQuery {
 
     /// Stage 2 for one coupler point `w`: re-estimated angles (untimed) or polished start
     /// and step (timed).
+    ///
+    /// **Four lanes where the processor has them**: on x86-64 with AVX2 (checked at run
+    /// time) the same code compiled for AVX2 runs instead (the dynamic programme's
+    /// distances four cells a vector), the same operations in the same order, so the same
+    /// values bit for bit (as [`linkage_stage1`]).
     fn polish(&self, table: &Table, w: C64, hyp: &Hypothesis, dp: &mut Programme) -> Hypothesis {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `polish_avx2` needs AVX2, which the processor was just found to
+            // have; it has no other requirement (the safe body compiled for AVX2).
+            #[allow(unsafe_code)]
+            return unsafe { self.polish_avx2(table, w, hyp, dp) };
+        }
+        self.polish_body(table, w, hyp, dp)
+    }
+
+    /// [`OpenQuery::polish_body`] compiled for AVX2 (called only where the processor has
+    /// it).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn polish_avx2(
+        &self,
+        table: &Table,
+        w: C64,
+        hyp: &Hypothesis,
+        dp: &mut Programme,
+    ) -> Hypothesis {
+        self.polish_body(table, w, hyp, dp)
+    }
+
+    /// [`OpenQuery::polish`] itself, inlined into each of its two callers.
+    #[inline(always)]
+    fn polish_body(
+        &self,
+        table: &Table,
+        w: C64,
+        hyp: &Hypothesis,
+        dp: &mut Programme,
+    ) -> Hypothesis {
         let v = usize::from(hyp.mirror);
         let mut out = hyp.clone();
         match self.layout {
@@ -1120,6 +1460,7 @@ impl OpenQuery {
     /// Moves each point's angle to the nearest point of the fitted curve near it, keeping
     /// the order. `dp` holds the dynamic programme's buffers between calls.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn reproject(
         &self,
         table: &Table,
@@ -1171,9 +1512,16 @@ impl OpenQuery {
         };
         // cost[g]: the least Σ|y_i − c(θ_i)|² over points 0..=j with θ_j = cell g and the
         // cells not decreasing; back[j·cells + g]: the cell of point j − 1 on that path.
-        cost.clear();
+        // (Plain loops over buffers of their length: an adapter's closure would be
+        // compiled apart, for the baseline instruction set.)
         let y0 = target(0);
-        cost.extend((0..cells).map(|g| dist(g, y0)));
+        cost.clear();
+        cost.resize(cells, 0.0);
+        for (g, c) in cost.iter_mut().enumerate() {
+            *c = dist(g, y0);
+        }
+        next.clear();
+        next.resize(cells, 0.0);
         // Every entry read below (rows 1 to n − 1) is written first: the buffer is only
         // grown, never cleared.
         if back.len() < n * cells {
@@ -1183,11 +1531,10 @@ impl OpenQuery {
             let yj = target(j);
             // The distances first (a pass the compiler can vectorise), then the running
             // least of the previous costs.
-            next.clear();
-            next.extend(re[..cells].iter().zip(&im[..cells]).map(|(&r, &i)| {
+            for ((nx, &r), &i) in next[..cells].iter_mut().zip(&re[..cells]).zip(&im[..cells]) {
                 let (dr, di) = (r - yj.re, i - yj.im);
-                dr * dr + di * di
-            }));
+                *nx = dr * dr + di * di;
+            }
             let from_cell = &mut back[j * cells..(j + 1) * cells];
             let mut run = (f64::INFINITY, 0u32);
             // The three rows as slices of one length (no bounds test in the loop).
@@ -1453,64 +1800,139 @@ pub(crate) fn open_stage1(
 ) -> Vec<Stage1> {
     let mut stage1: Vec<Stage1> = Vec::new();
     let mut buf = Projection::default();
+    // The scan's passes, made again only when the period changes (geared five-bars).
+    let mut passes: Option<Passes> = None;
+    let mut cranks = Cranks::default();
     for g in groups {
         let (a, b) = (g.start, g.end);
         let Some(first) = curves.get(a) else {
             continue;
         };
         let c = &first.curve;
-        let Some(table) = Table::new(&c.linkage, c.circuit) else {
+        let Some(table) = cranks.table(&c.linkage, c.circuit) else {
             continue;
         };
         let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
-        for (k, hs) in query.scan(&table, &pts).into_iter().enumerate() {
-            // Each reflection's best window after the projection: a curve goes on once
-            // per reflection, so its unreflected hypothesis is the one a query without
-            // reflection keeps.
-            // Every window gets the first `PROJECTION_HEAT` steps; the best
-            // `PROJECTION_KEEP` of each reflection (by their misfit then) the rest, those
-            // that have not settled (stopped falling) yet: the same steps as in one run
-            // (a run resumes from its angles and misfit, and the sums are made again from
-            // the same angles; tested by `a_resumed_projection_is_one_run`).
-            let mut hs = hs;
-            let settled: Vec<bool> = hs
-                .iter_mut()
-                .map(|h| query.project(&table, pts[k], h, &mut buf, PROJECTION_HEAT))
-                .collect();
-            for mirror in [false, true] {
-                let mut order: Vec<usize> =
-                    (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
-                order.sort_by(|&a, &b| hs[a].misfit.total_cmp(&hs[b].misfit));
-                for &i in order.iter().take(PROJECTION_KEEP).filter(|&&i| !settled[i]) {
-                    query.project(
-                        &table,
-                        pts[k],
-                        &mut hs[i],
-                        &mut buf,
-                        PROJECTIONS - PROJECTION_HEAT,
-                    );
-                }
-            }
-            for mirror in [false, true] {
-                let Some(h) = hs
-                    .iter()
-                    .filter(|h| h.mirror == mirror)
-                    .min_by(|a, b| a.misfit.total_cmp(&b.misfit))
-                else {
-                    continue;
-                };
-                if h.misfit.is_finite() {
-                    stage1.push(Stage1 {
-                        group: a,
-                        index: a + k,
-                        hyp: h.clone(),
-                    });
-                }
-            }
+        if passes.as_ref().is_none_or(|p| p.period != table.period) {
+            passes = Some(query.passes(table.period));
         }
+        let passes = passes.as_ref().expect("made above");
+        linkage_stage1(query, passes, &table, &pts, a, &mut buf, &mut stage1);
     }
     truncate_stage1(&mut stage1, keep);
     stage1
+}
+
+/// Stage 1 and its projections on one linkage (`table`, its coupler points `pts`, the
+/// first of them curve `a` of the atlas): each curve's best window of each reflection,
+/// pushed onto `out`.
+///
+/// **Four lanes where the processor has them.** On x86-64 with AVX2 (checked at run
+/// time) the same code is compiled for AVX2 and run instead (the sieve's points four a
+/// vector instead of two, the three-operand forms of the other arithmetic). Rust never
+/// fuses a multiply and an add without being asked, and every operation is the same
+/// IEEE-754 operation in the same order, so every value is the same, bit for bit, on
+/// either path.
+fn linkage_stage1(
+    query: &OpenQuery,
+    passes: &Passes,
+    table: &Table,
+    pts: &[C64],
+    a: usize,
+    buf: &mut Projection,
+    out: &mut Vec<Stage1>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: `linkage_stage1_avx2` needs AVX2, which the processor was just found
+        // to have; it has no other requirement (it is the safe body compiled for AVX2).
+        #[allow(unsafe_code)]
+        unsafe {
+            linkage_stage1_avx2(query, passes, table, pts, a, buf, out)
+        };
+        return;
+    }
+    linkage_stage1_body::<false>(query, passes, table, pts, a, buf, out)
+}
+
+/// [`linkage_stage1_body`] compiled for AVX2 (called only where the processor has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn linkage_stage1_avx2(
+    query: &OpenQuery,
+    passes: &Passes,
+    table: &Table,
+    pts: &[C64],
+    a: usize,
+    buf: &mut Projection,
+    out: &mut Vec<Stage1>,
+) {
+    linkage_stage1_body::<true>(query, passes, table, pts, a, buf, out)
+}
+
+/// [`linkage_stage1`] itself, inlined into each of its two callers so that each is
+/// compiled for its own instruction set (`AVX2`: the kernel's sums by
+/// [`Kernel::flat_sums_avx2`]).
+#[inline(always)]
+fn linkage_stage1_body<const AVX2: bool>(
+    query: &OpenQuery,
+    passes: &Passes,
+    table: &Table,
+    pts: &[C64],
+    a: usize,
+    buf: &mut Projection,
+    out: &mut Vec<Stage1>,
+) {
+    for (k, hs) in query
+        .scan_with::<AVX2>(passes, table, pts)
+        .into_iter()
+        .enumerate()
+    {
+        // Each reflection's best window after the projection: a curve goes on once
+        // per reflection, so its unreflected hypothesis is the one a query without
+        // reflection keeps.
+        // Every window gets the first `PROJECTION_HEAT` steps; the best
+        // `PROJECTION_KEEP` of each reflection (by their misfit then) the rest, those
+        // that have not settled (stopped falling) yet: the same steps as in one run
+        // (a run resumes from its angles and misfit, and the sums are made again from
+        // the same angles; tested by `a_resumed_projection_is_one_run`).
+        // (Plain loops: a closure passed to a generic adapter is compiled apart from
+        // this body, for the baseline instruction set.)
+        let mut hs = hs;
+        let mut settled = Vec::with_capacity(hs.len());
+        for h in hs.iter_mut() {
+            settled.push(query.project::<AVX2>(table, pts[k], h, buf, PROJECTION_HEAT));
+        }
+        for mirror in [false, true] {
+            let mut order: Vec<usize> = (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
+            order.sort_by(|&a, &b| hs[a].misfit.total_cmp(&hs[b].misfit));
+            for &i in order.iter().take(PROJECTION_KEEP).filter(|&&i| !settled[i]) {
+                query.project::<AVX2>(
+                    table,
+                    pts[k],
+                    &mut hs[i],
+                    buf,
+                    PROJECTIONS - PROJECTION_HEAT,
+                );
+            }
+        }
+        for mirror in [false, true] {
+            let Some(h) = hs
+                .iter()
+                .filter(|h| h.mirror == mirror)
+                .min_by(|a, b| a.misfit.total_cmp(&b.misfit))
+            else {
+                continue;
+            };
+            if h.misfit.is_finite() {
+                out.push(Stage1 {
+                    group: a,
+                    index: a + k,
+                    hyp: h.clone(),
+                });
+            }
+        }
+    }
 }
 
 /// The best `stage2_count(keep)` of `stage1` by misfit (ties by index) **of each
@@ -1559,6 +1981,7 @@ pub(crate) fn open_stage2(
         .par_chunks(STAGE2_PART)
         .flat_map_iter(|part| {
             let mut table: Option<(usize, Table)> = None;
+            let mut cranks = Cranks::default();
             let mut dp = Programme::default();
             let mut out = Vec::with_capacity(part.len());
             for s in part {
@@ -1567,7 +1990,7 @@ pub(crate) fn open_stage2(
                 };
                 if table.as_ref().is_none_or(|t| t.0 != s.group) {
                     let c = &curve.curve;
-                    table = Table::new(&c.linkage, c.circuit).map(|t| (s.group, t));
+                    table = cranks.table(&c.linkage, c.circuit).map(|t| (s.group, t));
                 }
                 let Some((_, t)) = &table else { continue };
                 let p = query.polish(t, w_of(curve), &s.hyp, &mut dp);
@@ -1995,7 +2418,7 @@ mod mirror {
                 let kernel = Kernel::new(&offsets, &y);
                 assert!(kernel.reach() <= grid.cells.len() - grid.period);
                 for start in (-400..800).step_by(37) {
-                    let k = kernel.sums(&grid, start);
+                    let k = kernel.sums::<false>(&grid, start);
                     let want =
                         Sums::of(&table, offsets.iter().map(|&o| start as f64 + o), &y, true);
                     assert_eq!(k.m, want.m);
@@ -2035,7 +2458,7 @@ mod mirror {
             }
             for c in &kernel.cells {
                 let f = c.factors;
-                let (w, a, b) = ([f[0], f[1]], [f[6], f[7]], [f[8], f[9]]);
+                let (w, a, b) = ([f[0], f[1]], [f[4], f[5]], [f[8], f[9]]);
                 let [p, e, x] = cells[c.d];
                 mac(&mut acc[0], w, p);
                 mac(&mut acc[1], w, e);
@@ -2059,16 +2482,26 @@ mod mirror {
                 let kernel = Kernel::new(&offsets, &y);
                 for c in &kernel.cells {
                     let f = c.factors;
-                    assert!(f[..6].iter().all(|&v| v.to_bits() == f[0].to_bits()));
-                    assert_eq!([f[6], f[7], f[8], f[9]], [f[10], f[11], f[12], f[13]]);
+                    let same =
+                        |i: &[usize], j: usize| i.iter().all(|&i| f[i].to_bits() == f[j].to_bits());
+                    assert!(same(&[1, 2, 3, 12, 13], 0));
+                    assert!(same(&[5, 6, 7], 4));
+                    assert!(same(&[9, 10, 11], 8));
+                    assert_eq!([f[14], f[15]], [0.0, 0.0]);
                 }
                 for start in (-400..800).step_by(29) {
                     let base = (start + kernel.lo).rem_euclid(grid.period as i64) as usize;
-                    let flat = Kernel::flat_sums(&kernel.cells, &grid.cells[base..]);
                     let want = first_written(&kernel, &grid, start);
-                    for (i, pair) in want.iter().enumerate() {
-                        assert_eq!(flat[2 * i].to_bits(), pair[0].to_bits());
-                        assert_eq!(flat[2 * i + 1].to_bits(), pair[1].to_bits());
+                    let bits = |a: [[f64; 2]; 7]| a.map(|p| p.map(f64::to_bits));
+                    let flat = Kernel::flat_sums(&kernel.cells, &grid.cells[base..]);
+                    assert_eq!(bits(flat), bits(want));
+                    #[cfg(target_arch = "x86_64")]
+                    if std::arch::is_x86_feature_detected!("avx2") {
+                        // SAFETY: the processor was just found to have AVX2.
+                        #[allow(unsafe_code)]
+                        let flat =
+                            unsafe { Kernel::flat_sums_avx2(&kernel.cells, &grid.cells[base..]) };
+                        assert_eq!(bits(flat), bits(want));
                     }
                     tried += 1;
                 }
@@ -2103,6 +2536,85 @@ mod mirror {
         }
     }
 
+    /// Stage 1 on the processor's fastest path ([`linkage_stage1`]: AVX2 where the
+    /// processor has it) gives the same windows as on the baseline path, bit for bit
+    /// (misfit, start, span, sense, reflection and every angle), over every linkage of
+    /// the test atlas and several targets, both reflections.
+    #[test]
+    fn stage1_is_the_same_on_every_path() {
+        let curves = atlas();
+        let groups = linkage_groups(&curves);
+        let key = |s: &Stage1| {
+            let h = &s.hyp;
+            let mut v = vec![
+                s.index as u64,
+                s.group as u64,
+                u64::from(h.mirror),
+                h.misfit.to_bits(),
+                h.start.to_bits(),
+                h.span.to_bits(),
+                h.sense.to_bits(),
+            ];
+            v.extend(h.theta.iter().map(|t| t.to_bits()));
+            v
+        };
+        let mut kept = 0;
+        for case in retrieval_cases(&curves, false, 31, 4) {
+            let q = OpenQuery::new(&case.target, true).unwrap();
+            let (mut fast, mut base) = (Vec::new(), Vec::new());
+            let (mut b1, mut b2) = (Projection::default(), Projection::default());
+            for g in &groups {
+                let c = &curves[g.start].curve;
+                let Some(table) = Table::new(&c.linkage, c.circuit) else {
+                    continue;
+                };
+                let pts: Vec<C64> = g.clone().map(|k| w_of(&curves[k])).collect();
+                let passes = q.passes(table.period);
+                linkage_stage1(&q, &passes, &table, &pts, g.start, &mut b1, &mut fast);
+                linkage_stage1_body::<false>(
+                    &q, &passes, &table, &pts, g.start, &mut b2, &mut base,
+                );
+            }
+            assert_eq!(fast.len(), base.len());
+            for (a, b) in fast.iter().zip(&base) {
+                assert_eq!(key(a), key(b));
+            }
+            kept += fast.len();
+        }
+        // Not vacuous: every curve has a window of each reflection.
+        assert!(kept >= 8 * curves.len(), "{kept} of {}", curves.len());
+    }
+
+    /// Stage 2's re-estimation on the processor's fastest path ([`OpenQuery::polish`]:
+    /// AVX2 where the processor has it) gives the same hypothesis as on the baseline path,
+    /// bit for bit (misfit and every angle), for every curve stage 1 keeps on the test
+    /// atlas, several targets, both reflections.
+    #[test]
+    fn polish_is_the_same_on_every_path() {
+        let curves = atlas();
+        let groups = linkage_groups(&curves);
+        let (mut dp1, mut dp2) = (Programme::default(), Programme::default());
+        let mut moved = 0;
+        let mut tried = 0;
+        for case in retrieval_cases(&curves, false, 37, 3) {
+            let q = OpenQuery::new(&case.target, true).unwrap();
+            for s in open_stage1(&q, &curves, &groups, 64) {
+                let c = &curves[s.index].curve;
+                let table = Table::new(&c.linkage, c.circuit).unwrap();
+                let w = w_of(&curves[s.index]);
+                let fast = q.polish(&table, w, &s.hyp, &mut dp1);
+                let base = q.polish_body(&table, w, &s.hyp, &mut dp2);
+                assert_eq!(fast.misfit.to_bits(), base.misfit.to_bits());
+                let bits = |h: &Hypothesis| h.theta.iter().map(|t| t.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fast), bits(&base));
+                moved += usize::from(bits(&fast) != bits(&s.hyp));
+                tried += 1;
+            }
+        }
+        // Not vacuous: many curves, most of them re-estimated.
+        assert!(tried > 300 && 2 * moved > tried, "{moved} of {tried} moved");
+    }
+
     /// The staged projection's premise: `PROJECTION_HEAT` steps resumed with the rest
     /// take the same steps as one run of `PROJECTIONS`, bit for bit (misfit and every
     /// angle), for every window the scan proposes on several linkages, both reflections.
@@ -2124,9 +2636,15 @@ mod mirror {
                 for (k, hs) in q.scan(&table, &pts).into_iter().enumerate() {
                     for h in hs {
                         let (mut one, mut staged) = (h.clone(), h.clone());
-                        q.project(&table, pts[k], &mut one, &mut buf, PROJECTIONS);
-                        if !q.project(&table, pts[k], &mut staged, &mut buf, PROJECTION_HEAT) {
-                            q.project(
+                        q.project::<false>(&table, pts[k], &mut one, &mut buf, PROJECTIONS);
+                        if !q.project::<false>(
+                            &table,
+                            pts[k],
+                            &mut staged,
+                            &mut buf,
+                            PROJECTION_HEAT,
+                        ) {
+                            q.project::<false>(
                                 &table,
                                 pts[k],
                                 &mut staged,
