@@ -237,22 +237,32 @@ fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L]
 pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
     const M: usize = 24;
     const POLISHED: usize = 10;
+    const BIG: usize = 512;
     let Some(t) = super::geom::resample(p, false, M) else {
         return Vec::new();
     };
     let len = traced.length();
-    let big = 512;
-    let zc = traced.resample_closed(big);
-    // The window of centre `c` and length `f`, centred and scaled to unit norm ([`unit`]'s
-    // values, bit for bit) into `w`; `false` if it is a single point.
-    let window = |c: f64, f: f64, w: &mut [C64; M]| -> bool {
-        let s0 = c - 0.5 * f;
-        for (j, z) in w.iter_mut().enumerate() {
-            let s = frac(s0 + f * j as f64 / (M - 1) as f64) * big as f64;
-            // `s ≥ 0` (or NaN): the cast is `floor`'s.
-            let k = (s as usize).min(big - 1);
-            let u = s - k as f64;
-            let (a, b) = (zc[k], zc[(k + 1) % big]);
+    // The loop's points, the first repeated at the end: sample `k + 1` of sample `k ≤ 511`
+    // is `ring[k + 1]` (the `(k + 1) mod 512`-th), with no remainder and no bounds test.
+    let mut ring = [C64::new(0.0, 0.0); BIG + 1];
+    for (r, z) in ring.iter_mut().zip(traced.resample_closed(BIG)) {
+        *r = z;
+    }
+    ring[BIG] = ring[0];
+    // A window's point offsets from its first point, `f·j/(M − 1)` (the same product and
+    // quotient as in the window's sum), made once per length.
+    let offsets = |f: f64| -> [f64; M] { std::array::from_fn(|j| f * j as f64 / (M - 1) as f64) };
+    // The window of first point `s0 = c − f/2` (centre `c`, length `f`, its offsets `off`),
+    // centred and scaled to unit norm ([`unit`]'s values, bit for bit) into `w`; `false` if
+    // it is a single point. A point's position `s ∈ [0, 512]` (or NaN) splits into its
+    // sample `k = ⌊s⌋` (at most 511; 0 for NaN: what the unsigned cast gave) and fraction.
+    let window = |s0: f64, off: &[f64; M], w: &mut [C64; M]| -> bool {
+        for (z, &o) in w.iter_mut().zip(off) {
+            let s = frac(s0 + o) * BIG as f64;
+            let k = (s as i32).clamp(0, BIG as i32 - 1);
+            let u = s - f64::from(k);
+            let k = k as usize;
+            let (a, b) = (ring[k], ring[k + 1]);
             *z = a + (b - a) * u;
         }
         unit_in_place(w)
@@ -267,28 +277,34 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     };
     let score_at = |c: f64, f: f64, v: &[C64]| -> Option<f64> {
         let mut w = [C64::new(0.0, 0.0); M];
-        window(c, f, &mut w).then(|| score(&w, v))
+        window(c - 0.5 * f, &offsets(f), &mut w).then(|| score(&w, v))
     };
     // Refined local minima along the centres of each length: (misfit, variant, c, f).
     let mut minima: Vec<(f64, usize, f64, f64)> = Vec::new();
-    // One length's windows (`None`: a single point) and one variant's misfits along them.
-    let mut wins: Vec<Option<[C64; M]>> = Vec::new();
+    // One length's windows (`None`: a single point), made in place, and one variant's
+    // misfits along them.
+    let mut wins: Vec<[C64; M]> = Vec::new();
+    let mut whole: Vec<bool> = Vec::new();
     let mut m: Vec<f64> = Vec::new();
     let mut f: f64 = 0.02;
     while f <= 1.0 + 1e-9 {
         let count = ((6.0 / f).ceil() as usize).clamp(12, 192);
         let h = 1.0 / count as f64;
-        wins.clear();
-        wins.extend((0..count).map(|i| {
-            let mut w = [C64::new(0.0, 0.0); M];
-            window(i as f64 * h, f, &mut w).then_some(w)
-        }));
+        let off = offsets(f);
+        wins.resize(count, [C64::new(0.0, 0.0); M]);
+        whole.clear();
+        whole.extend(
+            wins.iter_mut()
+                .enumerate()
+                .map(|(i, w)| window(i as f64 * h - 0.5 * f, &off, w)),
+        );
         for (vi, (_, _, v)) in vars.iter().enumerate() {
             m.clear();
-            m.extend(
-                wins.iter()
-                    .map(|w| w.as_ref().map_or(f64::INFINITY, |w| score(w, v))),
-            );
+            m.extend(wins.iter().zip(&whole).map(
+                |(w, &ok)| {
+                    if ok { score(w, v) } else { f64::INFINITY }
+                },
+            ));
             for i in 0..count {
                 let (l, r) = (m[(i + count - 1) % count], m[(i + 1) % count]);
                 if !(m[i] <= l && m[i] < r && m[i].is_finite()) {
