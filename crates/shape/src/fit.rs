@@ -355,7 +355,15 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     for (m, vi, c, f) in picked {
         let (rev, mir, v) = &vars[vi];
         let (mut m, mut c, mut f) = (m, c, f);
-        // Pattern search on (c, ln f).
+        // Pattern search on (c, ln f). A trial often lands on a point tried before, bit
+        // for bit (a step back after a move: `(c + dc) − dc` is `c` whenever the sum was
+        // exact): its misfit, a function of `(c, f)` alone, is taken from the last
+        // `RECENT` trials instead of being made again, the same value. A length's offsets
+        // are kept while the length stays (the trials along `c`).
+        const RECENT: usize = 8;
+        let mut recent = [(u64::MAX, u64::MAX, None::<f64>); RECENT];
+        let mut next = 0;
+        let mut kept = (f.to_bits(), offsets(f));
         let mut dc = f / 12.0;
         let mut dl = OPEN_LENGTH_RATIO.ln() / 2.0;
         for _ in 0..60 {
@@ -365,7 +373,19 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
                 if !(f1 > 0.0 && f1 <= 1.0) {
                     continue;
                 }
-                if let Some(m1) = score_at(c1, f1, v) {
+                let key = (c1.to_bits(), f1.to_bits());
+                let tried = recent.iter().find(|r| (r.0, r.1) == key).map(|r| r.2);
+                let got = tried.unwrap_or_else(|| {
+                    if kept.0 != key.1 {
+                        kept = (key.1, offsets(f1));
+                    }
+                    let mut w = [C64::new(0.0, 0.0); M];
+                    let m1 = window(c1 - 0.5 * f1, &kept.1, &mut w).then(|| score(&w, v));
+                    recent[next] = (key.0, key.1, m1);
+                    next = (next + 1) % RECENT;
+                    m1
+                });
+                if let Some(m1) = got {
                     if m1 < m {
                         (m, c, f) = (m1, c1, f1);
                         moved = true;
