@@ -262,6 +262,8 @@ where
             grad_l: &mut grad_l,
         };
         match ng {
+            // A finite cost: every residual finite (the similarity rows' `m` are).
+            4 if !e.sim.is_empty() && cost.is_finite() => normal.sum_similarity(&e, has_locals),
             4 if !e.sim.is_empty() => {
                 normal.sum_rows::<4>(e.sim.iter().map(|&m| similarity_row(m)), &e, has_locals)
             }
@@ -485,6 +487,78 @@ impl Normal<'_> {
         for p in 0..G {
             for q in 0..G {
                 hgg[p * G + q] = if q < p { m[q][p] } else { m[p][q] };
+            }
+            grad_g[p] = gr[p];
+        }
+    }
+}
+
+impl Normal<'_> {
+    /// [`Normal::sum_rows`] of the similarity rows `[m, i·m, 1, i]` ([`similarity_row`]) of
+    /// `e.sim`, the same values bit for bit when every `m_j` and residual is finite, with
+    /// the rows' constant entries summed as what they are. Each product with a row entry
+    /// `1 = (1, 0)` or `i = (0, 1)` is a component of the other factor plus a zero (`1·x =
+    /// x` exactly; `0·y` is a zero for a finite `y`), and `i·m = (0·m.re − m.im, 0·m.im +
+    /// m.re)` is `(−m.im, m.re)` but for the signs of zeros; a zero's sign changes neither
+    /// a sum with a nonzero term nor a sum that starts from `+0` (the accumulators never
+    /// become `−0`: in round to nearest, `x + y = −0` only when both are `−0`). So, points
+    /// in order from `+0`:
+    ///
+    /// - `hgg[0][0] = Σ |m|²`, and `hgg[1][1]` the same terms (`(−m.im)² + m.re²` is
+    ///   `m.re² + m.im²`: a sum of two terms commutes);
+    /// - `hgg[0][1] = Σ m·(i·m)` (each term `±0` unless it overflows), kept as a sum;
+    /// - `hgg[0][2] = hgg[1][3] = Σ m.re`, `hgg[0][3] = Σ m.im`, and `hgg[1][2] = Σ −m.im`,
+    ///   which is `0 − Σ m.im` (rounding to nearest is symmetric; `0 −` makes a zero `+0`);
+    /// - `hgg[2][2] = hgg[3][3] = Σ 1 = n`, `hgg[2][3] = +0`;
+    /// - `grad_g = (Σ m·r, Σ (i·m)·r, Σ r.re, Σ r.im)`.
+    ///
+    /// The per-point entries (`hgl`, stored, not summed) are made from the rows as
+    /// [`Normal::sum_rows`] makes them. Tested against it (`similarity_sums_by_structure`).
+    fn sum_similarity(self, e: &Eval, has_locals: bool) {
+        let Normal {
+            hgg,
+            grad_g,
+            hgl,
+            hll,
+            grad_l,
+        } = self;
+        let (mut mm, mut mim, mut sre, mut sim, mut ones) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut gr = [0.0; 4];
+        let mut points = 0;
+        for (j, (&m, &rj)) in e.sim.iter().zip(&e.r).enumerate() {
+            points += 1;
+            let im = C64::new(-m.im, m.re);
+            mm += dot(m, m);
+            mim += dot(m, im);
+            sre += m.re;
+            sim += m.im;
+            ones += 1.0;
+            gr[0] += dot(m, rj);
+            gr[1] += dot(im, rj);
+            gr[2] += rj.re;
+            gr[3] += rj.im;
+            if has_locals {
+                point_locals(
+                    &similarity_row(m),
+                    e.jl[j],
+                    rj,
+                    &mut hgl[j * 4..(j + 1) * 4],
+                    j,
+                    hll,
+                    grad_l,
+                );
+            }
+        }
+        assert!(!has_locals || points == e.r.len(), "a row per point");
+        let up = [
+            [mm, mim, sre, sim],
+            [0.0, mm, 0.0 - sim, sre],
+            [0.0, 0.0, ones, 0.0],
+            [0.0, 0.0, 0.0, ones],
+        ];
+        for p in 0..4 {
+            for q in 0..4 {
+                hgg[p * 4 + q] = if q < p { up[q][p] } else { up[p][q] };
             }
             grad_g[p] = gr[p];
         }
@@ -755,6 +829,70 @@ mod tests {
                     .collect::<Vec<u64>>()
             };
             assert_eq!(sums(&given), sums(&stored), "case {case}");
+        }
+    }
+
+    /// The similarity rows' sums by their structure (`Normal::sum_similarity`) are those
+    /// of the rows made in registers, bit for bit: values of every sign and size, exact
+    /// zeros of either sign among `m`, the residuals and the angles' derivatives, and
+    /// points with `m = 0`.
+    #[test]
+    fn similarity_sums_by_structure() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for case in 0..400 {
+            let n = 1 + case % 70;
+            let mut e = Eval::default();
+            for _ in 0..n {
+                let mut value = || {
+                    let bits = next();
+                    let x = (bits >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+                    match bits % 11 {
+                        0 => 0.0,
+                        1 => -0.0,
+                        2 => x * 1e6,
+                        3 => x * 1e-6,
+                        _ => x * 10.0,
+                    }
+                };
+                let m = C64::new(value(), value());
+                let r = C64::new(value(), value());
+                let jl = C64::new(value(), value());
+                e.sim.push(m);
+                e.r.push(r);
+                e.jl.push(jl);
+            }
+            for has_locals in [true, false] {
+                let sums = |structure: bool| {
+                    let (mut hgg, mut grad_g) = (vec![0.0; 16], vec![0.0; 4]);
+                    let (mut hgl, mut hll, mut grad_l) =
+                        (vec![0.0; 4 * n], vec![0.0; n], vec![0.0; n]);
+                    let normal = Normal {
+                        hgg: &mut hgg,
+                        grad_g: &mut grad_g,
+                        hgl: &mut hgl,
+                        hll: &mut hll,
+                        grad_l: &mut grad_l,
+                    };
+                    if structure {
+                        normal.sum_similarity(&e, has_locals);
+                    } else {
+                        let rows = e.sim.iter().map(|&m| similarity_row(m));
+                        normal.sum_rows::<4>(rows, &e, has_locals);
+                    }
+                    [hgg, grad_g, hgl, hll, grad_l]
+                        .iter()
+                        .flatten()
+                        .map(|x| x.to_bits())
+                        .collect::<Vec<u64>>()
+                };
+                assert_eq!(sums(true), sums(false), "case {case}");
+            }
         }
     }
 
