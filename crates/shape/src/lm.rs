@@ -311,13 +311,11 @@ where
                 // unrolled (the same sums).
                 let local = |j: usize, t: f64| l[j] + (-t / damped[j]).clamp(-max, max);
                 if let Ok(d) = <[f64; 4]>::try_from(dg.as_slice()) {
-                    l_new.extend(hgl.chunks_exact(4).enumerate().map(|(j, row)| {
-                        let t = grad_l[j]
-                            + row[0] * d[0]
-                            + row[1] * d[1]
-                            + row[2] * d[2]
-                            + row[3] * d[3];
-                        local(j, t)
+                    // The point's values zipped in step (no index, so no bounds test).
+                    let rows = hgl.chunks_exact(4).zip(grad_l.iter().zip(&damped));
+                    l_new.extend(l.iter().zip(rows).map(|(&lj, (row, (&gl, &dj)))| {
+                        let t = gl + row[0] * d[0] + row[1] * d[1] + row[2] * d[2] + row[3] * d[3];
+                        lj + (-t / dj).clamp(-max, max)
                     }));
                 } else {
                     l_new.extend((0..n).map(|j| {
