@@ -268,14 +268,30 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
         unit_in_place(w)
     };
     let vars = target_variants(&t, allow_mirror, false);
-    let score = |w: &[C64], v: &[C64]| -> f64 {
-        let mut s = C64::new(0.0, 0.0);
-        for (a, b) in w.iter().zip(v) {
-            s += a.conj() * b;
+    // Each variant's points (`M` of them) as the two lane pairs of `conj(w)·v =
+    // w.re·[v.re, v.im] + w.im·[v.im, −v.re]`: the complex product's own products and sums
+    // (`(−w.im)·v.im` and `w.im·(−v.re)` are exact negations of `w.im·v.im` and
+    // `w.im·v.re`), so the misfit is the same, bit for bit, in two lanes side by side.
+    type Lanes = ([[f64; 2]; M], [[f64; 2]; M]);
+    let lanes: Vec<Lanes> = vars
+        .iter()
+        .map(|(_, _, v)| {
+            (
+                std::array::from_fn(|j| [v[j].re, v[j].im]),
+                std::array::from_fn(|j| [v[j].im, -v[j].re]),
+            )
+        })
+        .collect();
+    // `1 − |Σ conj(w_j)·v_j|²`, summed in order.
+    let score = |w: &[C64; M], v: &Lanes| -> f64 {
+        let mut s = [0.0f64; 2];
+        for ((a, b), c) in w.iter().zip(&v.0).zip(&v.1) {
+            s[0] += a.re * b[0] + a.im * c[0];
+            s[1] += a.re * b[1] + a.im * c[1];
         }
-        1.0 - s.norm_sqr()
+        1.0 - (s[0] * s[0] + s[1] * s[1])
     };
-    let score_at = |c: f64, f: f64, v: &[C64]| -> Option<f64> {
+    let score_at = |c: f64, f: f64, v: &Lanes| -> Option<f64> {
         let mut w = [C64::new(0.0, 0.0); M];
         window(c - 0.5 * f, &offsets(f), &mut w).then(|| score(&w, v))
     };
@@ -298,7 +314,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
                 .enumerate()
                 .map(|(i, w)| window(i as f64 * h - 0.5 * f, &off, w)),
         );
-        for (vi, (_, _, v)) in vars.iter().enumerate() {
+        for (vi, v) in lanes.iter().enumerate() {
             m.clear();
             m.extend(wins.iter().zip(&whole).map(
                 |(w, &ok)| {
@@ -353,7 +369,8 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     let tau = arc_fractions(p, false);
     let mut out = Vec::new();
     for (m, vi, c, f) in picked {
-        let (rev, mir, v) = &vars[vi];
+        let (rev, mir, _) = &vars[vi];
+        let v = &lanes[vi];
         let (mut m, mut c, mut f) = (m, c, f);
         // Pattern search on (c, ln f). A trial often lands on a point tried before, bit
         // for bit (a step back after a move: `(c + dc) − dc` is `c` whenever the sum was
