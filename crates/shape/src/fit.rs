@@ -512,35 +512,61 @@ fn untimed_residuals(
         e.jl.reserve(p.len());
     }
     let mut cost = RunningCost::new(ask);
-    let zero = C64::new(0.0, 0.0);
-    for (c, chunk) in p.chunks(POINT_LANES).enumerate() {
+    let full = p.chunks_exact(POINT_LANES);
+    let rest = full.remainder();
+    // Whole groups with their length known (the lanes' loop unrolled), then the rest.
+    for (c, chunk) in full.enumerate() {
+        let chunk: &[C64; POINT_LANES] = chunk.try_into().expect("a whole group");
         let points = group(c * POINT_LANES);
-        // The group's values, appended together.
-        let (mut r, mut m, mut jl) = (
-            [zero; POINT_LANES],
-            [zero; POINT_LANES],
-            [zero; POINT_LANES],
-        );
-        for (i, (&pk, at)) in chunk.iter().zip(&points).enumerate() {
-            let at = (*at)?;
-            m[i] = tilde(mir, at.m);
-            r[i] = a * m[i] + b - pk;
-            if !cost.add(r[i]) {
-                return None;
-            }
-            if jac {
-                jl[i] = a * tilde(mir, at.dm_dtheta);
-            }
-        }
-        let n = chunk.len();
-        e.r.extend_from_slice(&r[..n]);
-        if jac {
-            // The rows `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
-            e.sim.extend_from_slice(&m[..n]);
-            e.jl.extend_from_slice(&jl[..n]);
-        }
+        group_residuals(chunk, &points, mir, a, b, jac, &mut cost, e)?;
+    }
+    if !rest.is_empty() {
+        let points = group(p.len() - rest.len());
+        group_residuals(rest, &points, mir, a, b, jac, &mut cost, e)?;
     }
     e.summed = Some(cost.sum());
+    Some(())
+}
+
+/// One group's part of [`untimed_residuals`]: its points' residuals (and with `jac` the
+/// similarity rows' `m` and the angles' derivatives) appended to `e` together, the cost
+/// kept point by point; `None` where a point is `None` or the trial is given up.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn group_residuals(
+    chunk: &[C64],
+    points: &[Option<PointAt>; POINT_LANES],
+    mir: bool,
+    a: C64,
+    b: C64,
+    jac: bool,
+    cost: &mut RunningCost,
+    e: &mut Eval,
+) -> Option<()> {
+    let zero = C64::new(0.0, 0.0);
+    let (mut r, mut m, mut jl) = (
+        [zero; POINT_LANES],
+        [zero; POINT_LANES],
+        [zero; POINT_LANES],
+    );
+    for (i, (&pk, at)) in chunk.iter().zip(points).enumerate() {
+        let at = (*at)?;
+        m[i] = tilde(mir, at.m);
+        r[i] = a * m[i] + b - pk;
+        if !cost.add(r[i]) {
+            return None;
+        }
+        if jac {
+            jl[i] = a * tilde(mir, at.dm_dtheta);
+        }
+    }
+    let n = chunk.len();
+    e.r.extend_from_slice(&r[..n]);
+    if jac {
+        // The rows `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
+        e.sim.extend_from_slice(&m[..n]);
+        e.jl.extend_from_slice(&jl[..n]);
+    }
     Some(())
 }
 
@@ -564,7 +590,11 @@ pub(crate) fn fit_untimed(
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let last = l.len() - 1;
         untimed_residuals(p, mir, a, b, ask, e, |k| {
-            let degrees = std::array::from_fn(|i| l[(k + i).min(last)]);
+            // A whole group's angles as they lie; the last group's repeat its last.
+            let degrees = match l.get(k..k + POINT_LANES) {
+                Some(d) => d.try_into().expect("a whole group"),
+                None => std::array::from_fn(|i| l[(k + i).min(last)]),
+            };
             lanes.at(&degrees)
         })
     };
