@@ -12,8 +12,8 @@
 //! or `θ₀ + ω·k`.
 
 use crate::geom::{C64, abs, fit_similarity, mean};
-use crate::kin::{CouplerCurve, PointAt};
-use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve_into};
+use crate::kin::{CouplerCurve, CurveLanes, PointAt};
+use crate::lm::{Ask, Eval, LmOptions, LmResult, RunningCost, resume_into, solve_into};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
 use coupler_kinematics::POINT_LANES;
@@ -577,6 +577,30 @@ pub(crate) fn fit_untimed(
     start: &Start,
     options: &FitOptions,
 ) -> Option<CurveFit> {
+    fit_untimed_kept(p, curve, start, options)?.fit
+}
+
+/// An untimed fit with what a larger iteration cap needs to continue it
+/// ([`continue_untimed`]).
+pub(crate) struct UntimedFit {
+    /// What [`fit_untimed`] returns.
+    pub fit: Option<CurveFit>,
+    /// Levenberg–Marquardt's result (with its evaluation, its damping and whether the
+    /// cap stopped it).
+    lm: LmResult,
+    mirrored: bool,
+    /// The cap it ran under.
+    cap: usize,
+}
+
+/// [`fit_untimed`], keeping Levenberg–Marquardt's state (`None` where [`fit_untimed`]'s
+/// fit has no start: the start's points or its similarity undefined).
+pub(crate) fn fit_untimed_kept(
+    p: &[C64],
+    curve: &CouplerCurve,
+    start: &Start,
+    options: &FitOptions,
+) -> Option<UntimedFit> {
     let mir = start.mirrored;
     let gaps = curve.gaps();
     let lanes = curve.lanes_with(&gaps);
@@ -584,20 +608,6 @@ pub(crate) fn fit_untimed(
     let at0: Vec<PointAt> = curve.points_with(&gaps, &start.theta)?;
     let m0: Vec<C64> = at0.iter().map(|x| tilde(mir, x.m)).collect();
     let (a, b, _) = fit_similarity(&m0, p)?;
-    // The points a lane group at a time (`POINT_LANES` angles side by side): a trial
-    // given up part-way has evaluated at most a group's worth more.
-    let eval = |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
-        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
-        let last = l.len() - 1;
-        untimed_residuals(p, mir, a, b, ask, e, |k| {
-            // A whole group's angles as they lie; the last group's repeat its last.
-            let degrees = match l.get(k..k + POINT_LANES) {
-                Some(d) => d.try_into().expect("a whole group"),
-                None => std::array::from_fn(|i| l[(k + i).min(last)]),
-            };
-            lanes.at(&degrees)
-        })
-    };
     let g0 = vec![a.re, a.im, b.re, b.im];
     let mut first = Eval::default();
     untimed_residuals(
@@ -609,12 +619,81 @@ pub(crate) fn fit_untimed(
         &mut first,
         |k| std::array::from_fn(|i| at0.get(k + i).copied()),
     )?;
-    let lm = LmOptions {
+    let lm = untimed_lm(options);
+    let res = solve_into(
+        g0,
+        start.theta.clone(),
+        Some(first),
+        untimed_eval(p, mir, &lanes),
+        &lm,
+    )?;
+    Some(UntimedFit {
+        fit: untimed_report(p, curve, mir, &res),
+        lm: res,
+        mirrored: mir,
+        cap: options.max_iterations,
+    })
+}
+
+/// `fit_untimed(p, curve, start, options)` given `kept`, the same start's
+/// [`fit_untimed_kept`] under a cap no larger than `options.max_iterations` (the options
+/// otherwise alike: an untimed fit reads only the cap): the same fit, bit for bit, for the
+/// iterations `kept` ran are the first ones of the longer run. If its cap stopped it,
+/// Levenberg–Marquardt continues from its state ([`resume_into`]); if anything else did,
+/// the longer run stops there too, and `kept`'s fit is the answer. A larger `kept` cap
+/// fits afresh.
+pub(crate) fn continue_untimed(
+    p: &[C64],
+    curve: &CouplerCurve,
+    start: &Start,
+    kept: UntimedFit,
+    options: &FitOptions,
+) -> Option<CurveFit> {
+    if kept.cap > options.max_iterations {
+        return fit_untimed(p, curve, start, options);
+    }
+    if !kept.lm.capped {
+        return kept.fit;
+    }
+    let lanes = curve.lanes_with(&curve.gaps());
+    let mir = kept.mirrored;
+    let res = resume_into(kept.lm, untimed_eval(p, mir, &lanes), &untimed_lm(options))?;
+    untimed_report(p, curve, mir, &res)
+}
+
+/// Levenberg–Marquardt's options for an untimed fit.
+fn untimed_lm(options: &FitOptions) -> LmOptions {
+    LmOptions {
         max_iterations: options.max_iterations,
         reuse_trial: true,
         ..LmOptions::DEFAULT
-    };
-    let res = solve_into(g0, start.theta.clone(), Some(first), eval, &lm)?;
+    }
+}
+
+/// The untimed fit's evaluation at `(a, b) = g` and the angles `l`: the points a lane
+/// group at a time (`POINT_LANES` angles side by side), so a trial given up part-way has
+/// evaluated at most a group's worth more.
+fn untimed_eval<'a>(
+    p: &'a [C64],
+    mir: bool,
+    lanes: &'a CurveLanes,
+) -> impl FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()> + 'a {
+    move |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
+        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+        let last = l.len() - 1;
+        untimed_residuals(p, mir, a, b, ask, e, |k| {
+            // A whole group's angles as they lie; the last group's repeat its last.
+            let degrees = match l.get(k..k + POINT_LANES) {
+                Some(d) => d.try_into().expect("a whole group"),
+                None => std::array::from_fn(|i| l[(k + i).min(last)]),
+            };
+            lanes.at(&degrees)
+        })
+    }
+}
+
+/// The untimed fit's report from Levenberg–Marquardt's result.
+fn untimed_report(p: &[C64], curve: &CouplerCurve, mir: bool, res: &LmResult) -> Option<CurveFit> {
     let theta = unwrap_sequence(res.local.clone(), curve.period_deg());
     // The residuals at the result, where the unwrapped angles are the ones LM evaluated.
     let known = res
@@ -1093,6 +1172,74 @@ mod tests {
         // Both kinds of answer are compared: some fits with reflection allowed are
         // reflected.
         assert!(reflected_best > 0);
+    }
+
+    /// An untimed fit continued from a smaller iteration cap (`continue_untimed`) is the
+    /// fit of one run to the larger cap, bit for bit: open targets of several curves,
+    /// spans, noise and reflections, every start of their window scan, caps from 0 to
+    /// 30 continued to 100, some stopped by the cap and some converged before it; a
+    /// larger kept cap than the final one fits afresh.
+    #[test]
+    fn continued_fit_is_one_fit() {
+        let mut rng = crate::cases::SplitMix64(57);
+        let curves = [
+            curve(),
+            CouplerCurve {
+                linkage: FourBar::new(2.0, 2.5, 2.0).unwrap().into(),
+                circuit: Circuit::Open,
+                point: CouplerPoint::new(3.0, 0.0),
+            },
+            CouplerCurve {
+                linkage: FourBar::new(4.5, 3.0, 3.5).unwrap().into(),
+                circuit: Circuit::Crossed,
+                point: CouplerPoint::new(1.125, -2.25),
+            },
+        ];
+        let bits = |f: &Option<CurveFit>| format!("{f:?}");
+        let (mut capped, mut stopped) = (0, 0);
+        for (ci, c) in curves.iter().enumerate() {
+            for (span, mirrored, noise) in [
+                (120.0, false, 0.01),
+                (240.0, true, 0.0),
+                (90.0, false, 0.03),
+            ] {
+                let t =
+                    crate::cases::make_target(&mut rng, c, false, 40.0, span, 40, mirrored, noise)
+                        .unwrap();
+                let p = t.complex_points();
+                let traced = Traced::new(c, 720).unwrap();
+                for (si, start) in scan_open(&p, &traced, true).iter().enumerate() {
+                    let cap = |max_iterations: usize| FitOptions {
+                        max_iterations,
+                        ..FitOptions::DEFAULT
+                    };
+                    let one = fit_untimed(&p, c, start, &cap(100));
+                    for k in [0, 1, 4, 30] {
+                        let what = format!("curve {ci}, span {span}, start {si}, cap {k}");
+                        let Some(kept) = fit_untimed_kept(&p, c, start, &cap(k)) else {
+                            assert!(one.is_none(), "{what}");
+                            continue;
+                        };
+                        assert_eq!(bits(&kept.fit), bits(&fit_untimed(&p, c, start, &cap(k))));
+                        if kept.lm.capped {
+                            capped += 1;
+                        } else {
+                            stopped += 1;
+                        }
+                        let continued = continue_untimed(&p, c, start, kept, &cap(100));
+                        assert_eq!(bits(&continued), bits(&one), "{what}");
+                    }
+                    let kept = fit_untimed_kept(&p, c, start, &cap(30)).unwrap();
+                    let shorter = continue_untimed(&p, c, start, kept, &cap(8));
+                    assert_eq!(bits(&shorter), bits(&fit_untimed(&p, c, start, &cap(8))));
+                }
+            }
+        }
+        // Both ways of continuing are compared.
+        assert!(
+            capped > 0 && stopped > 0,
+            "{capped} capped, {stopped} stopped"
+        );
     }
 
     /// `best_shifts` in split form gives the shifts and values of the sums of `C64`

@@ -124,6 +124,11 @@ pub(crate) struct LmResult {
     pub iterations: usize,
     /// The evaluation at `(global, local)` (with [`LmOptions::reuse_trial`]; else `None`).
     pub last: Option<Eval>,
+    /// The damping the next iteration would start from.
+    pub lambda: f64,
+    /// Stopped by [`LmOptions::max_iterations`] alone (every other stop is final): with
+    /// `last`, [`resume_into`] continues it.
+    pub capped: bool,
 }
 
 /// Options.
@@ -211,22 +216,61 @@ pub(crate) fn solve_into<F>(
 where
     F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
 {
-    let ng = global.len();
-    let has_locals = !local.is_empty();
-    let (mut g, mut l) = (global, local);
-    let mut e = match first {
+    let e = match first {
         Some(e) => e,
         None => {
             let mut e = Eval::default();
-            eval(&g, &l, Ask::whole(true), &mut e)?;
+            eval(&global, &local, Ask::whole(true), &mut e)?;
             e
         }
     };
+    iterate(global, local, e, 1e-3, 0, eval, options)
+}
+
+/// Continues a fit that [`solve_into`] (or this) stopped at its iteration cap
+/// ([`LmResult::capped`], with its evaluation `last`: [`LmOptions::reuse_trial`]) up to
+/// `options.max_iterations` in all, with the same `eval` and otherwise the same options:
+/// the same iterations, bit for bit, as one run with the larger cap. An iteration reads
+/// only the point, its evaluation, the damping and the count (every buffer is written
+/// before it is read), which the result holds. A result not capped is returned as it is:
+/// a larger cap stops where it stopped.
+pub(crate) fn resume_into<F>(from: LmResult, eval: F, options: &LmOptions) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    match from {
+        LmResult {
+            global,
+            local,
+            iterations,
+            last: Some(e),
+            lambda,
+            capped: true,
+        } => iterate(global, local, e, lambda, iterations, eval, options),
+        done => Some(done),
+    }
+}
+
+/// The iterations of [`solve_into`] from the point `(global, local)`, its evaluation `e`,
+/// the damping `lambda` and the iterations done so far.
+fn iterate<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    mut e: Eval,
+    mut lambda: f64,
+    mut iterations: usize,
+    mut eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    let ng = global.len();
+    let has_locals = !local.is_empty();
+    let (mut g, mut l) = (global, local);
     // The trial's buffer: an accepted trial's evaluation is swapped into `e`.
     let mut trial = Eval::default();
     let mut cost = e.cost();
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
     // The normal equations in flat row-major buffers, made once: `hgg` (G × G), `grad_g`,
     // and per point `hgl` (n × G), `hll`, `grad_l`; each damping's Schur complement `s`
     // and right-hand side `rhs`. Every entry is summed in the same order as the textbook
@@ -356,6 +400,7 @@ where
                             eval,
                             iterations,
                             options.reuse_trial.then_some(trial),
+                            (lambda, false),
                         );
                     }
                     // With `reuse_trial`, the residuals and Jacobian at the accepted
@@ -367,7 +412,8 @@ where
             }
         }
         if !accepted {
-            break;
+            let last = options.reuse_trial.then_some(e);
+            return finish(g, l, eval, iterations, last, (lambda, false));
         }
         if kept {
             std::mem::swap(&mut e, &mut trial);
@@ -376,8 +422,10 @@ where
         }
         cost = e.cost();
     }
+    // The loop's own test stopped it: capped unless the cost reached its floor.
+    let capped = cost > options.cost_floor;
     let last = options.reuse_trial.then_some(e);
-    finish(g, l, eval, iterations, last)
+    finish(g, l, eval, iterations, last, (lambda, capped))
 }
 
 /// The normal equations' buffers (see [`solve_from`]), to be summed from an evaluation.
@@ -689,6 +737,7 @@ fn finish<F>(
     mut eval: F,
     iterations: usize,
     last: Option<Eval>,
+    (lambda, capped): (f64, bool),
 ) -> Option<LmResult>
 where
     F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
@@ -701,6 +750,8 @@ where
         local: l,
         iterations,
         last,
+        lambda,
+        capped,
     })
 }
 
