@@ -12,8 +12,8 @@
 //! or `θ₀ + ω·k`.
 
 use crate::geom::{C64, abs, fit_similarity, mean};
-use crate::kin::{CouplerCurve, PointAt};
-use crate::lm::{Ask, Eval, LmOptions, RunningCost, solve_into};
+use crate::kin::{CouplerCurve, CurveLanes, PointAt};
+use crate::lm::{Ask, Eval, LmOptions, LmResult, RunningCost, resume_into, solve_into};
 use crate::target::{Target, Timing};
 use crate::traced::Traced;
 use coupler_kinematics::POINT_LANES;
@@ -237,58 +237,90 @@ fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L]
 pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
     const M: usize = 24;
     const POLISHED: usize = 10;
+    const BIG: usize = 512;
     let Some(t) = super::geom::resample(p, false, M) else {
         return Vec::new();
     };
     let len = traced.length();
-    let big = 512;
-    let zc = traced.resample_closed(big);
-    // The window of centre `c` and length `f`, centred and scaled to unit norm ([`unit`]'s
-    // values, bit for bit) into `w`; `false` if it is a single point.
-    let window = |c: f64, f: f64, w: &mut [C64; M]| -> bool {
-        let s0 = c - 0.5 * f;
-        for (j, z) in w.iter_mut().enumerate() {
-            let s = frac(s0 + f * j as f64 / (M - 1) as f64) * big as f64;
-            // `s ≥ 0` (or NaN): the cast is `floor`'s.
-            let k = (s as usize).min(big - 1);
-            let u = s - k as f64;
-            let (a, b) = (zc[k], zc[(k + 1) % big]);
+    // The loop's points, the first repeated at the end: sample `k + 1` of sample `k ≤ 511`
+    // is `ring[k + 1]` (the `(k + 1) mod 512`-th), with no remainder and no bounds test.
+    let mut ring = [C64::new(0.0, 0.0); BIG + 1];
+    for (r, z) in ring.iter_mut().zip(traced.resample_closed(BIG)) {
+        *r = z;
+    }
+    ring[BIG] = ring[0];
+    // A window's point offsets from its first point, `f·j/(M − 1)` (the same product and
+    // quotient as in the window's sum), made once per length.
+    let offsets = |f: f64| -> [f64; M] { std::array::from_fn(|j| f * j as f64 / (M - 1) as f64) };
+    // The window of first point `s0 = c − f/2` (centre `c`, length `f`, its offsets `off`),
+    // centred and scaled to unit norm ([`unit`]'s values, bit for bit) into `w`; `false` if
+    // it is a single point. A point's position `s ∈ [0, 512]` (or NaN) splits into its
+    // sample `k = ⌊s⌋` (at most 511; 0 for NaN: what the unsigned cast gave) and fraction.
+    let window = |s0: f64, off: &[f64; M], w: &mut [C64; M]| -> bool {
+        for (z, &o) in w.iter_mut().zip(off) {
+            let s = frac(s0 + o) * BIG as f64;
+            let k = (s as i32).clamp(0, BIG as i32 - 1);
+            let u = s - f64::from(k);
+            let k = k as usize;
+            let (a, b) = (ring[k], ring[k + 1]);
             *z = a + (b - a) * u;
         }
         unit_in_place(w)
     };
     let vars = target_variants(&t, allow_mirror, false);
-    let score = |w: &[C64], v: &[C64]| -> f64 {
-        let mut s = C64::new(0.0, 0.0);
-        for (a, b) in w.iter().zip(v) {
-            s += a.conj() * b;
+    // Each variant's points (`M` of them) as the two lane pairs of `conj(w)·v =
+    // w.re·[v.re, v.im] + w.im·[v.im, −v.re]`: the complex product's own products and sums
+    // (`(−w.im)·v.im` and `w.im·(−v.re)` are exact negations of `w.im·v.im` and
+    // `w.im·v.re`), so the misfit is the same, bit for bit, in two lanes side by side.
+    type Lanes = ([[f64; 2]; M], [[f64; 2]; M]);
+    let lanes: Vec<Lanes> = vars
+        .iter()
+        .map(|(_, _, v)| {
+            (
+                std::array::from_fn(|j| [v[j].re, v[j].im]),
+                std::array::from_fn(|j| [v[j].im, -v[j].re]),
+            )
+        })
+        .collect();
+    // `1 − |Σ conj(w_j)·v_j|²`, summed in order.
+    let score = |w: &[C64; M], v: &Lanes| -> f64 {
+        let mut s = [0.0f64; 2];
+        for ((a, b), c) in w.iter().zip(&v.0).zip(&v.1) {
+            s[0] += a.re * b[0] + a.im * c[0];
+            s[1] += a.re * b[1] + a.im * c[1];
         }
-        1.0 - s.norm_sqr()
+        1.0 - (s[0] * s[0] + s[1] * s[1])
     };
-    let score_at = |c: f64, f: f64, v: &[C64]| -> Option<f64> {
+    let score_at = |c: f64, f: f64, v: &Lanes| -> Option<f64> {
         let mut w = [C64::new(0.0, 0.0); M];
-        window(c, f, &mut w).then(|| score(&w, v))
+        window(c - 0.5 * f, &offsets(f), &mut w).then(|| score(&w, v))
     };
     // Refined local minima along the centres of each length: (misfit, variant, c, f).
     let mut minima: Vec<(f64, usize, f64, f64)> = Vec::new();
-    // One length's windows (`None`: a single point) and one variant's misfits along them.
-    let mut wins: Vec<Option<[C64; M]>> = Vec::new();
+    // One length's windows (`None`: a single point), made in place, and one variant's
+    // misfits along them.
+    let mut wins: Vec<[C64; M]> = Vec::new();
+    let mut whole: Vec<bool> = Vec::new();
     let mut m: Vec<f64> = Vec::new();
     let mut f: f64 = 0.02;
     while f <= 1.0 + 1e-9 {
         let count = ((6.0 / f).ceil() as usize).clamp(12, 192);
         let h = 1.0 / count as f64;
-        wins.clear();
-        wins.extend((0..count).map(|i| {
-            let mut w = [C64::new(0.0, 0.0); M];
-            window(i as f64 * h, f, &mut w).then_some(w)
-        }));
-        for (vi, (_, _, v)) in vars.iter().enumerate() {
+        let off = offsets(f);
+        wins.resize(count, [C64::new(0.0, 0.0); M]);
+        whole.clear();
+        whole.extend(
+            wins.iter_mut()
+                .enumerate()
+                .map(|(i, w)| window(i as f64 * h - 0.5 * f, &off, w)),
+        );
+        for (vi, v) in lanes.iter().enumerate() {
             m.clear();
-            m.extend(
-                wins.iter()
-                    .map(|w| w.as_ref().map_or(f64::INFINITY, |w| score(w, v))),
-            );
+            m.extend(wins.iter().zip(&whole).map(
+                |(w, &ok)| {
+                    if ok { score(w, v) } else { f64::INFINITY }
+                },
+            ));
             for i in 0..count {
                 let (l, r) = (m[(i + count - 1) % count], m[(i + 1) % count]);
                 if !(m[i] <= l && m[i] < r && m[i].is_finite()) {
@@ -337,9 +369,18 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     let tau = arc_fractions(p, false);
     let mut out = Vec::new();
     for (m, vi, c, f) in picked {
-        let (rev, mir, v) = &vars[vi];
+        let (rev, mir, _) = &vars[vi];
+        let v = &lanes[vi];
         let (mut m, mut c, mut f) = (m, c, f);
-        // Pattern search on (c, ln f).
+        // Pattern search on (c, ln f). A trial often lands on a point tried before, bit
+        // for bit (a step back after a move: `(c + dc) − dc` is `c` whenever the sum was
+        // exact): its misfit, a function of `(c, f)` alone, is taken from the last
+        // `RECENT` trials instead of being made again, the same value. A length's offsets
+        // are kept while the length stays (the trials along `c`).
+        const RECENT: usize = 8;
+        let mut recent = [(u64::MAX, u64::MAX, None::<f64>); RECENT];
+        let mut next = 0;
+        let mut kept = (f.to_bits(), offsets(f));
         let mut dc = f / 12.0;
         let mut dl = OPEN_LENGTH_RATIO.ln() / 2.0;
         for _ in 0..60 {
@@ -349,7 +390,19 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
                 if !(f1 > 0.0 && f1 <= 1.0) {
                     continue;
                 }
-                if let Some(m1) = score_at(c1, f1, v) {
+                let key = (c1.to_bits(), f1.to_bits());
+                let tried = recent.iter().find(|r| (r.0, r.1) == key).map(|r| r.2);
+                let got = tried.unwrap_or_else(|| {
+                    if kept.0 != key.1 {
+                        kept = (key.1, offsets(f1));
+                    }
+                    let mut w = [C64::new(0.0, 0.0); M];
+                    let m1 = window(c1 - 0.5 * f1, &kept.1, &mut w).then(|| score(&w, v));
+                    recent[next] = (key.0, key.1, m1);
+                    next = (next + 1) % RECENT;
+                    m1
+                });
+                if let Some(m1) = got {
                     if m1 < m {
                         (m, c, f) = (m1, c1, f1);
                         moved = true;
@@ -459,35 +512,61 @@ fn untimed_residuals(
         e.jl.reserve(p.len());
     }
     let mut cost = RunningCost::new(ask);
-    let zero = C64::new(0.0, 0.0);
-    for (c, chunk) in p.chunks(POINT_LANES).enumerate() {
+    let full = p.chunks_exact(POINT_LANES);
+    let rest = full.remainder();
+    // Whole groups with their length known (the lanes' loop unrolled), then the rest.
+    for (c, chunk) in full.enumerate() {
+        let chunk: &[C64; POINT_LANES] = chunk.try_into().expect("a whole group");
         let points = group(c * POINT_LANES);
-        // The group's values, appended together.
-        let (mut r, mut m, mut jl) = (
-            [zero; POINT_LANES],
-            [zero; POINT_LANES],
-            [zero; POINT_LANES],
-        );
-        for (i, (&pk, at)) in chunk.iter().zip(&points).enumerate() {
-            let at = (*at)?;
-            m[i] = tilde(mir, at.m);
-            r[i] = a * m[i] + b - pk;
-            if !cost.add(r[i]) {
-                return None;
-            }
-            if jac {
-                jl[i] = a * tilde(mir, at.dm_dtheta);
-            }
-        }
-        let n = chunk.len();
-        e.r.extend_from_slice(&r[..n]);
-        if jac {
-            // The rows `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
-            e.sim.extend_from_slice(&m[..n]);
-            e.jl.extend_from_slice(&jl[..n]);
-        }
+        group_residuals(chunk, &points, mir, a, b, jac, &mut cost, e)?;
+    }
+    if !rest.is_empty() {
+        let points = group(p.len() - rest.len());
+        group_residuals(rest, &points, mir, a, b, jac, &mut cost, e)?;
     }
     e.summed = Some(cost.sum());
+    Some(())
+}
+
+/// One group's part of [`untimed_residuals`]: its points' residuals (and with `jac` the
+/// similarity rows' `m` and the angles' derivatives) appended to `e` together, the cost
+/// kept point by point; `None` where a point is `None` or the trial is given up.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn group_residuals(
+    chunk: &[C64],
+    points: &[Option<PointAt>; POINT_LANES],
+    mir: bool,
+    a: C64,
+    b: C64,
+    jac: bool,
+    cost: &mut RunningCost,
+    e: &mut Eval,
+) -> Option<()> {
+    let zero = C64::new(0.0, 0.0);
+    let (mut r, mut m, mut jl) = (
+        [zero; POINT_LANES],
+        [zero; POINT_LANES],
+        [zero; POINT_LANES],
+    );
+    for (i, (&pk, at)) in chunk.iter().zip(points).enumerate() {
+        let at = (*at)?;
+        m[i] = tilde(mir, at.m);
+        r[i] = a * m[i] + b - pk;
+        if !cost.add(r[i]) {
+            return None;
+        }
+        if jac {
+            jl[i] = a * tilde(mir, at.dm_dtheta);
+        }
+    }
+    let n = chunk.len();
+    e.r.extend_from_slice(&r[..n]);
+    if jac {
+        // The rows `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`.
+        e.sim.extend_from_slice(&m[..n]);
+        e.jl.extend_from_slice(&jl[..n]);
+    }
     Some(())
 }
 
@@ -498,6 +577,30 @@ pub(crate) fn fit_untimed(
     start: &Start,
     options: &FitOptions,
 ) -> Option<CurveFit> {
+    fit_untimed_kept(p, curve, start, options)?.fit
+}
+
+/// An untimed fit with what a larger iteration cap needs to continue it
+/// ([`continue_untimed`]).
+pub(crate) struct UntimedFit {
+    /// What [`fit_untimed`] returns.
+    pub fit: Option<CurveFit>,
+    /// Levenberg–Marquardt's result (with its evaluation, its damping and whether the
+    /// cap stopped it).
+    lm: LmResult,
+    mirrored: bool,
+    /// The cap it ran under.
+    cap: usize,
+}
+
+/// [`fit_untimed`], keeping Levenberg–Marquardt's state (`None` where [`fit_untimed`]'s
+/// fit has no start: the start's points or its similarity undefined).
+pub(crate) fn fit_untimed_kept(
+    p: &[C64],
+    curve: &CouplerCurve,
+    start: &Start,
+    options: &FitOptions,
+) -> Option<UntimedFit> {
     let mir = start.mirrored;
     let gaps = curve.gaps();
     let lanes = curve.lanes_with(&gaps);
@@ -505,16 +608,6 @@ pub(crate) fn fit_untimed(
     let at0: Vec<PointAt> = curve.points_with(&gaps, &start.theta)?;
     let m0: Vec<C64> = at0.iter().map(|x| tilde(mir, x.m)).collect();
     let (a, b, _) = fit_similarity(&m0, p)?;
-    // The points a lane group at a time (`POINT_LANES` angles side by side): a trial
-    // given up part-way has evaluated at most a group's worth more.
-    let eval = |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
-        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
-        let last = l.len() - 1;
-        untimed_residuals(p, mir, a, b, ask, e, |k| {
-            let degrees = std::array::from_fn(|i| l[(k + i).min(last)]);
-            lanes.at(&degrees)
-        })
-    };
     let g0 = vec![a.re, a.im, b.re, b.im];
     let mut first = Eval::default();
     untimed_residuals(
@@ -526,12 +619,81 @@ pub(crate) fn fit_untimed(
         &mut first,
         |k| std::array::from_fn(|i| at0.get(k + i).copied()),
     )?;
-    let lm = LmOptions {
+    let lm = untimed_lm(options);
+    let res = solve_into(
+        g0,
+        start.theta.clone(),
+        Some(first),
+        untimed_eval(p, mir, &lanes),
+        &lm,
+    )?;
+    Some(UntimedFit {
+        fit: untimed_report(p, curve, mir, &res),
+        lm: res,
+        mirrored: mir,
+        cap: options.max_iterations,
+    })
+}
+
+/// `fit_untimed(p, curve, start, options)` given `kept`, the same start's
+/// [`fit_untimed_kept`] under a cap no larger than `options.max_iterations` (the options
+/// otherwise alike: an untimed fit reads only the cap): the same fit, bit for bit, for the
+/// iterations `kept` ran are the first ones of the longer run. If its cap stopped it,
+/// Levenberg–Marquardt continues from its state ([`resume_into`]); if anything else did,
+/// the longer run stops there too, and `kept`'s fit is the answer. A larger `kept` cap
+/// fits afresh.
+pub(crate) fn continue_untimed(
+    p: &[C64],
+    curve: &CouplerCurve,
+    start: &Start,
+    kept: UntimedFit,
+    options: &FitOptions,
+) -> Option<CurveFit> {
+    if kept.cap > options.max_iterations {
+        return fit_untimed(p, curve, start, options);
+    }
+    if !kept.lm.capped {
+        return kept.fit;
+    }
+    let lanes = curve.lanes_with(&curve.gaps());
+    let mir = kept.mirrored;
+    let res = resume_into(kept.lm, untimed_eval(p, mir, &lanes), &untimed_lm(options))?;
+    untimed_report(p, curve, mir, &res)
+}
+
+/// Levenberg–Marquardt's options for an untimed fit.
+fn untimed_lm(options: &FitOptions) -> LmOptions {
+    LmOptions {
         max_iterations: options.max_iterations,
         reuse_trial: true,
         ..LmOptions::DEFAULT
-    };
-    let res = solve_into(g0, start.theta.clone(), Some(first), eval, &lm)?;
+    }
+}
+
+/// The untimed fit's evaluation at `(a, b) = g` and the angles `l`: the points a lane
+/// group at a time (`POINT_LANES` angles side by side), so a trial given up part-way has
+/// evaluated at most a group's worth more.
+fn untimed_eval<'a>(
+    p: &'a [C64],
+    mir: bool,
+    lanes: &'a CurveLanes,
+) -> impl FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()> + 'a {
+    move |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
+        let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
+        let last = l.len() - 1;
+        untimed_residuals(p, mir, a, b, ask, e, |k| {
+            // A whole group's angles as they lie; the last group's repeat its last.
+            let degrees = match l.get(k..k + POINT_LANES) {
+                Some(d) => d.try_into().expect("a whole group"),
+                None => std::array::from_fn(|i| l[(k + i).min(last)]),
+            };
+            lanes.at(&degrees)
+        })
+    }
+}
+
+/// The untimed fit's report from Levenberg–Marquardt's result.
+fn untimed_report(p: &[C64], curve: &CouplerCurve, mir: bool, res: &LmResult) -> Option<CurveFit> {
     let theta = unwrap_sequence(res.local.clone(), curve.period_deg());
     // The residuals at the result, where the unwrapped angles are the ones LM evaluated.
     let known = res
@@ -1010,6 +1172,74 @@ mod tests {
         // Both kinds of answer are compared: some fits with reflection allowed are
         // reflected.
         assert!(reflected_best > 0);
+    }
+
+    /// An untimed fit continued from a smaller iteration cap (`continue_untimed`) is the
+    /// fit of one run to the larger cap, bit for bit: open targets of several curves,
+    /// spans, noise and reflections, every start of their window scan, caps from 0 to
+    /// 30 continued to 100, some stopped by the cap and some converged before it; a
+    /// larger kept cap than the final one fits afresh.
+    #[test]
+    fn continued_fit_is_one_fit() {
+        let mut rng = crate::cases::SplitMix64(57);
+        let curves = [
+            curve(),
+            CouplerCurve {
+                linkage: FourBar::new(2.0, 2.5, 2.0).unwrap().into(),
+                circuit: Circuit::Open,
+                point: CouplerPoint::new(3.0, 0.0),
+            },
+            CouplerCurve {
+                linkage: FourBar::new(4.5, 3.0, 3.5).unwrap().into(),
+                circuit: Circuit::Crossed,
+                point: CouplerPoint::new(1.125, -2.25),
+            },
+        ];
+        let bits = |f: &Option<CurveFit>| format!("{f:?}");
+        let (mut capped, mut stopped) = (0, 0);
+        for (ci, c) in curves.iter().enumerate() {
+            for (span, mirrored, noise) in [
+                (120.0, false, 0.01),
+                (240.0, true, 0.0),
+                (90.0, false, 0.03),
+            ] {
+                let t =
+                    crate::cases::make_target(&mut rng, c, false, 40.0, span, 40, mirrored, noise)
+                        .unwrap();
+                let p = t.complex_points();
+                let traced = Traced::new(c, 720).unwrap();
+                for (si, start) in scan_open(&p, &traced, true).iter().enumerate() {
+                    let cap = |max_iterations: usize| FitOptions {
+                        max_iterations,
+                        ..FitOptions::DEFAULT
+                    };
+                    let one = fit_untimed(&p, c, start, &cap(100));
+                    for k in [0, 1, 4, 30] {
+                        let what = format!("curve {ci}, span {span}, start {si}, cap {k}");
+                        let Some(kept) = fit_untimed_kept(&p, c, start, &cap(k)) else {
+                            assert!(one.is_none(), "{what}");
+                            continue;
+                        };
+                        assert_eq!(bits(&kept.fit), bits(&fit_untimed(&p, c, start, &cap(k))));
+                        if kept.lm.capped {
+                            capped += 1;
+                        } else {
+                            stopped += 1;
+                        }
+                        let continued = continue_untimed(&p, c, start, kept, &cap(100));
+                        assert_eq!(bits(&continued), bits(&one), "{what}");
+                    }
+                    let kept = fit_untimed_kept(&p, c, start, &cap(30)).unwrap();
+                    let shorter = continue_untimed(&p, c, start, kept, &cap(8));
+                    assert_eq!(bits(&shorter), bits(&fit_untimed(&p, c, start, &cap(8))));
+                }
+            }
+        }
+        // Both ways of continuing are compared.
+        assert!(
+            capped > 0 && stopped > 0,
+            "{capped} capped, {stopped} stopped"
+        );
     }
 
     /// `best_shifts` in split form gives the shifts and values of the sums of `C64`

@@ -124,6 +124,11 @@ pub(crate) struct LmResult {
     pub iterations: usize,
     /// The evaluation at `(global, local)` (with [`LmOptions::reuse_trial`]; else `None`).
     pub last: Option<Eval>,
+    /// The damping the next iteration would start from.
+    pub lambda: f64,
+    /// Stopped by [`LmOptions::max_iterations`] alone (every other stop is final): with
+    /// `last`, [`resume_into`] continues it.
+    pub capped: bool,
 }
 
 /// Options.
@@ -211,22 +216,61 @@ pub(crate) fn solve_into<F>(
 where
     F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
 {
-    let ng = global.len();
-    let has_locals = !local.is_empty();
-    let (mut g, mut l) = (global, local);
-    let mut e = match first {
+    let e = match first {
         Some(e) => e,
         None => {
             let mut e = Eval::default();
-            eval(&g, &l, Ask::whole(true), &mut e)?;
+            eval(&global, &local, Ask::whole(true), &mut e)?;
             e
         }
     };
+    iterate(global, local, e, 1e-3, 0, eval, options)
+}
+
+/// Continues a fit that [`solve_into`] (or this) stopped at its iteration cap
+/// ([`LmResult::capped`], with its evaluation `last`: [`LmOptions::reuse_trial`]) up to
+/// `options.max_iterations` in all, with the same `eval` and otherwise the same options:
+/// the same iterations, bit for bit, as one run with the larger cap. An iteration reads
+/// only the point, its evaluation, the damping and the count (every buffer is written
+/// before it is read), which the result holds. A result not capped is returned as it is:
+/// a larger cap stops where it stopped.
+pub(crate) fn resume_into<F>(from: LmResult, eval: F, options: &LmOptions) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    match from {
+        LmResult {
+            global,
+            local,
+            iterations,
+            last: Some(e),
+            lambda,
+            capped: true,
+        } => iterate(global, local, e, lambda, iterations, eval, options),
+        done => Some(done),
+    }
+}
+
+/// The iterations of [`solve_into`] from the point `(global, local)`, its evaluation `e`,
+/// the damping `lambda` and the iterations done so far.
+fn iterate<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    mut e: Eval,
+    mut lambda: f64,
+    mut iterations: usize,
+    mut eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    let ng = global.len();
+    let has_locals = !local.is_empty();
+    let (mut g, mut l) = (global, local);
     // The trial's buffer: an accepted trial's evaluation is swapped into `e`.
     let mut trial = Eval::default();
     let mut cost = e.cost();
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
     // The normal equations in flat row-major buffers, made once: `hgg` (G × G), `grad_g`,
     // and per point `hgl` (n × G), `hll`, `grad_l`; each damping's Schur complement `s`
     // and right-hand side `rhs`. Every entry is summed in the same order as the textbook
@@ -262,6 +306,8 @@ where
             grad_l: &mut grad_l,
         };
         match ng {
+            // A finite cost: every residual finite (the similarity rows' `m` are).
+            4 if !e.sim.is_empty() && cost.is_finite() => normal.sum_similarity(&e, has_locals),
             4 if !e.sim.is_empty() => {
                 normal.sum_rows::<4>(e.sim.iter().map(|&m| similarity_row(m)), &e, has_locals)
             }
@@ -309,13 +355,11 @@ where
                 // unrolled (the same sums).
                 let local = |j: usize, t: f64| l[j] + (-t / damped[j]).clamp(-max, max);
                 if let Ok(d) = <[f64; 4]>::try_from(dg.as_slice()) {
-                    l_new.extend(hgl.chunks_exact(4).enumerate().map(|(j, row)| {
-                        let t = grad_l[j]
-                            + row[0] * d[0]
-                            + row[1] * d[1]
-                            + row[2] * d[2]
-                            + row[3] * d[3];
-                        local(j, t)
+                    // The point's values zipped in step (no index, so no bounds test).
+                    let rows = hgl.chunks_exact(4).zip(grad_l.iter().zip(&damped));
+                    l_new.extend(l.iter().zip(rows).map(|(&lj, (row, (&gl, &dj)))| {
+                        let t = gl + row[0] * d[0] + row[1] * d[1] + row[2] * d[2] + row[3] * d[3];
+                        lj + (-t / dj).clamp(-max, max)
                     }));
                 } else {
                     l_new.extend((0..n).map(|j| {
@@ -356,6 +400,7 @@ where
                             eval,
                             iterations,
                             options.reuse_trial.then_some(trial),
+                            (lambda, false),
                         );
                     }
                     // With `reuse_trial`, the residuals and Jacobian at the accepted
@@ -367,7 +412,8 @@ where
             }
         }
         if !accepted {
-            break;
+            let last = options.reuse_trial.then_some(e);
+            return finish(g, l, eval, iterations, last, (lambda, false));
         }
         if kept {
             std::mem::swap(&mut e, &mut trial);
@@ -376,8 +422,10 @@ where
         }
         cost = e.cost();
     }
+    // The loop's own test stopped it: capped unless the cost reached its floor.
+    let capped = cost > options.cost_floor;
     let last = options.reuse_trial.then_some(e);
-    finish(g, l, eval, iterations, last)
+    finish(g, l, eval, iterations, last, (lambda, capped))
 }
 
 /// The normal equations' buffers (see [`solve_from`]), to be summed from an evaluation.
@@ -485,6 +533,78 @@ impl Normal<'_> {
         for p in 0..G {
             for q in 0..G {
                 hgg[p * G + q] = if q < p { m[q][p] } else { m[p][q] };
+            }
+            grad_g[p] = gr[p];
+        }
+    }
+}
+
+impl Normal<'_> {
+    /// [`Normal::sum_rows`] of the similarity rows `[m, i·m, 1, i]` ([`similarity_row`]) of
+    /// `e.sim`, the same values bit for bit when every `m_j` and residual is finite, with
+    /// the rows' constant entries summed as what they are. Each product with a row entry
+    /// `1 = (1, 0)` or `i = (0, 1)` is a component of the other factor plus a zero (`1·x =
+    /// x` exactly; `0·y` is a zero for a finite `y`), and `i·m = (0·m.re − m.im, 0·m.im +
+    /// m.re)` is `(−m.im, m.re)` but for the signs of zeros; a zero's sign changes neither
+    /// a sum with a nonzero term nor a sum that starts from `+0` (the accumulators never
+    /// become `−0`: in round to nearest, `x + y = −0` only when both are `−0`). So, points
+    /// in order from `+0`:
+    ///
+    /// - `hgg[0][0] = Σ |m|²`, and `hgg[1][1]` the same terms (`(−m.im)² + m.re²` is
+    ///   `m.re² + m.im²`: a sum of two terms commutes);
+    /// - `hgg[0][1] = Σ m·(i·m)` (each term `±0` unless it overflows), kept as a sum;
+    /// - `hgg[0][2] = hgg[1][3] = Σ m.re`, `hgg[0][3] = Σ m.im`, and `hgg[1][2] = Σ −m.im`,
+    ///   which is `0 − Σ m.im` (rounding to nearest is symmetric; `0 −` makes a zero `+0`);
+    /// - `hgg[2][2] = hgg[3][3] = Σ 1 = n`, `hgg[2][3] = +0`;
+    /// - `grad_g = (Σ m·r, Σ (i·m)·r, Σ r.re, Σ r.im)`.
+    ///
+    /// The per-point entries (`hgl`, stored, not summed) are made from the rows as
+    /// [`Normal::sum_rows`] makes them. Tested against it (`similarity_sums_by_structure`).
+    fn sum_similarity(self, e: &Eval, has_locals: bool) {
+        let Normal {
+            hgg,
+            grad_g,
+            hgl,
+            hll,
+            grad_l,
+        } = self;
+        let (mut mm, mut mim, mut sre, mut sim, mut ones) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let mut gr = [0.0; 4];
+        let mut points = 0;
+        for (j, (&m, &rj)) in e.sim.iter().zip(&e.r).enumerate() {
+            points += 1;
+            let im = C64::new(-m.im, m.re);
+            mm += dot(m, m);
+            mim += dot(m, im);
+            sre += m.re;
+            sim += m.im;
+            ones += 1.0;
+            gr[0] += dot(m, rj);
+            gr[1] += dot(im, rj);
+            gr[2] += rj.re;
+            gr[3] += rj.im;
+            if has_locals {
+                point_locals(
+                    &similarity_row(m),
+                    e.jl[j],
+                    rj,
+                    &mut hgl[j * 4..(j + 1) * 4],
+                    j,
+                    hll,
+                    grad_l,
+                );
+            }
+        }
+        assert!(!has_locals || points == e.r.len(), "a row per point");
+        let up = [
+            [mm, mim, sre, sim],
+            [0.0, mm, 0.0 - sim, sre],
+            [0.0, 0.0, ones, 0.0],
+            [0.0, 0.0, 0.0, ones],
+        ];
+        for p in 0..4 {
+            for q in 0..4 {
+                hgg[p * 4 + q] = if q < p { up[q][p] } else { up[p][q] };
             }
             grad_g[p] = gr[p];
         }
@@ -617,6 +737,7 @@ fn finish<F>(
     mut eval: F,
     iterations: usize,
     last: Option<Eval>,
+    (lambda, capped): (f64, bool),
 ) -> Option<LmResult>
 where
     F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
@@ -629,6 +750,8 @@ where
         local: l,
         iterations,
         last,
+        lambda,
+        capped,
     })
 }
 
@@ -755,6 +878,70 @@ mod tests {
                     .collect::<Vec<u64>>()
             };
             assert_eq!(sums(&given), sums(&stored), "case {case}");
+        }
+    }
+
+    /// The similarity rows' sums by their structure (`Normal::sum_similarity`) are those
+    /// of the rows made in registers, bit for bit: values of every sign and size, exact
+    /// zeros of either sign among `m`, the residuals and the angles' derivatives, and
+    /// points with `m = 0`.
+    #[test]
+    fn similarity_sums_by_structure() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for case in 0..400 {
+            let n = 1 + case % 70;
+            let mut e = Eval::default();
+            for _ in 0..n {
+                let mut value = || {
+                    let bits = next();
+                    let x = (bits >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0;
+                    match bits % 11 {
+                        0 => 0.0,
+                        1 => -0.0,
+                        2 => x * 1e6,
+                        3 => x * 1e-6,
+                        _ => x * 10.0,
+                    }
+                };
+                let m = C64::new(value(), value());
+                let r = C64::new(value(), value());
+                let jl = C64::new(value(), value());
+                e.sim.push(m);
+                e.r.push(r);
+                e.jl.push(jl);
+            }
+            for has_locals in [true, false] {
+                let sums = |structure: bool| {
+                    let (mut hgg, mut grad_g) = (vec![0.0; 16], vec![0.0; 4]);
+                    let (mut hgl, mut hll, mut grad_l) =
+                        (vec![0.0; 4 * n], vec![0.0; n], vec![0.0; n]);
+                    let normal = Normal {
+                        hgg: &mut hgg,
+                        grad_g: &mut grad_g,
+                        hgl: &mut hgl,
+                        hll: &mut hll,
+                        grad_l: &mut grad_l,
+                    };
+                    if structure {
+                        normal.sum_similarity(&e, has_locals);
+                    } else {
+                        let rows = e.sim.iter().map(|&m| similarity_row(m));
+                        normal.sum_rows::<4>(rows, &e, has_locals);
+                    }
+                    [hgg, grad_g, hgl, hll, grad_l]
+                        .iter()
+                        .flatten()
+                        .map(|x| x.to_bits())
+                        .collect::<Vec<u64>>()
+                };
+                assert_eq!(sums(true), sums(false), "case {case}");
+            }
         }
     }
 

@@ -2,7 +2,10 @@
 //! exact fit of the best candidates, ranked by the exact RMS error.
 
 use crate::code::{ClosedQuery, ShapeCode};
-use crate::fit::{CurveFit, FitOptions, Start, fit_closed_both, fit_timed, fit_untimed, fit_with};
+use crate::fit::{
+    CurveFit, FitOptions, Start, UntimedFit, continue_untimed, fit_closed_both, fit_timed,
+    fit_untimed, fit_untimed_kept, fit_with,
+};
 use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{
     LinkageScreen, OpenQuery, Stage1, keep_each_reflection, linkage_groups, open_candidates,
@@ -463,6 +466,9 @@ pub fn rank_candidates(
         traced: Option<Option<Arc<Traced>>>,
         robust: Option<CurveFit>,
         quick: Option<f64>,
+        // An open candidate's quick fit from its scan start, kept for its final fit to
+        // continue (`continue_untimed`: the same fit as one run to the final cap).
+        scan: Option<UntimedFit>,
     }
     let quick_one = |i: usize| -> Ranked {
         let c = &candidates[i];
@@ -475,16 +481,21 @@ pub fn rank_candidates(
             }
             _ => None,
         };
+        let mut scan = None;
         let f = match &c.start {
-            Some(s) => fit_untimed(&p, &c.curve.curve, s, &quick_of(c)),
+            Some(s) => scan
+                .insert(fit_untimed_kept(&p, &c.curve.curve, s, &quick_of(c)))
+                .as_ref()
+                .and_then(|k| k.fit.as_ref().map(|f| f.rms)),
             None => traced
                 .insert(traced_of(c))
                 .as_ref()
-                .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_of(c))),
+                .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_of(c)))
+                .map(|f| f.rms),
         };
         let quick = match (f, &robust) {
-            (Some(f), Some(r)) => Some(f.rms.min(r.rms)),
-            (Some(f), None) => Some(f.rms),
+            (Some(f), Some(r)) => Some(f.min(r.rms)),
+            (Some(f), None) => Some(f),
             (None, Some(r)) => Some(r.rms),
             (None, None) => None,
         };
@@ -492,6 +503,7 @@ pub fn rank_candidates(
             traced,
             robust,
             quick,
+            scan: scan.flatten(),
         }
     };
     // The units of work: a candidate alone, or a closed curve's two candidates together.
@@ -511,6 +523,7 @@ pub fn rank_candidates(
                     traced: Some(t.clone()),
                     robust: None,
                     quick: f.map(|f| f.rms),
+                    scan: None,
                 };
                 vec![(i, r(f)), (j, r(g))]
             }
@@ -550,6 +563,7 @@ pub fn rank_candidates(
                 traced: ranked[i].traced.take(),
                 robust: ranked[i].robust.take(),
                 quick: ranked[i].quick,
+                scan: ranked[i].scan.take(),
             };
             (i, r)
         })
@@ -582,7 +596,12 @@ pub fn rank_candidates(
                         .as_ref()
                         .and_then(|t| fit_with(target, curve, t, &fit_options)),
                 };
-                let from_scan = fit_untimed(&p, curve, s, &fit_options).and_then(|untimed| {
+                // The quick fit continued to the final cap: the same fit as one run.
+                let untimed = match r.scan.take() {
+                    Some(kept) => continue_untimed(&p, curve, s, kept, &fit_options),
+                    None => fit_untimed(&p, curve, s, &fit_options),
+                };
+                let from_scan = untimed.and_then(|untimed| {
                     if target.timing().is_timed() {
                         let t = match t.take() {
                             Some(t) => t,
