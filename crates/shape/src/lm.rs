@@ -4,7 +4,10 @@
 //! Schur complement): O(n·G²) per iteration for n points and G globals, not O((n+G)³).
 //! Residuals are complex (2-D); Marquardt's scaling by the diagonal makes the step
 //! independent of each parameter's units (Moré, "The Levenberg–Marquardt algorithm:
-//! implementation and theory", 1978). Deterministic: sequential sums in a fixed order.
+//! implementation and theory", 1978). The damping follows the gain ratio of each accepted
+//! step (Nielsen, "Damping parameter in Marquardt's method", IMM-REP-1999-05): it is held
+//! where the linear model predicts the decrease fairly, so few trials are rejected.
+//! Deterministic: sequential sums in a fixed order.
 
 use crate::geom::C64;
 use nalgebra::{DMatrix, DVector, Matrix4, Vector4};
@@ -126,6 +129,8 @@ pub(crate) struct LmResult {
     pub last: Option<Eval>,
     /// The damping the next iteration would start from.
     pub lambda: f64,
+    /// The factor the damping grows by at the next rejected trial.
+    pub nu: f64,
     /// Stopped by [`LmOptions::max_iterations`] alone (every other stop is final): with
     /// `last`, [`resume_into`] continues it.
     pub capped: bool,
@@ -224,7 +229,7 @@ where
             e
         }
     };
-    iterate(global, local, e, 1e-3, 0, eval, options)
+    iterate(global, local, e, (1e-3, 2.0), 0, eval, options)
 }
 
 /// Continues a fit that [`solve_into`] (or this) stopped at its iteration cap
@@ -245,8 +250,9 @@ where
             iterations,
             last: Some(e),
             lambda,
+            nu,
             capped: true,
-        } => iterate(global, local, e, lambda, iterations, eval, options),
+        } => iterate(global, local, e, (lambda, nu), iterations, eval, options),
         done => Some(done),
     }
 }
@@ -257,7 +263,7 @@ fn iterate<F>(
     global: Vec<f64>,
     local: Vec<f64>,
     mut e: Eval,
-    mut lambda: f64,
+    (mut lambda, mut nu): (f64, f64),
     mut iterations: usize,
     mut eval: F,
     options: &LmOptions,
@@ -389,9 +395,32 @@ where
             match new_cost {
                 Some(c) if c.is_finite() && c <= cost => {
                     let decrease = cost - c;
+                    // The decrease the linear model predicts for the step `h = (dg, dl)`:
+                    // `−h·grad + λ·hᵀDh` (the model `|r + J·h|²` with `(H + λD)·h = −grad`;
+                    // only an accepted step's is needed).
+                    let mut predicted = 0.0;
+                    for p in 0..ng {
+                        predicted += -dg[p] * grad_g[p]
+                            + lambda * hgg[p * ng + p].max(1e-300) * dg[p] * dg[p];
+                    }
+                    if has_locals {
+                        for j in 0..n {
+                            let dl = l_new[j] - l[j];
+                            predicted += -dl * grad_l[j] + (damped[j] - hll[j]) * dl * dl;
+                        }
+                    }
                     std::mem::swap(&mut g, &mut g_new);
                     std::mem::swap(&mut l, &mut l_new);
-                    lambda = (lambda / 3.0).max(1e-15);
+                    // Nielsen's rule: the damping follows the gain ratio `ρ` (actual over
+                    // predicted decrease), falling by at most 3 at `ρ = 1`.
+                    let rho = if predicted > 0.0 {
+                        decrease / predicted
+                    } else {
+                        0.0
+                    };
+                    let t = 2.0 * rho - 1.0;
+                    lambda = (lambda * (1.0 - t * t * t).max(1.0 / 3.0)).max(1e-15);
+                    nu = 2.0;
                     accepted = true;
                     if decrease <= options.relative_decrease * cost {
                         return finish(
@@ -400,7 +429,7 @@ where
                             eval,
                             iterations,
                             options.reuse_trial.then_some(trial),
-                            (lambda, false),
+                            (lambda, nu, false),
                         );
                     }
                     // With `reuse_trial`, the residuals and Jacobian at the accepted
@@ -408,12 +437,15 @@ where
                     kept = options.reuse_trial;
                     break;
                 }
-                _ => lambda *= 4.0,
+                _ => {
+                    lambda *= nu;
+                    nu *= 2.0;
+                }
             }
         }
         if !accepted {
             let last = options.reuse_trial.then_some(e);
-            return finish(g, l, eval, iterations, last, (lambda, false));
+            return finish(g, l, eval, iterations, last, (lambda, nu, false));
         }
         if kept {
             std::mem::swap(&mut e, &mut trial);
@@ -425,7 +457,7 @@ where
     // The loop's own test stopped it: capped unless the cost reached its floor.
     let capped = cost > options.cost_floor;
     let last = options.reuse_trial.then_some(e);
-    finish(g, l, eval, iterations, last, (lambda, capped))
+    finish(g, l, eval, iterations, last, (lambda, nu, capped))
 }
 
 /// The normal equations' buffers (see [`solve_from`]), to be summed from an evaluation.
@@ -737,7 +769,7 @@ fn finish<F>(
     mut eval: F,
     iterations: usize,
     last: Option<Eval>,
-    (lambda, capped): (f64, bool),
+    (lambda, nu, capped): (f64, f64, bool),
 ) -> Option<LmResult>
 where
     F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
@@ -751,6 +783,7 @@ where
         iterations,
         last,
         lambda,
+        nu,
         capped,
     })
 }
