@@ -545,7 +545,9 @@ impl Bits {
     /// Its inked words are the first `cnt` of `words.list` (index and value, ascending):
     /// every other whole word is zero. The inked words are coded in order (their sums
     /// added), and the zero words between only lengthen the run of zeros, their sums
-    /// arithmetic.
+    /// arithmetic. (Inlined into [`RowDeflate::up_row`]'s two bodies, so that each is
+    /// compiled with its own instruction set.)
+    #[inline(always)]
     fn coded(
         &mut self,
         f: &Format,
@@ -873,6 +875,37 @@ pub(crate) struct RowDeflate {
     words: RowWords,
     /// The bits of a blank row of `blank.0` bytes (filter type `blank.1`).
     blank: Option<(usize, u8, Vec<u64>, u64)>,
+    /// Whether [`RowDeflate::up_row`] runs its body compiled for AVX2 and BMI
+    /// ([`fast_path`]): found once per stream.
+    fast: bool,
+}
+
+/// Whether the processor runs [`RowDeflate::up_row`]'s body compiled for AVX2, BMI1,
+/// BMI2 and LZCNT (x86-64 only; every processor with AVX2 and BMI2 has the other two,
+/// each checked all the same). The same integer operations either way, so the same
+/// bytes: the features only let the compiler use three-operand shifts by a variable
+/// count (`shlx`, `shrx`: the coder's), `tzcnt`/`lzcnt` (a word's zero bytes) and
+/// VEX-coded vectors.
+fn fast_path() -> bool {
+    #[cfg(test)]
+    if BASELINE.get() {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("bmi1")
+            && std::arch::is_x86_feature_detected!("bmi2")
+            && std::arch::is_x86_feature_detected!("lzcnt")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Set by tests to make the streams started on the thread take the baseline path.
+    static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
 impl RowDeflate {
@@ -906,6 +939,7 @@ impl RowDeflate {
             adler: Adler::new(),
             words: WORDS.take().unwrap_or_default(),
             blank: None,
+            fast: fast_path(),
         }
     }
 
@@ -926,6 +960,9 @@ impl RowDeflate {
     /// row's whole words that meet a marked block (and the first, which holds the filter
     /// byte, and the bytes after the last whole word) are computed, eight bytes at once,
     /// and no filtered row is stored: the words go straight to the coder.
+    ///
+    /// Where the processor has AVX2 and BMI ([`fast_path`]) the same code compiled for
+    /// them runs instead: the same bytes.
     pub(crate) fn up_row(
         &mut self,
         above: &mut [u8],
@@ -933,6 +970,32 @@ impl RowDeflate {
         marks: (&[u64], &[u64]),
         clear: bool,
     ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.fast {
+            // SAFETY: `up_row_avx2` needs AVX2, BMI1, BMI2 and LZCNT, which the processor
+            // was found to have when the stream began (`fast_path`); it has no other
+            // requirement (it is the safe `up_row_body` compiled for them).
+            #[allow(unsafe_code)]
+            unsafe {
+                self.up_row_avx2(above, this, marks, clear)
+            };
+            return;
+        }
+        self.up_row_body(above, this, marks, clear);
+    }
+
+    /// [`RowDeflate::up_row_body`] compiled for AVX2 and BMI (called only where the
+    /// processor has them).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt")]
+    fn up_row_avx2(&mut self, above: &mut [u8], this: &[u8], marks: (&[u64], &[u64]), clear: bool) {
+        self.up_row_body(above, this, marks, clear);
+    }
+
+    /// [`RowDeflate::up_row`] itself, the row filtered and coded; inlined into each of
+    /// its two callers so that each is compiled for its own instruction set.
+    #[inline(always)]
+    fn up_row_body(&mut self, above: &mut [u8], this: &[u8], marks: (&[u64], &[u64]), clear: bool) {
         const UP: u8 = 2;
         let w = this.len();
         assert_eq!(above.len(), w, "rows of one width");
@@ -1630,5 +1693,148 @@ mod tests {
             rows.push(row);
         }
         assert!(z.finish() == reference(&rows), "streams differ");
+    }
+
+    /// A page like the atlas's (11 by 17 inches: cells of four-bar coupler curves in
+    /// black over their grays, frames, pivots and labels).
+    fn atlas_like_page() -> coupler_layout::DisplayList {
+        use coupler_layout::{Anchor, DisplayList, Ink, Primitive};
+        // The coupler point of a crank-rocker (ground 0–(g, 0), crank r1, coupler r2,
+        // rocker r3, point (p, q) on the coupler) at crank angle `t`.
+        let coupler = |[g, r1, r2, r3, p, q]: [f64; 6], t: f64| {
+            let (bx, by) = (r1 * t.cos(), r1 * t.sin());
+            let (dx, dy) = (g - bx, -by);
+            let d = (dx * dx + dy * dy).sqrt();
+            let a = (r2 * r2 - r3 * r3 + d * d) / (2.0 * d);
+            let h = (r2 * r2 - a * a).max(0.0).sqrt();
+            let (ux, uy) = (dx / d, dy / d);
+            let (cx, cy) = (bx + a * ux - h * uy, by + a * uy + h * ux);
+            let (vx, vy) = ((cx - bx) / r2, (cy - by) / r2);
+            [bx + p * vx - q * vy, by + p * vy + q * vx]
+        };
+        let mut dl = DisplayList::new(792.0, 1224.0);
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        for cell in 0..20 {
+            let (x0, y0) = (
+                36.0 + 180.0 * (cell % 4) as f64,
+                36.0 + 230.0 * (cell / 4) as f64,
+            );
+            let rnd = |s: &mut u64| (lcg(s) % 1000) as f64 / 1000.0;
+            let link = [
+                4.0,
+                1.0,
+                3.0 + rnd(&mut seed),
+                3.0 + rnd(&mut seed),
+                1.0 + 2.0 * rnd(&mut seed),
+                2.0 * rnd(&mut seed) - 1.0,
+            ];
+            let curve: Vec<[f64; 2]> = (0..=720)
+                .map(|i| {
+                    let [x, y] = coupler(link, i as f64 * std::f64::consts::PI / 360.0);
+                    [x0 + 80.0 + 18.0 * x, y0 + 110.0 - 18.0 * y]
+                })
+                .collect();
+            dl.items.push(Primitive::Ink(Ink::Black));
+            dl.items.push(Primitive::Rect {
+                rect: [x0, y0, x0 + 170.0, y0 + 220.0],
+                width: 0.5,
+            });
+            dl.items.push(Primitive::Ink(Ink::Gray(150)));
+            dl.items.push(Primitive::Polylines {
+                lines: curve.chunks(40).map(<[[f64; 2]]>::to_vec).collect(),
+                width: 2.0,
+            });
+            dl.items.push(Primitive::Ink(Ink::Black));
+            dl.items.push(Primitive::Polyline {
+                points: curve,
+                width: 0.75,
+            });
+            dl.items.push(Primitive::Circle {
+                center: [x0 + 80.0, y0 + 110.0],
+                radius: 2.0,
+                width: None,
+            });
+            dl.items.push(Primitive::Text {
+                pos: [x0 + 6.0, y0 + 212.0],
+                size: 7.0,
+                anchor: Anchor::Start,
+                text: format!("{cell}: {:.3} {:.3} {:.3}", link[2], link[3], link[4]),
+                halo: 1.2,
+            });
+        }
+        dl
+    }
+
+    /// The page of [`atlas_like_page`] at 300 dpi drawn and encoded as pages are (band
+    /// by band): the PNG of the path the processor takes ([`fast_path`]) and of the
+    /// baseline path are the same bytes, and decode to the page.
+    #[test]
+    fn both_paths_write_the_same_page() {
+        use crate::raster::{PngCompression, RasterPage};
+        let dl = atlas_like_page();
+        let png = |baseline: bool| {
+            BASELINE.set(baseline);
+            let mut page = RasterPage::new(3300, 5100, 300.0).unwrap();
+            let (bytes, _) = page.render_png(&dl, PngCompression::Fast).unwrap();
+            BASELINE.set(false);
+            bytes
+        };
+        let (ours, baseline) = (png(false), png(true));
+        assert!(ours == baseline, "the two paths' pages differ");
+        let mut page = RasterPage::new(3300, 5100, 300.0).unwrap();
+        crate::draw(&dl, &mut page);
+        let mut r = png::Decoder::new(std::io::Cursor::new(&ours[..]))
+            .read_info()
+            .unwrap();
+        let mut buf = vec![0; r.output_buffer_size().unwrap()];
+        r.next_frame(&mut buf).unwrap();
+        assert!(buf == page.to_gray(), "the page decodes to its pixels");
+    }
+
+    /// Lab (not a check): the thread's CPU time (Linux's `schedstat`) to encode the page
+    /// of [`atlas_like_page`] at 300 dpi, the path the processor takes against the
+    /// baseline path, in alternated batches of 100. Run with `cargo test --release -p
+    /// coupler-render up_row_paths_times -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "a measurement, not a check"]
+    fn up_row_paths_times() {
+        use crate::raster::RasterPage;
+        let cpu = || {
+            let s = std::fs::read_to_string("/proc/thread-self/schedstat").expect("schedstat");
+            let ns: f64 = s
+                .split_whitespace()
+                .next()
+                .expect("run time")
+                .parse()
+                .unwrap();
+            ns * 1e-9
+        };
+        let mut page = RasterPage::new(3300, 5100, 300.0).unwrap();
+        crate::draw(&atlas_like_page(), &mut page);
+        let (batches, per) = (30, 100);
+        let mut t = [Vec::new(), Vec::new()];
+        for round in 0..batches {
+            for k in [round % 2, 1 - round % 2] {
+                BASELINE.set(k == 1);
+                let t0 = cpu();
+                for _ in 0..per {
+                    let mut v = Vec::new();
+                    page.finish_png(&mut v).unwrap();
+                }
+                t[k].push((cpu() - t0) / per as f64);
+            }
+        }
+        BASELINE.set(false);
+        println!("fast path taken: {}", fast_path());
+        for (k, t) in t.iter_mut().enumerate() {
+            t.sort_by(f64::total_cmp);
+            println!(
+                "{}: per page min {:.3} ms, quartile {:.3} ms, median {:.3} ms",
+                ["processor's path", "baseline path"][k],
+                1e3 * t[0],
+                1e3 * t[batches / 4],
+                1e3 * t[batches / 2]
+            );
+        }
     }
 }
