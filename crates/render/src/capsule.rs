@@ -156,6 +156,38 @@ pub(crate) struct Target<'a> {
 /// and within `r − ½` (its interior) of the segment ([`intervals`]).
 type Intervals = [Option<(f32, f32)>; 2];
 
+/// Whether the processor has AVX2, BMI1 and BMI2 (checked at run time; the check is
+/// cached by the standard library), for the scan converter's and the gray layer's code
+/// compiled for them ([`Capsules::stroke`]). In this crate's tests, false while a
+/// thread asks for the baseline path (`baseline_only`), to compare the two.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn x86_fast() -> bool {
+    #[cfg(test)]
+    if BASELINE.with(std::cell::Cell::get) {
+        return false;
+    }
+    std::arch::is_x86_feature_detected!("avx2")
+        && std::arch::is_x86_feature_detected!("bmi1")
+        && std::arch::is_x86_feature_detected!("bmi2")
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Whether this thread draws on the baseline path only ([`x86_fast`]).
+    static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` with this thread drawing on the baseline instruction set's path only
+/// (`true`) or as the processor allows (`false`), for tests comparing the two.
+#[cfg(test)]
+pub(crate) fn baseline_only<T>(on: bool, f: impl FnOnce() -> T) -> T {
+    let was = BASELINE.with(|b| b.replace(on));
+    let out = f();
+    BASELINE.with(|b| b.set(was));
+    out
+}
+
 /// Rows of coverage a stroke gathers at once: a segment's rows are made [`RING`] at a
 /// time (its state kept across them), into the row buffers of rows `j .. j + RING`,
 /// row `j` in buffer `j % RING`; row `j` is composited once every segment that reaches
@@ -288,7 +320,38 @@ impl Capsules {
     /// Strokes the segments added so far with half width `r` (pixels) in the target's
     /// ink, and forgets them. Marks what was inked in the target's `dirty` (not for
     /// paper, which only erases).
+    ///
+    /// On x86-64 with AVX2, BMI1 and BMI2 (checked at run time, [`x86_fast`]) the same
+    /// code compiled for them runs instead ([`Capsules::stroke_fast`]): the same IEEE
+    /// f32 and integer operations in the same order (no fused multiply-add), so the
+    /// same bytes, in fewer instructions.
     pub(crate) fn stroke(&mut self, r: f32, t: &mut Target) {
+        #[cfg(target_arch = "x86_64")]
+        if x86_fast() {
+            // SAFETY: `stroke_fast` needs AVX2, BMI1 and BMI2, which the processor was
+            // just found to have; it has no other requirement (it is the safe
+            // `stroke_body` compiled for them).
+            #[allow(unsafe_code)]
+            unsafe {
+                self.stroke_fast(r, t)
+            };
+            return;
+        }
+        self.stroke_body(r, t)
+    }
+
+    /// [`Capsules::stroke_body`] compiled for AVX2, BMI1 and BMI2 (called only where
+    /// the processor has them).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1,bmi2")]
+    fn stroke_fast(&mut self, r: f32, t: &mut Target) {
+        self.stroke_body(r, t)
+    }
+
+    /// The stroke itself ([`Capsules::stroke`]); inlined into each of its two callers
+    /// so that each is compiled for its own instruction set.
+    #[inline(always)]
+    fn stroke_body(&mut self, r: f32, t: &mut Target) {
         let mut segs = std::mem::take(&mut self.segs);
         let reach = r.max(0.0) + 0.5;
         if !(reach.is_finite() && reach > 0.5) || t.width == 0 || t.height == 0 {
@@ -361,7 +424,7 @@ impl Capsules {
     /// Makes segment `s`'s (`k`'s) coverage of rows `[j, end)` (`end − j ≤ RING`) in
     /// their row buffers and notes their spans; in [`Mode::Wide`] leaves their edges in
     /// `edges` (see [`seg_row_fill`]).
-    #[inline]
+    #[inline(always)]
     #[allow(clippy::needless_range_loop)] // a row's lane of four rows' spans
     fn run(&mut self, s: &Seg, k: u32, j: u32, end: u32, r: f32, reach: f32) {
         let w = self.slots[0].row.len() as f32;
@@ -434,7 +497,9 @@ impl Capsules {
     /// multiple of 512 pixels, which changes no pixel's arithmetic), and marks the
     /// blocks in the target's `dirty` (not for paper): the blocks the spans touch, as
     /// marking each span would. Into the gray layer, a tile's noted blocks at once
-    /// ([`GrayLayer::add_blocks`]).
+    /// ([`GrayLayer::add_blocks`]). Inlined into the stroke's and the ring's two
+    /// instruction sets' code ([`Capsules::stroke`]).
+    #[inline(always)]
     fn flush_row(&mut self, j: usize, t: &mut Target) {
         let Slot {
             row: cov, notes, ..
@@ -471,7 +536,28 @@ impl Capsules {
 
     /// Strokes the circle of radius `radius` about `c` (pixels) with half width `r`: a
     /// ring, the distance to the circle being `| |p − c| − radius |`.
+    /// As [`Capsules::stroke`], compiled for AVX2, BMI1 and BMI2 where the processor
+    /// has them ([`Capsules::ring_fast`]).
     pub(crate) fn ring(&mut self, c: [f32; 2], radius: f32, r: f32, t: &mut Target) {
+        #[cfg(target_arch = "x86_64")]
+        if x86_fast() {
+            // SAFETY: `ring_fast` needs AVX2, BMI1 and BMI2, which the processor was just
+            // found to have; it has no other requirement (it is the safe `ring_with`
+            // compiled for them).
+            #[allow(unsafe_code)]
+            unsafe {
+                self.ring_fast(c, radius, r, t)
+            };
+            return;
+        }
+        self.ring_with(c, radius, r, t, ring_span);
+    }
+
+    /// [`Capsules::ring`] compiled for AVX2, BMI1 and BMI2 (called only where the
+    /// processor has them).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1,bmi2")]
+    fn ring_fast(&mut self, c: [f32; 2], radius: f32, r: f32, t: &mut Target) {
         self.ring_with(c, radius, r, t, ring_span);
     }
 
@@ -822,7 +908,7 @@ impl Lanes4 {
 /// all the same). Each bound is clamped to `[−1, w + 1]` before it is made a whole
 /// number, which changes no span clamped to `[0, w]` after, and keeps every lane
 /// finite (`±∞` where a row has no interval) and below 2^23 for the lanes' truncation.
-#[inline]
+#[inline(always)]
 fn wide_spans4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32, w: f32) -> [[u32; 4]; 4] {
     let [(lo, hi), (ilo, ihi)] = intervals4_lanes(s, cy, reach, inner);
     let half = f32x4::splat(0.5);
@@ -861,7 +947,7 @@ fn wide_spans4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32, w: f32) -> [[u32; 
 /// Gathers segment `s`'s coverage of the row whose centre is at `cy` into `row`
 /// (maximum), and gives the pixel span it reached: pixels within `r − ½` of the segment
 /// are covered whole, only those on its edges are measured (four at a time).
-#[inline]
+#[inline(always)]
 fn seg_row(s: &Seg, cy: f32, r: f32, reach: f32, row: &mut [u8]) -> Option<(u32, u32)> {
     let [outer, inner] = intervals(s, cy, reach, r - 0.5);
     let (a, b) = outer?;
@@ -948,7 +1034,7 @@ fn pixel_spans(v: [f32; 4], o: [f32; 4], w: f32) -> [usize; 4] {
 /// [`seg_row`] in [`Mode::Wide`], its second half: measures the edges the segments left
 /// ([`seg_row_fill`]) but their ends that lie in pixels already covered whole (255, by
 /// any segment's interior: the maximum is 255 whatever the edge's coverage there).
-#[inline]
+#[inline(always)]
 fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: &mut [u8]) {
     for &(k, from, to) in edges {
         let (mut from, mut to) = (from as usize, to as usize);
@@ -997,7 +1083,7 @@ fn lanes_span(s: &Seg, cy: f32, reach: f32, w: f32) -> Option<(usize, usize)> {
 /// span's `− reach` turns into `−reach`. Every bound lies within `8192 + 4` pixels of 0
 /// (the segment's coordinates are below [`MODEST`], its reach below 4), so below 2^23
 /// for the lanes' floor; rows of 2^22 pixels or more are made one row at a time.
-#[inline]
+#[inline(always)]
 fn lanes_spans4(s: &Seg, cy: [f32; 4], reach: f32, w: f32) -> [[u32; 4]; 2] {
     if w >= 4_194_304.0 {
         let mut out = [[0; 4]; 2];
@@ -1098,7 +1184,7 @@ impl Edge {
     /// no lane is NaN, and `min`, `max`, the clamps and the conversion to an integer are
     /// made without their NaN cases, the same values. Else (coordinates of any size,
     /// whose products may be infinite and NaN) as `f32`'s, NaN included.
-    #[inline]
+    #[inline(always)]
     fn measure<const FINITE: bool>(
         &self,
         row: &mut [u8],
@@ -1199,6 +1285,7 @@ impl Edge {
 /// Composites coverage `cov` of `ink` over `dst` and clears `cov`: `composite` of
 /// `raster.rs` pixel by pixel, black and paper eight pixels at a time in 16-bit lanes
 /// (`(255·x + 32512) / 65025` is `(x + 127) / 255` for black, see `composite_row`).
+#[inline(always)]
 fn composite_span(dst: &mut [u8], cov: &mut [u8], ink: Ink) {
     let n = dst.len().min(cov.len());
     let (dst, cov) = (&mut dst[..n], &mut cov[..n]);
@@ -1928,8 +2015,22 @@ mod tests {
     /// leaving mid-band, rows clipped), one stroke after another with the same scratch,
     /// on pages narrower and wider than a word of the block map; segments of a row or a
     /// few and of many runs of [`RING`] rows, entering while others are mid-run.
+    ///
+    /// On the instruction set the processor allows (AVX2, BMI1 and BMI2 where it has
+    /// them, [`x86_fast`]).
     #[test]
     fn strokes_match_the_reference_row_loop() {
+        baseline_only(false, strokes_match_reference);
+    }
+
+    /// [`strokes_match_the_reference_row_loop`] on the baseline instruction set's path:
+    /// both paths are the reference's bytes and blocks, so each other's.
+    #[test]
+    fn strokes_on_the_baseline_path_match_the_reference_row_loop() {
+        baseline_only(true, strokes_match_reference);
+    }
+
+    fn strokes_match_reference() {
         let mut rand = unit_floats(0x5851_f42d_4c95_7f2du64);
         let (mut wide, mut thin, mut crowded, mut long) = (0, 0, 0, 0);
         // One scratch for every stroke, as a page's (nothing of a stroke may be left for

@@ -102,7 +102,7 @@ impl GrayLayer {
     /// its last. The blocks between two runs of one tile are merged too: `row` holds 0
     /// there (the caller's promise), which leaves the layer as it is (`l + (127 / 255)`
     /// is `l`), and the tile row's span is the runs' hull either way.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn add_blocks(&mut self, j: usize, w: usize, mut bits: u64, row: &mut [u8]) {
         let width = self.width.min(row.len());
         if j >= self.height {
@@ -179,10 +179,39 @@ impl GrayLayer {
     /// the layer. Marks nothing: the pixels were marked in the page's dirty map when
     /// they were added ([`GrayLayer::add_span`]), and the map is not reset while the
     /// layer holds coverage.
+    ///
+    /// Compiled for AVX2, BMI1 and BMI2 too and run so where the processor has them
+    /// (as [`crate::capsule::Capsules::stroke`]; the same bytes).
     pub(crate) fn flush(&mut self, page: &mut [u8], first: usize) {
         if self.used == 0 {
             return;
         }
+        #[cfg(target_arch = "x86_64")]
+        if crate::capsule::x86_fast() {
+            // SAFETY: `flush_fast` needs AVX2, BMI1 and BMI2, which the processor was
+            // just found to have; it has no other requirement (it is the safe
+            // `flush_body` compiled for them).
+            #[allow(unsafe_code)]
+            unsafe {
+                self.flush_fast(page, first)
+            };
+            return;
+        }
+        self.flush_body(page, first)
+    }
+
+    /// [`GrayLayer::flush_body`] compiled for AVX2, BMI1 and BMI2 (called only where
+    /// the processor has them).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,bmi1,bmi2")]
+    fn flush_fast(&mut self, page: &mut [u8], first: usize) {
+        self.flush_body(page, first)
+    }
+
+    /// [`GrayLayer::flush`] itself; inlined into each of its two callers so that each
+    /// is compiled for its own instruction set.
+    #[inline(always)]
+    fn flush_body(&mut self, page: &mut [u8], first: usize) {
         let g = self.level;
         for tile in &mut self.tiles[..self.used] {
             let at = tile.at as usize;

@@ -1632,6 +1632,31 @@ mod tests {
         }
     }
 
+    /// The scan converter and the gray layer compiled for AVX2, BMI1 and BMI2 (where the
+    /// processor has them) draw a page of every kind of primitive as their baseline
+    /// instruction set's code does, byte for byte: the ink, and the PNG.
+    #[test]
+    fn both_instruction_sets_draw_the_same_page() {
+        let dl = sample();
+        for dpi in [72.0, 150.0, 300.0, 600.0] {
+            let k = dpi / 72.0;
+            let (w, h) = ((300.0 * k) as u32, (200.0 * k) as u32);
+            let [(fast_ink, fast_png), (base_ink, base_png)] = [false, true].map(|baseline| {
+                crate::capsule::baseline_only(baseline, || {
+                    let mut page = RasterPage::new(w, h, dpi).unwrap();
+                    draw(&dl, &mut page);
+                    let ink = page.ink().to_vec();
+                    let mut png = Vec::new();
+                    page.finish_png(&mut png).unwrap();
+                    (ink, png)
+                })
+            });
+            assert!(fast_ink.iter().any(|&v| v != 0), "dpi {dpi}");
+            assert!(fast_ink == base_ink, "dpi {dpi}");
+            assert!(fast_png == base_png, "dpi {dpi}");
+        }
+    }
+
     /// The image data of a PNG: its IDAT chunks' bytes, in order.
     fn idat(png: &[u8]) -> Vec<u8> {
         let (mut at, mut data) = (8, Vec::new());
