@@ -1072,6 +1072,23 @@ mod tests {
         }
     }
 
+    /// [`curve`] and two curves of other shapes (one of them on the crossed circuit).
+    fn three_curves() -> [CouplerCurve; 3] {
+        [
+            curve(),
+            CouplerCurve {
+                linkage: FourBar::new(2.0, 2.5, 2.0).unwrap().into(),
+                circuit: Circuit::Open,
+                point: CouplerPoint::new(3.0, 0.0),
+            },
+            CouplerCurve {
+                linkage: FourBar::new(4.5, 3.0, 3.5).unwrap().into(),
+                circuit: Circuit::Crossed,
+                point: CouplerPoint::new(1.125, -2.25),
+            },
+        ]
+    }
+
     /// Points of `c` at the angles, placed by `p = a·M̃ + b`.
     fn placed(c: &CouplerCurve, angles: &[f64], a: C64, b: C64, mirrored: bool) -> Vec<[f64; 2]> {
         angles
@@ -1117,19 +1134,7 @@ mod tests {
     #[test]
     fn fit_closed_both_is_two_fits() {
         let mut rng = crate::cases::SplitMix64(31);
-        let curves = [
-            curve(),
-            CouplerCurve {
-                linkage: FourBar::new(2.0, 2.5, 2.0).unwrap().into(),
-                circuit: Circuit::Open,
-                point: CouplerPoint::new(3.0, 0.0),
-            },
-            CouplerCurve {
-                linkage: FourBar::new(4.5, 3.0, 3.5).unwrap().into(),
-                circuit: Circuit::Crossed,
-                point: CouplerPoint::new(1.125, -2.25),
-            },
-        ];
+        let curves = three_curves();
         let bits = |f: &Option<CurveFit>| format!("{f:?}");
         let mut reflected_best = 0;
         for (ci, c) in curves.iter().enumerate() {
@@ -1182,19 +1187,7 @@ mod tests {
     #[test]
     fn continued_fit_is_one_fit() {
         let mut rng = crate::cases::SplitMix64(57);
-        let curves = [
-            curve(),
-            CouplerCurve {
-                linkage: FourBar::new(2.0, 2.5, 2.0).unwrap().into(),
-                circuit: Circuit::Open,
-                point: CouplerPoint::new(3.0, 0.0),
-            },
-            CouplerCurve {
-                linkage: FourBar::new(4.5, 3.0, 3.5).unwrap().into(),
-                circuit: Circuit::Crossed,
-                point: CouplerPoint::new(1.125, -2.25),
-            },
-        ];
+        let curves = three_curves();
         let bits = |f: &Option<CurveFit>| format!("{f:?}");
         let (mut capped, mut stopped) = (0, 0);
         for (ci, c) in curves.iter().enumerate() {
