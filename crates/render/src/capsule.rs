@@ -156,38 +156,6 @@ pub(crate) struct Target<'a> {
 /// and within `r − ½` (its interior) of the segment ([`intervals`]).
 type Intervals = [Option<(f32, f32)>; 2];
 
-/// Whether the processor has AVX2, BMI1 and BMI2 (checked at run time; the check is
-/// cached by the standard library), for the scan converter's and the gray layer's code
-/// compiled for them ([`Capsules::stroke`]). In this crate's tests, false while a
-/// thread asks for the baseline path (`baseline_only`), to compare the two.
-#[cfg(target_arch = "x86_64")]
-#[inline]
-pub(crate) fn x86_fast() -> bool {
-    #[cfg(test)]
-    if BASELINE.with(std::cell::Cell::get) {
-        return false;
-    }
-    std::arch::is_x86_feature_detected!("avx2")
-        && std::arch::is_x86_feature_detected!("bmi1")
-        && std::arch::is_x86_feature_detected!("bmi2")
-}
-
-#[cfg(test)]
-thread_local! {
-    /// Whether this thread draws on the baseline path only ([`x86_fast`]).
-    static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-/// Runs `f` with this thread drawing on the baseline instruction set's path only
-/// (`true`) or as the processor allows (`false`), for tests comparing the two.
-#[cfg(test)]
-pub(crate) fn baseline_only<T>(on: bool, f: impl FnOnce() -> T) -> T {
-    let was = BASELINE.with(|b| b.replace(on));
-    let out = f();
-    BASELINE.with(|b| b.set(was));
-    out
-}
-
 /// Rows of coverage a stroke gathers at once: a segment's rows are made [`RING`] at a
 /// time (its state kept across them), into the row buffers of rows `j .. j + RING`,
 /// row `j` in buffer `j % RING`; row `j` is composited once every segment that reaches
@@ -321,13 +289,13 @@ impl Capsules {
     /// ink, and forgets them. Marks what was inked in the target's `dirty` (not for
     /// paper, which only erases).
     ///
-    /// On x86-64 with AVX2, BMI1 and BMI2 (checked at run time, [`x86_fast`]) the same
+    /// On x86-64 with AVX2, BMI1 and BMI2 (checked at run time, [`x86_fast`](crate::cpu::x86_fast)) the same
     /// code compiled for them runs instead ([`Capsules::stroke_fast`]): the same IEEE
     /// f32 and integer operations in the same order (no fused multiply-add), so the
     /// same bytes, in fewer instructions.
     pub(crate) fn stroke(&mut self, r: f32, t: &mut Target) {
         #[cfg(target_arch = "x86_64")]
-        if x86_fast() {
+        if crate::cpu::x86_fast() {
             // SAFETY: `stroke_fast` needs AVX2, BMI1 and BMI2, which the processor was
             // just found to have; it has no other requirement (it is the safe
             // `stroke_body` compiled for them).
@@ -540,7 +508,7 @@ impl Capsules {
     /// has them ([`Capsules::ring_fast`]).
     pub(crate) fn ring(&mut self, c: [f32; 2], radius: f32, r: f32, t: &mut Target) {
         #[cfg(target_arch = "x86_64")]
-        if x86_fast() {
+        if crate::cpu::x86_fast() {
             // SAFETY: `ring_fast` needs AVX2, BMI1 and BMI2, which the processor was just
             // found to have; it has no other requirement (it is the safe `ring_with`
             // compiled for them).
@@ -2017,17 +1985,17 @@ mod tests {
     /// few and of many runs of [`RING`] rows, entering while others are mid-run.
     ///
     /// On the instruction set the processor allows (AVX2, BMI1 and BMI2 where it has
-    /// them, [`x86_fast`]).
+    /// them, [`x86_fast`](crate::cpu::x86_fast)).
     #[test]
     fn strokes_match_the_reference_row_loop() {
-        baseline_only(false, strokes_match_reference);
+        crate::cpu::baseline_only(false, strokes_match_reference);
     }
 
     /// [`strokes_match_the_reference_row_loop`] on the baseline instruction set's path:
     /// both paths are the reference's bytes and blocks, so each other's.
     #[test]
     fn strokes_on_the_baseline_path_match_the_reference_row_loop() {
-        baseline_only(true, strokes_match_reference);
+        crate::cpu::baseline_only(true, strokes_match_reference);
     }
 
     fn strokes_match_reference() {

@@ -187,7 +187,7 @@ impl GrayLayer {
             return;
         }
         #[cfg(target_arch = "x86_64")]
-        if crate::capsule::x86_fast() {
+        if crate::cpu::x86_fast() {
             // SAFETY: `flush_fast` needs AVX2, BMI1 and BMI2, which the processor was
             // just found to have; it has no other requirement (it is the safe
             // `flush_body` compiled for them).

@@ -13,6 +13,7 @@
 //!   the page looks the same without the font installed).
 
 mod capsule;
+mod cpu;
 mod diff;
 mod dirty;
 mod layer;

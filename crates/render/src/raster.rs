@@ -1642,7 +1642,7 @@ mod tests {
             let k = dpi / 72.0;
             let (w, h) = ((300.0 * k) as u32, (200.0 * k) as u32);
             let [(fast_ink, fast_png), (base_ink, base_png)] = [false, true].map(|baseline| {
-                crate::capsule::baseline_only(baseline, || {
+                crate::cpu::baseline_only(baseline, || {
                     let mut page = RasterPage::new(w, h, dpi).unwrap();
                     draw(&dl, &mut page);
                     let ink = page.ink().to_vec();

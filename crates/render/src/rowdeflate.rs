@@ -875,37 +875,12 @@ pub(crate) struct RowDeflate {
     words: RowWords,
     /// The bits of a blank row of `blank.0` bytes (filter type `blank.1`).
     blank: Option<(usize, u8, Vec<u64>, u64)>,
-    /// Whether [`RowDeflate::up_row`] runs its body compiled for AVX2 and BMI
-    /// ([`fast_path`]): found once per stream.
+    /// Whether [`RowDeflate::up_row`] runs its body compiled for AVX2, BMI1, BMI2 and
+    /// LZCNT ([`x86_fast`](crate::cpu::x86_fast)): found once per stream. The same
+    /// integer operations either way, so the same bytes: the features only let the
+    /// compiler use three-operand shifts by a variable count (`shlx`, `shrx`: the
+    /// coder's), `tzcnt`/`lzcnt` (a word's zero bytes) and VEX-coded vectors.
     fast: bool,
-}
-
-/// Whether the processor runs [`RowDeflate::up_row`]'s body compiled for AVX2, BMI1,
-/// BMI2 and LZCNT (x86-64 only; every processor with AVX2 and BMI2 has the other two,
-/// each checked all the same). The same integer operations either way, so the same
-/// bytes: the features only let the compiler use three-operand shifts by a variable
-/// count (`shlx`, `shrx`: the coder's), `tzcnt`/`lzcnt` (a word's zero bytes) and
-/// VEX-coded vectors.
-fn fast_path() -> bool {
-    #[cfg(test)]
-    if BASELINE.get() {
-        return false;
-    }
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-            && std::arch::is_x86_feature_detected!("bmi1")
-            && std::arch::is_x86_feature_detected!("bmi2")
-            && std::arch::is_x86_feature_detected!("lzcnt")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    false
-}
-
-#[cfg(test)]
-thread_local! {
-    /// Set by tests to make the streams started on the thread take the baseline path.
-    static BASELINE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
 impl RowDeflate {
@@ -939,7 +914,7 @@ impl RowDeflate {
             adler: Adler::new(),
             words: WORDS.take().unwrap_or_default(),
             blank: None,
-            fast: fast_path(),
+            fast: crate::cpu::x86_fast(),
         }
     }
 
@@ -961,7 +936,7 @@ impl RowDeflate {
     /// byte, and the bytes after the last whole word) are computed, eight bytes at once,
     /// and no filtered row is stored: the words go straight to the coder.
     ///
-    /// Where the processor has AVX2 and BMI ([`fast_path`]) the same code compiled for
+    /// Where the processor has AVX2 and BMI ([`x86_fast`](crate::cpu::x86_fast)) the same code compiled for
     /// them runs instead: the same bytes.
     pub(crate) fn up_row(
         &mut self,
@@ -973,7 +948,7 @@ impl RowDeflate {
         #[cfg(target_arch = "x86_64")]
         if self.fast {
             // SAFETY: `up_row_avx2` needs AVX2, BMI1, BMI2 and LZCNT, which the processor
-            // was found to have when the stream began (`fast_path`); it has no other
+            // was found to have when the stream began (`x86_fast`); it has no other
             // requirement (it is the safe `up_row_body` compiled for them).
             #[allow(unsafe_code)]
             unsafe {
@@ -1766,18 +1741,18 @@ mod tests {
     }
 
     /// The page of [`atlas_like_page`] at 300 dpi drawn and encoded as pages are (band
-    /// by band): the PNG of the path the processor takes ([`fast_path`]) and of the
+    /// by band): the PNG of the path the processor takes ([`x86_fast`](crate::cpu::x86_fast)) and of the
     /// baseline path are the same bytes, and decode to the page.
     #[test]
     fn both_paths_write_the_same_page() {
         use crate::raster::{PngCompression, RasterPage};
         let dl = atlas_like_page();
         let png = |baseline: bool| {
-            BASELINE.set(baseline);
-            let mut page = RasterPage::new(3300, 5100, 300.0).unwrap();
-            let (bytes, _) = page.render_png(&dl, PngCompression::Fast).unwrap();
-            BASELINE.set(false);
-            bytes
+            crate::cpu::baseline_only(baseline, || {
+                let mut page = RasterPage::new(3300, 5100, 300.0).unwrap();
+                let (bytes, _) = page.render_png(&dl, PngCompression::Fast).unwrap();
+                bytes
+            })
         };
         let (ours, baseline) = (png(false), png(true));
         assert!(ours == baseline, "the two paths' pages differ");
@@ -1815,17 +1790,17 @@ mod tests {
         let mut t = [Vec::new(), Vec::new()];
         for round in 0..batches {
             for k in [round % 2, 1 - round % 2] {
-                BASELINE.set(k == 1);
                 let t0 = cpu();
-                for _ in 0..per {
-                    let mut v = Vec::new();
-                    page.finish_png(&mut v).unwrap();
-                }
+                crate::cpu::baseline_only(k == 1, || {
+                    for _ in 0..per {
+                        let mut v = Vec::new();
+                        page.finish_png(&mut v).unwrap();
+                    }
+                });
                 t[k].push((cpu() - t0) / per as f64);
             }
         }
-        BASELINE.set(false);
-        println!("fast path taken: {}", fast_path());
+        println!("fast path taken: {}", crate::cpu::x86_fast());
         for (k, t) in t.iter_mut().enumerate() {
             t.sort_by(f64::total_cmp);
             println!(
