@@ -1114,8 +1114,7 @@ impl OpenQuery {
                 Layout::Angles { .. } => 3.0,
                 _ => (span / 16.0).max(3.0),
             };
-            let count = (period / h).ceil() as usize;
-            let h = period / count as f64;
+            let (count, h) = even_starts(period, h);
             for sense in [1.0, -1.0] {
                 // `θ_j = start + σ·Δ·x_j` as `thetas` gives it, the products made once.
                 for (o, &x) in offsets.iter_mut().zip(&self.x) {
@@ -1679,8 +1678,7 @@ impl LinkageScreen {
                 Layout::Angles { .. } => 6.0,
                 _ => (span / 8.0).max(5.0),
             };
-            let count = (period / h).ceil() as usize;
-            let h = period / count as f64;
+            let (count, h) = even_starts(period, h);
             for sense in [1.0, -1.0] {
                 for i in 0..count {
                     let s = Sums::of(
@@ -2017,6 +2015,13 @@ pub(crate) fn open_stage2(
     // candidates: those a query without it proposes, and as many reflected).
     keep_each_reflection(&mut out, keep, |c| c.start.mirrored);
     out
+}
+
+/// Starts about `h` degrees apart over a `period`: the step made to divide the period
+/// evenly, and how many starts it gives (`(count, step)`).
+fn even_starts(period: f64, h: f64) -> (usize, f64) {
+    let count = (period / h).ceil() as usize;
+    (count, period / count as f64)
 }
 
 #[cfg(test)]
