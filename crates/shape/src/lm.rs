@@ -569,9 +569,7 @@ impl Normal<'_> {
             grad_g[p] = gr[p];
         }
     }
-}
 
-impl Normal<'_> {
     /// [`Normal::sum_rows`] of the similarity rows `[m, i·m, 1, i]` ([`similarity_row`]) of
     /// `e.sim`, the same values bit for bit when every `m_j` and residual is finite, with
     /// the rows' constant entries summed as what they are. Each product with a row entry
@@ -600,7 +598,7 @@ impl Normal<'_> {
             hll,
             grad_l,
         } = self;
-        let (mut mm, mut mim, mut sre, mut sim, mut ones) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut mm, mut mim, mut sre, mut sim) = (0.0, 0.0, 0.0, 0.0);
         let mut gr = [0.0; 4];
         let mut points = 0;
         for (j, (&m, &rj)) in e.sim.iter().zip(&e.r).enumerate() {
@@ -610,7 +608,6 @@ impl Normal<'_> {
             mim += dot(m, im);
             sre += m.re;
             sim += m.im;
-            ones += 1.0;
             gr[0] += dot(m, rj);
             gr[1] += dot(im, rj);
             gr[2] += rj.re;
@@ -628,6 +625,8 @@ impl Normal<'_> {
             }
         }
         assert!(!has_locals || points == e.r.len(), "a row per point");
+        // `Σ 1` over the points: exact (a count far below 2⁵³).
+        let ones = points as f64;
         let up = [
             [mm, mim, sre, sim],
             [0.0, mm, 0.0 - sim, sre],
