@@ -958,7 +958,7 @@ fn seg_row_fill(
     let i0 = j0.clamp(x0, x1);
     let i1 = j1.clamp(i0, x1);
     if i0 < i1 {
-        row[i0..i1].fill(255);
+        fill_255(&mut row[i0..i1]);
     }
     for (from, to) in [(x0, i0), (i1, x1)] {
         if from < to {
@@ -966,6 +966,36 @@ fn seg_row_fill(
         }
     }
     Some((x0 as u32, x1 as u32))
+}
+
+/// `span.fill(255)` without a call for a span of up to 32 pixels (a wide segment's
+/// interior on a row, most often a few pixels): two stores of a fixed size that may
+/// overlap, or each pixel of one of three or fewer.
+#[inline(always)]
+fn fill_255(span: &mut [u8]) {
+    let n = span.len();
+    match n {
+        0 => {}
+        1..=3 => {
+            // Pixels 0, n / 2 and n − 1: every pixel of a span of one to three.
+            span[0] = 255;
+            span[n / 2] = 255;
+            span[n - 1] = 255;
+        }
+        4..=7 => {
+            span[..4].copy_from_slice(&[255; 4]);
+            span[n - 4..].copy_from_slice(&[255; 4]);
+        }
+        8..=16 => {
+            span[..8].copy_from_slice(&[255; 8]);
+            span[n - 8..].copy_from_slice(&[255; 8]);
+        }
+        17..=32 => {
+            span[..16].copy_from_slice(&[255; 16]);
+            span[n - 16..].copy_from_slice(&[255; 16]);
+        }
+        _ => span.fill(255),
+    }
 }
 
 /// Two pixel spans at once, as [`seg_row`] makes them from intervals `[a, b]` and
@@ -1678,6 +1708,21 @@ mod tests {
         // Thinner than a pixel: its width, wherever the pixel holds it whole.
         assert_eq!(coverage(0.0, 0.25), 128);
         assert_eq!(coverage(0.2, 0.25), 128);
+    }
+
+    /// `fill_255` sets every pixel of its span and no other, whatever the span's length
+    /// and place in the row (the lengths of each of its ways and past them).
+    #[test]
+    fn fill_255_fills_its_span_only() {
+        for n in 0..=40 {
+            for at in 0..4 {
+                let mut row: Vec<u8> = (0..50).map(|i| (i * 7 % 251) as u8).collect();
+                let mut want = row.clone();
+                want[at..at + n].fill(255);
+                fill_255(&mut row[at..at + n]);
+                assert_eq!(row, want, "{n} pixels from {at}");
+            }
+        }
     }
 
     /// A horizontal stroke's ink per column is its width, and a long slanted one's ink
