@@ -84,13 +84,33 @@ impl Dirty {
     /// Marks in row `j` the blocks whose bits are set in `bits`, the row's words from
     /// word `w0` on (block `b` is bit `b % 64` of word `b / 64`, as in [`Dirty`]'s own
     /// rows; a block past the row's width is not marked).
-    #[inline]
+    ///
+    /// One word not the row's last (most of a stroke's rows) is marked in the caller's
+    /// code; the others in a call ([`Dirty::mark_words`]).
+    #[inline(always)]
     pub(crate) fn mark_blocks(&mut self, j: usize, w0: usize, bits: &[u64]) {
+        if let [b] = *bits
+            && j < self.height
+            && w0 + 1 < self.words
+        {
+            self.bits[j * self.words + w0] |= b;
+            if b != 0 {
+                self.lo = self.lo.min(j);
+                self.hi = self.hi.max(j + 1);
+            }
+            return;
+        }
+        self.mark_words(j, w0, bits);
+    }
+
+    /// [`Dirty::mark_blocks`] for any number of words.
+    #[inline(never)]
+    fn mark_words(&mut self, j: usize, w0: usize, bits: &[u64]) {
         if j >= self.height || w0 >= self.words {
             return;
         }
         if let [b] = *bits {
-            // One word (most of a stroke's rows): that word alone.
+            // One word: that word alone.
             let b = if w0 + 1 == self.words {
                 b & self.tail
             } else {
