@@ -160,9 +160,10 @@ type Intervals = [Option<(f32, f32)>; 2];
 /// time (its state kept across them), into the row buffers of rows `j .. j + RING`,
 /// row `j` in buffer `j % RING`; row `j` is composited once every segment that reaches
 /// it has been made there.
-const RING: usize = 16;
+const RING: usize = 32;
 
-/// Scratch of the scan converter, reused from stroke to stroke (some ten kilobytes).
+/// Scratch of the scan converter, reused from stroke to stroke ([`RING`] rows of the
+/// page's width: about a hundred kilobytes for a tabloid page at 300 dpi).
 #[derive(Default)]
 pub(crate) struct Capsules {
     segs: Vec<Seg>,
