@@ -36,8 +36,15 @@ pub fn cis_deg(deg: f64) -> C64 {
 /// The cumulative arc length of a polyline: `out[0] = 0`, `out[k] = out[k−1] + |z_k − z_{k−1}|`;
 /// for a closed polyline one more entry holds the length back to the first point.
 pub fn cumulative_length(z: &[C64], closed: bool) -> Vec<f64> {
+    let mut out = Vec::with_capacity(z.len() + 1);
+    cumulative_length_into(z, closed, &mut out);
+    out
+}
+
+/// [`cumulative_length`] into `out` (its earlier contents replaced).
+fn cumulative_length_into(z: &[C64], closed: bool, out: &mut Vec<f64>) {
     let n = z.len();
-    let mut out = Vec::with_capacity(n + 1);
+    out.clear();
     let mut s = 0.0;
     out.push(0.0);
     for k in 1..n {
@@ -48,13 +55,13 @@ pub fn cumulative_length(z: &[C64], closed: bool) -> Vec<f64> {
         s += abs(z[0] - z[n - 1]);
         out.push(s);
     }
-    out
 }
 
 /// The point at arc length `s` along a polyline with cumulative lengths `cum` (from
 /// [`cumulative_length`]), by linear interpolation; `hint` is a segment index to start the
 /// search from (returned updated, so that increasing `s` costs O(1) amortised). For a
 /// closed polyline `cum` has one more entry than `z` and the last segment returns to z₀.
+#[inline]
 pub fn point_at(z: &[C64], cum: &[f64], s: f64, hint: &mut usize) -> C64 {
     let segs = cum.len() - 1;
     let mut k = (*hint).min(segs.saturating_sub(1));
@@ -66,7 +73,9 @@ pub fn point_at(z: &[C64], cum: &[f64], s: f64, hint: &mut usize) -> C64 {
     }
     *hint = k;
     let a = z[k];
-    let b = z[(k + 1) % z.len()];
+    // `(k + 1) mod n`, without a division where it is `k + 1`.
+    let n = z.len();
+    let b = z[if k + 1 < n { k + 1 } else { (k + 1) % n }];
     let len = cum[k + 1] - cum[k];
     if len <= 0.0 {
         return a;
@@ -79,21 +88,34 @@ pub fn point_at(z: &[C64], cum: &[f64], s: f64, hint: &mut usize) -> C64 {
 /// `j = 0 .. m−1` (the last point is not a repeat of the first); open: `s_j = j·L/(m−1)`,
 /// both ends included. `None` for fewer than two points, `m < 2`, or zero length.
 pub fn resample(z: &[C64], closed: bool, m: usize) -> Option<Vec<C64>> {
+    let mut out = Vec::with_capacity(m);
+    resample_into(z, closed, m, &mut Vec::new(), &mut out).then_some(out)
+}
+
+/// [`resample`] into `out` (its earlier contents replaced), with `cum` as room for the
+/// cumulative lengths: false (and `out` unspecified) where `resample` gives `None`.
+pub(crate) fn resample_into(
+    z: &[C64],
+    closed: bool,
+    m: usize,
+    cum: &mut Vec<f64>,
+    out: &mut Vec<C64>,
+) -> bool {
     if z.len() < 2 || m < 2 {
-        return None;
+        return false;
     }
-    let cum = cumulative_length(z, closed);
-    let total = *cum.last()?;
+    cumulative_length_into(z, closed, cum);
+    let Some(&total) = cum.last() else {
+        return false;
+    };
     if !(total > 0.0 && total.is_finite()) {
-        return None;
+        return false;
     }
     let denom = if closed { m as f64 } else { (m - 1) as f64 };
     let mut hint = 0;
-    Some(
-        (0..m)
-            .map(|j| point_at(z, &cum, total * (j as f64 / denom), &mut hint))
-            .collect(),
-    )
+    out.clear();
+    out.extend((0..m).map(|j| point_at(z, cum, total * (j as f64 / denom), &mut hint)));
+    true
 }
 
 /// The mean of the points.

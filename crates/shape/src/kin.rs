@@ -5,8 +5,8 @@
 
 use crate::geom::C64;
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankAngle, CrankTable, FourBar, GearedFiveBar, GearedGaps, Linkage,
-    Mechanism, POINT_LANES, PointLanes, Pose, ToggleGaps,
+    Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, FourBar, GearedFiveBar, GearedGaps,
+    Linkage, Mechanism, POINT_LANES, PointLanes, Pose, PoseTable, ToggleGaps,
 };
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -358,15 +358,35 @@ impl CouplerCurve {
     /// The curve sampled at `n` input angles `k·P/n`, `k = 0..n`, over its period `P`
     /// ([`CouplerCurve::period_deg`]); `None` unless it assembles at all of them.
     pub fn sample(&self, n: usize) -> Option<Vec<C64>> {
-        let period = self.period_deg();
-        let table = crank_table(period / n as f64, period)?;
-        let poses = self.linkage.pose_table(self.circuit, &table);
-        if !poses.all_valid() {
-            return None;
-        }
-        let c = poses.trace(self.point);
-        Some((0..c.len()).map(|k| C64::new(c.x[k], c.y[k])).collect())
+        let poses = sample_poses(&self.linkage, self.circuit, n)?;
+        let mut c = Curve::default();
+        let mut z = Vec::new();
+        trace_points(&poses, self.point, &mut c, &mut z);
+        Some(z)
     }
+}
+
+/// The poses [`CouplerCurve::sample`] traces: `linkage` on `circuit` at `n` input angles
+/// `k·P/n` over its period `P`; `None` unless it assembles at all of them. They depend on
+/// the linkage alone, so the curves of every coupler point of it share them.
+pub(crate) fn sample_poses(linkage: &Linkage, circuit: Circuit, n: usize) -> Option<PoseTable> {
+    let period = linkage.period_deg();
+    let table = crank_table(period / n as f64, period)?;
+    let poses = linkage.pose_table(circuit, &table);
+    poses.all_valid().then_some(poses)
+}
+
+/// The points of `point`'s curve at the angles of `poses`, into `z` (its earlier contents
+/// replaced); `c` is room for the trace, kept between calls.
+pub(crate) fn trace_points(
+    poses: &PoseTable,
+    point: CouplerPoint,
+    c: &mut Curve,
+    z: &mut Vec<C64>,
+) {
+    poses.trace_into(point, c);
+    z.clear();
+    z.extend(c.x.iter().zip(&c.y).map(|(&x, &y)| C64::new(x, y)));
 }
 
 /// `CrankTable::over(step, period)`, the table of the last `(step, period)` asked on this
