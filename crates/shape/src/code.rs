@@ -12,7 +12,7 @@
 
 use crate::geom::{C64, abs, arg, cis, cis_deg, resample, resample_into};
 use crate::kin::{CouplerCurve, sample_poses, trace_points};
-use coupler_kinematics::{Circuit, CouplerPoint, Curve, Linkage, PoseTable};
+use coupler_kinematics::{Circuit, CouplerPoint, Linkage, PoseTable};
 use std::sync::OnceLock;
 
 /// Harmonics kept, `k = −H..H` without 0.
@@ -92,7 +92,6 @@ impl ShapeCode {
 /// Room for the steps of a code, kept from one curve to the next.
 #[derive(Default)]
 struct Coder {
-    trace: Curve,
     points: Vec<C64>,
     cum: Vec<f64>,
     even: Vec<C64>,
@@ -102,7 +101,7 @@ impl Coder {
     /// The code of `point`'s curve traced at `poses` (from [`sample_poses`] with `TRACE`
     /// angles): the steps of [`ShapeCode::of_curve`].
     fn code(&mut self, poses: &PoseTable, point: CouplerPoint) -> Option<ShapeCode> {
-        trace_points(poses, point, &mut self.trace, &mut self.points);
+        trace_points(poses, point, &mut self.points);
         if !resample_into(&self.points, true, SAMPLES, &mut self.cum, &mut self.even) {
             return None;
         }

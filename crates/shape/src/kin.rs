@@ -5,8 +5,8 @@
 
 use crate::geom::C64;
 use coupler_kinematics::{
-    Circuit, CouplerPoint, CrankAngle, CrankTable, Curve, FourBar, GearedFiveBar, GearedGaps,
-    Linkage, Mechanism, POINT_LANES, PointLanes, Pose, PoseTable, ToggleGaps,
+    Circuit, CouplerPoint, CrankAngle, CrankTable, FourBar, GearedFiveBar, GearedGaps, Linkage,
+    Mechanism, POINT_LANES, PointLanes, Pose, PoseTable, ToggleGaps,
 };
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -359,9 +359,8 @@ impl CouplerCurve {
     /// ([`CouplerCurve::period_deg`]); `None` unless it assembles at all of them.
     pub fn sample(&self, n: usize) -> Option<Vec<C64>> {
         let poses = sample_poses(&self.linkage, self.circuit, n)?;
-        let mut c = Curve::default();
         let mut z = Vec::new();
-        trace_points(&poses, self.point, &mut c, &mut z);
+        trace_points(&poses, self.point, &mut z);
         Some(z)
     }
 }
@@ -376,17 +375,11 @@ pub(crate) fn sample_poses(linkage: &Linkage, circuit: Circuit, n: usize) -> Opt
     poses.all_valid().then_some(poses)
 }
 
-/// The points of `point`'s curve at the angles of `poses`, into `z` (its earlier contents
-/// replaced); `c` is room for the trace, kept between calls.
-pub(crate) fn trace_points(
-    poses: &PoseTable,
-    point: CouplerPoint,
-    c: &mut Curve,
-    z: &mut Vec<C64>,
-) {
-    poses.trace_into(point, c);
+/// The points of `point`'s curve at the angles of `poses` (the trace's positions), into
+/// `z` (its earlier contents replaced).
+pub(crate) fn trace_points(poses: &PoseTable, point: CouplerPoint, z: &mut Vec<C64>) {
     z.clear();
-    z.extend(c.x.iter().zip(&c.y).map(|(&x, &y)| C64::new(x, y)));
+    z.extend(poses.positions(point).map(|(x, y)| C64::new(x, y)));
 }
 
 /// `CrankTable::over(step, period)`, the table of the last `(step, period)` asked on this
