@@ -41,19 +41,21 @@ pub fn cumulative_length(z: &[C64], closed: bool) -> Vec<f64> {
     out
 }
 
-/// [`cumulative_length`] into `out` (its earlier contents replaced).
+/// [`cumulative_length`] into `out` (its earlier contents replaced): the steps' lengths
+/// first (independent of each other: the compiler vectorises them), then their running
+/// sum, in order (the same additions).
 fn cumulative_length_into(z: &[C64], closed: bool, out: &mut Vec<f64>) {
     let n = z.len();
     out.clear();
-    let mut s = 0.0;
     out.push(0.0);
-    for k in 1..n {
-        s += abs(z[k] - z[k - 1]);
-        out.push(s);
-    }
+    out.extend(z.iter().skip(1).zip(z).map(|(&b, &a)| abs(b - a)));
     if closed && n > 0 {
-        s += abs(z[0] - z[n - 1]);
-        out.push(s);
+        out.push(abs(z[0] - z[n - 1]));
+    }
+    let mut s = 0.0;
+    for v in &mut out[1..] {
+        s += *v;
+        *v = s;
     }
 }
 
@@ -61,7 +63,8 @@ fn cumulative_length_into(z: &[C64], closed: bool, out: &mut Vec<f64>) {
 /// [`cumulative_length`]), by linear interpolation; `hint` is a segment index to start the
 /// search from (returned updated, so that increasing `s` costs O(1) amortised). For a
 /// closed polyline `cum` has one more entry than `z` and the last segment returns to z₀.
-#[inline]
+/// ([`resample`] does the same in its own loop; this is its reference in the tests.)
+#[cfg(test)]
 pub fn point_at(z: &[C64], cum: &[f64], s: f64, hint: &mut usize) -> C64 {
     let segs = cum.len() - 1;
     let mut k = (*hint).min(segs.saturating_sub(1));
@@ -73,9 +76,7 @@ pub fn point_at(z: &[C64], cum: &[f64], s: f64, hint: &mut usize) -> C64 {
     }
     *hint = k;
     let a = z[k];
-    // `(k + 1) mod n`, without a division where it is `k + 1`.
-    let n = z.len();
-    let b = z[if k + 1 < n { k + 1 } else { (k + 1) % n }];
+    let b = z[(k + 1) % z.len()];
     let len = cum[k + 1] - cum[k];
     if len <= 0.0 {
         return a;
@@ -112,9 +113,33 @@ pub(crate) fn resample_into(
         return false;
     }
     let denom = if closed { m as f64 } else { (m - 1) as f64 };
-    let mut hint = 0;
+    // [`point_at`] at `s_j = total · (j / denom)`, its search and interpolation in one loop
+    // (the same operations): `k` is its hint, never past the last segment (`segs − 1`).
+    let (n, segs) = (z.len(), cum.len() - 1);
+    let mut k = 0;
+    // `j` as a float counted up by ones: exact (j < 2⁵³), the same as `j as f64`.
+    let mut jf = 0.0;
     out.clear();
-    out.extend((0..m).map(|j| point_at(z, cum, total * (j as f64 / denom), &mut hint)));
+    out.reserve(m);
+    for _ in 0..m {
+        let s = total * (jf / denom);
+        jf += 1.0;
+        while k + 1 < segs && cum[k + 1] < s {
+            k += 1;
+        }
+        while k > 0 && cum[k] > s {
+            k -= 1;
+        }
+        let a = z[k];
+        let len = cum[k + 1] - cum[k];
+        out.push(if len <= 0.0 {
+            a
+        } else {
+            let b = z[if k + 1 < n { k + 1 } else { (k + 1) % n }];
+            let t = ((s - cum[k]) / len).clamp(0.0, 1.0);
+            a + (b - a) * t
+        });
+    }
     true
 }
 
@@ -200,6 +225,37 @@ pub fn fit_similarity(z: &[C64], w: &[C64]) -> Option<(C64, C64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn resample_is_point_at_by_point_at() {
+        // `resample`'s one loop against `point_at` called at each arc length, bit for bit,
+        // on open and closed random polylines (some with repeated points: zero-length steps).
+        let mut rng = crate::cases::SplitMix64(23);
+        for n in [2, 3, 7, 40, 720] {
+            let mut z: Vec<C64> = (0..n)
+                .map(|_| C64::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)))
+                .collect();
+            if n > 3 {
+                z[2] = z[1];
+            }
+            for closed in [false, true] {
+                for m in [2, 5, 256, 1000] {
+                    let got = resample(&z, closed, m).unwrap();
+                    let cum = cumulative_length(&z, closed);
+                    let total = *cum.last().unwrap();
+                    let denom = if closed { m as f64 } else { (m - 1) as f64 };
+                    let mut hint = 0;
+                    let want: Vec<C64> = (0..m)
+                        .map(|j| point_at(&z, &cum, total * (j as f64 / denom), &mut hint))
+                        .collect();
+                    let bits = |v: &[C64]| -> Vec<(u64, u64)> {
+                        v.iter().map(|c| (c.re.to_bits(), c.im.to_bits())).collect()
+                    };
+                    assert_eq!(bits(&got), bits(&want), "{n} points, closed {closed}, {m}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn resample_square() {
