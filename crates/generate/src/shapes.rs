@@ -38,9 +38,11 @@ pub(crate) fn unit_records(
         });
     }
     let mut out = Vec::with_capacity(g.points.len() * kind.record_bytes());
-    for &point in &g.points {
+    // The unit's curves share its linkage's poses: solved once for all of them.
+    let codes = ShapeCode::of_points(&g.linkage, g.circuit, &g.points);
+    for (&point, code) in g.points.iter().zip(&codes) {
         let c = CouplerCurve::new(g.linkage, g.circuit, point);
-        encode_record(&mut out, &c, ShapeCode::of_curve(&c).as_ref());
+        encode_record(&mut out, &c, code.as_ref());
     }
     Ok(out)
 }

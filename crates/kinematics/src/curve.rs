@@ -264,6 +264,25 @@ impl PoseTable {
         }
     }
 
+    /// The positions alone of [`PoseTable::trace_into`]'s trace, angle by angle: `(x, y)`
+    /// of `M = Pa + d`, the same operations, so the same values (for a use that needs no
+    /// velocity).
+    pub fn positions(&self, p: CouplerPoint) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let n = self.len();
+        let (u, v) = (p.u, p.v);
+        let (pa_x, pa_y, e_x, e_y) = (
+            &self.pa_x[..n],
+            &self.pa_y[..n],
+            &self.e_x[..n],
+            &self.e_y[..n],
+        );
+        (0..n).map(move |k| {
+            let dx = u * e_x[k] - v * e_y[k];
+            let dy = u * e_y[k] + v * e_x[k];
+            (pa_x[k] + dx, pa_y[k] + dy)
+        })
+    }
+
     /// Traces one coupler point into a new [`Curve`].
     pub fn trace(&self, p: CouplerPoint) -> Curve {
         let mut c = Curve::default();
@@ -371,6 +390,38 @@ mod tests {
             let v = pose.velocity(p);
             assert!((c.x[k] - m.x).abs() < 1e-15 && (c.y[k] - m.y).abs() < 1e-15);
             assert!((c.vx[k] - v.x).abs() < 1e-14 && (c.vy[k] - v.y).abs() < 1e-14);
+        }
+    }
+
+    /// The positions alone are the trace's, bit for bit, on either mechanism's table.
+    #[test]
+    fn positions_are_the_traces() {
+        let four = FourBar::new(3.0, 2.5, 3.5).unwrap();
+        let geared = crate::GearedFiveBar::new(
+            3.0,
+            3.2,
+            3.5,
+            1.2,
+            crate::GearRatio::integer(-2).unwrap(),
+            40.0,
+        )
+        .unwrap();
+        let table = CrankTable::new(7.5).unwrap();
+        for poses in [
+            PoseTable::new(&four, Circuit::Crossed, &table),
+            crate::Mechanism::pose_table(&geared, Circuit::Open, &table),
+        ] {
+            for p in [CouplerPoint::new(1.5, 2.0), CouplerPoint::new(-0.3, 0.7)] {
+                let c = poses.trace(p);
+                let got: Vec<(u64, u64)> = poses
+                    .positions(p)
+                    .map(|(x, y)| (x.to_bits(), y.to_bits()))
+                    .collect();
+                let want: Vec<(u64, u64)> = (0..c.len())
+                    .map(|k| (c.x[k].to_bits(), c.y[k].to_bits()))
+                    .collect();
+                assert_eq!(got, want);
+            }
         }
     }
 

@@ -10,8 +10,10 @@
 //! The `four-bar` crate's atlas uses the same descriptors (Chang, Chang & Lee, IFToMM WC
 //! 2023).
 
-use crate::geom::{C64, abs, arg, cis, cis_deg, resample};
-use crate::kin::CouplerCurve;
+use crate::geom::{C64, abs, arg, cis, cis_deg, resample, resample_into};
+use crate::kin::{CouplerCurve, sample_poses, trace_points};
+use coupler_kinematics::{Circuit, CouplerPoint, Linkage, PoseTable};
+use std::sync::OnceLock;
 
 /// Harmonics kept, `k = −H..H` without 0.
 pub const HARMONICS: usize = 6;
@@ -67,29 +69,137 @@ impl ShapeCode {
     /// The code of an atlas curve, from its exact trace; `None` if it does not assemble
     /// all round or has no length.
     pub fn of_curve(curve: &CouplerCurve) -> Option<ShapeCode> {
-        let z = curve.sample(TRACE)?;
-        let r = resample(&z, true, SAMPLES)?;
-        let n = normalized(&fourier(&r))?;
-        Some(quantize(&canonical(&n)?[0]))
+        let poses = sample_poses(&curve.linkage, curve.circuit, TRACE)?;
+        Coder::default().code(&poses, curve.point)
+    }
+
+    /// The codes of the curves of `points` on `circuit` of `linkage`, in order: each the
+    /// [`ShapeCode::of_curve`] of its curve, the same values, with the poses (a function
+    /// of the linkage alone) solved once for all of them.
+    pub fn of_points(
+        linkage: &Linkage,
+        circuit: Circuit,
+        points: &[CouplerPoint],
+    ) -> Vec<Option<ShapeCode>> {
+        let Some(poses) = sample_poses(linkage, circuit, TRACE) else {
+            return vec![None; points.len()];
+        };
+        let mut coder = Coder::default();
+        points.iter().map(|&p| coder.code(&poses, p)).collect()
+    }
+}
+
+/// Room for the steps of a code, kept from one curve to the next.
+#[derive(Default)]
+struct Coder {
+    points: Vec<C64>,
+    cum: Vec<f64>,
+    even: Vec<C64>,
+}
+
+impl Coder {
+    /// The code of `point`'s curve traced at `poses` (from [`sample_poses`] with `TRACE`
+    /// angles): the steps of [`ShapeCode::of_curve`].
+    fn code(&mut self, poses: &PoseTable, point: CouplerPoint) -> Option<ShapeCode> {
+        trace_points(poses, point, &mut self.points);
+        if !resample_into(&self.points, true, SAMPLES, &mut self.cum, &mut self.even) {
+            return None;
+        }
+        let n = normalized(&fourier_terms(&self.even))?;
+        Some(quantize(&canonical_first(&n)?))
+    }
+}
+
+/// Harmonics `k = −H..H`, zero included.
+const TERMS: usize = 2 * HARMONICS + 1;
+/// [`TERMS`] rounded up to a whole number of four-lane vectors: the lanes of the DFT's
+/// sums (the last ones unused).
+const LANES: usize = TERMS.div_ceil(4) * 4;
+
+/// The DFT's factors for `m` points: row `j` holds `e^{−2πi·kj/m}`, `k = −H..H`, as the
+/// `m` roots of unity `cis_deg(360°·i/m)`, `i = (−kj) mod m`, real and imaginary parts
+/// apart (the lanes past [`TERMS`] 0).
+struct Factors {
+    re: Vec<[f64; LANES]>,
+    im: Vec<[f64; LANES]>,
+}
+
+impl Factors {
+    fn new(m: usize) -> Factors {
+        let roots: Vec<C64> = (0..m)
+            .map(|j| cis_deg(360.0 * j as f64 / m as f64))
+            .collect();
+        let mut re = vec![[0.0; LANES]; m];
+        let mut im = vec![[0.0; LANES]; m];
+        for j in 0..m {
+            for (t, k) in (-(HARMONICS as i64)..=(HARMONICS as i64)).enumerate() {
+                let r = roots[(-k * j as i64).rem_euclid(m as i64) as usize];
+                re[j][t] = r.re;
+                im[j][t] = r.im;
+            }
+        }
+        Factors { re, im }
     }
 }
 
 /// `Z_k`, `k = −H..H`, of points evenly spaced in the parameter (a DFT; the transcendentals
 /// from exact degree reduction, so deterministic).
 pub(crate) fn fourier(z: &[C64]) -> Vec<C64> {
-    let m = z.len() as i64;
-    let roots: Vec<C64> = (0..m)
-        .map(|j| cis_deg(360.0 * j as f64 / m as f64))
-        .collect();
-    (-(HARMONICS as i64)..=(HARMONICS as i64))
-        .map(|k| {
-            let mut s = C64::new(0.0, 0.0);
-            for (j, &p) in z.iter().enumerate() {
-                s += p * roots[(-k * j as i64).rem_euclid(m) as usize];
-            }
-            s / m as f64
-        })
-        .collect()
+    fourier_terms(z).to_vec()
+}
+
+/// [`fourier`] as an array: each `Z_k` the sum over `j` in order of `z_j` times its
+/// factor, divided by `m`. Every harmonic's sum is taken side by side in a lane of its
+/// own, each in the order and with the operations of a sum of complex products (the same
+/// values as one harmonic at a time); the factors of [`SAMPLES`] points made once.
+fn fourier_terms(z: &[C64]) -> [C64; TERMS] {
+    static SAMPLED: OnceLock<Factors> = OnceLock::new();
+    let m = z.len();
+    let made;
+    let f = if m == SAMPLES {
+        SAMPLED.get_or_init(|| Factors::new(SAMPLES))
+    } else {
+        made = Factors::new(m);
+        &made
+    };
+    let (re, im) = fourier_sums(z, f);
+    std::array::from_fn(|t| C64::new(re[t], im[t]) / m as f64)
+}
+
+/// The DFT's sums, [`fourier_sums_body`]: on x86-64 with AVX2 (checked at run time) the
+/// same code compiled for AVX2 (four lanes a vector), the same operations in the same
+/// order, so the same values bit for bit.
+fn fourier_sums(z: &[C64], f: &Factors) -> ([f64; LANES], [f64; LANES]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: `fourier_sums_avx2` needs AVX2, which the processor was just found to
+        // have; it has no other requirement (the safe body compiled for AVX2).
+        #[allow(unsafe_code)]
+        return unsafe { fourier_sums_avx2(z, f) };
+    }
+    fourier_sums_body(z, f)
+}
+
+/// [`fourier_sums_body`] compiled for AVX2 (called only where the processor has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn fourier_sums_avx2(z: &[C64], f: &Factors) -> ([f64; LANES], [f64; LANES]) {
+    fourier_sums_body(z, f)
+}
+
+/// `Σ_j z_j·w_jk` for every lane `k`, in order of `j`: real parts, imaginary parts.
+#[inline(always)]
+fn fourier_sums_body(z: &[C64], f: &Factors) -> ([f64; LANES], [f64; LANES]) {
+    let mut re = [0.0; LANES];
+    let mut im = [0.0; LANES];
+    for ((p, wr), wi) in z.iter().zip(&f.re).zip(&f.im) {
+        for t in 0..LANES {
+            // `s += p · w` of complex numbers: (a·c − b·d) + i(a·d + b·c).
+            re[t] += p.re * wr[t] - p.im * wi[t];
+            im[t] += p.re * wi[t] + p.im * wr[t];
+        }
+    }
+    (re, im)
 }
 
 /// Drops `Z_0` and scales to unit norm; `None` for a curve with no extent.
@@ -103,20 +213,34 @@ pub(crate) fn normalized(z: &[C64]) -> Option<Vec<C64>> {
 /// The two Kuhl–Giardina normalisations: `Z_k · e^{i(α + kβ)}` with `Z_1`, `Z_{−1}` real
 /// positive, and the same with `(α + π, β + π)`.
 pub(crate) fn canonical(z: &[C64]) -> Option<[Vec<C64>; 2]> {
-    let h = HARMONICS as f64;
+    let (beta, alpha) = start_and_turn(z)?;
+    let pi = std::f64::consts::PI;
+    Some([turned(z, beta, alpha), turned(z, beta + pi, alpha - pi)])
+}
+
+/// The first of [`canonical`]'s two normalisations alone (the same values).
+fn canonical_first(z: &[C64]) -> Option<Vec<C64>> {
+    let (beta, alpha) = start_and_turn(z)?;
+    Some(turned(z, beta, alpha))
+}
+
+/// `(β, α)` of [`canonical`]'s first normalisation; `None` if `Z_1 = Z_{−1} = 0`.
+fn start_and_turn(z: &[C64]) -> Option<(f64, f64)> {
     let (z1, zm1) = (z[HARMONICS + 1], z[HARMONICS - 1]);
     if abs(z1) == 0.0 && abs(zm1) == 0.0 {
         return None;
     }
     let beta = 0.5 * (arg(zm1) - arg(z1));
     let alpha = -arg(z1) - beta;
-    let make = |b: f64, a: f64| -> Vec<C64> {
-        (0..z.len())
-            .map(|i| z[i] * cis(a + (i as f64 - h) * b))
-            .collect()
-    };
-    let pi = std::f64::consts::PI;
-    Some([make(beta, alpha), make(beta + pi, alpha - pi)])
+    Some((beta, alpha))
+}
+
+/// `Z_k · e^{i(a + kb)}`.
+fn turned(z: &[C64], b: f64, a: f64) -> Vec<C64> {
+    let h = HARMONICS as f64;
+    (0..z.len())
+        .map(|i| z[i] * cis(a + (i as f64 - h) * b))
+        .collect()
 }
 
 /// Packs `Z_k`, `k ≠ 0`, as (re, im) pairs in order of `k`.
@@ -260,7 +384,105 @@ impl ClosedQuery {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use coupler_kinematics::{Circuit, CouplerPoint, FourBar};
+    use coupler_kinematics::{FourBar, GearRatio, GearedFiveBar};
+
+    /// The DFT one harmonic at a time, as a sum of complex products with a root of unity
+    /// looked up per term: the definition [`fourier`] keeps, bit for bit.
+    fn fourier_by_harmonic(z: &[C64]) -> Vec<C64> {
+        let m = z.len() as i64;
+        let roots: Vec<C64> = (0..m)
+            .map(|j| cis_deg(360.0 * j as f64 / m as f64))
+            .collect();
+        (-(HARMONICS as i64)..=(HARMONICS as i64))
+            .map(|k| {
+                let mut s = C64::new(0.0, 0.0);
+                for (j, &p) in z.iter().enumerate() {
+                    s += p * roots[(-k * j as i64).rem_euclid(m) as usize];
+                }
+                s / m as f64
+            })
+            .collect()
+    }
+
+    /// The harmonics' sums side by side (with the run-time choice of instruction set, and
+    /// the plain body alone) are the sums one harmonic at a time, bit for bit, for the
+    /// sampled count of points (factors made once) and others (made per call).
+    #[test]
+    fn fourier_is_the_sum_by_harmonic() {
+        let mut rng = crate::cases::SplitMix64(5);
+        let bits = |v: &[C64]| -> Vec<(u64, u64)> {
+            v.iter().map(|c| (c.re.to_bits(), c.im.to_bits())).collect()
+        };
+        for m in [SAMPLES, SAMPLES, 72, 100, 257, 3] {
+            let z: Vec<C64> = (0..m)
+                .map(|_| C64::new(rng.normal(), rng.range(-5.0, 5.0)))
+                .collect();
+            let want = bits(&fourier_by_harmonic(&z));
+            assert_eq!(bits(&fourier(&z)), want, "{m} points");
+            let f = Factors::new(m);
+            let (re, im) = fourier_sums_body(&z, &f);
+            let plain: Vec<C64> = (0..TERMS)
+                .map(|t| C64::new(re[t], im[t]) / m as f64)
+                .collect();
+            assert_eq!(bits(&plain), want, "{m} points, plain body");
+        }
+    }
+
+    /// A curve's code step by step from the crate's public pieces, the DFT one harmonic at
+    /// a time: the definition of [`ShapeCode::of_curve`].
+    fn code_by_steps(c: &CouplerCurve) -> Option<ShapeCode> {
+        let z = c.sample(TRACE)?;
+        let r = resample(&z, true, SAMPLES)?;
+        let n = normalized(&fourier_by_harmonic(&r))?;
+        Some(quantize(&canonical(&n)?[0]))
+    }
+
+    /// A unit's codes made together ([`ShapeCode::of_points`], the poses solved once) are
+    /// each curve's own [`ShapeCode::of_curve`] and its code step by step (the same
+    /// values), for a four-bar on either circuit and for
+    /// geared five-bars (one of a 720° period), and `None` alike for a linkage that does
+    /// not assemble all round and for a point with no extent.
+    #[test]
+    fn codes_of_a_unit_are_each_curves_code() {
+        let mut rng = crate::cases::SplitMix64(11);
+        let mut points: Vec<CouplerPoint> = (0..12)
+            .map(|_| CouplerPoint::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)))
+            .collect();
+        points.push(CouplerPoint::new(0.0, 0.0));
+        let linkages: Vec<Linkage> = vec![
+            FourBar::new(3.0, 2.5, 3.5).unwrap().into(),
+            FourBar::new(2.37, 3.1, 3.4).unwrap().into(),
+            // A rocker input: does not assemble all round.
+            FourBar::new(1.0, 3.0, 3.5).unwrap().into(),
+            GearedFiveBar::new(3.0, 3.2, 3.5, 1.2, GearRatio::integer(-2).unwrap(), 40.0)
+                .unwrap()
+                .into(),
+            GearedFiveBar::new(3.0, 3.2, 3.5, 1.2, GearRatio::new(-1, 2).unwrap(), -70.0)
+                .unwrap()
+                .into(),
+        ];
+        let mut absent = 0;
+        for linkage in &linkages {
+            for circuit in [Circuit::Open, Circuit::Crossed] {
+                let together = ShapeCode::of_points(linkage, circuit, &points);
+                assert_eq!(together.len(), points.len());
+                for (&point, code) in points.iter().zip(&together) {
+                    let c = CouplerCurve::new(*linkage, circuit, point);
+                    let alone = ShapeCode::of_curve(&c);
+                    assert_eq!(*code, alone, "{linkage:?} {circuit:?} {point:?}");
+                    assert_eq!(
+                        alone,
+                        code_by_steps(&c),
+                        "{linkage:?} {circuit:?} {point:?}"
+                    );
+                    absent += code.is_none() as usize;
+                }
+            }
+        }
+        // Both kinds of `None` were met, and not only them.
+        assert!(absent > points.len(), "{absent}");
+        assert!(absent < linkages.len() * 2 * points.len() / 2, "{absent}");
+    }
 
     /// A mirror query's reflected vectors (made from the unreflected smoothing, reflected)
     /// are, to rounding, those of the reflected points described alone, and its

@@ -36,25 +36,35 @@ pub fn cis_deg(deg: f64) -> C64 {
 /// The cumulative arc length of a polyline: `out[0] = 0`, `out[k] = out[k−1] + |z_k − z_{k−1}|`;
 /// for a closed polyline one more entry holds the length back to the first point.
 pub fn cumulative_length(z: &[C64], closed: bool) -> Vec<f64> {
-    let n = z.len();
-    let mut out = Vec::with_capacity(n + 1);
-    let mut s = 0.0;
-    out.push(0.0);
-    for k in 1..n {
-        s += abs(z[k] - z[k - 1]);
-        out.push(s);
-    }
-    if closed && n > 0 {
-        s += abs(z[0] - z[n - 1]);
-        out.push(s);
-    }
+    let mut out = Vec::with_capacity(z.len() + 1);
+    cumulative_length_into(z, closed, &mut out);
     out
+}
+
+/// [`cumulative_length`] into `out` (its earlier contents replaced): the steps' lengths
+/// first (independent of each other: the compiler vectorises them), then their running
+/// sum, in order (the same additions).
+fn cumulative_length_into(z: &[C64], closed: bool, out: &mut Vec<f64>) {
+    let n = z.len();
+    out.clear();
+    out.push(0.0);
+    out.extend(z.iter().skip(1).zip(z).map(|(&b, &a)| abs(b - a)));
+    if closed && n > 0 {
+        out.push(abs(z[0] - z[n - 1]));
+    }
+    let mut s = 0.0;
+    for v in &mut out[1..] {
+        s += *v;
+        *v = s;
+    }
 }
 
 /// The point at arc length `s` along a polyline with cumulative lengths `cum` (from
 /// [`cumulative_length`]), by linear interpolation; `hint` is a segment index to start the
 /// search from (returned updated, so that increasing `s` costs O(1) amortised). For a
 /// closed polyline `cum` has one more entry than `z` and the last segment returns to z₀.
+/// ([`resample`] does the same in its own loop; this is its reference in the tests.)
+#[cfg(test)]
 pub fn point_at(z: &[C64], cum: &[f64], s: f64, hint: &mut usize) -> C64 {
     let segs = cum.len() - 1;
     let mut k = (*hint).min(segs.saturating_sub(1));
@@ -79,21 +89,58 @@ pub fn point_at(z: &[C64], cum: &[f64], s: f64, hint: &mut usize) -> C64 {
 /// `j = 0 .. m−1` (the last point is not a repeat of the first); open: `s_j = j·L/(m−1)`,
 /// both ends included. `None` for fewer than two points, `m < 2`, or zero length.
 pub fn resample(z: &[C64], closed: bool, m: usize) -> Option<Vec<C64>> {
+    let mut out = Vec::with_capacity(m);
+    resample_into(z, closed, m, &mut Vec::new(), &mut out).then_some(out)
+}
+
+/// [`resample`] into `out` (its earlier contents replaced), with `cum` as room for the
+/// cumulative lengths: false (and `out` unspecified) where `resample` gives `None`.
+pub(crate) fn resample_into(
+    z: &[C64],
+    closed: bool,
+    m: usize,
+    cum: &mut Vec<f64>,
+    out: &mut Vec<C64>,
+) -> bool {
     if z.len() < 2 || m < 2 {
-        return None;
+        return false;
     }
-    let cum = cumulative_length(z, closed);
-    let total = *cum.last()?;
+    cumulative_length_into(z, closed, cum);
+    let Some(&total) = cum.last() else {
+        return false;
+    };
     if !(total > 0.0 && total.is_finite()) {
-        return None;
+        return false;
     }
     let denom = if closed { m as f64 } else { (m - 1) as f64 };
-    let mut hint = 0;
-    Some(
-        (0..m)
-            .map(|j| point_at(z, &cum, total * (j as f64 / denom), &mut hint))
-            .collect(),
-    )
+    // [`point_at`] at `s_j = total · (j / denom)`, its search and interpolation in one loop
+    // (the same operations): `k` is its hint, never past the last segment (`segs − 1`).
+    let (n, segs) = (z.len(), cum.len() - 1);
+    let mut k = 0;
+    // `j` as a float counted up by ones: exact (j < 2⁵³), the same as `j as f64`.
+    let mut jf = 0.0;
+    out.clear();
+    out.reserve(m);
+    for _ in 0..m {
+        let s = total * (jf / denom);
+        jf += 1.0;
+        while k + 1 < segs && cum[k + 1] < s {
+            k += 1;
+        }
+        while k > 0 && cum[k] > s {
+            k -= 1;
+        }
+        let a = z[k];
+        let len = cum[k + 1] - cum[k];
+        out.push(if len <= 0.0 {
+            a
+        } else {
+            let b = z[if k + 1 < n { k + 1 } else { (k + 1) % n }];
+            let t = ((s - cum[k]) / len).clamp(0.0, 1.0);
+            a + (b - a) * t
+        });
+    }
+    true
 }
 
 /// The mean of the points.
@@ -178,6 +225,37 @@ pub fn fit_similarity(z: &[C64], w: &[C64]) -> Option<(C64, C64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn resample_is_point_at_by_point_at() {
+        // `resample`'s one loop against `point_at` called at each arc length, bit for bit,
+        // on open and closed random polylines (some with repeated points: zero-length steps).
+        let mut rng = crate::cases::SplitMix64(23);
+        for n in [2, 3, 7, 40, 720] {
+            let mut z: Vec<C64> = (0..n)
+                .map(|_| C64::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)))
+                .collect();
+            if n > 3 {
+                z[2] = z[1];
+            }
+            for closed in [false, true] {
+                for m in [2, 5, 256, 1000] {
+                    let got = resample(&z, closed, m).unwrap();
+                    let cum = cumulative_length(&z, closed);
+                    let total = *cum.last().unwrap();
+                    let denom = if closed { m as f64 } else { (m - 1) as f64 };
+                    let mut hint = 0;
+                    let want: Vec<C64> = (0..m)
+                        .map(|j| point_at(&z, &cum, total * (j as f64 / denom), &mut hint))
+                        .collect();
+                    let bits = |v: &[C64]| -> Vec<(u64, u64)> {
+                        v.iter().map(|c| (c.re.to_bits(), c.im.to_bits())).collect()
+                    };
+                    assert_eq!(bits(&got), bits(&want), "{n} points, closed {closed}, {m}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn resample_square() {

@@ -6,7 +6,7 @@
 use crate::geom::C64;
 use coupler_kinematics::{
     Circuit, CouplerPoint, CrankAngle, CrankTable, FourBar, GearedFiveBar, GearedGaps, Linkage,
-    Mechanism, POINT_LANES, PointLanes, Pose, ToggleGaps,
+    Mechanism, POINT_LANES, PointLanes, Pose, PoseTable, ToggleGaps,
 };
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -358,15 +358,28 @@ impl CouplerCurve {
     /// The curve sampled at `n` input angles `k·P/n`, `k = 0..n`, over its period `P`
     /// ([`CouplerCurve::period_deg`]); `None` unless it assembles at all of them.
     pub fn sample(&self, n: usize) -> Option<Vec<C64>> {
-        let period = self.period_deg();
-        let table = crank_table(period / n as f64, period)?;
-        let poses = self.linkage.pose_table(self.circuit, &table);
-        if !poses.all_valid() {
-            return None;
-        }
-        let c = poses.trace(self.point);
-        Some((0..c.len()).map(|k| C64::new(c.x[k], c.y[k])).collect())
+        let poses = sample_poses(&self.linkage, self.circuit, n)?;
+        let mut z = Vec::new();
+        trace_points(&poses, self.point, &mut z);
+        Some(z)
     }
+}
+
+/// The poses [`CouplerCurve::sample`] traces: `linkage` on `circuit` at `n` input angles
+/// `k·P/n` over its period `P`; `None` unless it assembles at all of them. They depend on
+/// the linkage alone, so the curves of every coupler point of it share them.
+pub(crate) fn sample_poses(linkage: &Linkage, circuit: Circuit, n: usize) -> Option<PoseTable> {
+    let period = linkage.period_deg();
+    let table = crank_table(period / n as f64, period)?;
+    let poses = linkage.pose_table(circuit, &table);
+    poses.all_valid().then_some(poses)
+}
+
+/// The points of `point`'s curve at the angles of `poses` (the trace's positions), into
+/// `z` (its earlier contents replaced).
+pub(crate) fn trace_points(poses: &PoseTable, point: CouplerPoint, z: &mut Vec<C64>) {
+    z.clear();
+    z.extend(poses.positions(point).map(|(x, y)| C64::new(x, y)));
 }
 
 /// `CrankTable::over(step, period)`, the table of the last `(step, period)` asked on this
