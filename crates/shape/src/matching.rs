@@ -274,8 +274,12 @@ fn closed_stage(
 
 /// Points of the target used to rank the candidates (the final fits use them all).
 const RANK_POINTS: usize = 40;
-/// Iterations of each ranking fit.
+/// Iterations of each ranking fit of a closed target.
 const RANK_ITERATIONS: usize = 30;
+/// Iterations of each quick fit of an open target (from its scan start; a finalist's
+/// continues to the final cap). 15 ranks the 200 open retrieval cases as 30 did, with
+/// the same misses (`docs/shape-search.md`, "Eighteenth part").
+pub(crate) const RANK_ITERATIONS_OPEN: usize = 15;
 /// An open target's candidates (best by coarse distance) that also get the exact fit's
 /// own robust start.
 const ROBUST_OPEN: usize = 64;
@@ -439,7 +443,10 @@ pub fn rank_candidates(
         }
     };
     let quick_of = |c: &Candidate| FitOptions {
-        max_iterations: RANK_ITERATIONS,
+        max_iterations: match c.start {
+            Some(_) => RANK_ITERATIONS_OPEN,
+            None => RANK_ITERATIONS,
+        },
         ..options_of(c)
     };
     let p = target.complex_points();

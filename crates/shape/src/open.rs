@@ -2748,7 +2748,7 @@ mod lab {
                 crate::fit::fit_curve(&t, &c, &FitOptions::DEFAULT).map(|f| 100.0 * f.rms / size);
             let own = own_fit.unwrap();
             let quick = FitOptions {
-                max_iterations: 30,
+                max_iterations: crate::matching::RANK_ITERATIONS_OPEN,
                 ..FitOptions::DEFAULT
             };
             let fits: Vec<f64> = cands
@@ -2865,7 +2865,7 @@ mod stage_times {
             ..FitOptions::DEFAULT
         };
         let quick = FitOptions {
-            max_iterations: 30,
+            max_iterations: crate::matching::RANK_ITERATIONS_OPEN,
             ..full
         };
         let quick_fits = least("quick", reps.min(3), &mut || {
@@ -2983,7 +2983,7 @@ mod fits_fingerprint {
                     ..FitOptions::DEFAULT
                 };
                 let quick = FitOptions {
-                    max_iterations: 30,
+                    max_iterations: crate::matching::RANK_ITERATIONS_OPEN,
                     ..full
                 };
                 let mut hq = std::collections::hash_map::DefaultHasher::new();
