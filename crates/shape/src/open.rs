@@ -27,6 +27,7 @@
 use crate::fit::Start;
 use crate::geom::C64;
 use crate::kin::AtlasCurve;
+use crate::lattice::LinkageLattice;
 use crate::smooth::{default_terms, smooth_resample};
 use crate::target::{Target, Timing};
 use coupler_kinematics::{Circuit, CrankTable, Linkage, Mechanism};
@@ -1797,28 +1798,179 @@ pub(crate) fn open_stage1(
     keep: usize,
 ) -> Vec<Stage1> {
     let mut stage1: Vec<Stage1> = Vec::new();
-    let mut buf = Projection::default();
-    // The scan's passes, made again only when the period changes (geared five-bars).
-    let mut passes: Option<Passes> = None;
-    let mut cranks = Cranks::default();
+    let mut scanner = Scanner::default();
     for g in groups {
-        let (a, b) = (g.start, g.end);
-        let Some(first) = curves.get(a) else {
-            continue;
-        };
-        let c = &first.curve;
-        let Some(table) = cranks.table(&c.linkage, c.circuit) else {
-            continue;
-        };
-        let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
-        if passes.as_ref().is_none_or(|p| p.period != table.period) {
-            passes = Some(query.passes(table.period));
-        }
-        let passes = passes.as_ref().expect("made above");
-        linkage_stage1(query, passes, &table, &pts, a, &mut buf, &mut stage1);
+        scanner.scan(query, curves, g.clone(), &mut stage1);
     }
     truncate_stage1(&mut stage1, keep);
     stage1
+}
+
+/// What scanning one linkage after another reuses: the projection's buffers, the scan's
+/// passes (made again only when the period changes: geared five-bars) and the crank
+/// angles of the tables.
+#[derive(Default)]
+struct Scanner {
+    buf: Projection,
+    passes: Option<Passes>,
+    cranks: Cranks,
+}
+
+impl Scanner {
+    /// Stage 1 with its projections on the linkage `g` (a range of `curves`): each
+    /// curve's best window of each reflection, pushed onto `out`.
+    fn scan(
+        &mut self,
+        query: &OpenQuery,
+        curves: &[AtlasCurve],
+        g: std::ops::Range<usize>,
+        out: &mut Vec<Stage1>,
+    ) {
+        let (a, b) = (g.start, g.end);
+        let Some(first) = curves.get(a) else {
+            return;
+        };
+        let c = &first.curve;
+        let Some(table) = self.cranks.table(&c.linkage, c.circuit) else {
+            return;
+        };
+        let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
+        if self
+            .passes
+            .as_ref()
+            .is_none_or(|p| p.period != table.period)
+        {
+            self.passes = Some(query.passes(table.period));
+        }
+        let passes = self.passes.as_ref().expect("made above");
+        linkage_stage1(query, passes, &table, &pts, a, &mut self.buf, out);
+    }
+}
+
+/// Settings of the lattice search (`docs/shape-search.md`, "The lattice search"): an
+/// open target's coarse-to-fine scan over the atlas's linkage lattice
+/// ([`LinkageLattice`]) instead of a scan of every linkage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LatticeSearch {
+    /// The search runs on an atlas of more than this many linkages (`usize::MAX`: never;
+    /// every linkage is scanned).
+    pub above: usize,
+    /// The sub-lattice scanned first: one linkage per cell of this many lattice steps a
+    /// side.
+    pub cell: usize,
+    /// The best linkages (by their best curve's stage-1 misfit) whose neighbours are
+    /// scanned, round after round until the best this many have all had theirs scanned.
+    pub best: usize,
+    /// Neighbours: linkages within this many lattice steps in every dimension.
+    pub radius: usize,
+}
+
+impl LatticeSearch {
+    /// On an atlas of more than 2,000 linkages (the dense atlas has 31,018, the default
+    /// one 175): cells of 5 lattice steps, the neighbours within one step of the best 4
+    /// (`docs/shape-search.md`, "The lattice search", for the measured recall).
+    pub const DEFAULT: LatticeSearch = LatticeSearch {
+        above: 2_000,
+        cell: 5,
+        best: 4,
+        radius: 1,
+    };
+
+    /// No lattice search: every linkage scanned.
+    pub const FULL: LatticeSearch = LatticeSearch {
+        above: usize::MAX,
+        ..LatticeSearch::DEFAULT
+    };
+}
+
+/// What a lattice search scanned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LatticeReport {
+    /// Linkages in the sub-lattice.
+    pub sampled: usize,
+    /// Linkages scanned (the sub-lattice's among them).
+    pub scanned: usize,
+    /// Linkages of the atlas.
+    pub linkages: usize,
+    /// Rounds of neighbours scanned after the sub-lattice.
+    pub rounds: usize,
+}
+
+/// Linkages of one task of the lattice search.
+const LATTICE_PART: usize = 4;
+
+/// Stage 1 by the lattice search over the linkages `groups` of `curves`: the sub-lattice
+/// ([`LinkageLattice::sample`]) scanned, the linkages ranked by their best curve's misfit
+/// (either reflection; ties by atlas order), and the unscanned neighbours of the best
+/// `search.best` scanned, until each of the best has had its neighbours scanned. Each
+/// linkage's scan is [`open_stage1`]'s, in parallel on the calling thread's rayon pool;
+/// which linkages are scanned depends on their scores and order only, so the result is
+/// the same on any number of threads.
+pub(crate) fn open_stage1_lattice(
+    query: &OpenQuery,
+    curves: &[AtlasCurve],
+    groups: &[std::ops::Range<usize>],
+    search: &LatticeSearch,
+    keep: usize,
+) -> (Vec<Stage1>, LatticeReport) {
+    let lattice = LinkageLattice::new(curves, groups);
+    let n = groups.len();
+    let mut score = vec![f64::INFINITY; n];
+    let mut scanned = vec![false; n];
+    let mut expanded = vec![false; n];
+    let mut stage1: Vec<Stage1> = Vec::new();
+    let mut todo = lattice.sample(search.cell);
+    let mut report = LatticeReport {
+        sampled: todo.len(),
+        scanned: 0,
+        linkages: n,
+        rounds: 0,
+    };
+    while !todo.is_empty() {
+        let found: Vec<(usize, Vec<Stage1>)> = todo
+            .par_chunks(LATTICE_PART)
+            .flat_map_iter(|part| {
+                let mut scanner = Scanner::default();
+                part.iter()
+                    .map(|&i| {
+                        let mut out = Vec::new();
+                        scanner.scan(query, curves, groups[i].clone(), &mut out);
+                        (i, out)
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        for (i, out) in found {
+            scanned[i] = true;
+            report.scanned += 1;
+            score[i] = out
+                .iter()
+                .map(|s| s.hyp.misfit)
+                .fold(f64::INFINITY, f64::min);
+            stage1.extend(out);
+        }
+        truncate_stage1(&mut stage1, keep);
+        let mut order: Vec<usize> = (0..n).filter(|&i| scanned[i]).collect();
+        order.sort_by(|&a, &b| score[a].total_cmp(&score[b]).then(a.cmp(&b)));
+        todo = Vec::new();
+        for &i in order.iter().take(search.best) {
+            if !expanded[i] && score[i].is_finite() {
+                expanded[i] = true;
+                todo.extend(
+                    lattice
+                        .neighbours(i, search.radius)
+                        .into_iter()
+                        .filter(|&j| !scanned[j]),
+                );
+            }
+        }
+        todo.sort_unstable();
+        todo.dedup();
+        if !todo.is_empty() {
+            report.rounds += 1;
+        }
+    }
+    (stage1, report)
 }
 
 /// Stage 1 and its projections on one linkage (`table`, its coupler points `pts`, the
