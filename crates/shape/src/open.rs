@@ -1899,13 +1899,17 @@ pub struct LatticeReport {
 /// Linkages of one task of the lattice search.
 const LATTICE_PART: usize = 4;
 
-/// Stage 1 by the lattice search over the linkages `groups` of `curves`: the sub-lattice
-/// ([`LinkageLattice::sample`]) scanned, the linkages ranked by their best curve's misfit
-/// (either reflection; ties by atlas order), and the unscanned neighbours of the best
-/// `search.best` scanned, until each of the best has had its neighbours scanned. Each
-/// linkage's scan is [`open_stage1`]'s, in parallel on the calling thread's rayon pool;
-/// which linkages are scanned depends on their scores and order only, so the result is
-/// the same on any number of threads.
+/// Stage 1 by the lattice search over the linkages `groups` of `curves`, for each
+/// reflection on its own: the sub-lattice ([`LinkageLattice::sample`]) scanned, the
+/// linkages ranked by their best curve's misfit of that reflection (ties by atlas
+/// order), and the unscanned neighbours of the best `search.best` scanned, until each of
+/// the best has had its neighbours scanned. A linkage is scanned once (by
+/// [`open_stage1`]'s scan) whichever reflection asks for it, but a reflection takes its
+/// own hypotheses only from the linkages its own search reached: so the unreflected ones
+/// are those of the same query without reflection, bit for bit, and `--mirror` only adds
+/// (as in the full scan). The linkages are scanned in parallel on the calling thread's
+/// rayon pool; which are scanned depends on their scores and order only, so the result
+/// is the same on any number of threads.
 pub(crate) fn open_stage1_lattice(
     query: &OpenQuery,
     curves: &[AtlasCurve],
@@ -1915,19 +1919,27 @@ pub(crate) fn open_stage1_lattice(
 ) -> (Vec<Stage1>, LatticeReport) {
     let lattice = LinkageLattice::new(curves, groups);
     let n = groups.len();
-    let mut score = vec![f64::INFINITY; n];
-    let mut scanned = vec![false; n];
-    let mut expanded = vec![false; n];
+    let reflections = if query.allow_mirror { 2 } else { 1 };
+    // Each linkage's scan, once made.
+    let mut scans: Vec<Option<Vec<Stage1>>> = vec![None; n];
+    // Per reflection: the score of each linkage it reached, and which it expanded.
+    let mut score = vec![vec![None::<f64>; n]; reflections];
+    let mut expanded = vec![vec![false; n]; reflections];
     let mut stage1: Vec<Stage1> = Vec::new();
-    let mut todo = lattice.sample(search.cell);
+    let sample = lattice.sample(search.cell);
     let mut report = LatticeReport {
-        sampled: todo.len(),
+        sampled: sample.len(),
         scanned: 0,
         linkages: n,
         rounds: 0,
     };
-    while !todo.is_empty() {
-        let found: Vec<(usize, Vec<Stage1>)> = todo
+    let mut todo = vec![sample; reflections];
+    loop {
+        let mut need: Vec<usize> = todo.concat();
+        need.sort_unstable();
+        need.dedup();
+        need.retain(|&i| scans[i].is_none());
+        let found: Vec<(usize, Vec<Stage1>)> = need
             .par_chunks(LATTICE_PART)
             .flat_map_iter(|part| {
                 let mut scanner = Scanner::default();
@@ -1940,35 +1952,46 @@ pub(crate) fn open_stage1_lattice(
                     .collect::<Vec<_>>()
             })
             .collect();
+        report.scanned += found.len();
         for (i, out) in found {
-            scanned[i] = true;
-            report.scanned += 1;
-            score[i] = out
-                .iter()
-                .map(|s| s.hyp.misfit)
-                .fold(f64::INFINITY, f64::min);
-            stage1.extend(out);
+            scans[i] = Some(out);
+        }
+        let mut next = vec![Vec::new(); reflections];
+        for m in 0..reflections {
+            let mirror = m == 1;
+            for &i in &todo[m] {
+                let out = scans[i].as_deref().unwrap_or_default();
+                let mine = out.iter().filter(|s| s.hyp.mirror == mirror);
+                score[m][i] = Some(
+                    mine.clone()
+                        .map(|s| s.hyp.misfit)
+                        .fold(f64::INFINITY, f64::min),
+                );
+                stage1.extend(mine.cloned());
+            }
+            let mut order: Vec<(f64, usize)> =
+                (0..n).filter_map(|i| score[m][i].map(|s| (s, i))).collect();
+            order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            for &(s, i) in order.iter().take(search.best) {
+                if !expanded[m][i] && s.is_finite() {
+                    expanded[m][i] = true;
+                    next[m].extend(
+                        lattice
+                            .neighbours(i, search.radius)
+                            .into_iter()
+                            .filter(|&j| score[m][j].is_none()),
+                    );
+                }
+            }
+            next[m].sort_unstable();
+            next[m].dedup();
         }
         truncate_stage1(&mut stage1, keep);
-        let mut order: Vec<usize> = (0..n).filter(|&i| scanned[i]).collect();
-        order.sort_by(|&a, &b| score[a].total_cmp(&score[b]).then(a.cmp(&b)));
-        todo = Vec::new();
-        for &i in order.iter().take(search.best) {
-            if !expanded[i] && score[i].is_finite() {
-                expanded[i] = true;
-                todo.extend(
-                    lattice
-                        .neighbours(i, search.radius)
-                        .into_iter()
-                        .filter(|&j| !scanned[j]),
-                );
-            }
+        if next.iter().all(|t| t.is_empty()) {
+            break;
         }
-        todo.sort_unstable();
-        todo.dedup();
-        if !todo.is_empty() {
-            report.rounds += 1;
-        }
+        report.rounds += 1;
+        todo = next;
     }
     (stage1, report)
 }
