@@ -55,14 +55,15 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     candidates: Option<u32>,
     /// Screen an open target's linkages and scan only the best N by a coarse score
-    /// (default: scan every linkage, with progress on stderr for a large atlas). The
+    /// (default: no screen; see --full-scan for what is scanned). The
     /// screen is an estimate: on the dense atlas the source's linkage is among its best
     /// N only part of the time (docs/shape-search.md), so a screened answer is a sample
     /// of the atlas, not a full search.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     linkages: Option<u32>,
-    /// Scan every linkage for an open target. By default an atlas of more than 2,000
-    /// linkages is searched coarse to fine over its linkage lattice (a sub-lattice, then
+    /// Scan every linkage for an open target (with progress on stderr for a large
+    /// atlas). By default only an atlas of at most 2,000 linkages is scanned whole; a
+    /// larger one is searched coarse to fine over its linkage lattice (a sub-lattice, then
     /// the neighbours of the best linkages; docs/shape-search.md, "The lattice search").
     #[arg(long)]
     full_scan: bool,
