@@ -561,7 +561,7 @@ fn screen_on_a_large_atlas() {
 /// The lattice search against the full search on open targets made from the atlas's own
 /// curves (seed 77, as `screen_on_a_large_atlas`; reflection allowed): per case, for the
 /// full search and each setting of `LATTICE_SETTINGS` (`cell:best:radius`, comma
-/// separated; default `3:8:1,2:8:1,4:8:2`), whether it finds the source or a curve at
+/// separated; default `5:4:1,4:4:1,3:8:1`), whether it finds the source or a curve at
 /// least as close in the top 5 (`found`), whether its top-5 ids are the full search's,
 /// its #1 error, the share of linkages scanned and its time; then the counts.
 /// `LATTICE_FULL=FILE` keeps the full searches' results in FILE (read if it exists).
@@ -582,7 +582,7 @@ fn lattice_on_a_large_atlas() {
         .and_then(|s| s.parse::<usize>().ok())
         .unwrap_or(16);
     let settings: Vec<LatticeSearch> = std::env::var("LATTICE_SETTINGS")
-        .unwrap_or_else(|_| "3:8:1,2:8:1,4:8:2".into())
+        .unwrap_or_else(|_| "5:4:1,4:4:1,3:8:1".into())
         .split(',')
         .map(|s| {
             let v: Vec<usize> = s.split(':').map(|x| x.parse().unwrap()).collect();
