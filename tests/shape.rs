@@ -557,6 +557,177 @@ fn screen_on_a_large_atlas() {
     }
 }
 
+/// `SHAPE_ATLAS=DIR LATTICE_CASES=16 cargo test --release --test shape lattice_on_a_large_atlas -- --ignored --nocapture`.
+/// The lattice search against the full search on open targets made from the atlas's own
+/// curves (seed 77, as `screen_on_a_large_atlas`; reflection allowed): per case, for the
+/// full search and each setting of `LATTICE_SETTINGS` (`cell:best:radius`, comma
+/// separated; default `5:4:1,4:4:1,3:8:1`), whether it finds the source or a curve at
+/// least as close in the top 5 (`found`), whether its top-5 ids are the full search's,
+/// its #1 error, the share of linkages scanned and its time; then the counts.
+/// `LATTICE_FULL=FILE` keeps the full searches' results in FILE (read if it exists).
+#[test]
+#[ignore]
+fn lattice_on_a_large_atlas() {
+    use coupler_atlas::shape::{
+        LatticeSearch, decode_sidecar, linkage_groups, open_finish, open_lattice_scan, open_scan,
+    };
+    let Ok(dir) = std::env::var("SHAPE_ATLAS") else {
+        println!("set SHAPE_ATLAS to an atlas folder");
+        return;
+    };
+    let bytes = std::fs::read(std::path::Path::new(&dir).join("shapes.bin")).unwrap();
+    let atlas = decode_sidecar(&bytes).unwrap();
+    let count = std::env::var("LATTICE_CASES")
+        .ok()
+        .and_then(|s| s.parse::<usize>().ok())
+        .unwrap_or(16);
+    let settings: Vec<LatticeSearch> = std::env::var("LATTICE_SETTINGS")
+        .unwrap_or_else(|_| "5:4:1,4:4:1,3:8:1".into())
+        .split(',')
+        .map(|s| {
+            let v: Vec<usize> = s.split(':').map(|x| x.parse().unwrap()).collect();
+            LatticeSearch {
+                above: 0,
+                cell: v[0],
+                best: v[1],
+                radius: v[2],
+            }
+        })
+        .collect();
+    let curves = &atlas.curves;
+    let groups = linkage_groups(curves);
+    let cases = retrieval_cases(curves, false, 77, count);
+    let cache = std::env::var("LATTICE_FULL").ok();
+    let mut cached: Vec<(bool, Vec<u64>, f64, f64)> = cache
+        .as_ref()
+        .and_then(|f| std::fs::read_to_string(f).ok())
+        .map(|t| {
+            t.lines()
+                .map(|l| {
+                    let f: Vec<&str> = l.split(' ').collect();
+                    let ids = f[1].split(',').map(|x| x.parse().unwrap()).collect();
+                    (
+                        f[0] == "1",
+                        ids,
+                        f[2].parse().unwrap(),
+                        f[3].parse().unwrap(),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    // The full search as the command runs it: shares of the linkages in parallel.
+    let full = |t: &Target| {
+        let options = MatchOptions::DEFAULT;
+        let want = curves.len().div_ceil(64);
+        let mut shares: Vec<Vec<std::ops::Range<usize>>> = vec![Vec::new()];
+        let mut size = 0;
+        for g in &groups {
+            if size >= want {
+                shares.push(Vec::new());
+                size = 0;
+            }
+            size += g.len();
+            shares.last_mut().unwrap().push(g.clone());
+        }
+        let scans: Vec<_> = shares
+            .par_iter()
+            .map(|s| open_scan(t, curves, s, &options).unwrap())
+            .collect();
+        let c = open_finish(t, curves, scans, &options).unwrap();
+        coupler_atlas::shape::rank_candidates(t, c, &options)
+    };
+    let mut found_full = 0;
+    let mut found_by = vec![0usize; settings.len()];
+    let mut same_by = vec![0usize; settings.len()];
+    let mut share_by = vec![Vec::new(); settings.len()];
+    let mut secs_by = vec![Vec::new(); settings.len()];
+    let mut found_only_full = vec![0usize; settings.len()];
+    for (k, c) in cases.iter().enumerate() {
+        let t = &c.target;
+        let own = fit_curve(t, &curves[c.source].curve, &FitOptions::DEFAULT).unwrap();
+        let source = curves[c.source].id;
+        if cached.len() <= k {
+            let t0 = std::time::Instant::now();
+            let m = full(t);
+            let secs = t0.elapsed().as_secs_f64();
+            cached.push((
+                found(&m, source, own.rms),
+                m.iter().map(|m| m.id).collect(),
+                m[0].rms_pct,
+                secs,
+            ));
+            if let Some(f) = &cache {
+                let text: String = cached
+                    .iter()
+                    .map(|(f, ids, e, s)| {
+                        let ids: Vec<String> = ids.iter().map(|i| i.to_string()).collect();
+                        format!("{} {} {e} {s}\n", u8::from(*f), ids.join(","))
+                    })
+                    .collect();
+                std::fs::write(f, text).unwrap();
+            }
+        }
+        let (ff, fids, fe, fs) = &cached[k];
+        found_full += usize::from(*ff);
+        println!(
+            "case {k:2} span {:5.1} n {:3} source {source}: full found {ff} #1 {fe:.4} % ({fs:.1} s)",
+            c.span,
+            t.len()
+        );
+        for (s, set) in settings.iter().enumerate() {
+            let options = MatchOptions {
+                open_lattice: *set,
+                ..MatchOptions::DEFAULT
+            };
+            let t0 = std::time::Instant::now();
+            let (scan, report) = open_lattice_scan(t, curves, &options).unwrap().unwrap();
+            let c = open_finish(t, curves, vec![scan], &options).unwrap();
+            let m = coupler_atlas::shape::rank_candidates(t, c, &options);
+            let secs = t0.elapsed().as_secs_f64();
+            let f = found(&m, source, own.rms);
+            let ids: Vec<u64> = m.iter().map(|m| m.id).collect();
+            let share = report.scanned as f64 / report.linkages as f64;
+            found_by[s] += usize::from(f);
+            same_by[s] += usize::from(&ids == fids);
+            found_only_full[s] += usize::from(*ff && !f);
+            share_by[s].push(share);
+            secs_by[s].push(secs);
+            println!(
+                "    lattice {}:{}:{} found {f} same top 5 {} #1 {:.4} % scanned {:.1} % (sub-lattice {}, {} rounds) {secs:.2} s",
+                set.cell,
+                set.best,
+                set.radius,
+                &ids == fids,
+                m[0].rms_pct,
+                100.0 * share,
+                report.sampled,
+                report.rounds
+            );
+        }
+    }
+    let n = cases.len();
+    println!("full search: found {found_full}/{n}");
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    for (s, set) in settings.iter().enumerate() {
+        println!(
+            "lattice {}:{}:{}: found {}/{n} (found by the full search but not this: {}), same top 5 {}/{n}, scanned median {:.1} % (most {:.1} %), time median {:.2} s",
+            set.cell,
+            set.best,
+            set.radius,
+            found_by[s],
+            found_only_full[s],
+            same_by[s],
+            100.0 * median(&mut share_by[s]),
+            100.0 * share_by[s].last().unwrap(),
+            median(&mut secs_by[s])
+        );
+    }
+}
+
 /// An exact open target cut from atlas curve `id`: 64 points at even crank steps from
 /// `from` over `span` degrees, scaled by 4, turned by 30°, moved to (100, −40);
 /// `mirrored`: reflected first.
@@ -632,6 +803,81 @@ fn mirror_keeps_the_exact_open_source() {
             p.rms_pct
         );
     }
+}
+
+/// The lattice search (`docs/shape-search.md`, "The lattice search") forced onto the
+/// default atlas: with cells of one lattice step every linkage is in the sub-lattice, so
+/// it scans what the full search scans and must give its matches, bit for bit; with
+/// cells of three steps it scans a part of the atlas, gives the same matches on one
+/// thread as on three, and with reflection allowed no rank's error is worse than
+/// without. (It does not find the straight run's source here: the default
+/// atlas's lattice is coarse, its neighbouring linkages far apart, which is why an atlas
+/// this small keeps the full scan.)
+#[test]
+fn lattice_search_on_the_default_atlas() {
+    use coupler_atlas::shape::{LatticeSearch, open_lattice_scan};
+    let (curves, _) = default_atlas();
+    let t = straight_run(&curves, false);
+    let lattice = |cell| MatchOptions {
+        open_lattice: LatticeSearch {
+            above: 0,
+            cell,
+            best: 4,
+            radius: 1,
+        },
+        ..with_mirror()
+    };
+    let full = find_matches(&t, &curves, &[], &with_mirror()).unwrap();
+    assert_eq!(
+        find_matches(&t, &curves, &[], &lattice(1)).unwrap(),
+        full,
+        "cells of one step"
+    );
+    let (_, report) = open_lattice_scan(&t, &curves, &lattice(3))
+        .unwrap()
+        .unwrap();
+    assert!(
+        report.scanned < report.linkages,
+        "{} of {} scanned",
+        report.scanned,
+        report.linkages
+    );
+    let on = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| find_matches(&t, &curves, &[], &lattice(3)).unwrap())
+    };
+    let one = on(1);
+    assert_eq!(one, on(3));
+    // `--mirror` only adds: each reflection searches the lattice on its own, so the
+    // unreflected matches are the plain query's and every rank's error is at most its.
+    let plain = find_matches(
+        &t,
+        &curves,
+        &[],
+        &MatchOptions {
+            allow_mirror: false,
+            ..lattice(3)
+        },
+    )
+    .unwrap();
+    assert_eq!(plain.len(), one.len());
+    for (p, q) in plain.iter().zip(&one) {
+        assert!(
+            q.fit.rms <= p.fit.rms,
+            "{} % against {} %",
+            q.rms_pct,
+            p.rms_pct
+        );
+    }
+    // The default options scan every linkage of an atlas this small.
+    assert!(
+        open_lattice_scan(&t, &curves, &MatchOptions::DEFAULT)
+            .unwrap()
+            .is_none()
+    );
 }
 
 /// Reflected exact targets are found with `--mirror`: the straight run reflected (the

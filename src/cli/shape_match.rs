@@ -1,5 +1,5 @@
 //! `coupler-atlas match TARGET [--atlas DIR] [--open|--closed] [--timed] [--mirror]
-//! [--top K] [--candidates N] [--linkages N] [--refine] [--png FILE] [--svg FILE]
+//! [--top K] [--candidates N] [--linkages N] [--full-scan] [--refine] [--png FILE] [--svg FILE]
 //! [--format table|json] [--jobs N]`:
 //! which atlas curves look like the target path, each with its fit, placement and error
 //! (`docs/shape-search.md`).
@@ -9,10 +9,10 @@ use anyhow::{Context, Result};
 use coupler_atlas::generate::FileEntry;
 use coupler_atlas::render::{RasterPage, SvgPage, draw};
 use coupler_atlas::shape::{
-    AtlasCurve, Candidate, ClosedQuery, CouplerCurve, CurveFit, MAX_PROPORTION, Match, MatchError,
-    MatchOptions, OVERLAY_SIZE_PT, OpenScan, OverlayText, Placement, Refined, SHAPES_FILE,
-    SidecarView, Target, Timing, closed_candidates_in, open_finish, open_linkages, open_scan,
-    rank_candidates, refine,
+    AtlasCurve, Candidate, ClosedQuery, CouplerCurve, CurveFit, LatticeSearch, MAX_PROPORTION,
+    Match, MatchError, MatchOptions, OVERLAY_SIZE_PT, OpenScan, OverlayText, Placement, Refined,
+    SHAPES_FILE, SidecarView, Target, Timing, closed_candidates_in, open_finish, open_lattice_scan,
+    open_linkages, open_scan, rank_candidates, refine,
 };
 use coupler_atlas::{Circuit, IndexCurve, Linkage, TargetFile, minus_sign};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -55,12 +55,18 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     candidates: Option<u32>,
     /// Screen an open target's linkages and scan only the best N by a coarse score
-    /// (default: scan every linkage, with progress on stderr for a large atlas). The
+    /// (default: no screen; see --full-scan for what is scanned). The
     /// screen is an estimate: on the dense atlas the source's linkage is among its best
     /// N only part of the time (docs/shape-search.md), so a screened answer is a sample
     /// of the atlas, not a full search.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
     linkages: Option<u32>,
+    /// Scan every linkage for an open target (with progress on stderr for a large
+    /// atlas). By default only an atlas of at most 2,000 linkages is scanned whole; a
+    /// larger one is searched coarse to fine over its linkage lattice (a sub-lattice, then
+    /// the neighbours of the best linkages; docs/shape-search.md, "The lattice search").
+    #[arg(long)]
+    full_scan: bool,
     /// Refine each match off the atlas grid (Levenberg–Marquardt over the linkage's
     /// dimensions: a four-bar's A, B, C, a geared five-bar's L1, L3, L4, L5 and phase φ
     /// with its gear ratio held; the coupler point and the transform).
@@ -344,6 +350,13 @@ fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec
         return Ok(parts.concat());
     }
     let curves = &atlas.curves(&view)?;
+    if let Some((scan, report)) = open_lattice_scan(target, curves, options)? {
+        eprintln!(
+            "note: lattice search: {} of the atlas's {} linkages scanned (a sub-lattice, then {} rounds of the best linkages' neighbours; --full-scan scans every linkage)",
+            report.scanned, report.linkages, report.rounds
+        );
+        return Ok(open_finish(target, curves, vec![scan], options)?);
+    }
     let groups = open_linkages(target, curves, options, |screen, groups| {
         groups
             .par_iter()
@@ -827,6 +840,11 @@ pub fn run(args: Args) -> Result<ExitCode> {
         open_linkages: args
             .linkages
             .map_or(MatchOptions::DEFAULT.open_linkages, |n| n as usize),
+        open_lattice: if args.full_scan {
+            LatticeSearch::FULL
+        } else {
+            MatchOptions::DEFAULT.open_lattice
+        },
         ..MatchOptions::DEFAULT
     };
     let size = target.size();

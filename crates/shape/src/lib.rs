@@ -17,6 +17,7 @@ mod code;
 mod fit;
 mod geom;
 mod kin;
+mod lattice;
 mod lm;
 mod matching;
 mod open;
@@ -32,11 +33,12 @@ pub use code::{CODE_BYTES, CODE_LEN, ClosedQuery, HARMONICS, ShapeCode};
 pub use fit::{CurveFit, FitOptions, fit_curve};
 pub use geom::{C64, cis, cis_deg, cumulative_length, diameter, fit_similarity, resample};
 pub use kin::{AtlasCurve, CouplerCurve, CurveGaps, CurveLanes, PointAt, PointSensitivity};
+pub use lattice::LinkageLattice;
 pub use matching::{
     Candidate, Match, MatchError, MatchOptions, OpenScan, closed_candidates_in, coarse_candidates,
-    find_matches, open_finish, open_linkages, open_scan, rank_candidates,
+    find_matches, open_finish, open_lattice_scan, open_linkages, open_scan, rank_candidates,
 };
-pub use open::{LinkageScreen, linkage_groups};
+pub use open::{LatticeReport, LatticeSearch, LinkageScreen, linkage_groups};
 pub use overlay::{OVERLAY_SIZE_PT, OverlayText, overlay};
 pub use placement::Placement;
 pub use refine::{MAX_PROPORTION, Refined, proportion, refine};

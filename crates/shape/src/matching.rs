@@ -8,8 +8,8 @@ use crate::fit::{
 };
 use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{
-    LinkageScreen, OpenQuery, Stage1, keep_each_reflection, linkage_groups, open_candidates,
-    open_stage1, open_stage2,
+    LatticeReport, LatticeSearch, LinkageScreen, OpenQuery, Stage1, keep_each_reflection,
+    linkage_groups, open_candidates, open_stage1, open_stage1_lattice, open_stage2,
 };
 use crate::placement::Placement;
 use crate::sidecar::{SidecarError, SidecarView};
@@ -41,19 +41,26 @@ pub struct MatchOptions {
     /// misses the source's linkage part of the time (`docs/shape-search.md`), so it is
     /// opt-in.
     pub open_linkages: usize,
+    /// An open target's lattice search (coarse to fine over the atlas's linkage lattice,
+    /// [`LatticeSearch`]) on an atlas of more than `open_lattice.above` linkages, unless
+    /// a screen applies (`open_linkages`). `above: usize::MAX` scans every linkage.
+    pub open_lattice: LatticeSearch,
     /// The exact fit's settings (its `allow_mirror` is overridden by this one's).
     pub fit: FitOptions,
 }
 
 impl MatchOptions {
     /// Mirror allowed, top 5, 64 candidates fitted exactly (1,024 for an open target),
-    /// every linkage scanned for an open target (no screen).
+    /// no screen; an open target's linkages all scanned on an atlas of at most 2,000 of
+    /// them, searched coarse to fine over the linkage lattice on a larger one
+    /// ([`LatticeSearch::DEFAULT`]).
     pub const DEFAULT: MatchOptions = MatchOptions {
         allow_mirror: true,
         top: 5,
         candidates: 64,
         open_candidates: 1024,
         open_linkages: usize::MAX,
+        open_lattice: LatticeSearch::DEFAULT,
         fit: FitOptions::DEFAULT,
     };
 }
@@ -129,7 +136,9 @@ pub struct Candidate {
 ///   circuit, as an atlas lists them): the coupler point enters the curve linearly, so
 ///   one least-squares problem per crank-window hypothesis answers for every coupler point
 ///   of the linkage (`docs/shape-search.md`, "Open targets"); an atlas of more than
-///   `options.open_linkages` linkages is screened first ([`open_linkages`]).
+///   `options.open_linkages` linkages is screened first ([`open_linkages`]), else one of
+///   more than `options.open_lattice.above` is searched coarse to fine over its linkage
+///   lattice ([`open_lattice_scan`]).
 ///
 /// To use several threads: for a closed target, split `curves`, call this on each part in
 /// parallel and hand all the candidates to [`rank_candidates`]; for an open one, score the
@@ -161,6 +170,9 @@ pub fn coarse_candidates(
             |i| curves[i].id,
         )
     } else {
+        if let Some((scan, _)) = open_lattice_scan(target, curves, options)? {
+            return open_finish(target, curves, vec![scan], options);
+        }
         let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
         let groups = open_linkages(target, curves, options, |screen, groups| {
             groups
@@ -288,7 +300,8 @@ const ROBUST_OPEN: usize = 64;
 /// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
 /// fit of the candidates ([`rank_candidates`]); the best `options.top` by RMS error,
 /// ties broken by coarse distance then id. Deterministic: the same inputs give the same
-/// matches, bit for bit. The coarse stage is sequential; the exact fits run on the
+/// matches, bit for bit, on any number of threads. The coarse stage is sequential (an
+/// open target's lattice search runs on the calling thread's rayon pool); the exact fits run on the
 /// calling thread's rayon pool ([`rank_candidates`]).
 pub fn find_matches(
     target: &Target,
@@ -323,6 +336,35 @@ pub fn open_linkages(
         }
         _ => groups,
     }
+}
+
+/// Stage 1 of an open target by the lattice search ([`LatticeSearch`]), when it applies:
+/// an open target, an atlas of more than `options.open_lattice.above` linkages and no
+/// screen (not more than `options.open_linkages` linkages); `None` otherwise (scan the
+/// linkages of [`open_linkages`]). Complete it with [`open_finish`]. Its linkages are
+/// scanned in parallel on the calling thread's rayon pool; the result is the same on any
+/// number of threads.
+pub fn open_lattice_scan(
+    target: &Target,
+    curves: &[AtlasCurve],
+    options: &MatchOptions,
+) -> Result<Option<(OpenScan, LatticeReport)>, MatchError> {
+    if target.is_closed() {
+        return Ok(None);
+    }
+    let groups = linkage_groups(curves);
+    if groups.len() <= options.open_lattice.above || groups.len() > options.open_linkages {
+        return Ok(None);
+    }
+    let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
+    let (stage1, report) = open_stage1_lattice(
+        &q,
+        curves,
+        &groups,
+        &options.open_lattice,
+        options.kept(target),
+    );
+    Ok(Some((OpenScan(stage1), report)))
 }
 
 /// The `keep` groups of least score (ties by position), in their original order.

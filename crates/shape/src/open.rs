@@ -27,6 +27,7 @@
 use crate::fit::Start;
 use crate::geom::C64;
 use crate::kin::AtlasCurve;
+use crate::lattice::LinkageLattice;
 use crate::smooth::{default_terms, smooth_resample};
 use crate::target::{Target, Timing};
 use coupler_kinematics::{Circuit, CrankTable, Linkage, Mechanism};
@@ -1797,28 +1798,202 @@ pub(crate) fn open_stage1(
     keep: usize,
 ) -> Vec<Stage1> {
     let mut stage1: Vec<Stage1> = Vec::new();
-    let mut buf = Projection::default();
-    // The scan's passes, made again only when the period changes (geared five-bars).
-    let mut passes: Option<Passes> = None;
-    let mut cranks = Cranks::default();
+    let mut scanner = Scanner::default();
     for g in groups {
-        let (a, b) = (g.start, g.end);
-        let Some(first) = curves.get(a) else {
-            continue;
-        };
-        let c = &first.curve;
-        let Some(table) = cranks.table(&c.linkage, c.circuit) else {
-            continue;
-        };
-        let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
-        if passes.as_ref().is_none_or(|p| p.period != table.period) {
-            passes = Some(query.passes(table.period));
-        }
-        let passes = passes.as_ref().expect("made above");
-        linkage_stage1(query, passes, &table, &pts, a, &mut buf, &mut stage1);
+        scanner.scan(query, curves, g.clone(), &mut stage1);
     }
     truncate_stage1(&mut stage1, keep);
     stage1
+}
+
+/// What scanning one linkage after another reuses: the projection's buffers, the scan's
+/// passes (made again only when the period changes: geared five-bars) and the crank
+/// angles of the tables.
+#[derive(Default)]
+struct Scanner {
+    buf: Projection,
+    passes: Option<Passes>,
+    cranks: Cranks,
+}
+
+impl Scanner {
+    /// Stage 1 with its projections on the linkage `g` (a range of `curves`): each
+    /// curve's best window of each reflection, pushed onto `out`.
+    fn scan(
+        &mut self,
+        query: &OpenQuery,
+        curves: &[AtlasCurve],
+        g: std::ops::Range<usize>,
+        out: &mut Vec<Stage1>,
+    ) {
+        let (a, b) = (g.start, g.end);
+        let Some(first) = curves.get(a) else {
+            return;
+        };
+        let c = &first.curve;
+        let Some(table) = self.cranks.table(&c.linkage, c.circuit) else {
+            return;
+        };
+        let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
+        if self
+            .passes
+            .as_ref()
+            .is_none_or(|p| p.period != table.period)
+        {
+            self.passes = Some(query.passes(table.period));
+        }
+        let passes = self.passes.as_ref().expect("made above");
+        linkage_stage1(query, passes, &table, &pts, a, &mut self.buf, out);
+    }
+}
+
+/// Settings of the lattice search (`docs/shape-search.md`, "The lattice search"): an
+/// open target's coarse-to-fine scan over the atlas's linkage lattice
+/// ([`LinkageLattice`]) instead of a scan of every linkage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LatticeSearch {
+    /// The search runs on an atlas of more than this many linkages (`usize::MAX`: never;
+    /// every linkage is scanned).
+    pub above: usize,
+    /// The sub-lattice scanned first: one linkage per cell of this many lattice steps a
+    /// side.
+    pub cell: usize,
+    /// The best linkages (by their best curve's stage-1 misfit) whose neighbours are
+    /// scanned, round after round until the best this many have all had theirs scanned.
+    pub best: usize,
+    /// Neighbours: linkages within this many lattice steps in every dimension.
+    pub radius: usize,
+}
+
+impl LatticeSearch {
+    /// On an atlas of more than 2,000 linkages (the dense atlas has 31,018, the default
+    /// one 175): cells of 5 lattice steps, the neighbours within one step of the best 4
+    /// (`docs/shape-search.md`, "The lattice search", for the measured recall).
+    pub const DEFAULT: LatticeSearch = LatticeSearch {
+        above: 2_000,
+        cell: 5,
+        best: 4,
+        radius: 1,
+    };
+
+    /// No lattice search: every linkage scanned.
+    pub const FULL: LatticeSearch = LatticeSearch {
+        above: usize::MAX,
+        ..LatticeSearch::DEFAULT
+    };
+}
+
+/// What a lattice search scanned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LatticeReport {
+    /// Linkages in the sub-lattice.
+    pub sampled: usize,
+    /// Linkages scanned (the sub-lattice's among them).
+    pub scanned: usize,
+    /// Linkages of the atlas.
+    pub linkages: usize,
+    /// Rounds of neighbours scanned after the sub-lattice.
+    pub rounds: usize,
+}
+
+/// Linkages of one task of the lattice search.
+const LATTICE_PART: usize = 4;
+
+/// Stage 1 by the lattice search over the linkages `groups` of `curves`, for each
+/// reflection on its own: the sub-lattice ([`LinkageLattice::sample`]) scanned, the
+/// linkages ranked by their best curve's misfit of that reflection (ties by atlas
+/// order), and the unscanned neighbours of the best `search.best` scanned, until each of
+/// the best has had its neighbours scanned. A linkage is scanned once (by
+/// [`open_stage1`]'s scan) whichever reflection asks for it, but a reflection takes its
+/// own hypotheses only from the linkages its own search reached: so the unreflected ones
+/// are those of the same query without reflection, bit for bit, and `--mirror` only adds
+/// (as in the full scan). The linkages are scanned in parallel on the calling thread's
+/// rayon pool; which are scanned depends on their scores and order only, so the result
+/// is the same on any number of threads.
+pub(crate) fn open_stage1_lattice(
+    query: &OpenQuery,
+    curves: &[AtlasCurve],
+    groups: &[std::ops::Range<usize>],
+    search: &LatticeSearch,
+    keep: usize,
+) -> (Vec<Stage1>, LatticeReport) {
+    let lattice = LinkageLattice::new(curves, groups);
+    let n = groups.len();
+    let reflections = if query.allow_mirror { 2 } else { 1 };
+    // Each linkage's scan, once made.
+    let mut scans: Vec<Option<Vec<Stage1>>> = vec![None; n];
+    // Per reflection: the score of each linkage it reached, and which it expanded.
+    let mut score = vec![vec![None::<f64>; n]; reflections];
+    let mut expanded = vec![vec![false; n]; reflections];
+    let mut stage1: Vec<Stage1> = Vec::new();
+    let sample = lattice.sample(search.cell);
+    let mut report = LatticeReport {
+        sampled: sample.len(),
+        scanned: 0,
+        linkages: n,
+        rounds: 0,
+    };
+    let mut todo = vec![sample; reflections];
+    loop {
+        let mut need: Vec<usize> = todo.concat();
+        need.sort_unstable();
+        need.dedup();
+        need.retain(|&i| scans[i].is_none());
+        let found: Vec<(usize, Vec<Stage1>)> = need
+            .par_chunks(LATTICE_PART)
+            .flat_map_iter(|part| {
+                let mut scanner = Scanner::default();
+                part.iter()
+                    .map(|&i| {
+                        let mut out = Vec::new();
+                        scanner.scan(query, curves, groups[i].clone(), &mut out);
+                        (i, out)
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        report.scanned += found.len();
+        for (i, out) in found {
+            scans[i] = Some(out);
+        }
+        let mut next = vec![Vec::new(); reflections];
+        for m in 0..reflections {
+            let mirror = m == 1;
+            for &i in &todo[m] {
+                let out = scans[i].as_deref().unwrap_or_default();
+                let mine = out.iter().filter(|s| s.hyp.mirror == mirror);
+                score[m][i] = Some(
+                    mine.clone()
+                        .map(|s| s.hyp.misfit)
+                        .fold(f64::INFINITY, f64::min),
+                );
+                stage1.extend(mine.cloned());
+            }
+            let mut order: Vec<(f64, usize)> =
+                (0..n).filter_map(|i| score[m][i].map(|s| (s, i))).collect();
+            order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            for &(s, i) in order.iter().take(search.best) {
+                if !expanded[m][i] && s.is_finite() {
+                    expanded[m][i] = true;
+                    next[m].extend(
+                        lattice
+                            .neighbours(i, search.radius)
+                            .into_iter()
+                            .filter(|&j| score[m][j].is_none()),
+                    );
+                }
+            }
+            next[m].sort_unstable();
+            next[m].dedup();
+        }
+        truncate_stage1(&mut stage1, keep);
+        if next.iter().all(|t| t.is_empty()) {
+            break;
+        }
+        report.rounds += 1;
+        todo = next;
+    }
+    (stage1, report)
 }
 
 /// Stage 1 and its projections on one linkage (`table`, its coupler points `pts`, the
