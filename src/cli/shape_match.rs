@@ -352,7 +352,7 @@ fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec
     let curves = &atlas.curves(&view)?;
     if let Some((scan, report)) = open_lattice_scan(target, curves, options)? {
         eprintln!(
-            "note: lattice search: {} of the atlas's {} linkages scanned (a sub-lattice, then {} rounds of the best linkages' neighbours; --full-scan scans every linkage)",
+            "note: lattice search: {} of the atlas's {} linkages scanned (a sub-lattice, then {} rounds of the best linkages' neighbours); a full scan may find closer curves: --full-scan scans every linkage",
             report.scanned, report.linkages, report.rounds
         );
         return Ok(open_finish(target, curves, vec![scan], options)?);
