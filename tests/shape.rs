@@ -794,8 +794,14 @@ fn mirror_keeps_the_exact_open_source() {
         );
         assert!(m[0].rms_pct < 1e-4, "{name}: {} %", m[0].rms_pct);
     }
+    no_rank_worse(&plain, &mirror);
+}
+
+/// `mirror` (a query allowing reflection) has as many matches as `plain` (the same query
+/// without it), and every rank's error is at most `plain`'s.
+fn no_rank_worse(plain: &[Match], mirror: &[Match]) {
     assert_eq!(plain.len(), mirror.len());
-    for (p, q) in plain.iter().zip(&mirror) {
+    for (p, q) in plain.iter().zip(mirror) {
         assert!(
             q.fit.rms <= p.fit.rms,
             "{} % against {} %",
@@ -863,15 +869,7 @@ fn lattice_search_on_the_default_atlas() {
         },
     )
     .unwrap();
-    assert_eq!(plain.len(), one.len());
-    for (p, q) in plain.iter().zip(&one) {
-        assert!(
-            q.fit.rms <= p.fit.rms,
-            "{} % against {} %",
-            q.rms_pct,
-            p.rms_pct
-        );
-    }
+    no_rank_worse(&plain, &one);
     // The default options scan every linkage of an atlas this small.
     assert!(
         open_lattice_scan(&t, &curves, &MatchOptions::DEFAULT)
