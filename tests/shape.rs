@@ -5,7 +5,7 @@
 use coupler_atlas::generate::Job;
 use coupler_atlas::generate::atlas_curves;
 use coupler_atlas::shape::C64;
-use coupler_atlas::shape::cases::{SplitMix64 as Rng, found, make_target, retrieval_cases};
+use coupler_atlas::shape::cases::{Case, SplitMix64 as Rng, found, make_target, retrieval_cases};
 use coupler_atlas::shape::{
     AtlasCurve, CouplerCurve, FitOptions, Match, MatchOptions, ShapeCode, Target, Timing,
     find_matches, fit_curve, refine,
@@ -565,6 +565,7 @@ fn screen_on_a_large_atlas() {
 /// least as close in the top 5 (`found`), whether its top-5 ids are the full search's,
 /// its #1 error, the share of linkages scanned and its time; then the counts.
 /// `LATTICE_FULL=FILE` keeps the full searches' results in FILE (read if it exists).
+/// `LATTICE_TIMED=1`: the cases timed by their crank angles (seed 78, `timed_open_cases`).
 #[test]
 #[ignore]
 fn lattice_on_a_large_atlas() {
@@ -596,7 +597,11 @@ fn lattice_on_a_large_atlas() {
         .collect();
     let curves = &atlas.curves;
     let groups = linkage_groups(curves);
-    let cases = retrieval_cases(curves, false, 77, count);
+    let cases = if std::env::var("LATTICE_TIMED").is_ok() {
+        timed_open_cases(curves, 78, count)
+    } else {
+        retrieval_cases(curves, false, 77, count)
+    };
     let cache = std::env::var("LATTICE_FULL").ok();
     let mut cached: Vec<(bool, Vec<u64>, f64, f64)> = cache
         .as_ref()
@@ -726,6 +731,44 @@ fn lattice_on_a_large_atlas() {
             median(&mut secs_by[s])
         );
     }
+}
+
+/// Open retrieval cases timed by their crank angles (`Timing::Angles`): as
+/// `retrieval_cases` makes its open ones (a window of 90°–270°, 20–100 points at even or
+/// random angles, half reflected, 1 % noise), each point with the crank angle it was
+/// traced at.
+fn timed_open_cases(curves: &[AtlasCurve], seed: u64, count: usize) -> Vec<Case> {
+    use coupler_atlas::shape::cases::{crank_angles, place_points};
+    let mut rng = Rng(seed);
+    let mut out = Vec::with_capacity(count);
+    while out.len() < count {
+        let source = (rng.next_u64() % curves.len() as u64) as usize;
+        let start = rng.range(0.0, 360.0);
+        let span = rng.range(90.0, 270.0);
+        let n = 20 + (rng.next_u64() % 81) as usize;
+        let mirrored = rng.uniform() < 0.5;
+        let angles = crank_angles(&mut rng, false, start, span, n);
+        let Some(m) = angles
+            .iter()
+            .map(|&t| curves[source].curve.at(t).map(|p| p.m))
+            .collect::<Option<Vec<C64>>>()
+        else {
+            continue;
+        };
+        let pts = place_points(&mut rng, &m, mirrored, 0.01)
+            .iter()
+            .map(|z| [z.re, z.im])
+            .collect();
+        if let Ok(target) = Target::new(pts, false, Timing::Angles(angles)) {
+            out.push(Case {
+                source,
+                target,
+                start,
+                span,
+            });
+        }
+    }
+    out
 }
 
 /// An exact open target cut from atlas curve `id`: 64 points at even crank steps from
