@@ -765,13 +765,7 @@ pub(crate) fn fit_timed(
     }
     let p = target.complex_points();
     let o = timed_offsets(target);
-    let n = p.len();
-    let free_step = matches!(target.timing(), Timing::EqualSteps) && !target.is_closed();
-    let unit_step = match target.timing() {
-        Timing::Angles(_) => 1.0,
-        _ if target.is_closed() => curve.period_deg() / n as f64,
-        _ => 0.0,
-    };
+    let (free_step, unit_step) = timed_step(target, curve);
     // Candidate (mirrored, θ₀, step) starts.
     let mut starts: Vec<(f64, bool, f64, f64)> = Vec::new();
     let mirrors: &[bool] = if options.allow_mirror {
@@ -801,24 +795,8 @@ pub(crate) fn fit_timed(
         }
     }
     if let Some(h) = hint.filter(|h| options.allow_mirror || !h.mirrored) {
-        // Regression θ_k ≈ θ₀ + s·o_k (s fixed in magnitude unless free).
-        let (om, tm) = (
-            o.iter().sum::<f64>() / n as f64,
-            h.theta_deg.iter().sum::<f64>() / n as f64,
-        );
-        let (mut sxy, mut sxx) = (0.0, 0.0);
-        for (x, y) in o.iter().zip(&h.theta_deg) {
-            sxy += (x - om) * (y - tm);
-            sxx += (x - om) * (x - om);
-        }
-        let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-        let step = if free_step {
-            slope
-        } else {
-            unit_step * slope.signum()
-        };
-        if step != 0.0 {
-            starts.push((f64::INFINITY, h.mirrored, tm - step * om, step));
+        if let Some((t0, step)) = timed_line(&o, &h.theta_deg, free_step, unit_step) {
+            starts.push((f64::INFINITY, h.mirrored, t0, step));
         }
     }
     let mut best: Option<CurveFit> = None;
@@ -832,6 +810,61 @@ pub(crate) fn fit_timed(
         }
     }
     best
+}
+
+/// Whether a timed target's step is fitted (an open target of equal steps), and its
+/// magnitude when it is not (1 for angles, `P/n` for a closed target of equal steps).
+fn timed_step(target: &Target, curve: &CouplerCurve) -> (bool, f64) {
+    let free_step = matches!(target.timing(), Timing::EqualSteps) && !target.is_closed();
+    let unit_step = match target.timing() {
+        Timing::Angles(_) => 1.0,
+        _ if target.is_closed() => curve.period_deg() / target.len() as f64,
+        _ => 0.0,
+    };
+    (free_step, unit_step)
+}
+
+/// The regression `θ_k ≈ θ₀ + s·o_k` of angles `theta` on the offsets `o` (`s` fixed in
+/// magnitude unless `free_step`): `(θ₀, s)`, or `None` when the step comes out zero.
+fn timed_line(o: &[f64], theta: &[f64], free_step: bool, unit_step: f64) -> Option<(f64, f64)> {
+    let n = o.len();
+    let (om, tm) = (
+        o.iter().sum::<f64>() / n as f64,
+        theta.iter().sum::<f64>() / n as f64,
+    );
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (x, y) in o.iter().zip(theta) {
+        sxy += (x - om) * (y - tm);
+        sxx += (x - om) * (x - om);
+    }
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let step = if free_step {
+        slope
+    } else {
+        unit_step * slope.signum()
+    };
+    (step != 0.0).then_some((tm - step * om, step))
+}
+
+/// A timed fit from one start's angles alone (an open candidate's scan start, whose angles
+/// a timed query lays out by the target's timing): the timed Levenberg–Marquardt from the
+/// regression of its angles on the offsets ([`fit_timed`]'s hinted start), without the
+/// scan of the dense trace. `None` when the target's timing does not fit the curve's
+/// period or the start gives no step.
+pub(crate) fn fit_timed_from(
+    target: &Target,
+    curve: &CouplerCurve,
+    start: &Start,
+    options: &FitOptions,
+) -> Option<CurveFit> {
+    if !target.fits_period(curve.period_deg()) {
+        return None;
+    }
+    let p = target.complex_points();
+    let o = timed_offsets(target);
+    let (free_step, unit_step) = timed_step(target, curve);
+    let (t0, step) = timed_line(&o, &start.theta, free_step, unit_step)?;
+    timed_lm(&p, &o, curve, start.mirrored, t0, step, free_step, options)
 }
 
 #[allow(clippy::too_many_arguments)]

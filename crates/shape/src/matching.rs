@@ -4,7 +4,7 @@
 use crate::code::{ClosedQuery, ShapeCode};
 use crate::fit::{
     CurveFit, FitOptions, Start, UntimedFit, continue_untimed, fit_closed_both, fit_timed,
-    fit_untimed, fit_untimed_kept, fit_with,
+    fit_timed_from, fit_untimed, fit_untimed_kept, fit_with,
 };
 use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{
@@ -532,6 +532,13 @@ pub fn rank_candidates(
         };
         let mut scan = None;
         let f = match &c.start {
+            // A timed target's candidate is ranked by a timed fit: the untimed fit's error
+            // is a lower bound of it that can tie many curves (every rocker pin traces a
+            // circle's arc, which fits any other). Its final fit runs the untimed fit in
+            // one go (the same fit as the quick one continued).
+            Some(s) if target.timing().is_timed() => {
+                fit_timed_from(target, &c.curve.curve, s, &quick_of(c)).map(|f| f.rms)
+            }
             Some(s) => scan
                 .insert(fit_untimed_kept(&p, &c.curve.curve, s, &quick_of(c)))
                 .as_ref()
