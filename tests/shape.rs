@@ -5,7 +5,9 @@
 use coupler_atlas::generate::Job;
 use coupler_atlas::generate::atlas_curves;
 use coupler_atlas::shape::C64;
-use coupler_atlas::shape::cases::{Case, SplitMix64 as Rng, found, make_target, retrieval_cases};
+use coupler_atlas::shape::cases::{
+    SplitMix64 as Rng, found, make_target, retrieval_cases, timed_open_cases,
+};
 use coupler_atlas::shape::{
     AtlasCurve, CouplerCurve, FitOptions, Match, MatchOptions, ShapeCode, Target, Timing,
     find_matches, fit_curve, refine,
@@ -731,44 +733,6 @@ fn lattice_on_a_large_atlas() {
             median(&mut secs_by[s])
         );
     }
-}
-
-/// Open retrieval cases timed by their crank angles (`Timing::Angles`): as
-/// `retrieval_cases` makes its open ones (a window of 90°–270°, 20–100 points at even or
-/// random angles, half reflected, 1 % noise), each point with the crank angle it was
-/// traced at.
-fn timed_open_cases(curves: &[AtlasCurve], seed: u64, count: usize) -> Vec<Case> {
-    use coupler_atlas::shape::cases::{crank_angles, place_points};
-    let mut rng = Rng(seed);
-    let mut out = Vec::with_capacity(count);
-    while out.len() < count {
-        let source = (rng.next_u64() % curves.len() as u64) as usize;
-        let start = rng.range(0.0, 360.0);
-        let span = rng.range(90.0, 270.0);
-        let n = 20 + (rng.next_u64() % 81) as usize;
-        let mirrored = rng.uniform() < 0.5;
-        let angles = crank_angles(&mut rng, false, start, span, n);
-        let Some(m) = angles
-            .iter()
-            .map(|&t| curves[source].curve.at(t).map(|p| p.m))
-            .collect::<Option<Vec<C64>>>()
-        else {
-            continue;
-        };
-        let pts = place_points(&mut rng, &m, mirrored, 0.01)
-            .iter()
-            .map(|z| [z.re, z.im])
-            .collect();
-        if let Ok(target) = Target::new(pts, false, Timing::Angles(angles)) {
-            out.push(Case {
-                source,
-                target,
-                start,
-                span,
-            });
-        }
-    }
-    out
 }
 
 /// An open target timed by its crank angles on a rocker pin (coupler point (A, 0), whose

@@ -760,12 +760,7 @@ pub(crate) fn fit_timed(
     hint: Option<&CurveFit>,
     options: &FitOptions,
 ) -> Option<CurveFit> {
-    if !target.fits_period(curve.period_deg()) {
-        return None;
-    }
-    let p = target.complex_points();
-    let o = timed_offsets(target);
-    let (free_step, unit_step) = timed_step(target, curve);
+    let (p, o, (free_step, unit_step)) = timed_problem(target, curve)?;
     // Candidate (mirrored, θ₀, step) starts.
     let mut starts: Vec<(f64, bool, f64, f64)> = Vec::new();
     let mirrors: &[bool] = if options.allow_mirror {
@@ -810,6 +805,23 @@ pub(crate) fn fit_timed(
         }
     }
     best
+}
+
+/// The target's points, their timing offsets and the step: the data of a timed fit.
+type TimedProblem = (Vec<C64>, Vec<f64>, (bool, f64));
+
+/// A timed fit's problem: the target's points, their timing offsets
+/// ([`timed_offsets`]) and the step ([`timed_step`]); `None` when the target's timing
+/// does not fit the curve's period.
+fn timed_problem(target: &Target, curve: &CouplerCurve) -> Option<TimedProblem> {
+    if !target.fits_period(curve.period_deg()) {
+        return None;
+    }
+    Some((
+        target.complex_points(),
+        timed_offsets(target),
+        timed_step(target, curve),
+    ))
 }
 
 /// Whether a timed target's step is fitted (an open target of equal steps), and its
@@ -857,12 +869,7 @@ pub(crate) fn fit_timed_from(
     start: &Start,
     options: &FitOptions,
 ) -> Option<CurveFit> {
-    if !target.fits_period(curve.period_deg()) {
-        return None;
-    }
-    let p = target.complex_points();
-    let o = timed_offsets(target);
-    let (free_step, unit_step) = timed_step(target, curve);
+    let (p, o, (free_step, unit_step)) = timed_problem(target, curve)?;
     let (t0, step) = timed_line(&o, &start.theta, free_step, unit_step)?;
     timed_lm(&p, &o, curve, start.mirrored, t0, step, free_step, options)
 }
