@@ -130,36 +130,15 @@ pub struct Case {
 /// Open: a window of 90°–270° of crank, 20–100 points. (The retrieval tests use seeds
 /// 2024 closed and 77 open.)
 pub fn retrieval_cases(curves: &[AtlasCurve], closed: bool, seed: u64, count: usize) -> Vec<Case> {
-    let mut rng = SplitMix64(seed);
-    let mut out = Vec::with_capacity(count);
-    while out.len() < count && !curves.is_empty() {
-        let (source, start, span, n, mirrored) = draw(&mut rng, curves.len(), closed);
-        let c = &curves[source].curve;
-        if let Some(target) = make_target(&mut rng, c, closed, start, span, n, mirrored, 0.01) {
-            out.push(Case {
-                source,
-                target,
-                start,
-                span,
-            });
-        }
-    }
-    out
-}
-
-/// One case's draws: the source (of `len` curves), the start, the span and the number of
-/// points (closed: the full turn, 30–149 points; open: 90°–270°, 20–100 points), and
-/// whether it is reflected.
-fn draw(rng: &mut SplitMix64, len: usize, closed: bool) -> (usize, f64, f64, usize, bool) {
-    let source = (rng.next_u64() % len as u64) as usize;
-    let start = rng.range(0.0, 360.0);
-    let (span, n) = if closed {
-        (360.0, 30 + (rng.next_u64() % 120) as usize)
-    } else {
-        let span = rng.range(90.0, 270.0);
-        (span, 20 + (rng.next_u64() % 81) as usize)
-    };
-    (source, start, span, n, rng.uniform() < 0.5)
+    seeded_cases(
+        curves,
+        closed,
+        seed,
+        count,
+        |rng, c, start, span, n, mirrored| {
+            make_target(rng, c, closed, start, span, n, mirrored, 0.01)
+        },
+    )
 }
 
 /// Open retrieval cases timed by their crank angles (`Timing::Angles`), seeded: as
@@ -167,23 +146,50 @@ fn draw(rng: &mut SplitMix64, len: usize, closed: bool) -> (usize, f64, f64, usi
 /// or random angles, half reflected, 1 % noise), each point with the crank angle it was
 /// traced at.
 pub fn timed_open_cases(curves: &[AtlasCurve], seed: u64, count: usize) -> Vec<Case> {
+    seeded_cases(
+        curves,
+        false,
+        seed,
+        count,
+        |rng, c, start, span, n, mirrored| {
+            let angles = crank_angles(rng, false, start, span, n);
+            let m: Vec<C64> = angles
+                .iter()
+                .map(|&t| c.at(t).map(|p| p.m))
+                .collect::<Option<_>>()?;
+            let pts = place_points(rng, &m, mirrored, 0.01)
+                .iter()
+                .map(|z| [z.re, z.im])
+                .collect();
+            Target::new(pts, false, Timing::Angles(angles)).ok()
+        },
+    )
+}
+
+/// `count` cases drawn with `seed`: each a random source of `curves`, start, span and
+/// number of points (closed: the full turn, 30–149 points; open: 90°–270°, 20–100
+/// points) and reflection (even odds), handed to `make` for its target (a case is drawn
+/// again when `make` gives none).
+fn seeded_cases(
+    curves: &[AtlasCurve],
+    closed: bool,
+    seed: u64,
+    count: usize,
+    mut make: impl FnMut(&mut SplitMix64, &CouplerCurve, f64, f64, usize, bool) -> Option<Target>,
+) -> Vec<Case> {
     let mut rng = SplitMix64(seed);
     let mut out = Vec::with_capacity(count);
     while out.len() < count && !curves.is_empty() {
-        let (source, start, span, n, mirrored) = draw(&mut rng, curves.len(), false);
-        let angles = crank_angles(&mut rng, false, start, span, n);
-        let Some(m) = angles
-            .iter()
-            .map(|&t| curves[source].curve.at(t).map(|p| p.m))
-            .collect::<Option<Vec<C64>>>()
-        else {
-            continue;
+        let source = (rng.next_u64() % curves.len() as u64) as usize;
+        let start = rng.range(0.0, 360.0);
+        let (span, n) = if closed {
+            (360.0, 30 + (rng.next_u64() % 120) as usize)
+        } else {
+            let span = rng.range(90.0, 270.0);
+            (span, 20 + (rng.next_u64() % 81) as usize)
         };
-        let pts = place_points(&mut rng, &m, mirrored, 0.01)
-            .iter()
-            .map(|z| [z.re, z.im])
-            .collect();
-        if let Ok(target) = Target::new(pts, false, Timing::Angles(angles)) {
+        let mirrored = rng.uniform() < 0.5;
+        if let Some(target) = make(&mut rng, &curves[source].curve, start, span, n, mirrored) {
             out.push(Case {
                 source,
                 target,
