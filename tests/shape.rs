@@ -811,6 +811,14 @@ fn with_mirror() -> MatchOptions {
     }
 }
 
+/// `options` with reflection not allowed: the plain query a `--mirror` one is held to.
+fn without_mirror(options: MatchOptions) -> MatchOptions {
+    MatchOptions {
+        allow_mirror: false,
+        ..options
+    }
+}
+
 fn straight_run(curves: &[AtlasCurve], mirrored: bool) -> Target {
     let c = &curves
         .iter()
@@ -829,16 +837,7 @@ fn straight_run(curves: &[AtlasCurve], mirrored: bool) -> Target {
 fn mirror_keeps_the_exact_open_source() {
     let (curves, _) = default_atlas();
     let t = straight_run(&curves, false);
-    let plain = find_matches(
-        &t,
-        &curves,
-        &[],
-        &MatchOptions {
-            allow_mirror: false,
-            ..MatchOptions::DEFAULT
-        },
-    )
-    .unwrap();
+    let plain = find_matches(&t, &curves, &[], &without_mirror(MatchOptions::DEFAULT)).unwrap();
     let mirror = find_matches(&t, &curves, &[], &with_mirror()).unwrap();
     for (name, m) in [("plain", &plain), ("mirror", &mirror)] {
         assert_eq!(
@@ -913,16 +912,7 @@ fn lattice_search_on_the_default_atlas() {
     assert_eq!(one, on(3));
     // `--mirror` only adds: each reflection searches the lattice on its own, so the
     // unreflected matches are the plain query's and every rank's error is at most its.
-    let plain = find_matches(
-        &t,
-        &curves,
-        &[],
-        &MatchOptions {
-            allow_mirror: false,
-            ..lattice(3)
-        },
-    )
-    .unwrap();
+    let plain = find_matches(&t, &curves, &[], &without_mirror(lattice(3))).unwrap();
     no_rank_worse(&plain, &one);
     // The default options scan every linkage of an atlas this small.
     assert!(
@@ -986,16 +976,8 @@ fn assert_mirror_never_worse(targets: &[Target], curves: &[AtlasCurve], codes: &
         .par_iter()
         .enumerate()
         .flat_map_iter(|(k, t)| {
-            let plain = find_matches(
-                t,
-                curves,
-                codes,
-                &MatchOptions {
-                    allow_mirror: false,
-                    ..MatchOptions::DEFAULT
-                },
-            )
-            .unwrap();
+            let plain =
+                find_matches(t, curves, codes, &without_mirror(MatchOptions::DEFAULT)).unwrap();
             let mirror = find_matches(t, curves, codes, &with_mirror()).unwrap();
             assert_eq!(plain.len(), mirror.len(), "case {k}");
             plain
