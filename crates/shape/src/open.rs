@@ -1361,7 +1361,7 @@ impl OpenQuery {
     /// values bit for bit (as [`linkage_stage1`]).
     fn polish(&self, table: &Table, w: C64, hyp: &Hypothesis, dp: &mut Programme) -> Hypothesis {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::has_avx2() {
             // SAFETY: `polish_avx2` needs AVX2, which the processor was just found to
             // have; it has no other requirement (the safe body compiled for AVX2).
             #[allow(unsafe_code)]
@@ -2016,7 +2016,7 @@ fn linkage_stage1(
     out: &mut Vec<Stage1>,
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if crate::has_avx2() {
         // SAFETY: `linkage_stage1_avx2` needs AVX2, which the processor was just found
         // to have; it has no other requirement (it is the safe body compiled for AVX2).
         #[allow(unsafe_code)]
@@ -2676,7 +2676,7 @@ mod mirror {
                     let flat = Kernel::flat_sums(&kernel.cells, &grid.cells[base..]);
                     assert_eq!(bits(flat), bits(want));
                     #[cfg(target_arch = "x86_64")]
-                    if std::arch::is_x86_feature_detected!("avx2") {
+                    if crate::has_avx2() {
                         // SAFETY: the processor was just found to have AVX2.
                         #[allow(unsafe_code)]
                         let flat =
