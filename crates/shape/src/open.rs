@@ -1097,11 +1097,27 @@ impl OpenQuery {
     /// the unreflected list before the reflected one. Each reflection has its own lists
     /// and bounds, so the unreflected lists are the same, bit for bit, with reflection
     /// allowed or not: a reflected window never pushes an unreflected one out.
-    /// (The baseline instruction set's path, for tests; the query runs
-    /// [`linkage_stage1`].)
+    /// (For tests and the lab: the scan of [`linkage_stage1`], on the path the query
+    /// takes, AVX2 where the processor has it.)
     #[cfg(test)]
     fn scan(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
-        self.scan_with::<false>(&self.passes(table.period), table, points)
+        let passes = self.passes(table.period);
+        #[cfg(target_arch = "x86_64")]
+        if crate::has_avx2() {
+            // SAFETY: `scan_avx2` needs AVX2, which the processor was just found to have;
+            // it has no other requirement (the safe body compiled for AVX2).
+            #[allow(unsafe_code)]
+            return unsafe { self.scan_avx2(&passes, table, points) };
+        }
+        self.scan_with::<false>(&passes, table, points)
+    }
+
+    /// [`OpenQuery::scan_with`] compiled for AVX2 (called only where the processor has
+    /// it).
+    #[cfg(all(test, target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn scan_avx2(&self, passes: &Passes, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
+        self.scan_with::<true>(passes, table, points)
     }
 
     /// The scan's passes on a linkage of the given `period`: every span and sense with
@@ -3010,6 +3026,8 @@ mod stage_times {
         let least = |name: &str, reps: usize, f: &mut dyn FnMut()| {
             if on(name) { least(reps, f) } else { f64::NAN }
         };
+        // The scan on the path the query takes ([`OpenQuery::scan`]: AVX2 where the
+        // processor has it), the passes made per linkage.
         let scan = least("scan", reps, &mut || {
             for (table, pts) in &tables {
                 std::hint::black_box(q.scan(table, pts));
