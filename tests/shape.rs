@@ -332,7 +332,7 @@ fn chebyshev_open_run_finds_hoekens_cognate() {
 /// that many. 300 linkages, one curve each (more than the previous default of 256).
 #[test]
 fn open_scan_covers_every_linkage_by_default() {
-    use coupler_atlas::shape::open_linkages;
+    use coupler_atlas::shape::{linkage_groups, open_linkages};
     let curves: Vec<AtlasCurve> = (0..300)
         .map(|k| AtlasCurve {
             id: k,
@@ -360,14 +360,14 @@ fn open_scan_covers_every_linkage_by_default() {
         screened.store(true, std::sync::atomic::Ordering::Relaxed);
         (0..g.len()).map(|i| i as f64).collect()
     };
-    let all = open_linkages(&t, &curves, &MatchOptions::DEFAULT, score);
+    let all = open_linkages(&t, linkage_groups(&curves), &MatchOptions::DEFAULT, score);
     assert_eq!(all.len(), 300);
     assert!(!screened.load(std::sync::atomic::Ordering::Relaxed));
     let options = MatchOptions {
         open_linkages: 10,
         ..MatchOptions::DEFAULT
     };
-    let some = open_linkages(&t, &curves, &options, score);
+    let some = open_linkages(&t, linkage_groups(&curves), &options, score);
     assert_eq!(some, (0..10).map(|i| i..i + 1).collect::<Vec<_>>());
     assert!(screened.load(std::sync::atomic::Ordering::Relaxed));
 }
@@ -688,7 +688,9 @@ fn lattice_on_a_large_atlas() {
                 ..MatchOptions::DEFAULT
             };
             let t0 = std::time::Instant::now();
-            let (scan, report) = open_lattice_scan(t, curves, &options).unwrap().unwrap();
+            let (scan, report) = open_lattice_scan(t, curves, &groups, &options)
+                .unwrap()
+                .unwrap();
             let c = open_finish(t, curves, vec![scan], &options).unwrap();
             let m = coupler_atlas::shape::rank_candidates(t, c, &options);
             let secs = t0.elapsed().as_secs_f64();
@@ -874,8 +876,9 @@ fn no_rank_worse(plain: &[Match], mirror: &[Match]) {
 /// this small keeps the full scan.)
 #[test]
 fn lattice_search_on_the_default_atlas() {
-    use coupler_atlas::shape::{LatticeSearch, open_lattice_scan};
+    use coupler_atlas::shape::{LatticeSearch, linkage_groups, open_lattice_scan};
     let (curves, _) = default_atlas();
+    let groups = linkage_groups(&curves);
     let t = straight_run(&curves, false);
     let lattice = |cell| MatchOptions {
         open_lattice: LatticeSearch {
@@ -892,7 +895,7 @@ fn lattice_search_on_the_default_atlas() {
         full,
         "cells of one step"
     );
-    let (_, report) = open_lattice_scan(&t, &curves, &lattice(3))
+    let (_, report) = open_lattice_scan(&t, &curves, &groups, &lattice(3))
         .unwrap()
         .unwrap();
     assert!(
@@ -916,7 +919,7 @@ fn lattice_search_on_the_default_atlas() {
     no_rank_worse(&plain, &one);
     // The default options scan every linkage of an atlas this small.
     assert!(
-        open_lattice_scan(&t, &curves, &MatchOptions::DEFAULT)
+        open_lattice_scan(&t, &curves, &groups, &MatchOptions::DEFAULT)
             .unwrap()
             .is_none()
     );

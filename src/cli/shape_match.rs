@@ -350,20 +350,21 @@ fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec
         return Ok(parts.concat());
     }
     let curves = &atlas.curves(&view)?;
-    if let Some((scan, report)) = open_lattice_scan(target, curves, options)? {
+    let groups = coupler_atlas::shape::linkage_groups(curves);
+    if let Some((scan, report)) = open_lattice_scan(target, curves, &groups, options)? {
         eprintln!(
             "note: lattice search: {} of the atlas's {} linkages scanned (a sub-lattice, then {} rounds of the best linkages' neighbours); a full scan may find closer curves: --full-scan scans every linkage",
             report.scanned, report.linkages, report.rounds
         );
         return Ok(open_finish(target, curves, vec![scan], options)?);
     }
-    let groups = open_linkages(target, curves, options, |screen, groups| {
+    let all = groups.len();
+    let groups = open_linkages(target, groups, options, |screen, groups| {
         groups
             .par_iter()
             .map(|g| screen.score(&curves[g.clone()]))
             .collect()
     });
-    let all = coupler_atlas::shape::linkage_groups(curves).len();
     if groups.len() < all {
         eprintln!(
             "note: {} of the atlas's {all} linkages scanned, picked by a coarse screen: the answer is a sample of the atlas, not a full search (without --linkages every linkage is scanned)",
