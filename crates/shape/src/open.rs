@@ -1906,6 +1906,8 @@ pub struct LatticeReport {
     pub sampled: usize,
     /// Linkages scanned (the sub-lattice's among them).
     pub scanned: usize,
+    /// Curves of the linkages scanned.
+    pub curves: usize,
     /// Linkages of the atlas.
     pub linkages: usize,
     /// Rounds of neighbours scanned after the sub-lattice.
@@ -1946,6 +1948,7 @@ pub(crate) fn open_stage1_lattice(
     let mut report = LatticeReport {
         sampled: sample.len(),
         scanned: 0,
+        curves: 0,
         linkages: n,
         rounds: 0,
     };
@@ -1969,6 +1972,7 @@ pub(crate) fn open_stage1_lattice(
             })
             .collect();
         report.scanned += found.len();
+        report.curves += found.iter().map(|(i, _)| groups[*i].len()).sum::<usize>();
         for (i, out) in found {
             scans[i] = Some(out);
         }
