@@ -1879,17 +1879,23 @@ pub struct LatticeSearch {
     pub best: usize,
     /// Neighbours: linkages within this many lattice steps in every dimension.
     pub radius: usize,
+    /// Once the rounds settle, the unscanned linkages within this many steps of the best
+    /// one are scanned too, and the rounds go on from them (once per linkage that is
+    /// best when they settle; nothing when not more than `radius`).
+    pub widen: usize,
 }
 
 impl LatticeSearch {
     /// On an atlas of more than 2,000 linkages (the dense atlas has 31,018, the default
-    /// one 175): cells of 5 lattice steps, the neighbours within one step of the best 4
-    /// (`docs/shape-search.md`, "The lattice search", for the measured recall).
+    /// one 175): cells of 5 lattice steps, the neighbours within one step of the best 4,
+    /// and once settled within two of the best (`docs/shape-search.md`, "The lattice
+    /// search", for the measured recall).
     pub const DEFAULT: LatticeSearch = LatticeSearch {
         above: 2_000,
         cell: 5,
         best: 4,
         radius: 1,
+        widen: 2,
     };
 
     /// No lattice search: every linkage scanned.
@@ -1910,7 +1916,7 @@ pub struct LatticeReport {
     pub curves: usize,
     /// Linkages of the atlas.
     pub linkages: usize,
-    /// Rounds of neighbours scanned after the sub-lattice.
+    /// Rounds of neighbours scanned after the sub-lattice (the widening ones among them).
     pub rounds: usize,
 }
 
@@ -1921,11 +1927,12 @@ const LATTICE_PART: usize = 4;
 /// reflection on its own: the sub-lattice ([`LinkageLattice::sample`]) scanned, the
 /// linkages ranked by their best curve's misfit of that reflection (ties by atlas
 /// order), and the unscanned neighbours of the best `search.best` scanned, until each of
-/// the best has had its neighbours scanned. A linkage is scanned once (by
-/// [`open_stage1`]'s scan) whichever reflection asks for it, but a reflection takes its
-/// own hypotheses only from the linkages its own search reached: so the unreflected ones
-/// are those of the same query without reflection, bit for bit, and `--mirror` only adds
-/// (as in the full scan). The linkages are scanned in parallel on the calling thread's
+/// the best has had its neighbours scanned; then those within `search.widen` steps of
+/// the best, and the rounds again, until they settle on a best already widened. A
+/// linkage is scanned once (by [`open_stage1`]'s scan) whichever reflection asks for it,
+/// but a reflection takes its own hypotheses only from the linkages its own search
+/// reached: so the unreflected ones are those of the same query without reflection, bit
+/// for bit, and `--mirror` only adds (as in the full scan). The linkages are scanned in parallel on the calling thread's
 /// rayon pool; which are scanned depends on their scores and order only, so the result
 /// is the same on any number of threads.
 pub(crate) fn open_stage1_lattice(
@@ -1943,6 +1950,7 @@ pub(crate) fn open_stage1_lattice(
     // Per reflection: the score of each linkage it reached, and which it expanded.
     let mut score = vec![vec![None::<f64>; n]; reflections];
     let mut expanded = vec![vec![false; n]; reflections];
+    let mut widened = vec![vec![false; n]; reflections];
     let mut stage1: Vec<Stage1> = Vec::new();
     let sample = lattice.sample(search.cell);
     let mut report = LatticeReport {
@@ -2005,6 +2013,16 @@ pub(crate) fn open_stage1_lattice(
             }
             next[m].sort_unstable();
             next[m].dedup();
+            // Settled: the wider neighbourhood of the best, once per linkage.
+            let settled = next[m].is_empty() && search.widen > search.radius;
+            if let Some(&(_, i)) = order
+                .first()
+                .filter(|&&(s, i)| settled && s.is_finite() && !widened[m][i])
+            {
+                widened[m][i] = true;
+                next[m] = lattice.neighbours(i, search.widen);
+                next[m].retain(|&j| score[m][j].is_none());
+            }
         }
         truncate_stage1(&mut stage1, keep);
         if next.iter().all(|t| t.is_empty()) {
