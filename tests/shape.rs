@@ -332,7 +332,7 @@ fn chebyshev_open_run_finds_hoekens_cognate() {
 /// that many. 300 linkages, one curve each (more than the previous default of 256).
 #[test]
 fn open_scan_covers_every_linkage_by_default() {
-    use coupler_atlas::shape::open_linkages;
+    use coupler_atlas::shape::{linkage_groups, open_linkages};
     let curves: Vec<AtlasCurve> = (0..300)
         .map(|k| AtlasCurve {
             id: k,
@@ -360,14 +360,14 @@ fn open_scan_covers_every_linkage_by_default() {
         screened.store(true, std::sync::atomic::Ordering::Relaxed);
         (0..g.len()).map(|i| i as f64).collect()
     };
-    let all = open_linkages(&t, &curves, &MatchOptions::DEFAULT, score);
+    let all = open_linkages(&t, linkage_groups(&curves), &MatchOptions::DEFAULT, score);
     assert_eq!(all.len(), 300);
     assert!(!screened.load(std::sync::atomic::Ordering::Relaxed));
     let options = MatchOptions {
         open_linkages: 10,
         ..MatchOptions::DEFAULT
     };
-    let some = open_linkages(&t, &curves, &options, score);
+    let some = open_linkages(&t, linkage_groups(&curves), &options, score);
     assert_eq!(some, (0..10).map(|i| i..i + 1).collect::<Vec<_>>());
     assert!(screened.load(std::sync::atomic::Ordering::Relaxed));
 }
@@ -563,7 +563,8 @@ fn screen_on_a_large_atlas() {
 /// The lattice search against the full search on open targets made from the atlas's own
 /// curves (seed 77, as `screen_on_a_large_atlas`; reflection allowed): per case, for the
 /// full search and each setting of `LATTICE_SETTINGS` (`cell:best:radius`, comma
-/// separated; default `5:4:1,4:4:1,3:8:1`), whether it finds the source or a curve at
+/// separated, with `:widen` after them if not the default's; default
+/// `5:4:1,4:4:1,3:8:1`), whether it finds the source or a curve at
 /// least as close in the top 5 (`found`), whether its top-5 ids are the full search's,
 /// its #1 error, the share of linkages scanned and its time; then the counts.
 /// `LATTICE_FULL=FILE` keeps the full searches' results in FILE (read if it exists).
@@ -594,6 +595,7 @@ fn lattice_on_a_large_atlas() {
                 cell: v[0],
                 best: v[1],
                 radius: v[2],
+                widen: v.get(3).copied().unwrap_or(LatticeSearch::DEFAULT.widen),
             }
         })
         .collect();
@@ -688,7 +690,9 @@ fn lattice_on_a_large_atlas() {
                 ..MatchOptions::DEFAULT
             };
             let t0 = std::time::Instant::now();
-            let (scan, report) = open_lattice_scan(t, curves, &options).unwrap().unwrap();
+            let (scan, report) = open_lattice_scan(t, curves, &groups, &options)
+                .unwrap()
+                .unwrap();
             let c = open_finish(t, curves, vec![scan], &options).unwrap();
             let m = coupler_atlas::shape::rank_candidates(t, c, &options);
             let secs = t0.elapsed().as_secs_f64();
@@ -733,6 +737,65 @@ fn lattice_on_a_large_atlas() {
             median(&mut secs_by[s])
         );
     }
+}
+
+/// `SHAPE_ATLAS=<dense atlas> cargo test --release --test shape lattice_search_widens_once_settled -- --ignored --nocapture`.
+/// A noise-free open target timed by its crank angles (`fixtures/timed-dense-climb.csv`:
+/// A = 4.375, B = 3.25, C = 2.875, point (2.1875, 2.1875), open circuit, at crank angles
+/// 252°..399° every 3°, scaled by 20, turned by 30°, moved to (100, −40), six decimals),
+/// without reflection. The dense atlas's full scan finds it exactly, and its linkage has
+/// the least stage-1 misfit of all 31,018 (stage 1 of a timed target is timed: the span
+/// and the spacing of the points are the target's). Without widening (`widen: 0`) the
+/// lattice search never scanned it: it climbed along a neighbouring valley of good
+/// linkages (C = 2.75) and settled at A = 4.25, B = 3.5, C = 2.75, two lattice steps
+/// away (#1 curve 680169 at 0.081 %). With the default widening the source is #1, exactly.
+#[test]
+#[ignore]
+fn lattice_search_widens_once_settled() {
+    use coupler_atlas::shape::{LatticeSearch, decode_sidecar};
+    let Ok(dir) = std::env::var("SHAPE_ATLAS") else {
+        println!("set SHAPE_ATLAS to the dense atlas's folder");
+        return;
+    };
+    let bytes = std::fs::read(std::path::Path::new(&dir).join("shapes.bin")).unwrap();
+    let atlas = decode_sidecar(&bytes).unwrap();
+    let (mut pts, mut angles) = (Vec::new(), Vec::new());
+    for line in include_str!("fixtures/timed-dense-climb.csv").lines() {
+        let f: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        pts.push([f[0], f[1]]);
+        angles.push(f[2]);
+    }
+    let t = Target::new(pts, false, Timing::Angles(angles)).unwrap();
+    let source = CouplerCurve::new(
+        FourBar::new(4.375, 3.25, 2.875).unwrap(),
+        Circuit::Open,
+        CouplerPoint::new(2.1875, 2.1875),
+    );
+    let source = atlas
+        .curves
+        .iter()
+        .find(|c| c.curve == source)
+        .expect("the source is a curve of the dense atlas")
+        .id;
+    let mut best = Vec::new();
+    for widen in [0, LatticeSearch::DEFAULT.widen] {
+        let options = MatchOptions {
+            allow_mirror: false,
+            open_lattice: LatticeSearch {
+                widen,
+                ..LatticeSearch::DEFAULT
+            },
+            ..MatchOptions::DEFAULT
+        };
+        let m = find_matches(&t, &atlas.curves, &[], &options).unwrap();
+        println!(
+            "widen {widen}: #1 curve {} at {:.3e} % (the source: curve {source})",
+            m[0].id, m[0].rms_pct
+        );
+        best.push((m[0].id, m[0].rms_pct));
+    }
+    assert_eq!(best[1].0, source);
+    assert!(best[1].1 < 1e-4, "{} %", best[1].1);
 }
 
 /// An open target timed by its crank angles on a rocker pin (coupler point (A, 0), whose
@@ -874,15 +937,15 @@ fn no_rank_worse(plain: &[Match], mirror: &[Match]) {
 /// this small keeps the full scan.)
 #[test]
 fn lattice_search_on_the_default_atlas() {
-    use coupler_atlas::shape::{LatticeSearch, open_lattice_scan};
+    use coupler_atlas::shape::{LatticeSearch, linkage_groups, open_lattice_scan};
     let (curves, _) = default_atlas();
+    let groups = linkage_groups(&curves);
     let t = straight_run(&curves, false);
     let lattice = |cell| MatchOptions {
         open_lattice: LatticeSearch {
             above: 0,
             cell,
-            best: 4,
-            radius: 1,
+            ..LatticeSearch::DEFAULT
         },
         ..with_mirror()
     };
@@ -892,7 +955,7 @@ fn lattice_search_on_the_default_atlas() {
         full,
         "cells of one step"
     );
-    let (_, report) = open_lattice_scan(&t, &curves, &lattice(3))
+    let (_, report) = open_lattice_scan(&t, &curves, &groups, &lattice(3))
         .unwrap()
         .unwrap();
     assert!(
@@ -914,9 +977,26 @@ fn lattice_search_on_the_default_atlas() {
     // unreflected matches are the plain query's and every rank's error is at most its.
     let plain = find_matches(&t, &curves, &[], &without_mirror(lattice(3))).unwrap();
     no_rank_worse(&plain, &one);
+    // Widening once settled only adds linkages to the climb's (and nothing when not
+    // above the radius).
+    let widen = |widen| MatchOptions {
+        open_lattice: LatticeSearch {
+            widen,
+            ..lattice(3).open_lattice
+        },
+        ..lattice(3)
+    };
+    let scanned = |w| {
+        open_lattice_scan(&t, &curves, &groups, &widen(w))
+            .unwrap()
+            .unwrap()
+            .1
+    };
+    assert_eq!(scanned(0), scanned(1));
+    assert!(scanned(2).scanned >= scanned(0).scanned);
     // The default options scan every linkage of an atlas this small.
     assert!(
-        open_lattice_scan(&t, &curves, &MatchOptions::DEFAULT)
+        open_lattice_scan(&t, &curves, &groups, &MatchOptions::DEFAULT)
             .unwrap()
             .is_none()
     );

@@ -405,3 +405,121 @@ fn sidecar_stamp_keeps_the_check() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The number after `before` in `text` (up to the next space), or a failure naming it.
+fn number_after(text: &str, before: &str) -> usize {
+    let at = text
+        .find(before)
+        .unwrap_or_else(|| panic!("no `{before}` in: {text}"));
+    let rest = &text[at + before.len()..];
+    rest[..rest.find(' ').unwrap_or(rest.len())]
+        .parse()
+        .unwrap_or_else(|_| panic!("no number after `{before}` in: {text}"))
+}
+
+/// The closing `searched …` line says what was searched: every curve of the atlas, or,
+/// when the lattice search or the screen of `--linkages` picked the linkages, the curves
+/// of the linkages scanned, of how many. An open target on an atlas of 3,952 linkages
+/// (more than the lattice search's 2,000), two coupler points each: the line counts the
+/// curves of the linkages the note says were scanned (twice as many), not the atlas's;
+/// with `--full-scan` every curve; on the quick atlas with `--linkages 2`, the screen's
+/// linkages' curves.
+#[test]
+fn match_says_which_curves_it_searched() {
+    let dir = tmp("searched");
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = dir.join("lattice.toml");
+    std::fs::write(
+        &spec,
+        r#"[atlas]
+name = "lattice"
+title = "More linkages than the lattice search's threshold"
+
+[linkages]
+coupler = { start = 1.5, end = 6.0, step = 0.25 }
+rocker  = { start = 1.5, end = 6.0, step = 0.25 }
+ground  = { start = 1.5, end = 6.0, step = 0.25 }
+circuits = ["open"]
+
+[points]
+u = { start = 0.5, end = 0.5, step = 0.5, relative = true }
+v = { start = -0.5, end = 0.5, step = 1.0, relative = true }
+
+[sampling]
+crank_step_deg = 2.0
+dash_deg = 10.0
+"#,
+    )
+    .unwrap();
+    let atlas = dir.join("atlas");
+    let out = run(&[
+        "generate",
+        spec.to_str().unwrap(),
+        "--out",
+        atlas.to_str().unwrap(),
+        "--no-pages",
+        "--quiet",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let (linkages, curves) = (3952, 7904);
+    let file = dir.join("open.csv");
+    let angles: Vec<f64> = (0..40).map(|k| 30.0 + 4.0 * k as f64).collect();
+    let pts = user_points(
+        &quick_curve(),
+        &angles,
+        C64::new(3.0, 4.0),
+        C64::new(100.0, -20.0),
+    );
+    write_csv(&file, &pts);
+    let (t, a) = (file.to_str().unwrap(), atlas.to_str().unwrap());
+    let out = run(&["match", t, "--atlas", a, "--open", "--top", "1"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let err = text(&out.stderr);
+    let scanned = number_after(&err, "note: lattice search: ");
+    assert!(
+        err.contains(&format!(
+            "note: lattice search: {scanned} of the atlas's {linkages} linkages scanned"
+        )),
+        "{err}"
+    );
+    assert!(scanned < linkages, "{err}");
+    let searched = number_after(&err, "\nsearched ");
+    assert_eq!(searched, 2 * scanned, "{err}");
+    assert!(
+        err.contains(&format!(
+            "\nsearched {searched} of the atlas's {curves} curves (lattice search: {scanned} of its {linkages} linkages) in "
+        )),
+        "{err}"
+    );
+    let out = run(&[
+        "match",
+        t,
+        "--atlas",
+        a,
+        "--open",
+        "--top",
+        "1",
+        "--full-scan",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let err = text(&out.stderr);
+    assert!(!err.contains("note:"), "{err}");
+    assert!(
+        err.starts_with(&format!("searched {curves} curves in ")),
+        "{err}"
+    );
+    // The screen of `--linkages` on the quick atlas (12 linkages of 6 curves).
+    let quick = dir.join("quick");
+    quick_atlas(&quick, false);
+    let q = quick.to_str().unwrap();
+    let out = run(&["match", t, "--atlas", q, "--open", "--linkages", "2"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let err = text(&out.stderr);
+    assert!(
+        err.contains(
+            "\nsearched 12 of the atlas's 72 curves (coarse screen: 2 of its 12 linkages) in "
+        ),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -325,10 +325,28 @@ fn atlas_mechanism(dir: &Path) -> Option<String> {
 /// has 31,018; the default one 175).
 const PROGRESS_LINKAGES: usize = 2_000;
 
+/// What an open target's coarse stage scanned when it was not the whole atlas (the
+/// lattice search, or the screen of `--linkages`): for the closing `searched …` line.
+struct Scanned {
+    /// Curves scanned.
+    curves: usize,
+    /// Linkages scanned.
+    linkages: usize,
+    /// Linkages of the atlas.
+    of: usize,
+    /// How they were picked.
+    how: &'static str,
+}
+
 /// The coarse stage on the pool's threads: open targets' linkages screened (an atlas of
 /// many linkages) and scanned in shares, then finished on the whole (the same candidates
-/// however they are shared out); closed targets' codes in parts, in parallel.
-fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec<Candidate>> {
+/// however they are shared out); closed targets' codes in parts, in parallel. With what
+/// was scanned if not every curve.
+fn coarse(
+    target: &Target,
+    atlas: &Shapes,
+    options: &MatchOptions,
+) -> Result<(Vec<Candidate>, Option<Scanned>)> {
     let view = atlas.view();
     if target.is_closed() {
         let q = ClosedQuery::new(&target.complex_points(), options.allow_mirror)
@@ -347,29 +365,46 @@ fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec
                 closed_candidates_in(&q, target, &view, ids, options)
             })
             .collect::<Result<_, _>>()?;
-        return Ok(parts.concat());
+        return Ok((parts.concat(), None));
     }
     let curves = &atlas.curves(&view)?;
-    if let Some((scan, report)) = open_lattice_scan(target, curves, options)? {
+    let groups = coupler_atlas::shape::linkage_groups(curves);
+    if let Some((scan, report)) = open_lattice_scan(target, curves, &groups, options)? {
         eprintln!(
             "note: lattice search: {} of the atlas's {} linkages scanned (a sub-lattice, then {} rounds of the best linkages' neighbours); a full scan may find closer curves: --full-scan scans every linkage",
             report.scanned, report.linkages, report.rounds
         );
-        return Ok(open_finish(target, curves, vec![scan], options)?);
+        let scanned = Scanned {
+            curves: report.curves,
+            linkages: report.scanned,
+            of: report.linkages,
+            how: "lattice search",
+        };
+        return Ok((
+            open_finish(target, curves, vec![scan], options)?,
+            Some(scanned),
+        ));
     }
-    let groups = open_linkages(target, curves, options, |screen, groups| {
+    let all = groups.len();
+    let groups = open_linkages(target, groups, options, |screen, groups| {
         groups
             .par_iter()
             .map(|g| screen.score(&curves[g.clone()]))
             .collect()
     });
-    let all = coupler_atlas::shape::linkage_groups(curves).len();
-    if groups.len() < all {
+    let total: usize = groups.iter().map(|g| g.len()).sum();
+    let scanned = (groups.len() < all).then(|| {
         eprintln!(
             "note: {} of the atlas's {all} linkages scanned, picked by a coarse screen: the answer is a sample of the atlas, not a full search (without --linkages every linkage is scanned)",
             groups.len()
         );
-    }
+        Scanned {
+            curves: total,
+            linkages: groups.len(),
+            of: all,
+            how: "coarse screen",
+        }
+    });
     let bar = if groups.len() >= PROGRESS_LINKAGES {
         let bar =
             ProgressBar::with_draw_target(Some(groups.len() as u64), ProgressDrawTarget::stderr());
@@ -385,7 +420,6 @@ fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec
     };
     // Shares of about equal curve counts, several per thread.
     let parts = if bar.is_hidden() { 8 } else { 32 } * rayon::current_num_threads();
-    let total: usize = groups.iter().map(|g| g.len()).sum();
     let want = total.div_ceil(parts).max(1);
     let mut shares: Vec<Vec<std::ops::Range<usize>>> = vec![Vec::new()];
     let mut size = 0;
@@ -406,7 +440,7 @@ fn coarse(target: &Target, atlas: &Shapes, options: &MatchOptions) -> Result<Vec
         })
         .collect::<Result<_, _>>()?;
     bar.finish_and_clear();
-    Ok(open_finish(target, curves, scans, options)?)
+    Ok((open_finish(target, curves, scans, options)?, scanned))
 }
 
 /// Where each hit is drawn (page file and box), from the index, without reading it
@@ -848,8 +882,9 @@ pub fn run(args: Args) -> Result<ExitCode> {
         ..MatchOptions::DEFAULT
     };
     let size = target.size();
-    let (matches, refined): (Vec<Match>, Vec<Option<Refined>>) = pool.install(|| {
-        let c = coarse(&target, &atlas, &options).map_err(|e| match e.downcast() {
+    type Found = (Vec<Match>, Vec<Option<Refined>>, Option<Scanned>);
+    let (matches, refined, scanned): Found = pool.install(|| {
+        let (c, scanned) = coarse(&target, &atlas, &options).map_err(|e| match e.downcast() {
             Ok(MatchError::Sidecar(e)) => atlas.bad(e),
             Ok(e) => UsageError(format!("target {}: {e}", args.target.display())).into(),
             Err(e) => e,
@@ -862,7 +897,7 @@ pub fn run(args: Args) -> Result<ExitCode> {
         } else {
             vec![None; m.len()]
         };
-        Ok::<_, anyhow::Error>((m, r))
+        Ok::<_, anyhow::Error>((m, r, scanned))
     })?;
     let t_search = t0.elapsed();
     let ids: Vec<u64> = matches.iter().map(|m| m.id).collect();
@@ -1013,9 +1048,20 @@ pub fn run(args: Args) -> Result<ExitCode> {
     if matches.is_empty() {
         outln!("no match: no curve of the atlas could be fitted to the target")?;
     }
+    // The curves searched: every curve of the atlas, or those of the linkages scanned.
+    let searched = match scanned {
+        None => format!("{} curves", atlas.view().len()),
+        Some(s) => format!(
+            "{} of the atlas's {} curves ({}: {} of its {} linkages)",
+            s.curves,
+            atlas.view().len(),
+            s.how,
+            s.linkages,
+            s.of
+        ),
+    };
     eprintln!(
-        "searched {} curves in {:.3} s (load {:.3} s, search {:.3} s)",
-        atlas.view().len(),
+        "searched {searched} in {:.3} s (load {:.3} s, search {:.3} s)",
         elapsed.as_secs_f64(),
         t_load.as_secs_f64(),
         (t_search - t_load).as_secs_f64()

@@ -171,7 +171,7 @@ fn fourier_terms(z: &[C64]) -> [C64; TERMS] {
 /// order, so the same values bit for bit.
 fn fourier_sums(z: &[C64], f: &Factors) -> ([f64; LANES], [f64; LANES]) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if crate::has_avx2() {
         // SAFETY: `fourier_sums_avx2` needs AVX2, which the processor was just found to
         // have; it has no other requirement (the safe body compiled for AVX2).
         #[allow(unsafe_code)]

@@ -49,3 +49,13 @@ pub use sidecar::{
 };
 pub use smooth::{default_terms, smooth_resample};
 pub use target::{Target, TargetError, Timing};
+
+/// Whether the processor has AVX2, the one run-time check every AVX2 path of the crate
+/// dispatches on (the standard library caches the answer after the first call). Each
+/// such path is a safe body compiled a second time for AVX2, the same IEEE-754
+/// operations in the same order, so the results are the same, bit for bit, either way.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}

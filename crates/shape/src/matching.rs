@@ -170,11 +170,12 @@ pub fn coarse_candidates(
             |i| curves[i].id,
         )
     } else {
-        if let Some((scan, _)) = open_lattice_scan(target, curves, options)? {
+        let groups = linkage_groups(curves);
+        if let Some((scan, _)) = open_lattice_scan(target, curves, &groups, options)? {
             return open_finish(target, curves, vec![scan], options);
         }
         let q = OpenQuery::new(target, options.allow_mirror).ok_or(MatchError::Undescribable)?;
-        let groups = open_linkages(target, curves, options, |screen, groups| {
+        let groups = open_linkages(target, groups, options, |screen, groups| {
             groups
                 .iter()
                 .map(|g| screen.score(&curves[g.clone()]))
@@ -317,18 +318,18 @@ pub fn find_matches(
 #[derive(Clone, Debug)]
 pub struct OpenScan(Vec<Stage1>);
 
-/// The linkages of `curves` an open target's scan covers, as [`coarse_candidates`] picks
-/// them: every run of curves sharing a linkage and circuit ([`linkage_groups`]) when
-/// there are at most `options.open_linkages`; else those with the best
-/// [`LinkageScreen::score`]s. `score` scores one run (callers may compute them in
-/// parallel; [`LinkageScreen::score`] is what it must return). In atlas order.
+/// The linkages an open target's scan covers, as [`coarse_candidates`] picks them, of
+/// the atlas's `groups`, every run of its curves sharing a linkage and circuit
+/// (`linkage_groups(curves)`, [`linkage_groups`]): all of them when there are at most
+/// `options.open_linkages`; else those with the best [`LinkageScreen::score`]s. `score`
+/// scores the runs (callers may compute them in parallel; [`LinkageScreen::score`] of
+/// each is what it must return). In atlas order.
 pub fn open_linkages(
     target: &Target,
-    curves: &[AtlasCurve],
+    groups: Vec<Range<usize>>,
     options: &MatchOptions,
     score: impl Fn(&LinkageScreen, &[Range<usize>]) -> Vec<f64>,
 ) -> Vec<Range<usize>> {
-    let groups = linkage_groups(curves);
     match LinkageScreen::new(target, options.allow_mirror) {
         Some(screen) if groups.len() > options.open_linkages => {
             let scores = score(&screen, &groups);
@@ -341,18 +342,19 @@ pub fn open_linkages(
 /// Stage 1 of an open target by the lattice search ([`LatticeSearch`]), when it applies:
 /// an open target, an atlas of more than `options.open_lattice.above` linkages and no
 /// screen (not more than `options.open_linkages` linkages); `None` otherwise (scan the
-/// linkages of [`open_linkages`]). Complete it with [`open_finish`]. Its linkages are
-/// scanned in parallel on the calling thread's rayon pool; the result is the same on any
-/// number of threads.
+/// linkages of [`open_linkages`]). `groups` are the atlas's linkages,
+/// `linkage_groups(curves)` ([`linkage_groups`]; cut once, they serve [`open_linkages`]
+/// too). Complete it with [`open_finish`]. Its linkages are scanned in parallel on the
+/// calling thread's rayon pool; the result is the same on any number of threads.
 pub fn open_lattice_scan(
     target: &Target,
     curves: &[AtlasCurve],
+    groups: &[Range<usize>],
     options: &MatchOptions,
 ) -> Result<Option<(OpenScan, LatticeReport)>, MatchError> {
     if target.is_closed() {
         return Ok(None);
     }
-    let groups = linkage_groups(curves);
     if groups.len() <= options.open_lattice.above || groups.len() > options.open_linkages {
         return Ok(None);
     }
@@ -360,7 +362,7 @@ pub fn open_lattice_scan(
     let (stage1, report) = open_stage1_lattice(
         &q,
         curves,
-        &groups,
+        groups,
         &options.open_lattice,
         options.kept(target),
     );

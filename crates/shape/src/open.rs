@@ -1097,11 +1097,27 @@ impl OpenQuery {
     /// the unreflected list before the reflected one. Each reflection has its own lists
     /// and bounds, so the unreflected lists are the same, bit for bit, with reflection
     /// allowed or not: a reflected window never pushes an unreflected one out.
-    /// (The baseline instruction set's path, for tests; the query runs
-    /// [`linkage_stage1`].)
+    /// (For tests and the lab: the scan of [`linkage_stage1`], on the path the query
+    /// takes, AVX2 where the processor has it.)
     #[cfg(test)]
     fn scan(&self, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
-        self.scan_with::<false>(&self.passes(table.period), table, points)
+        let passes = self.passes(table.period);
+        #[cfg(target_arch = "x86_64")]
+        if crate::has_avx2() {
+            // SAFETY: `scan_avx2` needs AVX2, which the processor was just found to have;
+            // it has no other requirement (the safe body compiled for AVX2).
+            #[allow(unsafe_code)]
+            return unsafe { self.scan_avx2(&passes, table, points) };
+        }
+        self.scan_with::<false>(&passes, table, points)
+    }
+
+    /// [`OpenQuery::scan_with`] compiled for AVX2 (called only where the processor has
+    /// it).
+    #[cfg(all(test, target_arch = "x86_64"))]
+    #[target_feature(enable = "avx2")]
+    fn scan_avx2(&self, passes: &Passes, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
+        self.scan_with::<true>(passes, table, points)
     }
 
     /// The scan's passes on a linkage of the given `period`: every span and sense with
@@ -1361,7 +1377,7 @@ impl OpenQuery {
     /// values bit for bit (as [`linkage_stage1`]).
     fn polish(&self, table: &Table, w: C64, hyp: &Hypothesis, dp: &mut Programme) -> Hypothesis {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::has_avx2() {
             // SAFETY: `polish_avx2` needs AVX2, which the processor was just found to
             // have; it has no other requirement (the safe body compiled for AVX2).
             #[allow(unsafe_code)]
@@ -1863,17 +1879,23 @@ pub struct LatticeSearch {
     pub best: usize,
     /// Neighbours: linkages within this many lattice steps in every dimension.
     pub radius: usize,
+    /// Once the rounds settle, the unscanned linkages within this many steps of the best
+    /// one are scanned too, and the rounds go on from them (once per linkage that is
+    /// best when they settle; nothing when not more than `radius`).
+    pub widen: usize,
 }
 
 impl LatticeSearch {
     /// On an atlas of more than 2,000 linkages (the dense atlas has 31,018, the default
-    /// one 175): cells of 5 lattice steps, the neighbours within one step of the best 4
-    /// (`docs/shape-search.md`, "The lattice search", for the measured recall).
+    /// one 175): cells of 5 lattice steps, the neighbours within one step of the best 4,
+    /// and once settled within two of the best (`docs/shape-search.md`, "The lattice
+    /// search", for the measured recall).
     pub const DEFAULT: LatticeSearch = LatticeSearch {
         above: 2_000,
         cell: 5,
         best: 4,
         radius: 1,
+        widen: 2,
     };
 
     /// No lattice search: every linkage scanned.
@@ -1890,9 +1912,11 @@ pub struct LatticeReport {
     pub sampled: usize,
     /// Linkages scanned (the sub-lattice's among them).
     pub scanned: usize,
+    /// Curves of the linkages scanned.
+    pub curves: usize,
     /// Linkages of the atlas.
     pub linkages: usize,
-    /// Rounds of neighbours scanned after the sub-lattice.
+    /// Rounds of neighbours scanned after the sub-lattice (the widening ones among them).
     pub rounds: usize,
 }
 
@@ -1903,11 +1927,12 @@ const LATTICE_PART: usize = 4;
 /// reflection on its own: the sub-lattice ([`LinkageLattice::sample`]) scanned, the
 /// linkages ranked by their best curve's misfit of that reflection (ties by atlas
 /// order), and the unscanned neighbours of the best `search.best` scanned, until each of
-/// the best has had its neighbours scanned. A linkage is scanned once (by
-/// [`open_stage1`]'s scan) whichever reflection asks for it, but a reflection takes its
-/// own hypotheses only from the linkages its own search reached: so the unreflected ones
-/// are those of the same query without reflection, bit for bit, and `--mirror` only adds
-/// (as in the full scan). The linkages are scanned in parallel on the calling thread's
+/// the best has had its neighbours scanned; then those within `search.widen` steps of
+/// the best, and the rounds again, until they settle on a best already widened. A
+/// linkage is scanned once (by [`open_stage1`]'s scan) whichever reflection asks for it,
+/// but a reflection takes its own hypotheses only from the linkages its own search
+/// reached: so the unreflected ones are those of the same query without reflection, bit
+/// for bit, and `--mirror` only adds (as in the full scan). The linkages are scanned in parallel on the calling thread's
 /// rayon pool; which are scanned depends on their scores and order only, so the result
 /// is the same on any number of threads.
 pub(crate) fn open_stage1_lattice(
@@ -1925,11 +1950,13 @@ pub(crate) fn open_stage1_lattice(
     // Per reflection: the score of each linkage it reached, and which it expanded.
     let mut score = vec![vec![None::<f64>; n]; reflections];
     let mut expanded = vec![vec![false; n]; reflections];
+    let mut widened = vec![vec![false; n]; reflections];
     let mut stage1: Vec<Stage1> = Vec::new();
     let sample = lattice.sample(search.cell);
     let mut report = LatticeReport {
         sampled: sample.len(),
         scanned: 0,
+        curves: 0,
         linkages: n,
         rounds: 0,
     };
@@ -1953,6 +1980,7 @@ pub(crate) fn open_stage1_lattice(
             })
             .collect();
         report.scanned += found.len();
+        report.curves += found.iter().map(|(i, _)| groups[*i].len()).sum::<usize>();
         for (i, out) in found {
             scans[i] = Some(out);
         }
@@ -1985,6 +2013,16 @@ pub(crate) fn open_stage1_lattice(
             }
             next[m].sort_unstable();
             next[m].dedup();
+            // Settled: the wider neighbourhood of the best, once per linkage.
+            let settled = next[m].is_empty() && search.widen > search.radius;
+            if let Some(&(_, i)) = order
+                .first()
+                .filter(|&&(s, i)| settled && s.is_finite() && !widened[m][i])
+            {
+                widened[m][i] = true;
+                next[m] = lattice.neighbours(i, search.widen);
+                next[m].retain(|&j| score[m][j].is_none());
+            }
         }
         truncate_stage1(&mut stage1, keep);
         if next.iter().all(|t| t.is_empty()) {
@@ -2016,7 +2054,7 @@ fn linkage_stage1(
     out: &mut Vec<Stage1>,
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if crate::has_avx2() {
         // SAFETY: `linkage_stage1_avx2` needs AVX2, which the processor was just found
         // to have; it has no other requirement (it is the safe body compiled for AVX2).
         #[allow(unsafe_code)]
@@ -2676,7 +2714,7 @@ mod mirror {
                     let flat = Kernel::flat_sums(&kernel.cells, &grid.cells[base..]);
                     assert_eq!(bits(flat), bits(want));
                     #[cfg(target_arch = "x86_64")]
-                    if std::arch::is_x86_feature_detected!("avx2") {
+                    if crate::has_avx2() {
                         // SAFETY: the processor was just found to have AVX2.
                         #[allow(unsafe_code)]
                         let flat =
@@ -3010,6 +3048,8 @@ mod stage_times {
         let least = |name: &str, reps: usize, f: &mut dyn FnMut()| {
             if on(name) { least(reps, f) } else { f64::NAN }
         };
+        // The scan on the path the query takes ([`OpenQuery::scan`]: AVX2 where the
+        // processor has it), the passes made per linkage.
         let scan = least("scan", reps, &mut || {
             for (table, pts) in &tables {
                 std::hint::black_box(q.scan(table, pts));
