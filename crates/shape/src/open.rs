@@ -58,7 +58,7 @@ struct Table {
 }
 
 /// `Pa` and `e` at the start of a 1° cell and their differences across it (in the order
-/// of [`Flat`], so that [`Table::flat_at`] reads and writes them as they lie).
+/// of [`Flat`], so that [`Table::flat_at_with`] reads and writes them as they lie).
 #[derive(Clone, Copy)]
 #[repr(C)]
 struct TableCell {
@@ -108,10 +108,16 @@ impl Table {
 
     /// `Pa`, `e`, `dPa/dθ`, `de/dθ` at `deg` (derivatives per degree, of the
     /// interpolant) as [`Flat`]: `Pa + dPa·t` and `e + de·t` lane by lane, as
-    /// `num-complex` forms them (the same values as [`Table::at`]).
+    /// `num-complex` forms them (the same values as [`Table::at`]). The cell is found by
+    /// [`cell_floor`] when `FLOOR` (where the processor rounds in one instruction: the
+    /// AVX2 path), else by [`cell`]: the same cell and fraction.
     #[inline(always)]
-    fn flat_at(&self, deg: f64) -> Flat {
-        let (k, t) = cell(deg, self.cells.len());
+    fn flat_at_with<const FLOOR: bool>(&self, deg: f64) -> Flat {
+        let (k, t) = if FLOOR {
+            cell_floor(deg, self.cells.len())
+        } else {
+            cell(deg, self.cells.len())
+        };
         let c = &self.cells[k];
         [
             c.pa.re + c.dpa.re * t,
@@ -404,6 +410,26 @@ fn cell(deg: f64, period: usize) -> (usize, f64) {
         whole.rem_euclid(p)
     };
     (k as usize, deg - whole as f64)
+}
+
+/// [`cell`] with the whole degrees by `floor` (one instruction where SSE4.1 is there, as
+/// on the AVX2 path; a call on the baseline instruction set): the same cell and fraction,
+/// as `floor` is the whole part `cell` finds.
+#[inline(always)]
+fn cell_floor(deg: f64, period: usize) -> (usize, f64) {
+    if deg.is_nan() || deg.abs() >= 1e15 {
+        return cell(deg, period);
+    }
+    let whole = deg.floor();
+    let w = whole as i64;
+    let p = period as i64;
+    let k = w + p * i64::from(w < 0) - p * i64::from(w >= p);
+    let k = if (0..p).contains(&k) {
+        k
+    } else {
+        w.rem_euclid(p)
+    };
+    (k as usize, deg - whole)
 }
 
 /// The sums of one hypothesis: `S_P = Σ Pa`, `S_e = Σ e`, `S_Pe = Σ conj(Pa)·e`,
@@ -709,9 +735,22 @@ struct Window {
     start: f64,
     span: f64,
     sense: f64,
+    /// `start + sense·span/2`, made once ([`Window::new`]).
+    centre: f64,
 }
 
 impl Window {
+    fn new(misfit: f64, mirror: bool, start: f64, span: f64, sense: f64) -> Window {
+        Window {
+            misfit,
+            mirror,
+            start,
+            span,
+            sense,
+            centre: start + 0.5 * sense * span,
+        }
+    }
+
     /// Whether two hypotheses describe about the same window: same reflection and sense,
     /// centres closer than a quarter of the longer span (modulo the `period`), spans
     /// within a ratio of 1.44.
@@ -724,8 +763,7 @@ impl Window {
         if ratio.partial_cmp(&1.44) != Some(std::cmp::Ordering::Less) {
             return false;
         }
-        let centre = |w: &Window| w.start + 0.5 * w.sense * w.span;
-        let d = rem_period(centre(self) - centre(o), period);
+        let d = rem_period(self.centre - o.centre, period);
         d.min(period - d) < 0.25 * self.span.max(o.span)
     }
 }
@@ -818,7 +856,7 @@ struct Projection {
     trial_at: Vec<Flat>,
 }
 
-/// [`Table::flat_at`]'s values: `Pa`, `e`, `dPa/dθ`, `de/dθ`, each real then imaginary
+/// [`Table::flat_at_with`]'s values: `Pa`, `e`, `dPa/dθ`, `de/dθ`, each real then imaginary
 /// (so that four points' values are read into vectors as they lie).
 type Flat = [f64; 8];
 
@@ -1204,6 +1242,7 @@ impl OpenQuery {
                 // at point `k` is surely above its bound for reflection `v` (the
                 // test of [`Sums::surely_above`], the same values bit for bit).
                 sieve(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
+                // Whether a list whose bound was the greatest (`most`) took a window.
                 let mut offered = [false; 2];
                 // Point by point, each live reflection into its own list. A point
                 // left open is tested again with its bound of the moment.
@@ -1216,19 +1255,11 @@ impl OpenQuery {
                             continue;
                         }
                         let m = sums.misfit_with(mm, v, w);
-                        offered[v] = true;
+                        // `most` is the greatest of the bounds, which only fall: it
+                        // changes only when the list that held it changes.
+                        offered[v] |= worst[v][k] == most[v];
                         let list = &mut best[v][k];
-                        offer(
-                            list,
-                            Window {
-                                misfit: m,
-                                mirror,
-                                start,
-                                span,
-                                sense,
-                            },
-                            period,
-                        );
+                        offer(list, Window::new(m, mirror, start, span, sense), period);
                         if list.len() == WINDOWS {
                             worst[v][k] = list[WINDOWS - 1].misfit;
                             bar[v][k] = 1.0 - worst[v][k] - 1e-9;
@@ -1318,11 +1349,11 @@ impl OpenQuery {
         next.clear();
         next.extend_from_slice(&theta);
         // The table at `theta` (each step's trial lookups become the next step's), and
-        // the sums from it: every angle is looked up once ([`Table::flat_at`] gives the
+        // the sums from it: every angle is looked up once ([`Table::flat_at_with`] gives the
         // same `Pa` and `e` as [`Table::at`], so the same sums as [`Sums::of`]).
         at.resize(theta.len(), [0.0; 8]);
         for (a, &t) in at.iter_mut().zip(&theta) {
-            *a = table.flat_at(t);
+            *a = table.flat_at_with::<AVX2>(t);
         }
         trial_at.clear();
         trial_at.extend_from_slice(at);
@@ -1350,7 +1381,7 @@ impl OpenQuery {
             }
             // The trial angles' lookups and the sums from them in one pass.
             let moved = next.iter().zip(trial_at.iter_mut()).map(|(&n, a)| {
-                *a = table.flat_at(n);
+                *a = table.flat_at_with::<AVX2>(n);
                 pa_e(a)
             });
             let trial = Sums::accumulate::<MIRROR>(moved, y);
@@ -2239,7 +2270,7 @@ fn even_starts(period: f64, h: f64) -> (usize, f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::{C64, OpenPoints, Sums, cell};
+    use super::{C64, OpenPoints, Sums, cell, cell_floor};
     use crate::cases::SplitMix64;
 
     /// The scan skips a point's misfit only when it is surely above the bound: wherever
@@ -2474,13 +2505,13 @@ mod tests {
             let mut list: Vec<Window> = Vec::new();
             let mut reference: Vec<Window> = Vec::new();
             for _ in 0..60 {
-                let h = Window {
-                    misfit: (rng.uniform() * 8.0).floor() / 8.0,
-                    mirror: rng.uniform() < 0.5,
-                    start: (rng.uniform() * 24.0).floor() * 15.0,
-                    span: [30.0, 36.0, 60.0, 180.0][(rng.uniform() * 4.0) as usize],
-                    sense: if rng.uniform() < 0.5 { 1.0 } else { -1.0 },
-                };
+                let h = Window::new(
+                    (rng.uniform() * 8.0).floor() / 8.0,
+                    rng.uniform() < 0.5,
+                    (rng.uniform() * 24.0).floor() * 15.0,
+                    [30.0, 36.0, 60.0, 180.0][(rng.uniform() * 4.0) as usize],
+                    if rng.uniform() < 0.5 { 1.0 } else { -1.0 },
+                );
                 offer(&mut list, h, 360.0);
                 // The reference: the former form, a stable sort after each change.
                 let r = &mut reference;
@@ -2536,11 +2567,15 @@ mod tests {
                     "{deg}"
                 );
                 assert_eq!(t, deg - whole, "{deg}");
+                assert_eq!(cell_floor(deg, period), (k, t), "{deg}");
                 deg += 0.37;
             }
+            assert_eq!(cell_floor(-0.0, period), (0, 0.0));
             assert_eq!(cell(-0.0, period), (0, 0.0));
             assert_eq!(cell(p, period), (0, 0.0));
+            assert_eq!(cell_floor(p, period), (0, 0.0));
             assert_eq!(cell(-1e-12, period).0, period - 1);
+            assert_eq!(cell_floor(-1e-12, period).0, period - 1);
         }
     }
 }
@@ -3228,5 +3263,132 @@ mod fits_fingerprint {
             }
         }
         println!("all: {:016x}", all.finish());
+    }
+}
+
+#[cfg(test)]
+mod window_lab {
+    //! Which of a curve's stage-1 windows wins after the projection (ignored; a lab
+    //! measurement: `OPEN_ATLAS=<atlas> cargo test --release -p coupler-shape
+    //! window_choice -- --ignored --nocapture`).
+    use super::fingerprint::lab_atlas;
+    use super::*;
+    use crate::cases::retrieval_cases;
+
+    #[test]
+    #[ignore]
+    fn window_choice() {
+        let (atlas, count) = lab_atlas(40);
+        let curves = &atlas.curves;
+        let groups = linkage_groups(curves);
+        // Per case: (curve index, reflection, best pre misfit, chosen window's rank, its pre
+        // misfit, post misfit).
+        let mut src_rows = Vec::new();
+        let mut top_rows = Vec::new();
+        for case in retrieval_cases(curves, false, 77, count) {
+            let q = OpenQuery::new(&case.target, true).unwrap();
+            let mut rows = Vec::new();
+            let mut buf = Projection::default();
+            for g in &groups {
+                let c = &curves[g.start].curve;
+                let table = Table::new(&c.linkage, c.circuit).unwrap();
+                let pts: Vec<C64> = g.clone().map(|k| w_of(&curves[k])).collect();
+                for (k, hs) in q.scan(&table, &pts).into_iter().enumerate() {
+                    let mut hs = hs;
+                    let pre: Vec<f64> = hs.iter().map(|h| h.misfit).collect();
+                    let mut settled = Vec::new();
+                    for h in hs.iter_mut() {
+                        settled.push(q.project::<false>(
+                            &table,
+                            pts[k],
+                            h,
+                            &mut buf,
+                            PROJECTION_HEAT,
+                        ));
+                    }
+                    for mirror in [false, true] {
+                        let mut order: Vec<usize> =
+                            (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
+                        order.sort_by(|&a, &b| hs[a].misfit.total_cmp(&hs[b].misfit));
+                        for &i in order.iter().take(PROJECTION_KEEP).filter(|&&i| !settled[i]) {
+                            q.project::<false>(
+                                &table,
+                                pts[k],
+                                &mut hs[i],
+                                &mut buf,
+                                PROJECTIONS - PROJECTION_HEAT,
+                            );
+                        }
+                        let idx: Vec<usize> =
+                            (0..hs.len()).filter(|&i| hs[i].mirror == mirror).collect();
+                        let Some(&best) = idx
+                            .iter()
+                            .min_by(|&&a, &&b| hs[a].misfit.total_cmp(&hs[b].misfit))
+                        else {
+                            continue;
+                        };
+                        let rank = idx.iter().position(|&i| i == best).unwrap();
+                        rows.push((
+                            g.start + k,
+                            mirror,
+                            pre[idx[0]],
+                            rank,
+                            pre[best],
+                            hs[best].misfit,
+                        ));
+                    }
+                }
+            }
+            for mirror in [false, true] {
+                let mut r: Vec<_> = rows.iter().filter(|r| r.1 == mirror).cloned().collect();
+                r.sort_by(|a, b| a.5.total_cmp(&b.5).then(a.0.cmp(&b.0)));
+                // The pre-projection rank of each curve by its best window.
+                let mut pre_order: Vec<_> = r.iter().map(|x| (x.2, x.0)).collect();
+                pre_order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let pre_rank = |i: usize| pre_order.iter().position(|x| x.1 == i).unwrap();
+                for (pos, x) in r.iter().enumerate() {
+                    if x.0 == case.source {
+                        src_rows.push((pos, pre_rank(x.0), x.3, x.4 / x.2, x.1));
+                    }
+                    if pos < 2048 && pos % 64 == 0 {
+                        top_rows.push((pos, pre_rank(x.0), x.3, x.4 / x.2));
+                    }
+                }
+            }
+        }
+        for r in &src_rows {
+            println!(
+                "source: post rank {} pre rank {} chosen window {} ratio {:.3} mirror {}",
+                r.0, r.1, r.2, r.3, r.4
+            );
+        }
+        let mut ratios: Vec<f64> = top_rows.iter().map(|r| r.3).collect();
+        ratios.sort_by(f64::total_cmp);
+        let q = |f: f64| ratios[((ratios.len() - 1) as f64 * f) as usize];
+        let mut pre: Vec<usize> = top_rows.iter().map(|r| r.1).collect();
+        pre.sort();
+        let qp = |f: f64| pre[((pre.len() - 1) as f64 * f) as usize];
+        let mut hist = [0usize; 12];
+        for r in &top_rows {
+            hist[r.2] += 1;
+        }
+        println!(
+            "top 2048 sample ({}): ratio q50 {:.3} q90 {:.3} q99 {:.3} max {:.3}; pre rank q50 {} q90 {} q99 {} max {}; chosen window {:?}",
+            top_rows.len(),
+            q(0.5),
+            q(0.9),
+            q(0.99),
+            q(1.0),
+            qp(0.5),
+            qp(0.9),
+            qp(0.99),
+            qp(1.0),
+            hist
+        );
+        let mut sr: Vec<f64> = src_rows.iter().map(|r| r.3).collect();
+        sr.sort_by(f64::total_cmp);
+        let mut sp: Vec<usize> = src_rows.iter().map(|r| r.1).collect();
+        sp.sort();
+        println!("sources: ratios {sr:?}\npre ranks {sp:?}");
     }
 }
