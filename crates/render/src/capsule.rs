@@ -418,6 +418,29 @@ impl Capsules {
                     }
                 }
             }
+            #[cfg(target_arch = "x86_64")]
+            Mode::Wide if X8 && w < 4_194_304.0 => {
+                // The segment's pixel spans eight rows at a time (the spans' order does
+                // not matter).
+                for i in (j..end).step_by(8) {
+                    let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| (i + m) as f32 + 0.5);
+                    // SAFETY: `wide_spans8` needs AVX2; `X8` is true only in the stroke's
+                    // twin compiled for AVX2, BMI1 and BMI2, which runs only where the
+                    // processor was found to have them (`Capsules::stroke`).
+                    #[allow(unsafe_code)]
+                    let spans = unsafe { wide_spans8(s, cy8, reach, r - 0.5, w) };
+                    for m in 0..(end - i).min(8) as usize {
+                        let at = (i as usize + m) % RING;
+                        let Slot {
+                            row, notes, edges, ..
+                        } = &mut self.slots[at];
+                        let row_spans = [0, 1, 2, 3].map(|b| spans[b][m] as usize);
+                        if let Some(span) = seg_row_fill(k, row_spans, row, edges) {
+                            notes.note(span);
+                        }
+                    }
+                }
+            }
             Mode::Wide => {
                 // The segment's pixel spans four rows at a time (the spans' order does
                 // not matter).
@@ -913,6 +936,107 @@ fn wide_spans4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32, w: f32) -> [[u32; 
         }
         out
     }
+}
+
+/// [`wide_spans4`] on eight rows at once, in AVX's 256-bit lanes (rows of fewer than
+/// 2^22 pixels): per lane the f32 operations of [`intervals4_lanes`] and of
+/// [`wide_spans4`]'s bounds in their order, with the operands of `wide`'s `fast_max`,
+/// `fast_min`, `bitselect` (and, and-not, or) and negation (the sign bit flipped), and
+/// its truncations (`vcvttps2dq`) and conversions: the same bits, so the same spans.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn wide_spans8(s: &Seg, cy: [f32; 8], reach: f32, inner: f32, w: f32) -> [[u32; 8]; 4] {
+    use std::arch::x86_64::*;
+    let splat = _mm256_set1_ps;
+    let (add, sub, mul, div) = (_mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_div_ps);
+    let (max, min) = (_mm256_max_ps, _mm256_min_ps);
+    let neg = |x: __m256| _mm256_xor_ps(x, splat(-0.0));
+    // `mask.bitselect(t, f)`: `(t & mask) | (f & !mask)`.
+    let select = |mask: __m256, t: __m256, f: __m256| {
+        _mm256_or_ps(_mm256_and_ps(t, mask), _mm256_andnot_ps(mask, f))
+    };
+    let le = |a: __m256, b: __m256| _mm256_cmp_ps::<_CMP_LE_OQ>(a, b);
+    let ge = |a: __m256, b: __m256| _mm256_cmp_ps::<_CMP_GE_OQ>(a, b);
+    let (zero, one) = (_mm256_setzero_ps(), splat(1.0));
+    let (ninf, inf) = (splat(f32::NEG_INFINITY), splat(f32::INFINITY));
+    let cy = _mm256_setr_ps(cy[0], cy[1], cy[2], cy[3], cy[4], cy[5], cy[6], cy[7]);
+    let ax = splat(s.a[0]);
+    let ey = sub(cy, splat(s.a[1]));
+    let dx = splat(s.d[0]);
+    let dy = splat(s.d[1]);
+    let l = splat(s.l);
+    // The body's bounds on u = x − ax along the segment ([`intervals4_lanes`]).
+    let (b0, b1) = {
+        let (c0, c1) = (mul(neg(ey), dy), sub(mul(l, l), mul(ey, dy)));
+        if s.d[0] != 0.0 {
+            let (a, b) = (div(c0, dx), div(c1, dx));
+            (max(ninf, min(a, b)), min(inf, max(a, b)))
+        } else {
+            let within = _mm256_and_ps(le(c0, zero), ge(c1, zero));
+            (ninf, select(within, inf, ninf))
+        }
+    };
+    let k = neg(dy);
+    let ends = [(ax, ey), (add(ax, dx), sub(ey, dy))];
+    let (body, across) = (s.inv > 0.0, s.d[1] != 0.0);
+    // [`Lanes4::bounds`].
+    let bounds = |rho: f32| {
+        let end = |(x, y): (__m256, __m256)| {
+            let q = sub(splat(rho * rho), mul(y, y));
+            let h = _mm256_sqrt_ps(q);
+            let (a, b) = (sub(x, h), add(x, h));
+            (_mm256_and_ps(ge(q, zero), le(a, b)), a, b)
+        };
+        let (ok, a, b) = end(ends[0]);
+        let (mut lo, mut hi) = (select(ok, a, inf), select(ok, b, ninf));
+        let mut put = |ok: __m256, a: __m256, b: __m256| {
+            lo = select(ok, min(lo, a), lo);
+            hi = select(ok, max(hi, b), hi);
+        };
+        let (ok, a, b) = end(ends[1]);
+        put(ok, a, b);
+        if body {
+            let c0 = sub(mul(splat(-rho), l), mul(ey, dx));
+            let c1 = sub(mul(splat(rho), l), mul(ey, dx));
+            let (u0, u1) = if across {
+                let (a, b) = (div(c0, k), div(c1, k));
+                (max(b0, min(a, b)), min(b1, max(a, b)))
+            } else {
+                let within = _mm256_and_ps(le(c0, zero), ge(c1, zero));
+                (b0, select(within, b1, ninf))
+            };
+            let (a, b) = (add(ax, u0), add(ax, u1));
+            put(le(a, b), a, b);
+        }
+        (lo, hi)
+    };
+    let ((lo, hi), (ilo, ihi)) = (bounds(reach), bounds(inner));
+    // [`wide_spans4`]'s bounds.
+    let half = splat(0.5);
+    let (below, above) = (splat(-1.0), splat(w + 1.0));
+    let clamp = |x: __m256| min(max(x, below), above);
+    let floor = |x: __m256| {
+        let t = _mm256_cvtepi32_ps(_mm256_cvttps_epi32(x));
+        sub(t, _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t, x), one))
+    };
+    let wl = splat(w);
+    let fit = |p: __m256| {
+        let p = _mm256_cvttps_epi32(min(max(p, zero), wl));
+        // SAFETY: eight `i32` lanes as eight `u32`s: the same size, every bit pattern
+        // a value (the lanes are in [0, w]).
+        #[allow(unsafe_code)]
+        unsafe {
+            std::mem::transmute::<__m256i, [u32; 8]>(p)
+        }
+    };
+    // ceil(x) is −floor(−x).
+    [
+        fit(neg(floor(neg(clamp(sub(lo, half)))))),
+        fit(add(floor(clamp(sub(hi, half))), one)),
+        fit(neg(floor(neg(clamp(sub(ilo, half)))))),
+        fit(add(floor(clamp(sub(ihi, half))), one)),
+    ]
 }
 
 /// Gathers segment `s`'s coverage of the row whose centre is at `cy` into `row`
@@ -1538,11 +1662,12 @@ mod tests {
     /// row or a column, rows through them, at their ends and beyond their reach. And
     /// their pixel spans made at once ([`wide_spans4`]) are those [`seg_row_fill`] made
     /// of each row's intervals before, on rows of several widths (the segments across
-    /// the row's ends, and past 2^22 pixels one row at a time).
+    /// the row's ends, and past 2^22 pixels one row at a time); where the processor has
+    /// AVX2, so are those made eight rows at once ([`wide_spans8`]).
     #[test]
     fn four_rows_intervals_are_each_ones() {
         let mut rand = unit_floats(0x9e37_79b9_7f4a_7c15u64);
-        let (mut found, mut spanned) = ([0; 2], 0);
+        let (mut found, mut spanned, mut eights) = ([0; 2], 0, 0);
         for n in 0..60_000 {
             let r = [0.2, 0.5, 1.56, 3.2, 4.1, 10.41, 40.0][n % 7];
             let mut c = Capsules::default();
@@ -1576,6 +1701,22 @@ mod tests {
                 // Rows of several widths: the segments' spans across the edges too.
                 let w = [7.0, 300.0, 2500.0, 8100.0, 5_000_000.0][n % 5];
                 let spans = wide_spans4(s, cy4, reach, inner, w);
+                #[cfg(target_arch = "x86_64")]
+                if crate::cpu::x86_fast() && w < 4_194_304.0 {
+                    // Eight rows at once (the stroke's AVX2 twin): the four rows' and the
+                    // next four's spans.
+                    let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| cy + m as f32);
+                    #[allow(unsafe_code)]
+                    // SAFETY: the processor has AVX2 (`x86_fast`).
+                    let eight = unsafe { wide_spans8(s, cy8, reach, inner, w) };
+                    let next =
+                        wide_spans4(s, [4.0, 5.0, 6.0, 7.0].map(|m| cy + m), reach, inner, w);
+                    for b in 0..4 {
+                        assert_eq!(eight[b][..4], spans[b], "{s:?} cy {cy} r {r} w {w}");
+                        assert_eq!(eight[b][4..], next[b], "{s:?} cy {cy} r {r} w {w}");
+                    }
+                    eights += 1;
+                }
                 for (m, (got, cy)) in got.iter().zip(cy4).enumerate() {
                     let want = intervals(s, cy, reach, inner);
                     assert!(*got == want, "{s:?} cy {cy} r {r}: {got:?} {want:?}");
@@ -1594,6 +1735,7 @@ mod tests {
         }
         assert!(found.iter().all(|&f| f > 80_000), "{found:?}");
         assert!(spanned > 10_000, "{spanned}");
+        assert!(!crate::cpu::x86_fast() || eights == 192_000, "{eights}");
     }
 
     /// A thin segment's conservative spans made four rows at a time ([`lanes_spans4`])
