@@ -400,6 +400,29 @@ impl Capsules {
     fn run<const X8: bool>(&mut self, s: &Seg, k: u32, j: u32, end: u32, r: f32, reach: f32) {
         let w = self.slots[0].row.len() as f32;
         match s.mode {
+            #[cfg(target_arch = "x86_64")]
+            Mode::Lanes if X8 && w < 4_194_304.0 => {
+                // The segment's conservative spans eight rows at a time.
+                for i in (j..end).step_by(8) {
+                    let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| (i + m) as f32 + 0.5);
+                    // SAFETY: `lanes_spans8` needs AVX2; `X8` is true only in the
+                    // stroke's twin compiled for AVX2, BMI1 and BMI2, which runs only
+                    // where the processor was found to have them (`Capsules::stroke`).
+                    #[allow(unsafe_code)]
+                    let [x0, x1] = unsafe { lanes_spans8(s, cy8, reach, w) };
+                    for m in 0..(end - i).min(8) as usize {
+                        let (x0, x1) = (x0[m] as usize, x1[m] as usize);
+                        if x0 < x1 {
+                            let at = (i as usize + m) % RING;
+                            let slot = &mut self.slots[at];
+                            let edge = Edge::new(s, cy8[m], r);
+                            if let Some(span) = edge.measure_finite::<X8>(&mut slot.row, x0, x1) {
+                                slot.notes.note(span);
+                            }
+                        }
+                    }
+                }
+            }
             Mode::Lanes => {
                 // The segment's conservative spans four rows at a time.
                 for i in (j..end).step_by(4) {
@@ -1263,6 +1286,56 @@ fn lanes_spans4(s: &Seg, cy: [f32; 4], reach: f32, w: f32) -> [[u32; 4]; 2] {
     spans
 }
 
+/// [`lanes_spans4`] on eight rows at once, in AVX's 256-bit lanes (rows of fewer than
+/// 2^22 pixels): per lane the same f32 operations in their order, with the operands
+/// of `wide`'s `fast_min`, `fast_max`, negation (the sign bit flipped) and truncations
+/// (`vcvttps2dq`): the same bits, so the same spans.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn lanes_spans8(s: &Seg, cy: [f32; 8], reach: f32, w: f32) -> [[u32; 8]; 2] {
+    use std::arch::x86_64::*;
+    let splat = _mm256_set1_ps;
+    let (add, sub, mul) = (_mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps);
+    let (max, min) = (_mm256_max_ps, _mm256_min_ps);
+    let neg = |x: __m256| _mm256_xor_ps(x, splat(-0.0));
+    let (zero, one) = (_mm256_setzero_ps(), splat(1.0));
+    let (t0, t1) = if s.rdy != 0.0 {
+        let cy = _mm256_setr_ps(cy[0], cy[1], cy[2], cy[3], cy[4], cy[5], cy[6], cy[7]);
+        let (ay, rdy, reach) = (splat(s.a[1]), splat(s.rdy), splat(reach));
+        let u0 = mul(sub(sub(cy, reach), ay), rdy);
+        let u1 = mul(sub(add(cy, reach), ay), rdy);
+        (max(min(u0, u1), zero), min(max(u0, u1), one))
+    } else {
+        (zero, one)
+    };
+    let (ax, dx) = (splat(s.a[0]), splat(s.d[0]));
+    let (xa, xb) = (add(ax, mul(t0, dx)), add(ax, mul(t1, dx)));
+    let reach = splat(reach);
+    let (lo, hi) = (sub(min(xa, xb), reach), add(max(xa, xb), reach));
+    let floor = |x: __m256| {
+        let t = _mm256_cvtepi32_ps(_mm256_cvttps_epi32(x));
+        sub(t, _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t, x), one))
+    };
+    let wl = splat(w);
+    let fit = |p: __m256| _mm256_cvttps_epi32(min(max(p, zero), wl));
+    // ceil(x) is −floor(−x); the pixels whose centre lies within [lo − ⅛, hi + ⅛].
+    let x0 = fit(neg(floor(neg(sub(lo, splat(0.625))))));
+    let x1 = fit(add(floor(sub(hi, splat(0.375))), one));
+    // A row out of reach (`t0 > t1`): no span (both bounds 0).
+    let out = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GT_OQ>(t0, t1));
+    let (x0, x1) = (_mm256_andnot_si256(out, x0), _mm256_andnot_si256(out, x1));
+    // SAFETY: eight `i32` lanes as eight `u32`s: the same size, every bit pattern a
+    // value (the lanes are in [0, w]).
+    #[allow(unsafe_code)]
+    unsafe {
+        [
+            std::mem::transmute::<__m256i, [u32; 8]>(x0),
+            std::mem::transmute::<__m256i, [u32; 8]>(x1),
+        ]
+    }
+}
+
 /// Measures a segment's coverage of a row's pixels, four at a time: per lane the f32
 /// operations of `Edge::pixel` (the tests' reference) in its order (IEEE operations,
 /// the same bits; `min`, `max` and `clamp` as `f32`'s, NaN included), so the bytes are
@@ -1744,11 +1817,12 @@ mod tests {
     /// slope and length, dots, along a row or a column and nearly, across the page's
     /// edges and at the ends of [`MODEST`] coordinates, on rows through them, at their
     /// ends and beyond their reach, rows of several widths (past 2^22 pixels one row at
-    /// a time).
+    /// a time). Where the processor has AVX2, so are those made eight rows at once
+    /// ([`lanes_spans8`]).
     #[test]
     fn four_rows_lane_spans_are_each_ones() {
         let mut rand = unit_floats(0x1319_8a2e_0370_7344u64);
-        let (mut spanned, mut empty) = (0, 0);
+        let (mut spanned, mut empty, mut eights) = (0, 0, 0);
         for n in 0..200_000 {
             let r = [0.2, 0.5, 0.8, 1.04, 1.56, 2.6, 3.0][n % 7];
             let a = match n % 13 {
@@ -1784,6 +1858,21 @@ mod tests {
             let cy4 = [0.0, 1.0, 2.0, 3.0].map(|m| cy + m);
             let w = [7.0, 300.0, 2500.0, 8100.0, 8192.0, 5_000_000.0][n % 6];
             let got = lanes_spans4(&s, cy4, reach, w);
+            #[cfg(target_arch = "x86_64")]
+            if crate::cpu::x86_fast() && w < 4_194_304.0 {
+                // Eight rows at once (the stroke's AVX2 twin): the four rows' spans and
+                // the next four's.
+                let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| cy + m as f32);
+                #[allow(unsafe_code)]
+                // SAFETY: the processor has AVX2 (`x86_fast`).
+                let eight = unsafe { lanes_spans8(&s, cy8, reach, w) };
+                let next = lanes_spans4(&s, [4.0, 5.0, 6.0, 7.0].map(|m| cy + m), reach, w);
+                for b in 0..2 {
+                    assert_eq!(eight[b][..4], got[b], "{s:?} cy {cy} r {r} w {w}");
+                    assert_eq!(eight[b][4..], next[b], "{s:?} cy {cy} r {r} w {w}");
+                }
+                eights += 1;
+            }
             for (m, &cy) in cy4.iter().enumerate() {
                 let want = lanes_span(&s, cy, reach, w);
                 let (x0, x1) = (got[0][m] as usize, got[1][m] as usize);
@@ -1796,6 +1885,7 @@ mod tests {
             }
         }
         assert!(spanned > 150_000 && empty > 150_000, "{spanned} {empty}");
+        assert!(!crate::cpu::x86_fast() || eights > 100_000, "{eights}");
     }
 
     /// A row's reach and interior as [`seg_row_fill`] takes them from
