@@ -385,7 +385,7 @@ impl Capsules {
                 measure_edges::<X8>(&segs, &slot.edges, j as f32 + 0.5, r, &mut slot.row);
                 slot.edges.clear();
             }
-            self.flush_row(j as usize, t);
+            self.flush_row::<X8>(j as usize, t);
             j += 1;
         }
         segs.clear();
@@ -514,10 +514,11 @@ impl Capsules {
     /// multiple of 512 pixels, which changes no pixel's arithmetic), and marks the
     /// blocks in the target's `dirty` (not for paper): the blocks the spans touch, as
     /// marking each span would. Into the gray layer, a tile's noted blocks at once
-    /// ([`GrayLayer::add_blocks`]). Inlined into the stroke's and the ring's two
+    /// ([`GrayLayer::add_blocks`], sixteen pixels at a time with `X8`). Inlined into the
+    /// stroke's and the ring's two
     /// instruction sets' code ([`Capsules::stroke`]).
     #[inline(always)]
-    fn flush_row(&mut self, j: usize, t: &mut Target) {
+    fn flush_row<const X8: bool>(&mut self, j: usize, t: &mut Target) {
         let Slot {
             row: cov, notes, ..
         } = &mut self.slots[j % RING];
@@ -532,7 +533,7 @@ impl Capsules {
         }
         if let Some(layer) = t.layer.as_deref_mut() {
             for (w, bits) in (wlo..).zip(blocks) {
-                layer.add_blocks(j, w, std::mem::take(bits), cov);
+                layer.add_blocks::<X8>(j, w, std::mem::take(bits), cov);
             }
             return;
         }
@@ -567,7 +568,7 @@ impl Capsules {
             };
             return;
         }
-        self.ring_with(c, radius, r, t, ring_span);
+        self.ring_with::<false>(c, radius, r, t, ring_span);
     }
 
     /// [`Capsules::ring`] compiled for AVX2, BMI1 and BMI2 (called only where the
@@ -575,13 +576,15 @@ impl Capsules {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1,bmi2")]
     fn ring_fast(&mut self, c: [f32; 2], radius: f32, r: f32, t: &mut Target) {
-        self.ring_with(c, radius, r, t, ring_span);
+        self.ring_with::<true>(c, radius, r, t, ring_span);
     }
 
     /// [`Capsules::ring`] with the pixels of an arc's span measured by `span`
-    /// ([`ring_span`], or pixel by pixel in the tests' reference).
+    /// ([`ring_span`], or pixel by pixel in the tests' reference); `X8` only in
+    /// [`Capsules::ring_fast`] (a gray ring's rows merged into the layer sixteen pixels
+    /// at a time, [`GrayLayer::add_blocks`]).
     #[inline(always)]
-    fn ring_with(
+    fn ring_with<const X8: bool>(
         &mut self,
         c: [f32; 2],
         radius: f32,
@@ -622,7 +625,7 @@ impl Capsules {
                 span(&mut slot.row, x0, x1, ring);
                 slot.notes.note((x0 as u32, x1 as u32));
             }
-            self.flush_row(j, t);
+            self.flush_row::<X8>(j, t);
         }
     }
 }
@@ -2579,7 +2582,7 @@ mod tests {
                 }
                 let ink = if n % 5 == 0 { Ink::Paper } else { Ink::Black };
                 a.ring(c, radius, r, &mut target(&mut got, w, &mut got_dirty, ink));
-                b.ring_with(
+                b.ring_with::<false>(
                     c,
                     radius,
                     r,
