@@ -220,7 +220,7 @@ impl GrayLayer {
             };
             return;
         }
-        self.flush_body(page, first)
+        self.flush_body::<false>(page, first)
     }
 
     /// [`GrayLayer::flush_body`] compiled for AVX2, BMI1 and BMI2 (called only where
@@ -228,13 +228,14 @@ impl GrayLayer {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1,bmi2")]
     fn flush_fast(&mut self, page: &mut [u8], first: usize) {
-        self.flush_body(page, first)
+        self.flush_body::<true>(page, first)
     }
 
     /// [`GrayLayer::flush`] itself; inlined into each of its two callers so that each
-    /// is compiled for its own instruction set.
+    /// is compiled for its own instruction set; `X16` (only in [`GrayLayer::flush_fast`]):
+    /// sixteen pixels at a time ([`overprint_x16`]).
     #[inline(always)]
-    fn flush_body(&mut self, page: &mut [u8], first: usize) {
+    fn flush_body<const X16: bool>(&mut self, page: &mut [u8], first: usize) {
         let g = self.level;
         for tile in &mut self.tiles[..self.used] {
             let at = tile.at as usize;
@@ -249,6 +250,19 @@ impl GrayLayer {
                 let at = (j - first) * self.width + x;
                 let dst = &mut page[at + lo..at + hi];
                 let src = &mut tile.cov[r * TILE..(r + 1) * TILE];
+                #[cfg(target_arch = "x86_64")]
+                if X16 {
+                    // SAFETY: `overprint_x16` needs AVX2; `X16` is true only in
+                    // `flush_fast`, compiled for AVX2, BMI1 and BMI2 and run only where
+                    // the processor was found to have them (`GrayLayer::flush`).
+                    #[allow(unsafe_code)]
+                    unsafe {
+                        overprint_x16(dst, &src[lo..hi], g)
+                    };
+                } else {
+                    overprint_span(dst, &src[lo..hi], g);
+                }
+                #[cfg(not(target_arch = "x86_64"))]
                 overprint_span(dst, &src[lo..hi], g);
                 // The row's coverage outside its span is 0 already.
                 src.fill(0);
@@ -269,6 +283,76 @@ fn clear_blocks(w: usize, mut bits: u64, row: &mut [u8]) {
         let n = row.len();
         row[x.min(n)..(x + BLOCK).min(n)].fill(0);
     }
+}
+
+/// Sixteen bytes in AVX2's 16-bit lanes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn widen16(b: &[u8; 16]) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let v = u128::from_le_bytes(*b);
+    _mm256_cvtepu8_epi16(_mm_set_epi64x((v >> 64) as i64, v as i64))
+}
+
+/// [`widen16`]'s inverse: sixteen 16-bit lanes, each at most 255, as bytes (a
+/// saturating pack per 128-bit half, the halves' low words brought together).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn narrow16(v: std::arch::x86_64::__m256i) -> [u8; 16] {
+    use std::arch::x86_64::*;
+    let p = _mm256_permute4x64_epi64::<0b1000>(_mm256_packus_epi16(v, _mm256_setzero_si256()));
+    let p = _mm256_castsi256_si128(p);
+    let (lo, hi) = (
+        _mm_cvtsi128_si64(p) as u64,
+        _mm_extract_epi64::<1>(p) as u64,
+    );
+    (u128::from(lo) | u128::from(hi) << 64).to_le_bytes()
+}
+
+/// [`div255`] in sixteen lanes: `x / 255` for every 16-bit `x`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn div255_16(x: std::arch::x86_64::__m256i) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    _mm256_srli_epi16::<7>(_mm256_mulhi_epu16(x, _mm256_set1_epi16(0x8081_u16 as i16)))
+}
+
+/// [`overprint_span`] sixteen pixels at a time in AVX2's 16-bit lanes (the same integer
+/// arithmetic, exact: the same bytes), the last fewer than sixteen by
+/// [`overprint_span`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn overprint_x16(dst: &mut [u8], cov: &[u8], g: u8) {
+    use std::arch::x86_64::*;
+    let n = dst.len().min(cov.len());
+    let lanes = n - n % 16;
+    let (full, half) = (_mm256_set1_epi16(255), _mm256_set1_epi16(127));
+    let gl = _mm256_set1_epi16(i16::from(g));
+    let (add, sub, mul) = (_mm256_add_epi16, _mm256_sub_epi16, _mm256_mullo_epi16);
+    for (d16, c16) in dst[..lanes]
+        .chunks_exact_mut(16)
+        .zip(cov[..lanes].chunks_exact(16))
+    {
+        let d16: &mut [u8; 16] = d16.try_into().expect("16 pixels");
+        let c16: &[u8; 16] = c16.try_into().expect("16 pixels");
+        let b = mul(widen16(c16), gl);
+        *d16 = if u128::from_le_bytes(*d16) == 0 {
+            // Paper under all sixteen: `⌊(b + 127) / 255⌋` (see `overprint_span`).
+            narrow16(div255_16(add(b, half)))
+        } else {
+            let d = widen16(d16);
+            let a = sub(full, d);
+            let h = div255_16(b);
+            let l = sub(b, mul(h, full));
+            let z = add(add(mul(a, h), half), div255_16(add(mul(a, l), half)));
+            narrow16(add(d, div255_16(z)))
+        };
+    }
+    overprint_span(&mut dst[lanes..n], &cov[lanes..n], g);
 }
 
 /// [`merge`] sixteen pixels at a time in AVX2's 16-bit lanes (the same integer
@@ -538,8 +622,8 @@ mod tests {
         }
     }
 
-    /// [`merge`] (and where the processor has AVX2 [`merge_x16`]) and [`overprint_span`]
-    /// are their pixel-by-pixel formulas for every level under, every coverage and every
+    /// [`merge`] and [`overprint_span`] (and where the processor has AVX2 [`merge_x16`]
+    /// and [`overprint_x16`]) are their pixel-by-pixel formulas for every level under, every coverage and every
     /// gray (tails of 0–7 pixels too; the first
     /// 256 pixels, paper under, take [`overprint_span`]'s way for eight of paper).
     #[test]
@@ -576,6 +660,18 @@ mod tests {
             overprint_span(&mut got, &cov, g);
             for (i, (&d, &c)) in under.iter().zip(&cov).enumerate() {
                 assert_eq!(got[i], overprint(d, c, u32::from(g)), "{d} {c} {g}");
+            }
+            #[cfg(target_arch = "x86_64")]
+            if crate::cpu::x86_fast() {
+                // Sixteen at a time, from an offset that changes with the gray.
+                let skip = usize::from(g % 16);
+                let mut sixteen = under[skip..].to_vec();
+                // SAFETY: the processor has AVX2 (`x86_fast`).
+                #[allow(unsafe_code)]
+                unsafe {
+                    overprint_x16(&mut sixteen, &cov[skip..], g)
+                };
+                assert!(sixteen == got[skip..], "sixteen at a time, gray {g}");
             }
         }
     }
