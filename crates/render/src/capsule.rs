@@ -306,7 +306,7 @@ impl Capsules {
             };
             return;
         }
-        self.stroke_body(r, t)
+        self.stroke_body::<false>(r, t)
     }
 
     /// [`Capsules::stroke_body`] compiled for AVX2, BMI1 and BMI2 (called only where
@@ -314,13 +314,15 @@ impl Capsules {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1,bmi2")]
     fn stroke_fast(&mut self, r: f32, t: &mut Target) {
-        self.stroke_body(r, t)
+        self.stroke_body::<true>(r, t)
     }
 
     /// The stroke itself ([`Capsules::stroke`]); inlined into each of its two callers
-    /// so that each is compiled for its own instruction set.
+    /// so that each is compiled for its own instruction set. `X8` (only in
+    /// [`Capsules::stroke_fast`], where the processor has AVX2): the pixels of a segment
+    /// within [`MODEST`] coordinates measured eight at a time ([`Edge::measure_x8`]).
     #[inline(always)]
-    fn stroke_body(&mut self, r: f32, t: &mut Target) {
+    fn stroke_body<const X8: bool>(&mut self, r: f32, t: &mut Target) {
         let mut segs = std::mem::take(&mut self.segs);
         let reach = r.max(0.0) + 0.5;
         if !(reach.is_finite() && reach > 0.5) || t.width == 0 || t.height == 0 {
@@ -369,7 +371,7 @@ impl Capsules {
                 let s = &segs[k as usize];
                 // Its rows from this one, up to RING of them.
                 let end = j.saturating_add(RING as u32).min(s.rows.1);
-                self.run(s, k, j, end, r, reach);
+                self.run::<X8>(s, k, j, end, r, reach);
                 until = until.max(end);
                 if end < s.rows.1 {
                     // Its next rows, once this row buffer is free (`end − j ≤ RING`).
@@ -380,10 +382,10 @@ impl Capsules {
             self.due.clear();
             let slot = &mut self.slots[at];
             if !slot.edges.is_empty() {
-                measure_edges(&segs, &slot.edges, j as f32 + 0.5, r, &mut slot.row);
+                measure_edges::<X8>(&segs, &slot.edges, j as f32 + 0.5, r, &mut slot.row);
                 slot.edges.clear();
             }
-            self.flush_row(j as usize, t);
+            self.flush_row::<X8>(j as usize, t);
             j += 1;
         }
         segs.clear();
@@ -395,9 +397,32 @@ impl Capsules {
     /// `edges` (see [`seg_row_fill`]).
     #[inline(always)]
     #[allow(clippy::needless_range_loop)] // a row's lane of four rows' spans
-    fn run(&mut self, s: &Seg, k: u32, j: u32, end: u32, r: f32, reach: f32) {
+    fn run<const X8: bool>(&mut self, s: &Seg, k: u32, j: u32, end: u32, r: f32, reach: f32) {
         let w = self.slots[0].row.len() as f32;
         match s.mode {
+            #[cfg(target_arch = "x86_64")]
+            Mode::Lanes if X8 && w < 4_194_304.0 => {
+                // The segment's conservative spans eight rows at a time.
+                for i in (j..end).step_by(8) {
+                    let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| (i + m) as f32 + 0.5);
+                    // SAFETY: `lanes_spans8` needs AVX2; `X8` is true only in the
+                    // stroke's twin compiled for AVX2, BMI1 and BMI2, which runs only
+                    // where the processor was found to have them (`Capsules::stroke`).
+                    #[allow(unsafe_code)]
+                    let [x0, x1] = unsafe { lanes_spans8(s, cy8, reach, w) };
+                    for m in 0..(end - i).min(8) as usize {
+                        let (x0, x1) = (x0[m] as usize, x1[m] as usize);
+                        if x0 < x1 {
+                            let at = (i as usize + m) % RING;
+                            let slot = &mut self.slots[at];
+                            let edge = Edge::new(s, cy8[m], r);
+                            if let Some(span) = edge.measure_finite::<X8>(&mut slot.row, x0, x1) {
+                                slot.notes.note(span);
+                            }
+                        }
+                    }
+                }
+            }
             Mode::Lanes => {
                 // The segment's conservative spans four rows at a time.
                 for i in (j..end).step_by(4) {
@@ -409,9 +434,32 @@ impl Capsules {
                             let at = (i as usize + m) % RING;
                             let slot = &mut self.slots[at];
                             let edge = Edge::new(s, cy4[m], r);
-                            if let Some(span) = edge.measure::<true>(&mut slot.row, x0, x1) {
+                            if let Some(span) = edge.measure_finite::<X8>(&mut slot.row, x0, x1) {
                                 slot.notes.note(span);
                             }
+                        }
+                    }
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            Mode::Wide if X8 && w < 4_194_304.0 => {
+                // The segment's pixel spans eight rows at a time (the spans' order does
+                // not matter).
+                for i in (j..end).step_by(8) {
+                    let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| (i + m) as f32 + 0.5);
+                    // SAFETY: `wide_spans8` needs AVX2; `X8` is true only in the stroke's
+                    // twin compiled for AVX2, BMI1 and BMI2, which runs only where the
+                    // processor was found to have them (`Capsules::stroke`).
+                    #[allow(unsafe_code)]
+                    let spans = unsafe { wide_spans8(s, cy8, reach, r - 0.5, w) };
+                    for m in 0..(end - i).min(8) as usize {
+                        let at = (i as usize + m) % RING;
+                        let Slot {
+                            row, notes, edges, ..
+                        } = &mut self.slots[at];
+                        let row_spans = [0, 1, 2, 3].map(|b| spans[b][m] as usize);
+                        if let Some(span) = seg_row_fill(k, row_spans, row, edges) {
+                            notes.note(span);
                         }
                     }
                 }
@@ -466,10 +514,11 @@ impl Capsules {
     /// multiple of 512 pixels, which changes no pixel's arithmetic), and marks the
     /// blocks in the target's `dirty` (not for paper): the blocks the spans touch, as
     /// marking each span would. Into the gray layer, a tile's noted blocks at once
-    /// ([`GrayLayer::add_blocks`]). Inlined into the stroke's and the ring's two
+    /// ([`GrayLayer::add_blocks`], sixteen pixels at a time with `X8`). Inlined into the
+    /// stroke's and the ring's two
     /// instruction sets' code ([`Capsules::stroke`]).
     #[inline(always)]
-    fn flush_row(&mut self, j: usize, t: &mut Target) {
+    fn flush_row<const X8: bool>(&mut self, j: usize, t: &mut Target) {
         let Slot {
             row: cov, notes, ..
         } = &mut self.slots[j % RING];
@@ -484,7 +533,7 @@ impl Capsules {
         }
         if let Some(layer) = t.layer.as_deref_mut() {
             for (w, bits) in (wlo..).zip(blocks) {
-                layer.add_blocks(j, w, std::mem::take(bits), cov);
+                layer.add_blocks::<X8>(j, w, std::mem::take(bits), cov);
             }
             return;
         }
@@ -519,7 +568,7 @@ impl Capsules {
             };
             return;
         }
-        self.ring_with(c, radius, r, t, ring_span);
+        self.ring_with::<false>(c, radius, r, t, ring_span);
     }
 
     /// [`Capsules::ring`] compiled for AVX2, BMI1 and BMI2 (called only where the
@@ -527,13 +576,15 @@ impl Capsules {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1,bmi2")]
     fn ring_fast(&mut self, c: [f32; 2], radius: f32, r: f32, t: &mut Target) {
-        self.ring_with(c, radius, r, t, ring_span);
+        self.ring_with::<true>(c, radius, r, t, ring_span);
     }
 
     /// [`Capsules::ring`] with the pixels of an arc's span measured by `span`
-    /// ([`ring_span`], or pixel by pixel in the tests' reference).
+    /// ([`ring_span`], or pixel by pixel in the tests' reference); `X8` only in
+    /// [`Capsules::ring_fast`] (a gray ring's rows merged into the layer sixteen pixels
+    /// at a time, [`GrayLayer::add_blocks`]).
     #[inline(always)]
-    fn ring_with(
+    fn ring_with<const X8: bool>(
         &mut self,
         c: [f32; 2],
         radius: f32,
@@ -574,7 +625,7 @@ impl Capsules {
                 span(&mut slot.row, x0, x1, ring);
                 slot.notes.note((x0 as u32, x1 as u32));
             }
-            self.flush_row(j, t);
+            self.flush_row::<X8>(j, t);
         }
     }
 }
@@ -913,6 +964,107 @@ fn wide_spans4(s: &Seg, cy: [f32; 4], reach: f32, inner: f32, w: f32) -> [[u32; 
     }
 }
 
+/// [`wide_spans4`] on eight rows at once, in AVX's 256-bit lanes (rows of fewer than
+/// 2^22 pixels): per lane the f32 operations of [`intervals4_lanes`] and of
+/// [`wide_spans4`]'s bounds in their order, with the operands of `wide`'s `fast_max`,
+/// `fast_min`, `bitselect` (and, and-not, or) and negation (the sign bit flipped), and
+/// its truncations (`vcvttps2dq`) and conversions: the same bits, so the same spans.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn wide_spans8(s: &Seg, cy: [f32; 8], reach: f32, inner: f32, w: f32) -> [[u32; 8]; 4] {
+    use std::arch::x86_64::*;
+    let splat = _mm256_set1_ps;
+    let (add, sub, mul, div) = (_mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_div_ps);
+    let (max, min) = (_mm256_max_ps, _mm256_min_ps);
+    let neg = |x: __m256| _mm256_xor_ps(x, splat(-0.0));
+    // `mask.bitselect(t, f)`: `(t & mask) | (f & !mask)`.
+    let select = |mask: __m256, t: __m256, f: __m256| {
+        _mm256_or_ps(_mm256_and_ps(t, mask), _mm256_andnot_ps(mask, f))
+    };
+    let le = |a: __m256, b: __m256| _mm256_cmp_ps::<_CMP_LE_OQ>(a, b);
+    let ge = |a: __m256, b: __m256| _mm256_cmp_ps::<_CMP_GE_OQ>(a, b);
+    let (zero, one) = (_mm256_setzero_ps(), splat(1.0));
+    let (ninf, inf) = (splat(f32::NEG_INFINITY), splat(f32::INFINITY));
+    let cy = _mm256_setr_ps(cy[0], cy[1], cy[2], cy[3], cy[4], cy[5], cy[6], cy[7]);
+    let ax = splat(s.a[0]);
+    let ey = sub(cy, splat(s.a[1]));
+    let dx = splat(s.d[0]);
+    let dy = splat(s.d[1]);
+    let l = splat(s.l);
+    // The body's bounds on u = x − ax along the segment ([`intervals4_lanes`]).
+    let (b0, b1) = {
+        let (c0, c1) = (mul(neg(ey), dy), sub(mul(l, l), mul(ey, dy)));
+        if s.d[0] != 0.0 {
+            let (a, b) = (div(c0, dx), div(c1, dx));
+            (max(ninf, min(a, b)), min(inf, max(a, b)))
+        } else {
+            let within = _mm256_and_ps(le(c0, zero), ge(c1, zero));
+            (ninf, select(within, inf, ninf))
+        }
+    };
+    let k = neg(dy);
+    let ends = [(ax, ey), (add(ax, dx), sub(ey, dy))];
+    let (body, across) = (s.inv > 0.0, s.d[1] != 0.0);
+    // [`Lanes4::bounds`].
+    let bounds = |rho: f32| {
+        let end = |(x, y): (__m256, __m256)| {
+            let q = sub(splat(rho * rho), mul(y, y));
+            let h = _mm256_sqrt_ps(q);
+            let (a, b) = (sub(x, h), add(x, h));
+            (_mm256_and_ps(ge(q, zero), le(a, b)), a, b)
+        };
+        let (ok, a, b) = end(ends[0]);
+        let (mut lo, mut hi) = (select(ok, a, inf), select(ok, b, ninf));
+        let mut put = |ok: __m256, a: __m256, b: __m256| {
+            lo = select(ok, min(lo, a), lo);
+            hi = select(ok, max(hi, b), hi);
+        };
+        let (ok, a, b) = end(ends[1]);
+        put(ok, a, b);
+        if body {
+            let c0 = sub(mul(splat(-rho), l), mul(ey, dx));
+            let c1 = sub(mul(splat(rho), l), mul(ey, dx));
+            let (u0, u1) = if across {
+                let (a, b) = (div(c0, k), div(c1, k));
+                (max(b0, min(a, b)), min(b1, max(a, b)))
+            } else {
+                let within = _mm256_and_ps(le(c0, zero), ge(c1, zero));
+                (b0, select(within, b1, ninf))
+            };
+            let (a, b) = (add(ax, u0), add(ax, u1));
+            put(le(a, b), a, b);
+        }
+        (lo, hi)
+    };
+    let ((lo, hi), (ilo, ihi)) = (bounds(reach), bounds(inner));
+    // [`wide_spans4`]'s bounds.
+    let half = splat(0.5);
+    let (below, above) = (splat(-1.0), splat(w + 1.0));
+    let clamp = |x: __m256| min(max(x, below), above);
+    let floor = |x: __m256| {
+        let t = _mm256_cvtepi32_ps(_mm256_cvttps_epi32(x));
+        sub(t, _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t, x), one))
+    };
+    let wl = splat(w);
+    let fit = |p: __m256| {
+        let p = _mm256_cvttps_epi32(min(max(p, zero), wl));
+        // SAFETY: eight `i32` lanes as eight `u32`s: the same size, every bit pattern
+        // a value (the lanes are in [0, w]).
+        #[allow(unsafe_code)]
+        unsafe {
+            std::mem::transmute::<__m256i, [u32; 8]>(p)
+        }
+    };
+    // ceil(x) is −floor(−x).
+    [
+        fit(neg(floor(neg(clamp(sub(lo, half)))))),
+        fit(add(floor(clamp(sub(hi, half))), one)),
+        fit(neg(floor(neg(clamp(sub(ilo, half)))))),
+        fit(add(floor(clamp(sub(ihi, half))), one)),
+    ]
+}
+
 /// Gathers segment `s`'s coverage of the row whose centre is at `cy` into `row`
 /// (maximum), and gives the pixel span it reached: pixels within `r − ½` of the segment
 /// are covered whole, only those on its edges are measured (four at a time).
@@ -1034,7 +1186,13 @@ fn pixel_spans(v: [f32; 4], o: [f32; 4], w: f32) -> [usize; 4] {
 /// ([`seg_row_fill`]) but their ends that lie in pixels already covered whole (255, by
 /// any segment's interior: the maximum is 255 whatever the edge's coverage there).
 #[inline(always)]
-fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: &mut [u8]) {
+fn measure_edges<const X8: bool>(
+    segs: &[Seg],
+    edges: &[(u32, u32, u32)],
+    cy: f32,
+    r: f32,
+    row: &mut [u8],
+) {
     for &(k, from, to) in edges {
         let (mut from, mut to) = (from as usize, to as usize);
         while from < to && row[from] == 255 {
@@ -1044,7 +1202,7 @@ fn measure_edges(segs: &[Seg], edges: &[(u32, u32, u32)], cy: f32, r: f32, row: 
             to -= 1;
         }
         if from < to {
-            Edge::new(&segs[k as usize], cy, r).measure::<true>(row, from, to);
+            Edge::new(&segs[k as usize], cy, r).measure_finite::<X8>(row, from, to);
         }
     }
 }
@@ -1129,6 +1287,56 @@ fn lanes_spans4(s: &Seg, cy: [f32; 4], reach: f32, w: f32) -> [[u32; 4]; 2] {
         }
     }
     spans
+}
+
+/// [`lanes_spans4`] on eight rows at once, in AVX's 256-bit lanes (rows of fewer than
+/// 2^22 pixels): per lane the same f32 operations in their order, with the operands
+/// of `wide`'s `fast_min`, `fast_max`, negation (the sign bit flipped) and truncations
+/// (`vcvttps2dq`): the same bits, so the same spans.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn lanes_spans8(s: &Seg, cy: [f32; 8], reach: f32, w: f32) -> [[u32; 8]; 2] {
+    use std::arch::x86_64::*;
+    let splat = _mm256_set1_ps;
+    let (add, sub, mul) = (_mm256_add_ps, _mm256_sub_ps, _mm256_mul_ps);
+    let (max, min) = (_mm256_max_ps, _mm256_min_ps);
+    let neg = |x: __m256| _mm256_xor_ps(x, splat(-0.0));
+    let (zero, one) = (_mm256_setzero_ps(), splat(1.0));
+    let (t0, t1) = if s.rdy != 0.0 {
+        let cy = _mm256_setr_ps(cy[0], cy[1], cy[2], cy[3], cy[4], cy[5], cy[6], cy[7]);
+        let (ay, rdy, reach) = (splat(s.a[1]), splat(s.rdy), splat(reach));
+        let u0 = mul(sub(sub(cy, reach), ay), rdy);
+        let u1 = mul(sub(add(cy, reach), ay), rdy);
+        (max(min(u0, u1), zero), min(max(u0, u1), one))
+    } else {
+        (zero, one)
+    };
+    let (ax, dx) = (splat(s.a[0]), splat(s.d[0]));
+    let (xa, xb) = (add(ax, mul(t0, dx)), add(ax, mul(t1, dx)));
+    let reach = splat(reach);
+    let (lo, hi) = (sub(min(xa, xb), reach), add(max(xa, xb), reach));
+    let floor = |x: __m256| {
+        let t = _mm256_cvtepi32_ps(_mm256_cvttps_epi32(x));
+        sub(t, _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t, x), one))
+    };
+    let wl = splat(w);
+    let fit = |p: __m256| _mm256_cvttps_epi32(min(max(p, zero), wl));
+    // ceil(x) is −floor(−x); the pixels whose centre lies within [lo − ⅛, hi + ⅛].
+    let x0 = fit(neg(floor(neg(sub(lo, splat(0.625))))));
+    let x1 = fit(add(floor(sub(hi, splat(0.375))), one));
+    // A row out of reach (`t0 > t1`): no span (both bounds 0).
+    let out = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GT_OQ>(t0, t1));
+    let (x0, x1) = (_mm256_andnot_si256(out, x0), _mm256_andnot_si256(out, x1));
+    // SAFETY: eight `i32` lanes as eight `u32`s: the same size, every bit pattern a
+    // value (the lanes are in [0, w]).
+    #[allow(unsafe_code)]
+    unsafe {
+        [
+            std::mem::transmute::<__m256i, [u32; 8]>(x0),
+            std::mem::transmute::<__m256i, [u32; 8]>(x1),
+        ]
+    }
 }
 
 /// Measures a segment's coverage of a row's pixels, four at a time: per lane the f32
@@ -1279,6 +1487,120 @@ impl Edge {
         let last = from + 4 * at + 32 - lanes.leading_zeros() as usize;
         (first != usize::MAX).then_some((first as u32, last as u32))
     }
+
+    /// [`Edge::measure`] of a segment within [`MODEST`] coordinates (`FINITE`): eight
+    /// pixels at a time with `X8` (called so only where the processor has AVX2, from
+    /// [`Capsules::stroke_fast`]), else four.
+    #[inline(always)]
+    fn measure_finite<const X8: bool>(
+        &self,
+        row: &mut [u8],
+        from: usize,
+        to: usize,
+    ) -> Option<(u32, u32)> {
+        #[cfg(target_arch = "x86_64")]
+        if X8 {
+            // SAFETY: `measure_x8` needs AVX2; `X8` is true only in the stroke's twin
+            // compiled for AVX2, BMI1 and BMI2, which runs only where the processor was
+            // found to have them (`Capsules::stroke`).
+            #[allow(unsafe_code)]
+            return unsafe { self.measure_x8(row, from, to) };
+        }
+        self.measure::<true>(row, from, to)
+    }
+
+    /// [`Edge::measure`]`::<true>` eight pixels at a time in AVX's 256-bit lanes: per
+    /// lane the same f32 operations in the same order (`vmaxps`/`vminps` with the
+    /// operands of `fast_max`/`fast_min`, `vsqrtps`, the truncation `vcvttps2dq`; no
+    /// fused multiply-add), so the same levels bit for bit, and the same span. The
+    /// levels (0..=255) are packed to bytes and their maxima with the row's taken eight
+    /// at a time.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn measure_x8(&self, row: &mut [u8], from: usize, to: usize) -> Option<(u32, u32)> {
+        use std::arch::x86_64::*;
+        if from >= to {
+            return None;
+        }
+        let dx = _mm256_set1_ps(self.dx);
+        let dy = _mm256_set1_ps(self.dy);
+        let py = _mm256_set1_ps(self.py);
+        let pdy = _mm256_set1_ps(self.py * self.dy);
+        let inv = _mm256_set1_ps(self.inv);
+        let ax = _mm256_set1_ps(self.ax);
+        let r = _mm256_set1_ps(self.r);
+        let neg_r = _mm256_set1_ps(-self.r);
+        let half = _mm256_set1_ps(0.5);
+        let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+        let full = _mm256_set1_ps(255.0);
+        // Eight pixels' levels (`c·255 + ½`, in [½, 255.5]) from their centres less
+        // ax, and the levels' `as u8` as eight bytes of a word (first pixel lowest).
+        let levels = |qx: __m256| {
+            let t = _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(qx, dx), pdy), inv);
+            let t = _mm256_min_ps(_mm256_max_ps(t, zero), one);
+            let ex = _mm256_sub_ps(qx, _mm256_mul_ps(t, dx));
+            let ey = _mm256_sub_ps(py, _mm256_mul_ps(t, dy));
+            let d = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)));
+            let c = _mm256_sub_ps(
+                _mm256_min_ps(_mm256_add_ps(d, half), r),
+                _mm256_max_ps(_mm256_sub_ps(d, half), neg_r),
+            );
+            let c = _mm256_min_ps(_mm256_max_ps(c, zero), one);
+            let level = _mm256_add_ps(_mm256_mul_ps(c, full), half);
+            let v = _mm256_cvttps_epi32(level);
+            let w = _mm_packs_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+            let bytes = _mm_cvtsi128_si64(_mm_packus_epi16(w, _mm_setzero_si128())) as u64;
+            // The lanes of level 1 or more.
+            let inked = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(level, one)) as u32;
+            (bytes, inked)
+        };
+        // The row's bytes `b` ← their maxima with `v`'s, byte by byte.
+        let max8 = |b: u64, v: u64| {
+            let m = _mm_max_epu8(_mm_cvtsi64_si128(b as i64), _mm_cvtsi64_si128(v as i64));
+            _mm_cvtsi128_si64(m) as u64
+        };
+        // Pixel centres less ax: from + k (k < 8) to begin with, eight more each time;
+        // below 2^24 (a row's width) exact, as `(i + k) as f32`.
+        let mut x = _mm256_add_ps(
+            _mm256_set1_ps(from as f32),
+            _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0),
+        );
+        let eight = _mm256_set1_ps(8.0);
+        let span = &mut row[from..to];
+        let whole = span.len() - span.len() % 8;
+        let (body, tail) = span.split_at_mut(whole);
+        let mut first = usize::MAX;
+        let (mut at, mut lanes) = (0, 0);
+        for (q, px8) in body.chunks_exact_mut(8).enumerate() {
+            let (v, inked) = levels(_mm256_sub_ps(x, ax));
+            x = _mm256_add_ps(x, eight);
+            let px8: &mut [u8; 8] = px8.try_into().expect("8 pixels");
+            *px8 = max8(u64::from_le_bytes(*px8), v).to_le_bytes();
+            if inked != 0 {
+                if first == usize::MAX {
+                    first = from + 8 * q + inked.trailing_zeros() as usize;
+                }
+                (at, lanes) = (q, inked);
+            }
+        }
+        if !tail.is_empty() {
+            let (v, inked) = levels(_mm256_sub_ps(x, ax));
+            for (px, v) in tail.iter_mut().zip(v.to_le_bytes()) {
+                *px = (*px).max(v);
+            }
+            let inked = inked & ((1 << tail.len()) - 1);
+            if inked != 0 {
+                let q = whole / 8;
+                if first == usize::MAX {
+                    first = from + 8 * q + inked.trailing_zeros() as usize;
+                }
+                (at, lanes) = (q, inked);
+            }
+        }
+        let last = from + 8 * at + 32 - lanes.leading_zeros() as usize;
+        (first != usize::MAX).then_some((first as u32, last as u32))
+    }
 }
 
 /// Composites coverage `cov` of `ink` over `dst` and clears `cov`: `composite` of
@@ -1416,11 +1738,12 @@ mod tests {
     /// row or a column, rows through them, at their ends and beyond their reach. And
     /// their pixel spans made at once ([`wide_spans4`]) are those [`seg_row_fill`] made
     /// of each row's intervals before, on rows of several widths (the segments across
-    /// the row's ends, and past 2^22 pixels one row at a time).
+    /// the row's ends, and past 2^22 pixels one row at a time); where the processor has
+    /// AVX2, so are those made eight rows at once ([`wide_spans8`]).
     #[test]
     fn four_rows_intervals_are_each_ones() {
         let mut rand = unit_floats(0x9e37_79b9_7f4a_7c15u64);
-        let (mut found, mut spanned) = ([0; 2], 0);
+        let (mut found, mut spanned, mut eights) = ([0; 2], 0, 0);
         for n in 0..60_000 {
             let r = [0.2, 0.5, 1.56, 3.2, 4.1, 10.41, 40.0][n % 7];
             let mut c = Capsules::default();
@@ -1454,6 +1777,22 @@ mod tests {
                 // Rows of several widths: the segments' spans across the edges too.
                 let w = [7.0, 300.0, 2500.0, 8100.0, 5_000_000.0][n % 5];
                 let spans = wide_spans4(s, cy4, reach, inner, w);
+                #[cfg(target_arch = "x86_64")]
+                if crate::cpu::x86_fast() && w < 4_194_304.0 {
+                    // Eight rows at once (the stroke's AVX2 twin): the four rows' and the
+                    // next four's spans.
+                    let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| cy + m as f32);
+                    #[allow(unsafe_code)]
+                    // SAFETY: the processor has AVX2 (`x86_fast`).
+                    let eight = unsafe { wide_spans8(s, cy8, reach, inner, w) };
+                    let next =
+                        wide_spans4(s, [4.0, 5.0, 6.0, 7.0].map(|m| cy + m), reach, inner, w);
+                    for b in 0..4 {
+                        assert_eq!(eight[b][..4], spans[b], "{s:?} cy {cy} r {r} w {w}");
+                        assert_eq!(eight[b][4..], next[b], "{s:?} cy {cy} r {r} w {w}");
+                    }
+                    eights += 1;
+                }
                 for (m, (got, cy)) in got.iter().zip(cy4).enumerate() {
                     let want = intervals(s, cy, reach, inner);
                     assert!(*got == want, "{s:?} cy {cy} r {r}: {got:?} {want:?}");
@@ -1472,6 +1811,7 @@ mod tests {
         }
         assert!(found.iter().all(|&f| f > 80_000), "{found:?}");
         assert!(spanned > 10_000, "{spanned}");
+        assert!(!crate::cpu::x86_fast() || eights == 192_000, "{eights}");
     }
 
     /// A thin segment's conservative spans made four rows at a time ([`lanes_spans4`])
@@ -1480,11 +1820,12 @@ mod tests {
     /// slope and length, dots, along a row or a column and nearly, across the page's
     /// edges and at the ends of [`MODEST`] coordinates, on rows through them, at their
     /// ends and beyond their reach, rows of several widths (past 2^22 pixels one row at
-    /// a time).
+    /// a time). Where the processor has AVX2, so are those made eight rows at once
+    /// ([`lanes_spans8`]).
     #[test]
     fn four_rows_lane_spans_are_each_ones() {
         let mut rand = unit_floats(0x1319_8a2e_0370_7344u64);
-        let (mut spanned, mut empty) = (0, 0);
+        let (mut spanned, mut empty, mut eights) = (0, 0, 0);
         for n in 0..200_000 {
             let r = [0.2, 0.5, 0.8, 1.04, 1.56, 2.6, 3.0][n % 7];
             let a = match n % 13 {
@@ -1520,6 +1861,21 @@ mod tests {
             let cy4 = [0.0, 1.0, 2.0, 3.0].map(|m| cy + m);
             let w = [7.0, 300.0, 2500.0, 8100.0, 8192.0, 5_000_000.0][n % 6];
             let got = lanes_spans4(&s, cy4, reach, w);
+            #[cfg(target_arch = "x86_64")]
+            if crate::cpu::x86_fast() && w < 4_194_304.0 {
+                // Eight rows at once (the stroke's AVX2 twin): the four rows' spans and
+                // the next four's.
+                let cy8 = [0, 1, 2, 3, 4, 5, 6, 7].map(|m| cy + m as f32);
+                #[allow(unsafe_code)]
+                // SAFETY: the processor has AVX2 (`x86_fast`).
+                let eight = unsafe { lanes_spans8(&s, cy8, reach, w) };
+                let next = lanes_spans4(&s, [4.0, 5.0, 6.0, 7.0].map(|m| cy + m), reach, w);
+                for b in 0..2 {
+                    assert_eq!(eight[b][..4], got[b], "{s:?} cy {cy} r {r} w {w}");
+                    assert_eq!(eight[b][4..], next[b], "{s:?} cy {cy} r {r} w {w}");
+                }
+                eights += 1;
+            }
             for (m, &cy) in cy4.iter().enumerate() {
                 let want = lanes_span(&s, cy, reach, w);
                 let (x0, x1) = (got[0][m] as usize, got[1][m] as usize);
@@ -1532,6 +1888,7 @@ mod tests {
             }
         }
         assert!(spanned > 150_000 && empty > 150_000, "{spanned} {empty}");
+        assert!(!crate::cpu::x86_fast() || eights > 100_000, "{eights}");
     }
 
     /// A row's reach and interior as [`seg_row_fill`] takes them from
@@ -1619,6 +1976,8 @@ mod tests {
     /// after byte), with the same span: segments of every slope and length, dots, thin
     /// and wide, rows through them and beside them, over blank rows, rows of every
     /// level and rows covered whole, every span length and position, at the row's ends.
+    /// Where the processor has AVX2, so are the eight-lane measures of the stroke's
+    /// twin ([`Edge::measure_x8`]).
     #[test]
     fn finite_measures_are_the_nan_exact_ones() {
         let mut rand = unit_floats(0x243f_6a88_85a3_08d3u64);
@@ -1628,7 +1987,7 @@ mod tests {
             (0..w).map(|i| ((i * 37) % 256) as u8).collect(),
             vec![255; w],
         ];
-        let mut inked = 0;
+        let (mut inked, mut eights) = (0, 0);
         for n in 0..30_000 {
             let len = [0.0, 0.02, 0.7, 3.0, 9.0, 60.0][n % 6];
             let a = [
@@ -1661,10 +2020,21 @@ mod tests {
                 let ws = e.measure::<false>(&mut want, from, to);
                 assert!(got == want, "{a:?} {b:?} r {r} [{from}, {to})");
                 assert_eq!(gs, ws, "{a:?} {b:?} r {r} [{from}, {to})");
+                if crate::cpu::x86_fast() {
+                    let mut eight = under.clone();
+                    let es = e.measure_finite::<true>(&mut eight, from, to);
+                    assert!(
+                        eight == want,
+                        "eight lanes: {a:?} {b:?} r {r} [{from}, {to})"
+                    );
+                    assert_eq!(es, ws, "eight lanes: {a:?} {b:?} r {r} [{from}, {to})");
+                    eights += 1;
+                }
                 inked += usize::from(ws.is_some());
             }
         }
         assert!(inked > 20_000, "{inked}");
+        assert!(!crate::cpu::x86_fast() || eights == 90_000, "{eights}");
     }
 
     /// Compositing in lanes is compositing pixel by pixel: every coverage over every
@@ -2212,7 +2582,7 @@ mod tests {
                 }
                 let ink = if n % 5 == 0 { Ink::Paper } else { Ink::Black };
                 a.ring(c, radius, r, &mut target(&mut got, w, &mut got_dirty, ink));
-                b.ring_with(
+                b.ring_with::<false>(
                     c,
                     radius,
                     r,

@@ -101,9 +101,17 @@ impl GrayLayer {
     /// once (a tile's row is 8 blocks, a byte of the word) from its first set block to
     /// its last. The blocks between two runs of one tile are merged too: `row` holds 0
     /// there (the caller's promise), which leaves the layer as it is (`l + (127 / 255)`
-    /// is `l`), and the tile row's span is the runs' hull either way.
+    /// is `l`), and the tile row's span is the runs' hull either way. `X16` (only in code
+    /// compiled for AVX2, run where the processor has it): merged sixteen pixels at a
+    /// time ([`merge_x16`]).
     #[inline(always)]
-    pub(crate) fn add_blocks(&mut self, j: usize, w: usize, mut bits: u64, row: &mut [u8]) {
+    pub(crate) fn add_blocks<const X16: bool>(
+        &mut self,
+        j: usize,
+        w: usize,
+        mut bits: u64,
+        row: &mut [u8],
+    ) {
         let width = self.width.min(row.len());
         if j >= self.height {
             return clear_blocks(w, bits, row);
@@ -145,10 +153,25 @@ impl GrayLayer {
                 k => k as usize,
             };
             let tile = &mut self.tiles[k];
-            merge(
+            let (l, c) = (
                 &mut tile.cov[r * TILE..][..TILE][lo..hi],
                 &mut row[x..][lo..hi],
             );
+            #[cfg(target_arch = "x86_64")]
+            if X16 {
+                // SAFETY: `merge_x16` needs AVX2; `X16` is true only in the scan
+                // converter's twins compiled for AVX2, BMI1 and BMI2, which run only
+                // where the processor was found to have them (`Capsules::stroke`,
+                // `Capsules::ring`).
+                #[allow(unsafe_code)]
+                unsafe {
+                    merge_x16(l, c)
+                };
+            } else {
+                merge(l, c);
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            merge(l, c);
             let s = &mut tile.span[r];
             *s = (s.0.min(lo as u8), s.1.max(hi as u8));
             tile.rows |= 1 << r;
@@ -197,7 +220,7 @@ impl GrayLayer {
             };
             return;
         }
-        self.flush_body(page, first)
+        self.flush_body::<false>(page, first)
     }
 
     /// [`GrayLayer::flush_body`] compiled for AVX2, BMI1 and BMI2 (called only where
@@ -205,13 +228,14 @@ impl GrayLayer {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,bmi1,bmi2")]
     fn flush_fast(&mut self, page: &mut [u8], first: usize) {
-        self.flush_body(page, first)
+        self.flush_body::<true>(page, first)
     }
 
     /// [`GrayLayer::flush`] itself; inlined into each of its two callers so that each
-    /// is compiled for its own instruction set.
+    /// is compiled for its own instruction set; `X16` (only in [`GrayLayer::flush_fast`]):
+    /// sixteen pixels at a time ([`overprint_x16`]).
     #[inline(always)]
-    fn flush_body(&mut self, page: &mut [u8], first: usize) {
+    fn flush_body<const X16: bool>(&mut self, page: &mut [u8], first: usize) {
         let g = self.level;
         for tile in &mut self.tiles[..self.used] {
             let at = tile.at as usize;
@@ -226,6 +250,19 @@ impl GrayLayer {
                 let at = (j - first) * self.width + x;
                 let dst = &mut page[at + lo..at + hi];
                 let src = &mut tile.cov[r * TILE..(r + 1) * TILE];
+                #[cfg(target_arch = "x86_64")]
+                if X16 {
+                    // SAFETY: `overprint_x16` needs AVX2; `X16` is true only in
+                    // `flush_fast`, compiled for AVX2, BMI1 and BMI2 and run only where
+                    // the processor was found to have them (`GrayLayer::flush`).
+                    #[allow(unsafe_code)]
+                    unsafe {
+                        overprint_x16(dst, &src[lo..hi], g)
+                    };
+                } else {
+                    overprint_span(dst, &src[lo..hi], g);
+                }
+                #[cfg(not(target_arch = "x86_64"))]
                 overprint_span(dst, &src[lo..hi], g);
                 // The row's coverage outside its span is 0 already.
                 src.fill(0);
@@ -246,6 +283,115 @@ fn clear_blocks(w: usize, mut bits: u64, row: &mut [u8]) {
         let n = row.len();
         row[x.min(n)..(x + BLOCK).min(n)].fill(0);
     }
+}
+
+/// Sixteen bytes in AVX2's 16-bit lanes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn widen16(b: &[u8; 16]) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let v = u128::from_le_bytes(*b);
+    _mm256_cvtepu8_epi16(_mm_set_epi64x((v >> 64) as i64, v as i64))
+}
+
+/// [`widen16`]'s inverse: sixteen 16-bit lanes, each at most 255, as bytes (a
+/// saturating pack per 128-bit half, the halves' low words brought together).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn narrow16(v: std::arch::x86_64::__m256i) -> [u8; 16] {
+    use std::arch::x86_64::*;
+    let p = _mm256_permute4x64_epi64::<0b1000>(_mm256_packus_epi16(v, _mm256_setzero_si256()));
+    let p = _mm256_castsi256_si128(p);
+    let (lo, hi) = (
+        _mm_cvtsi128_si64(p) as u64,
+        _mm_extract_epi64::<1>(p) as u64,
+    );
+    (u128::from(lo) | u128::from(hi) << 64).to_le_bytes()
+}
+
+/// [`div255`] in sixteen lanes: `x / 255` for every 16-bit `x`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn div255_16(x: std::arch::x86_64::__m256i) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    _mm256_srli_epi16::<7>(_mm256_mulhi_epu16(x, _mm256_set1_epi16(0x8081_u16 as i16)))
+}
+
+/// [`overprint_span`] sixteen pixels at a time in AVX2's 16-bit lanes (the same integer
+/// arithmetic, exact: the same bytes), the last fewer than sixteen by
+/// [`overprint_span`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn overprint_x16(dst: &mut [u8], cov: &[u8], g: u8) {
+    use std::arch::x86_64::*;
+    let n = dst.len().min(cov.len());
+    let lanes = n - n % 16;
+    let (full, half) = (_mm256_set1_epi16(255), _mm256_set1_epi16(127));
+    let gl = _mm256_set1_epi16(i16::from(g));
+    let (add, sub, mul) = (_mm256_add_epi16, _mm256_sub_epi16, _mm256_mullo_epi16);
+    for (d16, c16) in dst[..lanes]
+        .chunks_exact_mut(16)
+        .zip(cov[..lanes].chunks_exact(16))
+    {
+        let d16: &mut [u8; 16] = d16.try_into().expect("16 pixels");
+        let c16: &[u8; 16] = c16.try_into().expect("16 pixels");
+        let b = mul(widen16(c16), gl);
+        *d16 = if u128::from_le_bytes(*d16) == 0 {
+            // Paper under all sixteen: `⌊(b + 127) / 255⌋` (see `overprint_span`).
+            narrow16(div255_16(add(b, half)))
+        } else {
+            let d = widen16(d16);
+            let a = sub(full, d);
+            let h = div255_16(b);
+            let l = sub(b, mul(h, full));
+            let z = add(add(mul(a, h), half), div255_16(add(mul(a, l), half)));
+            narrow16(add(d, div255_16(z)))
+        };
+    }
+    overprint_span(&mut dst[lanes..n], &cov[lanes..n], g);
+}
+
+/// [`merge`] sixteen pixels at a time in AVX2's 16-bit lanes (the same integer
+/// arithmetic, exact: the same bytes), the last fewer than sixteen by [`merge`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn merge_x16(l: &mut [u8], c: &mut [u8]) {
+    use std::arch::x86_64::*;
+    let n = l.len().min(c.len());
+    let lanes = n - n % 16;
+    let (full, half) = (_mm256_set1_epi16(255), _mm256_set1_epi16(127));
+    let magic = _mm256_set1_epi16(0x8081_u16 as i16);
+    let wide = |b: &[u8; 16]| {
+        let v = u128::from_le_bytes(*b);
+        _mm256_cvtepu8_epi16(_mm_set_epi64x((v >> 64) as i64, v as i64))
+    };
+    for (l16, c16) in l[..lanes]
+        .chunks_exact_mut(16)
+        .zip(c[..lanes].chunks_exact_mut(16))
+    {
+        let l16: &mut [u8; 16] = l16.try_into().expect("16 pixels");
+        let c16: &mut [u8; 16] = c16.try_into().expect("16 pixels");
+        let (a, b) = (wide(l16), wide(c16));
+        let x = _mm256_add_epi16(_mm256_mullo_epi16(_mm256_sub_epi16(full, a), b), half);
+        // `x / 255` ([`div255`]), then `a +` it: each lane at most 255.
+        let q = _mm256_srli_epi16::<7>(_mm256_mulhi_epu16(x, magic));
+        let v = _mm256_add_epi16(a, q);
+        // Packed to bytes per 128-bit half, the halves' low words brought together.
+        let p = _mm256_permute4x64_epi64::<0b1000>(_mm256_packus_epi16(v, _mm256_setzero_si256()));
+        let p = _mm256_castsi256_si128(p);
+        let (lo, hi) = (
+            _mm_cvtsi128_si64(p) as u64,
+            _mm_extract_epi64::<1>(p) as u64,
+        );
+        *l16 = (u128::from(lo) | u128::from(hi) << 64).to_le_bytes();
+        *c16 = [0; 16];
+    }
+    merge(&mut l[lanes..n], &mut c[lanes..n]);
 }
 
 /// `l ← l + ((255 − l)·c + 127) / 255` over `l` with `c` (the layer's "source over"),
@@ -394,7 +540,8 @@ mod tests {
     /// random coverage (0 in the blocks not set) on rows of a page wider than a word of
     /// the block map, its last tile partial, in random grays, flushed now and then over
     /// a random page; the same tile rows' spans, the same pages, the row buffer cleared.
-    /// Also a row buffer wider than the layer (its blocks past the layer cleared).
+    /// Also a row buffer wider than the layer (its blocks past the layer cleared). Where
+    /// the processor has AVX2, every other round merges sixteen pixels at a time.
     #[test]
     fn blocks_merge_as_their_runs() {
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
@@ -441,7 +588,12 @@ mod tests {
                     fill(&mut row, &mut rand);
                     let mut copy = row.clone();
                     for (wi, &m) in map.iter().enumerate() {
-                        got.add_blocks(j, wi, m, &mut row);
+                        if crate::cpu::x86_fast() && round % 2 == 1 {
+                            // Sixteen pixels at a time (the scan converter's AVX2 twins).
+                            got.add_blocks::<true>(j, wi, m, &mut row);
+                        } else {
+                            got.add_blocks::<false>(j, wi, m, &mut row);
+                        }
                         let mut bits = m;
                         while bits != 0 {
                             let s = bits.trailing_zeros() as usize;
@@ -470,8 +622,9 @@ mod tests {
         }
     }
 
-    /// [`merge`] and [`overprint_span`] are their pixel-by-pixel formulas for every
-    /// level under, every coverage and every gray (tails of 0–7 pixels too; the first
+    /// [`merge`] and [`overprint_span`] (and where the processor has AVX2 [`merge_x16`]
+    /// and [`overprint_x16`]) are their pixel-by-pixel formulas for every level under, every coverage and every
+    /// gray (tails of 0–7 pixels too; the first
     /// 256 pixels, paper under, take [`overprint_span`]'s way for eight of paper).
     #[test]
     fn lanes_are_the_formulas_for_every_value() {
@@ -480,6 +633,20 @@ mod tests {
         let (mut got, mut cleared) = (under.clone(), cov.clone());
         merge(&mut got, &mut cleared);
         assert!(cleared.iter().all(|&c| c == 0), "cleared");
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::x86_fast() {
+            // Sixteen at a time, from every offset (tails of 0–15 pixels).
+            for skip in 0..16 {
+                let (mut sixteen, mut cleared) = (under[skip..].to_vec(), cov[skip..].to_vec());
+                // SAFETY: the processor has AVX2 (`x86_fast`).
+                #[allow(unsafe_code)]
+                unsafe {
+                    merge_x16(&mut sixteen, &mut cleared)
+                };
+                assert!(sixteen == got[skip..], "sixteen at a time from {skip}");
+                assert!(cleared.iter().all(|&c| c == 0), "cleared");
+            }
+        }
         for (i, (&l, &c)) in under.iter().zip(&cov).enumerate() {
             let (ll, cc) = (u32::from(l), u32::from(c));
             assert_eq!(
@@ -493,6 +660,18 @@ mod tests {
             overprint_span(&mut got, &cov, g);
             for (i, (&d, &c)) in under.iter().zip(&cov).enumerate() {
                 assert_eq!(got[i], overprint(d, c, u32::from(g)), "{d} {c} {g}");
+            }
+            #[cfg(target_arch = "x86_64")]
+            if crate::cpu::x86_fast() {
+                // Sixteen at a time, from an offset that changes with the gray.
+                let skip = usize::from(g % 16);
+                let mut sixteen = under[skip..].to_vec();
+                // SAFETY: the processor has AVX2 (`x86_fast`).
+                #[allow(unsafe_code)]
+                unsafe {
+                    overprint_x16(&mut sixteen, &cov[skip..], g)
+                };
+                assert!(sixteen == got[skip..], "sixteen at a time, gray {g}");
             }
         }
     }
