@@ -231,7 +231,7 @@ fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L]
 /// Open target: scan windows of the curve for the best similarity fit of the resampled
 /// target. Windows are placed by their centre `c` and length `f` (fractions of the loop's
 /// arc length): lengths on a geometric grid (ratio [`OPEN_LENGTH_RATIO`]) from 2 % to the
-/// whole loop, centres every `f/6`. Along each length's centres, every local minimum of
+/// whole loop, centres every `f/3` ([`OPEN_CENTRES`]). Along each length's centres, every local minimum of
 /// the misfit is refined by a parabola through it and its neighbours; the best distinct
 /// ones (per reflection and direction) are polished by a pattern search on `(c, ln f)`.
 pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
@@ -304,7 +304,10 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     let mut m: Vec<f64> = Vec::new();
     let mut f: f64 = 0.02;
     while f <= 1.0 + 1e-9 {
-        let count = ((6.0 / f).ceil() as usize).clamp(12, 192);
+        let count = ((OPEN_CENTRES / f).ceil() as usize).clamp(
+            (2.0 * OPEN_CENTRES) as usize,
+            (32.0 * OPEN_CENTRES) as usize,
+        );
         let h = 1.0 / count as f64;
         let off = offsets(f);
         wins.resize(count, [C64::new(0.0, 0.0); M]);
@@ -412,7 +415,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
             if !moved {
                 dc /= 2.0;
                 dl /= 2.0;
-                if dc < 1e-5 * f {
+                if dc < OPEN_PATTERN_STOP * f {
                     break;
                 }
             }
@@ -472,6 +475,21 @@ fn unit_in_place<const N: usize>(w: &mut [C64; N]) -> bool {
     }
     true
 }
+
+/// Centres of the open scan's windows per window length along the loop (every
+/// `f/OPEN_CENTRES` for windows of length `f`, from `2·OPEN_CENTRES` to
+/// `32·OPEN_CENTRES` of them a length). Every third of the length: the local minima
+/// are refined by a parabola and the best polished by the pattern search, and the fits
+/// that start from them refine them again (every sixth before: twice the windows;
+/// every half length missed a reflected exact window; `docs/benchmarks.md`, "Open
+/// queries: the exact stage's work cut").
+const OPEN_CENTRES: f64 = 3.0;
+
+/// The open scan's pattern search stops when its step along the loop falls below this
+/// share of the window's length (10⁻⁵ before: the fits refine the window anyway; 10⁻²
+/// with centres every third of the length left a reflected exact window's fit at
+/// 0.047 %, test `mirror_finds_the_reflected_exact_open_source`).
+const OPEN_PATTERN_STOP: f64 = 1e-3;
 
 /// Ratio between consecutive window lengths of the open scan.
 const OPEN_LENGTH_RATIO: f64 = 1.2;
