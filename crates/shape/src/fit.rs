@@ -231,7 +231,7 @@ fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L]
 /// Open target: scan windows of the curve for the best similarity fit of the resampled
 /// target. Windows are placed by their centre `c` and length `f` (fractions of the loop's
 /// arc length): lengths on a geometric grid (ratio [`OPEN_LENGTH_RATIO`]) from 2 % to the
-/// whole loop, centres every `f/6`. Along each length's centres, every local minimum of
+/// whole loop, centres every `f/3` ([`OPEN_CENTRES`]). Along each length's centres, every local minimum of
 /// the misfit is refined by a parabola through it and its neighbours; the best distinct
 /// ones (per reflection and direction) are polished by a pattern search on `(c, ln f)`.
 pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
@@ -304,7 +304,10 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     let mut m: Vec<f64> = Vec::new();
     let mut f: f64 = 0.02;
     while f <= 1.0 + 1e-9 {
-        let count = ((6.0 / f).ceil() as usize).clamp(12, 192);
+        let count = ((OPEN_CENTRES / f).ceil() as usize).clamp(
+            (2.0 * OPEN_CENTRES) as usize,
+            (32.0 * OPEN_CENTRES) as usize,
+        );
         let h = 1.0 / count as f64;
         let off = offsets(f);
         wins.resize(count, [C64::new(0.0, 0.0); M]);
@@ -412,7 +415,7 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
             if !moved {
                 dc /= 2.0;
                 dl /= 2.0;
-                if dc < 1e-5 * f {
+                if dc < OPEN_PATTERN_STOP * f {
                     break;
                 }
             }
@@ -472,6 +475,21 @@ fn unit_in_place<const N: usize>(w: &mut [C64; N]) -> bool {
     }
     true
 }
+
+/// Centres of the open scan's windows per window length along the loop (every
+/// `f/OPEN_CENTRES` for windows of length `f`, from `2·OPEN_CENTRES` to
+/// `32·OPEN_CENTRES` of them a length). Every third of the length: the local minima
+/// are refined by a parabola and the best polished by the pattern search, and the fits
+/// that start from them refine them again (every sixth before: twice the windows;
+/// every half length missed a reflected exact window; `docs/benchmarks.md`, "Open
+/// queries: the exact stage's work cut").
+const OPEN_CENTRES: f64 = 3.0;
+
+/// The open scan's pattern search stops when its step along the loop falls below this
+/// share of the window's length (10⁻⁵ before: the fits refine the window anyway; 10⁻²
+/// with centres every third of the length left a reflected exact window's fit at
+/// 0.047 %, test `mirror_finds_the_reflected_exact_open_source`).
+const OPEN_PATTERN_STOP: f64 = 1e-3;
 
 /// Ratio between consecutive window lengths of the open scan.
 const OPEN_LENGTH_RATIO: f64 = 1.2;
@@ -967,6 +985,29 @@ pub(crate) fn fit_with(
     traced: &Traced,
     options: &FitOptions,
 ) -> Option<CurveFit> {
+    let (p, raced) = race(target, curve, traced, options);
+    let finish = |f: Option<&CurveFit>| fit_untimed(&p, curve, &finish_start(f?), options);
+    let (first, second) = rayon::join(|| finish(raced.first()), || finish(raced.get(1)));
+    let mut best: Option<CurveFit> = None;
+    for f in [first, second].into_iter().flatten() {
+        if best.as_ref().is_none_or(|b| f.rms < b.rms) {
+            best = Some(f);
+        }
+    }
+    if target.timing().is_timed() {
+        return fit_timed(target, curve, traced, best.as_ref(), options);
+    }
+    best
+}
+
+/// [`fit_with`]'s scan and race: the target's points and the starts' raced fits, best
+/// first.
+fn race(
+    target: &Target,
+    curve: &CouplerCurve,
+    traced: &Traced,
+    options: &FitOptions,
+) -> (Vec<C64>, Vec<CurveFit>) {
     let p = target.complex_points();
     let starts = if target.is_closed() {
         scan_closed(&p, traced, options.allow_mirror)
@@ -987,26 +1028,86 @@ pub(crate) fn fit_with(
         .filter_map(|s| fit_untimed(&p, curve, s, &quick))
         .collect();
     raced.sort_by(|a, b| a.rms.total_cmp(&b.rms));
+    (p, raced)
+}
+
+/// The start a raced fit is finished from: its angles.
+fn finish_start(f: &CurveFit) -> Start {
+    Start {
+        mirrored: f.mirrored,
+        theta: f.theta_deg.clone(),
+        score: 0.0,
+    }
+}
+
+/// An untimed target's [`fit_with`] with its finishes stopped at a smaller cap and
+/// kept ([`robust_kept`]): what an open candidate's ranking reads, and what its final
+/// fit continues ([`RobustKept::finish`]: [`fit_with`]'s fit, bit for bit).
+pub(crate) struct RobustKept {
+    /// The (up to two) finishes, in [`fit_with`]'s order, each from its start.
+    finishes: Vec<(Start, UntimedFit)>,
+}
+
+impl RobustKept {
+    /// The RMS error of the better capped finish (as [`fit_with`] chooses: the first on
+    /// a tie); `None` if neither has a fit.
+    pub(crate) fn rms(&self) -> Option<f64> {
+        let mut best: Option<f64> = None;
+        for f in self.finishes.iter().filter_map(|(_, k)| k.fit.as_ref()) {
+            if best.is_none_or(|b| f.rms < b) {
+                best = Some(f.rms);
+            }
+        }
+        best
+    }
+
+    /// Both finishes continued to `options`' cap ([`continue_untimed`]) and the better
+    /// taken: [`fit_with`]'s fit with those options, bit for bit (`options` as the
+    /// ones [`robust_kept`] ran under, but for the cap).
+    pub(crate) fn finish(
+        self,
+        target: &Target,
+        curve: &CouplerCurve,
+        options: &FitOptions,
+    ) -> Option<CurveFit> {
+        let p = target.complex_points();
+        let mut best: Option<CurveFit> = None;
+        for (start, kept) in self.finishes {
+            if let Some(f) = continue_untimed(&p, curve, &start, kept, options) {
+                if best.as_ref().is_none_or(|b| f.rms < b.rms) {
+                    best = Some(f);
+                }
+            }
+        }
+        best
+    }
+}
+
+/// [`fit_with`] for an **untimed** target (a timed one's fit is timed after the
+/// finishes: call [`fit_with`]), its two finishes stopped at `cap` iterations (at most
+/// `options.max_iterations`) and kept, so that a candidate is ranked by a shorter fit
+/// and only a finalist's is continued to the full cap.
+pub(crate) fn robust_kept(
+    target: &Target,
+    curve: &CouplerCurve,
+    traced: &Traced,
+    options: &FitOptions,
+    cap: usize,
+) -> RobustKept {
+    let (p, raced) = race(target, curve, traced, options);
+    let capped = FitOptions {
+        max_iterations: cap.min(options.max_iterations),
+        ..*options
+    };
     let finish = |f: Option<&CurveFit>| {
-        let f = f?;
-        let start = Start {
-            mirrored: f.mirrored,
-            theta: f.theta_deg.clone(),
-            score: 0.0,
-        };
-        fit_untimed(&p, curve, &start, options)
+        let start = finish_start(f?);
+        let kept = fit_untimed_kept(&p, curve, &start, &capped)?;
+        Some((start, kept))
     };
     let (first, second) = rayon::join(|| finish(raced.first()), || finish(raced.get(1)));
-    let mut best: Option<CurveFit> = None;
-    for f in [first, second].into_iter().flatten() {
-        if best.as_ref().is_none_or(|b| f.rms < b.rms) {
-            best = Some(f);
-        }
+    RobustKept {
+        finishes: [first, second].into_iter().flatten().collect(),
     }
-    if target.timing().is_timed() {
-        return fit_timed(target, curve, traced, best.as_ref(), options);
-    }
-    best
 }
 
 /// A **closed** target fitted to one curve both ways: `[fit_with` without reflection,
@@ -1273,6 +1374,54 @@ mod tests {
             capped > 0 && stopped > 0,
             "{capped} capped, {stopped} stopped"
         );
+    }
+
+    /// An untimed open target's robust start stopped at a smaller cap and continued
+    /// ([`robust_kept`], [`RobustKept::finish`]) is [`fit_with`]'s fit, bit for bit, and
+    /// its ranking error is the better capped finish's: several curves, spans, noise and
+    /// reflections, caps from 0 to the final one.
+    #[test]
+    fn robust_kept_finishes_as_fit_with() {
+        let mut rng = crate::cases::SplitMix64(59);
+        let bits = |f: &Option<CurveFit>| format!("{f:?}");
+        let mut fits = 0;
+        for c in &three_curves() {
+            for (span, mirrored, noise, allow_mirror) in [
+                (120.0, false, 0.01, false),
+                (240.0, true, 0.0, true),
+                (90.0, false, 0.03, true),
+            ] {
+                let t =
+                    crate::cases::make_target(&mut rng, c, false, 40.0, span, 40, mirrored, noise)
+                        .unwrap();
+                let traced = Traced::new(c, 720).unwrap();
+                let options = FitOptions {
+                    allow_mirror,
+                    ..FitOptions::DEFAULT
+                };
+                let whole = fit_with(&t, c, &traced, &options);
+                for cap in [0, 1, 8, 100] {
+                    let kept = robust_kept(&t, c, &traced, &options, cap);
+                    let (p, raced) = race(&t, c, &traced, &options);
+                    let capped = FitOptions {
+                        max_iterations: cap,
+                        ..options
+                    };
+                    let least = raced
+                        .iter()
+                        .take(2)
+                        .filter_map(|f| fit_untimed(&p, c, &finish_start(f), &capped))
+                        .map(|f| f.rms)
+                        .reduce(|a, b| if b < a { b } else { a });
+                    assert_eq!(kept.rms().map(f64::to_bits), least.map(f64::to_bits));
+                    let finished = kept.finish(&t, c, &options);
+                    assert_eq!(bits(&finished), bits(&whole), "span {span}, cap {cap}");
+                    fits += usize::from(finished.is_some());
+                }
+            }
+        }
+        // Not vacuous: the fits exist.
+        assert!(fits >= 30, "{fits}");
     }
 
     /// `best_shifts` in split form gives the shifts and values of the sums of `C64`

@@ -3,8 +3,8 @@
 
 use crate::code::{ClosedQuery, ShapeCode};
 use crate::fit::{
-    CurveFit, FitOptions, Start, UntimedFit, continue_untimed, fit_closed_both, fit_timed,
-    fit_timed_from, fit_untimed, fit_untimed_kept, fit_with,
+    CurveFit, FitOptions, RobustKept, Start, UntimedFit, continue_untimed, fit_closed_both,
+    fit_timed, fit_timed_from, fit_untimed, fit_untimed_kept, fit_with, robust_kept,
 };
 use crate::kin::{AtlasCurve, CouplerCurve};
 use crate::open::{
@@ -296,6 +296,10 @@ pub(crate) const RANK_ITERATIONS_OPEN: usize = 15;
 /// An open target's candidates (best by coarse distance) that also get the exact fit's
 /// own robust start.
 const ROBUST_OPEN: usize = 64;
+/// Iterations of an untimed open candidate's robust start's two finishes while ranking
+/// (a finalist's continue to the final cap: the same fit as one run). They ran to the
+/// final cap before (`docs/benchmarks.md`, "Open queries: the exact stage's work cut").
+const ROBUST_RANK_ITERATIONS: usize = 4;
 
 /// Ranked matches of `target` among `curves` (with their shape codes, in the same order;
 /// an open target needs none): the coarse stage ([`coarse_candidates`]), then the exact
@@ -512,10 +516,17 @@ pub fn rank_candidates(
     let partner = closed_partners(&candidates.iter().collect::<Vec<_>>());
     // An open target's best few candidates by coarse distance also get the exact fit's own
     // robust start (its window scan of the traced curve): the scan's start can sit in the
-    // basin of a neighbouring window.
+    // basin of a neighbouring window. A timed target's is fitted in full (its fit is timed
+    // after the finishes); an untimed one's two finishes stop at ROBUST_RANK_ITERATIONS
+    // and are kept, and only a finalist's are continued to the final cap (the same fit as
+    // one run).
+    enum Robust {
+        Done(CurveFit),
+        Kept(RobustKept),
+    }
     struct Ranked {
         traced: Option<Option<Arc<Traced>>>,
-        robust: Option<CurveFit>,
+        robust: Option<Robust>,
         quick: Option<f64>,
         // An open candidate's quick fit from its scan start, kept for its final fit to
         // continue (`continue_untimed`: the same fit as one run to the final cap).
@@ -527,10 +538,22 @@ pub fn rank_candidates(
         let robust = match &c.start {
             Some(_) if place[i] < ROBUST_OPEN => {
                 let t = traced.insert(traced_of(c));
-                t.as_ref()
-                    .and_then(|t| fit_with(target, &c.curve.curve, t, &options_of(c)))
+                t.as_ref().and_then(|t| {
+                    let (curve, options) = (&c.curve.curve, &options_of(c));
+                    if target.timing().is_timed() {
+                        fit_with(target, curve, t, options).map(Robust::Done)
+                    } else {
+                        let cap = ROBUST_RANK_ITERATIONS;
+                        Some(Robust::Kept(robust_kept(target, curve, t, options, cap)))
+                    }
+                })
             }
             _ => None,
+        };
+        let robust_rms = match &robust {
+            Some(Robust::Done(f)) => Some(f.rms),
+            Some(Robust::Kept(k)) => k.rms(),
+            None => None,
         };
         let mut scan = None;
         let f = match &c.start {
@@ -551,10 +574,10 @@ pub fn rank_candidates(
                 .and_then(|t| fit_with(&thin, &c.curve.curve, t, &quick_of(c)))
                 .map(|f| f.rms),
         };
-        let quick = match (f, &robust) {
-            (Some(f), Some(r)) => Some(f.min(r.rms)),
+        let quick = match (f, robust_rms) {
+            (Some(f), Some(r)) => Some(f.min(r)),
             (Some(f), None) => Some(f),
-            (None, Some(r)) => Some(r.rms),
+            (None, Some(r)) => Some(r),
             (None, None) => None,
         };
         Ranked {
@@ -648,7 +671,8 @@ pub fn rank_candidates(
             Some(s) => {
                 let mut t = None;
                 let robust = match r.robust.take() {
-                    Some(f) => Some(f),
+                    Some(Robust::Done(f)) => Some(f),
+                    Some(Robust::Kept(k)) => k.finish(target, curve, &fit_options),
                     None => t
                         .insert(traced(&mut r))
                         .as_ref()

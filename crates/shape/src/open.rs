@@ -37,8 +37,10 @@ use rayon::prelude::*;
 const QUERY_POINTS: usize = 32;
 /// Most points of a timed query (the target's own points, thinned by index).
 const TIMED_QUERY_POINTS: usize = 32;
-/// Re-estimations of the crank angles (untimed).
-const REESTIMATIONS: usize = 5;
+/// Re-estimations of the crank angles (untimed), at most (each while the misfit falls;
+/// five before, and none loses retrieval cases: `docs/benchmarks.md`, "Open queries:
+/// the exact stage's work cut").
+const REESTIMATIONS: usize = 1;
 /// Projection steps of stage 1b (untimed), on every curve.
 const PROJECTIONS: usize = 10;
 /// Projection steps every window of stage 1b gets; then only the best
