@@ -581,8 +581,9 @@ impl Capsules {
 
     /// [`Capsules::ring`] with the pixels of an arc's span measured by `span`
     /// ([`ring_span`], or pixel by pixel in the tests' reference); `X8` only in
-    /// [`Capsules::ring_fast`] (a gray ring's rows merged into the layer sixteen pixels
-    /// at a time, [`GrayLayer::add_blocks`]).
+    /// [`Capsules::ring_fast`] (an arc's span measured eight pixels at a time,
+    /// [`ring_span_x8`], in place of `span`; a gray ring's rows merged into the layer
+    /// sixteen pixels at a time, [`GrayLayer::add_blocks`]).
     #[inline(always)]
     fn ring_with<const X8: bool>(
         &mut self,
@@ -622,6 +623,19 @@ impl Capsules {
                 }
                 let at = j % RING;
                 let slot = &mut self.slots[at];
+                #[cfg(target_arch = "x86_64")]
+                if X8 {
+                    // SAFETY: `ring_span_x8` needs AVX2; `X8` is true only in the ring's
+                    // twin compiled for AVX2, BMI1 and BMI2, which runs only where the
+                    // processor was found to have them (`Capsules::ring`).
+                    #[allow(unsafe_code)]
+                    unsafe {
+                        ring_span_x8(&mut slot.row, x0, x1, ring)
+                    };
+                } else {
+                    span(&mut slot.row, x0, x1, ring);
+                }
+                #[cfg(not(target_arch = "x86_64"))]
                 span(&mut slot.row, x0, x1, ring);
                 slot.notes.note((x0 as u32, x1 as u32));
             }
@@ -681,6 +695,79 @@ fn ring_span(row: &mut [u8], x0: usize, x1: usize, g: Ring) {
     }
     for (i, px) in row[x0 + lanes..x1].iter_mut().enumerate() {
         *px = (*px).max(g.pixel(x0 + lanes + i));
+    }
+}
+
+/// [`ring_span`] eight pixels at a time in AVX's 256-bit lanes (from
+/// [`Capsules::ring_fast`] only): per lane the same f32 operations in the same order
+/// (`vsqrtps`, `vminps`/`vmaxps` with the operands of `min`/`max`, the truncation
+/// `vcvttps2dq`; no fused multiply-add), so the same levels bit for bit. `min` and
+/// `max` are f32's for every value here: their first operand, `d ± ½`, is never NaN
+/// (`d` is the absolute difference of a square root of a sum of squares of finite
+/// values, `+∞` at most, and a finite radius), and when it were, `vminps`/`vmaxps`
+/// give the second operand, as f32's do. The clamp to `[0, 1]` has no NaN case: `c`
+/// is a finite `min` less a `max` that is finite or `+∞`. The levels (0..=255) are
+/// packed to bytes and their maxima with the row's taken eight at a time; the last
+/// pixels of a span (fewer than eight) take the first lanes' bytes. Beyond 2^24
+/// pixels, pixel by pixel, as [`ring_span`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn ring_span_x8(row: &mut [u8], x0: usize, x1: usize, g: Ring) {
+    use std::arch::x86_64::*;
+    if x1 > 1 << 24 {
+        ring_span(row, x0, x1, g);
+        return;
+    }
+    let half = _mm256_set1_ps(0.5);
+    let (cx, dy2) = (_mm256_set1_ps(g.cx), _mm256_set1_ps(g.dy * g.dy));
+    let radius = _mm256_set1_ps(g.radius);
+    let (r, neg_r) = (_mm256_set1_ps(g.r), _mm256_set1_ps(-g.r));
+    let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+    let full = _mm256_set1_ps(255.0);
+    // The sign bit, for `abs`.
+    let sign = _mm256_set1_ps(-0.0);
+    // Eight pixels' levels' `as u8` as eight bytes of a word (first pixel lowest), from
+    // their indices as f32.
+    let levels = |x: __m256| {
+        let dx = _mm256_sub_ps(_mm256_add_ps(x, half), cx);
+        let d = _mm256_sub_ps(
+            _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), dy2)),
+            radius,
+        );
+        let d = _mm256_andnot_ps(sign, d);
+        let c = _mm256_sub_ps(
+            _mm256_min_ps(_mm256_add_ps(d, half), r),
+            _mm256_max_ps(_mm256_sub_ps(d, half), neg_r),
+        );
+        let c = _mm256_min_ps(_mm256_max_ps(c, zero), one);
+        let v = _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(c, full), half));
+        let w = _mm_packs_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256::<1>(v));
+        _mm_cvtsi128_si64(_mm_packus_epi16(w, _mm_setzero_si128())) as u64
+    };
+    // Pixel indices x0 + k (k < 8) to begin with, eight more each time; below 2^24
+    // exact, as `(x0 + k) as f32`.
+    let mut x = _mm256_add_ps(
+        _mm256_set1_ps(x0 as f32),
+        _mm256_setr_ps(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0),
+    );
+    let eight = _mm256_set1_ps(8.0);
+    let span = &mut row[x0..x1];
+    let whole = span.len() - span.len() % 8;
+    let (body, tail) = span.split_at_mut(whole);
+    for px8 in body.chunks_exact_mut(8) {
+        let v = levels(x);
+        x = _mm256_add_ps(x, eight);
+        let px8: &mut [u8; 8] = px8.try_into().expect("8 pixels");
+        let b = u64::from_le_bytes(*px8);
+        let m = _mm_max_epu8(_mm_cvtsi64_si128(b as i64), _mm_cvtsi64_si128(v as i64));
+        *px8 = (_mm_cvtsi128_si64(m) as u64).to_le_bytes();
+    }
+    if !tail.is_empty() {
+        let v = levels(x);
+        for (px, v) in tail.iter_mut().zip(v.to_le_bytes()) {
+            *px = (*px).max(v);
+        }
     }
 }
 
@@ -2599,6 +2686,53 @@ mod tests {
             inked += got.iter().filter(|&&v| v != 0 && v != 255).count();
         }
         assert!(inked > 1000, "{inked}");
+    }
+
+    /// [`ring_span_x8`] is [`ring_span`]: random rings' spans of every length from 0 to
+    /// 40 pixels at every offset within eight, over blank, mixed and full rows (where
+    /// the processor has AVX2; [`Capsules::ring`] takes it there, which
+    /// `rings_in_lanes_are_their_pixels` checks pixel by pixel too).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn ring_spans_eight_at_a_time_are_four_at_a_times() {
+        if !crate::cpu::x86_fast() {
+            return;
+        }
+        let mut seed = 0x2b99_1c0d_e51f_7a03u64;
+        let mut rand = || {
+            seed = crate::xorshift(seed);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut cases = 0;
+        for n in 0..600 {
+            let g = Ring {
+                cx: rand() * 80.0 - 10.0,
+                dy: rand() * 40.0 - 20.0,
+                radius: if n % 5 == 0 { 0.0 } else { rand() * 30.0 },
+                r: rand() * if n % 3 == 0 { 0.6 } else { 8.0 },
+            };
+            let under: Vec<u8> = (0..64u32)
+                .map(|i| match n % 3 {
+                    0 => 0,
+                    1 => (i * 37 % 256) as u8,
+                    _ => 255,
+                })
+                .collect();
+            for x0 in 0..8 {
+                for len in 0..=40 {
+                    let (mut got, mut want) = (under.clone(), under.clone());
+                    // SAFETY: the processor was just found to have AVX2.
+                    #[allow(unsafe_code)]
+                    unsafe {
+                        ring_span_x8(&mut got, x0, x0 + len, g)
+                    };
+                    ring_span(&mut want, x0, x0 + len, g);
+                    assert!(got == want, "{n}: {x0} {len}");
+                    cases += 1;
+                }
+            }
+        }
+        assert_eq!(cases, 600 * 8 * 41);
     }
 
     #[test]
