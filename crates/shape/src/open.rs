@@ -797,6 +797,12 @@ fn rem_period(x: f64, period: f64) -> f64 {
     }
 }
 
+/// The least step between the starts of an untimed target's scan pass, degrees of input
+/// (the step is `span/16` above it): the spans below 72° take 80 starts a sense on a 360°
+/// period, every start within 2.25° of a scanned one (the 200-case open retrieval finds
+/// the same sources as with 3°; `docs/shape-search.md`, section 3).
+const UNTIMED_START_STEP: f64 = 4.5;
+
 /// Distinct windows kept per coupler point from stage 1 (each is projected in stage 1b,
 /// the best goes on): under the even-crank layout the source's own window often scores
 /// worse than some other window of the same curve, and only the projection tells them
@@ -1169,7 +1175,7 @@ impl OpenQuery {
         for span in self.spans(period) {
             let h = match self.layout {
                 Layout::Angles { .. } => 3.0,
-                _ => (span / 16.0).max(3.0),
+                _ => (span / 16.0).max(UNTIMED_START_STEP),
             };
             let (count, h) = even_starts(period, h);
             for sense in [1.0, -1.0] {
@@ -2866,8 +2872,9 @@ mod mirror {
                 tried += 1;
             }
         }
-        // Not vacuous: many curves, most of them re-estimated.
-        assert!(tried > 300 && 2 * moved > tried, "{moved} of {tried} moved");
+        // Not vacuous: many curves, a good part of them re-estimated (468 of 960 with the
+        // 4.5° start step; 485 with 3°).
+        assert!(tried > 300 && 3 * moved > tried, "{moved} of {tried} moved");
     }
 
     /// The staged projection's premise: `PROJECTION_HEAT` steps resumed with the rest
