@@ -696,6 +696,9 @@ fn untimed_eval<'a>(
     mir: bool,
     lanes: &'a CurveLanes,
 ) -> impl FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()> + 'a {
+    // Inlined into Levenberg–Marquardt's iterations (compiled for AVX2 where the processor
+    // has it, `lm::iterate`).
+    #[inline(always)]
     move |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let last = l.len() - 1;

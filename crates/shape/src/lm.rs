@@ -259,7 +259,54 @@ where
 
 /// The iterations of [`solve_into`] from the point `(global, local)`, its evaluation `e`,
 /// the damping `lambda` and the iterations done so far.
+///
+/// **Compiled for AVX2 where the processor has it** (checked at run time), as the
+/// curve's point lanes are: the iterations (with `eval` where it inlines) in 256-bit
+/// registers. The same operations in the same order (never fused: AVX2 does not enable
+/// FMA, and no sum is reassociated), so the same values bit for bit.
 fn iterate<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    e: Eval,
+    damping: (f64, f64),
+    iterations: usize,
+    eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    #[cfg(target_arch = "x86_64")]
+    if crate::has_avx2() {
+        // SAFETY: `iterate_avx2` needs AVX2, which the processor was just found to have;
+        // it has no other requirement (the safe body compiled for AVX2).
+        #[allow(unsafe_code)]
+        return unsafe { iterate_avx2(global, local, e, damping, iterations, eval, options) };
+    }
+    iterate_body(global, local, e, damping, iterations, eval, options)
+}
+
+/// [`iterate_body`] compiled for AVX2 (called only where the processor has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn iterate_avx2<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    e: Eval,
+    damping: (f64, f64),
+    iterations: usize,
+    eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    iterate_body(global, local, e, damping, iterations, eval, options)
+}
+
+/// [`iterate`] itself, inlined into each of its two paths.
+#[inline(always)]
+fn iterate_body<F>(
     global: Vec<f64>,
     local: Vec<f64>,
     mut e: Eval,
@@ -404,9 +451,14 @@ where
                             + lambda * hgg[p * ng + p].max(1e-300) * dg[p] * dg[p];
                     }
                     if has_locals {
-                        for j in 0..n {
-                            let dl = l_new[j] - l[j];
-                            predicted += -dl * grad_l[j] + (damped[j] - hll[j]) * dl * dl;
+                        // The points' values zipped in step (no index, so no bounds test).
+                        let points = l_new
+                            .iter()
+                            .zip(&l)
+                            .zip(grad_l.iter().zip(&damped).zip(&hll));
+                        for ((&ln, &lj), ((&gl, &dj), &hj)) in points.take(n) {
+                            let dl = ln - lj;
+                            predicted += -dl * gl + (dj - hj) * dl * dl;
                         }
                     }
                     std::mem::swap(&mut g, &mut g_new);
@@ -473,6 +525,7 @@ impl Normal<'_> {
     /// `hgg = Σ_j row_jᵀ·row_j`, `grad_g = Σ_j row_jᵀ·r_j` (points in order; the upper
     /// triangle computed, then copied down) and per point `hgl`, `hll`, `grad_l`, from
     /// zeroed buffers.
+    #[inline(always)]
     fn sum(self, ng: usize, e: &Eval, has_locals: bool) {
         let Normal {
             hgg,
@@ -513,6 +566,7 @@ impl Normal<'_> {
     /// [`Normal::sum`] for `G` globals known at compile time (the untimed fit's four): the
     /// sums held in registers instead of memory, each summed in the same order from the
     /// same zero, so the same bits.
+    #[inline(always)]
     fn sum_fixed<const G: usize>(self, e: &Eval, has_locals: bool) {
         let rows =
             e.jg.chunks_exact(G)
@@ -590,6 +644,7 @@ impl Normal<'_> {
     ///
     /// The per-point entries (`hgl`, stored, not summed) are made from the rows as
     /// [`Normal::sum_rows`] makes them. Tested against it (`similarity_sums_by_structure`).
+    #[inline(always)]
     fn sum_similarity(self, e: &Eval, has_locals: bool) {
         let Normal {
             hgg,
@@ -644,7 +699,7 @@ impl Normal<'_> {
 
 /// Point `j`'s entries of the normal equations that involve its local: `h = rowᵀ·jl`
 /// (row `j` of `hgl`), `hll[j] = |jl|²`, `grad_l[j] = jl·r_j`.
-#[inline]
+#[inline(always)]
 fn point_locals(
     row: &[C64],
     jl: C64,
@@ -665,6 +720,7 @@ fn point_locals(
 /// Cholesky fails; `false` if neither gives a solution. Four unknowns (the untimed fit's
 /// globals) on the stack, others on the heap: nalgebra runs the same generic algorithm
 /// on either, so the same bits (tested).
+#[inline(always)]
 fn solve_small(s: &[f64], rhs: &[f64], x: &mut [f64]) -> bool {
     if rhs.len() == 4 {
         let sm = Matrix4::<f64>::from_row_slice(s);
@@ -704,6 +760,7 @@ fn solve_dynamic(s: &[f64], rhs: &[f64], x: &mut [f64]) -> bool {
 /// `j` of `hgl`, `g_j = grad_l[j]`, `d_j = damped[j]`), points in order. `s` is symmetric
 /// and stays so: only its upper triangle is computed (`h_p·h_q` and `h_q·h_p` are the same
 /// product), then copied down.
+#[inline(always)]
 fn schur(ng: usize, s: &mut [f64], rhs: &mut [f64], hgl: &[f64], grad_l: &[f64], damped: &[f64]) {
     for (j, row) in hgl.chunks_exact(ng).enumerate() {
         let inv = 1.0 / damped[j];
@@ -726,6 +783,7 @@ fn schur(ng: usize, s: &mut [f64], rhs: &mut [f64], hgl: &[f64], grad_l: &[f64],
 
 /// [`schur`] for `G` globals known at compile time (the untimed fit's four), held in
 /// registers: the same sums in the same order.
+#[inline(always)]
 fn schur_fixed<const G: usize>(
     s: &mut [f64],
     rhs: &mut [f64],
