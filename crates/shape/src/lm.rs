@@ -550,9 +550,8 @@ impl Normal<'_> {
                     e.jl[j],
                     rj,
                     &mut hgl[j * ng..(j + 1) * ng],
-                    j,
-                    hll,
-                    grad_l,
+                    &mut hll[j],
+                    &mut grad_l[j],
                 );
             }
         }
@@ -608,9 +607,8 @@ impl Normal<'_> {
                     e.jl[j],
                     rj,
                     &mut hgl[j * G..(j + 1) * G],
-                    j,
-                    hll,
-                    grad_l,
+                    &mut hll[j],
+                    &mut grad_l[j],
                 );
             }
         }
@@ -656,7 +654,7 @@ impl Normal<'_> {
         let (mut mm, mut mim, mut sre, mut sim) = (0.0, 0.0, 0.0, 0.0);
         let mut gr = [0.0; 4];
         let mut points = 0;
-        for (j, (&m, &rj)) in e.sim.iter().zip(&e.r).enumerate() {
+        let mut add = |m: C64, rj: C64| {
             points += 1;
             let im = C64::new(-m.im, m.re);
             mm += dot(m, m);
@@ -667,16 +665,19 @@ impl Normal<'_> {
             gr[1] += dot(im, rj);
             gr[2] += rj.re;
             gr[3] += rj.im;
-            if has_locals {
-                point_locals(
-                    &similarity_row(m),
-                    e.jl[j],
-                    rj,
-                    &mut hgl[j * 4..(j + 1) * 4],
-                    j,
-                    hll,
-                    grad_l,
-                );
+        };
+        if has_locals {
+            // Each point's own entries zipped in step with it (no index, so no bounds test).
+            let own = hgl
+                .chunks_exact_mut(4)
+                .zip(hll.iter_mut().zip(grad_l.iter_mut()));
+            for (((&m, &rj), &jl), (h, (hl, gl))) in e.sim.iter().zip(&e.r).zip(&e.jl).zip(own) {
+                add(m, rj);
+                point_locals(&similarity_row(m), jl, rj, h, hl, gl);
+            }
+        } else {
+            for (&m, &rj) in e.sim.iter().zip(&e.r) {
+                add(m, rj);
             }
         }
         assert!(!has_locals || points == e.r.len(), "a row per point");
@@ -698,22 +699,14 @@ impl Normal<'_> {
 }
 
 /// Point `j`'s entries of the normal equations that involve its local: `h = rowᵀ·jl`
-/// (row `j` of `hgl`), `hll[j] = |jl|²`, `grad_l[j] = jl·r_j`.
+/// (row `j` of `hgl`), `hll = |jl|²` and `grad_l = jl·r_j` (its entries of those).
 #[inline(always)]
-fn point_locals(
-    row: &[C64],
-    jl: C64,
-    rj: C64,
-    h: &mut [f64],
-    j: usize,
-    hll: &mut [f64],
-    grad_l: &mut [f64],
-) {
+fn point_locals(row: &[C64], jl: C64, rj: C64, h: &mut [f64], hll: &mut f64, grad_l: &mut f64) {
     for (h, &x) in h.iter_mut().zip(row) {
         *h = dot(x, jl);
     }
-    hll[j] = jl.norm_sqr();
-    grad_l[j] = dot(jl, rj);
+    *hll = jl.norm_sqr();
+    *grad_l = dot(jl, rj);
 }
 
 /// Solves `s·x = rhs` (`s` row-major, symmetric) into `x`: by Cholesky, or by LU where
