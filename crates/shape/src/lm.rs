@@ -401,20 +401,23 @@ where
             for ((x, a), b) in g_new.iter_mut().zip(&g).zip(dg.iter()) {
                 *x = a + b;
             }
-            l_new.clear();
             if has_locals {
                 let max = options.max_local_step;
                 // `l_j − (grad_l_j + h_j·dg)/d_j`, the product summed in order; four globals
                 // unrolled (the same sums).
                 let local = |j: usize, t: f64| l[j] + (-t / damped[j]).clamp(-max, max);
                 if let Ok(d) = <[f64; 4]>::try_from(dg.as_slice()) {
-                    // The point's values zipped in step (no index, so no bounds test).
+                    // Written in place, every entry (a loop here, not `extend`'s call, so
+                    // that it is compiled with the iterations); the point's values zipped
+                    // in step (no index, so no bounds test).
+                    l_new.resize(n, 0.0);
                     let rows = hgl.chunks_exact(4).zip(grad_l.iter().zip(&damped));
-                    l_new.extend(l.iter().zip(rows).map(|(&lj, (row, (&gl, &dj)))| {
+                    for ((x, &lj), (row, (&gl, &dj))) in l_new.iter_mut().zip(&l).zip(rows) {
                         let t = gl + row[0] * d[0] + row[1] * d[1] + row[2] * d[2] + row[3] * d[3];
-                        lj + (-t / dj).clamp(-max, max)
-                    }));
+                        *x = lj + (-t / dj).clamp(-max, max);
+                    }
                 } else {
+                    l_new.clear();
                     l_new.extend((0..n).map(|j| {
                         let row = &hgl[j * ng..(j + 1) * ng];
                         let mut t = grad_l[j];
@@ -424,6 +427,8 @@ where
                         local(j, t)
                     }));
                 }
+            } else {
+                l_new.clear();
             }
             let finite = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
                 && dg.iter().all(|x| x.is_finite());
