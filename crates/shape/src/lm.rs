@@ -401,6 +401,8 @@ where
             for ((x, a), b) in g_new.iter_mut().zip(&g).zip(dg.iter()) {
                 *x = a + b;
             }
+            // Whether the new locals are all finite, where their loop found it.
+            let mut locals_finite = None;
             if has_locals {
                 let max = options.max_local_step;
                 // `l_j − (grad_l_j + h_j·dg)/d_j`, the product summed in order; four globals
@@ -412,10 +414,13 @@ where
                     // in step (no index, so no bounds test).
                     l_new.resize(n, 0.0);
                     let rows = hgl.chunks_exact(4).zip(grad_l.iter().zip(&damped));
+                    let mut finite = true;
                     for ((x, &lj), (row, (&gl, &dj))) in l_new.iter_mut().zip(&l).zip(rows) {
                         let t = gl + row[0] * d[0] + row[1] * d[1] + row[2] * d[2] + row[3] * d[3];
                         *x = lj + (-t / dj).clamp(-max, max);
+                        finite &= x.is_finite();
                     }
+                    locals_finite = Some(finite);
                 } else {
                     l_new.clear();
                     l_new.extend((0..n).map(|j| {
@@ -430,7 +435,8 @@ where
             } else {
                 l_new.clear();
             }
-            let finite = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
+            let finite = g_new.iter().all(|x| x.is_finite())
+                && locals_finite.unwrap_or_else(|| l_new.iter().all(|x| x.is_finite()))
                 && dg.iter().all(|x| x.is_finite());
             let evaluated = finite
                 && eval(
@@ -795,10 +801,10 @@ fn schur_fixed<const G: usize>(
         m[p].copy_from_slice(&s[p * G..(p + 1) * G]);
         r[p] = rhs[p];
     }
-    for (j, row) in hgl.chunks_exact(G).enumerate() {
+    // The points' values zipped in step (no index, so no bounds test).
+    for (row, (&gl, &dj)) in hgl.chunks_exact(G).zip(grad_l.iter().zip(damped)) {
         let row: &[f64; G] = row.try_into().expect("rows of G");
-        let inv = 1.0 / damped[j];
-        let gl = grad_l[j];
+        let inv = 1.0 / dj;
         for p in 0..G {
             r[p] += row[p] * gl * inv;
             for q in p..G {
