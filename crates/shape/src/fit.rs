@@ -536,13 +536,79 @@ fn untimed_residuals(
     for (c, chunk) in full.enumerate() {
         let chunk: &[C64; POINT_LANES] = chunk.try_into().expect("a whole group");
         let points = group(c * POINT_LANES);
-        group_residuals(chunk, &points, mir, a, b, jac, &mut cost, e)?;
+        whole_group_residuals(chunk, &points, mir, a, b, jac, &mut cost, e)?;
     }
     if !rest.is_empty() {
         let points = group(p.len() - rest.len());
         group_residuals(rest, &points, mir, a, b, jac, &mut cost, e)?;
     }
     e.summed = Some(cost.sum());
+    Some(())
+}
+
+/// [`group_residuals`] of a whole group, its lanes side by side (the real and imaginary
+/// parts in arrays of their own, so that they vectorize): each lane's operations are those
+/// of [`group_residuals`] (`tilde`, the complex product and sums written out as
+/// `num_complex` computes them), in the same order, so the same values bit for bit. Every
+/// lane is evaluated before the cost is kept, point by point as there: a trial given up
+/// evaluates at most the rest of its group more, and returns `None` as there.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn whole_group_residuals(
+    chunk: &[C64; POINT_LANES],
+    points: &[Option<PointAt>; POINT_LANES],
+    mir: bool,
+    a: C64,
+    b: C64,
+    jac: bool,
+    cost: &mut RunningCost,
+    e: &mut Eval,
+) -> Option<()> {
+    const L: usize = POINT_LANES;
+    let (mut mre, mut mim, mut dre, mut dim) = ([0.0; L], [0.0; L], [0.0; L], [0.0; L]);
+    for i in 0..L {
+        let at = points[i]?;
+        mre[i] = at.m.re;
+        mim[i] = at.m.im;
+        dre[i] = at.dm_dtheta.re;
+        dim[i] = at.dm_dtheta.im;
+    }
+    if mir {
+        // `tilde`: the conjugate (an exact negation).
+        for i in 0..L {
+            mim[i] = -mim[i];
+            dim[i] = -dim[i];
+        }
+    }
+    // `a·m̃ + b − p`: `(a.re·m.re − a.im·m.im, a.re·m.im + a.im·m.re)`, then the sums.
+    let (mut rre, mut rim) = ([0.0; L], [0.0; L]);
+    for i in 0..L {
+        rre[i] = (a.re * mre[i] - a.im * mim[i]) + b.re - chunk[i].re;
+        rim[i] = (a.re * mim[i] + a.im * mre[i]) + b.im - chunk[i].im;
+    }
+    for i in 0..L {
+        if !cost.add(C64::new(rre[i], rim[i])) {
+            return None;
+        }
+    }
+    e.r.extend_from_slice(&std::array::from_fn::<C64, L, _>(|i| {
+        C64::new(rre[i], rim[i])
+    }));
+    if jac {
+        // The rows `[m, i·m, 1, i]` (`lm::similarity_row`), given by `m`; `a·dM̃/dθ`.
+        let (mut jre, mut jim) = ([0.0; L], [0.0; L]);
+        for i in 0..L {
+            jre[i] = a.re * dre[i] - a.im * dim[i];
+            jim[i] = a.re * dim[i] + a.im * dre[i];
+        }
+        e.sim
+            .extend_from_slice(&std::array::from_fn::<C64, L, _>(|i| {
+                C64::new(mre[i], mim[i])
+            }));
+        e.jl.extend_from_slice(&std::array::from_fn::<C64, L, _>(|i| {
+            C64::new(jre[i], jim[i])
+        }));
+    }
     Some(())
 }
 
@@ -696,6 +762,9 @@ fn untimed_eval<'a>(
     mir: bool,
     lanes: &'a CurveLanes,
 ) -> impl FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()> + 'a {
+    // Inlined into Levenberg–Marquardt's iterations (compiled for AVX2 where the processor
+    // has it, `lm::iterate`).
+    #[inline(always)]
     move |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let last = l.len() - 1;

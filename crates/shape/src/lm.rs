@@ -259,7 +259,54 @@ where
 
 /// The iterations of [`solve_into`] from the point `(global, local)`, its evaluation `e`,
 /// the damping `lambda` and the iterations done so far.
+///
+/// **Compiled for AVX2 where the processor has it** (checked at run time), as the
+/// curve's point lanes are: the iterations (with `eval` where it inlines) in 256-bit
+/// registers. The same operations in the same order (never fused: AVX2 does not enable
+/// FMA, and no sum is reassociated), so the same values bit for bit.
 fn iterate<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    e: Eval,
+    damping: (f64, f64),
+    iterations: usize,
+    eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    #[cfg(target_arch = "x86_64")]
+    if crate::has_avx2() {
+        // SAFETY: `iterate_avx2` needs AVX2, which the processor was just found to have;
+        // it has no other requirement (the safe body compiled for AVX2).
+        #[allow(unsafe_code)]
+        return unsafe { iterate_avx2(global, local, e, damping, iterations, eval, options) };
+    }
+    iterate_body(global, local, e, damping, iterations, eval, options)
+}
+
+/// [`iterate_body`] compiled for AVX2 (called only where the processor has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn iterate_avx2<F>(
+    global: Vec<f64>,
+    local: Vec<f64>,
+    e: Eval,
+    damping: (f64, f64),
+    iterations: usize,
+    eval: F,
+    options: &LmOptions,
+) -> Option<LmResult>
+where
+    F: FnMut(&[f64], &[f64], Ask, &mut Eval) -> Option<()>,
+{
+    iterate_body(global, local, e, damping, iterations, eval, options)
+}
+
+/// [`iterate`] itself, inlined into each of its two paths.
+#[inline(always)]
+fn iterate_body<F>(
     global: Vec<f64>,
     local: Vec<f64>,
     mut e: Eval,
@@ -354,20 +401,28 @@ where
             for ((x, a), b) in g_new.iter_mut().zip(&g).zip(dg.iter()) {
                 *x = a + b;
             }
-            l_new.clear();
+            // Whether the new locals are all finite, where their loop found it.
+            let mut locals_finite = None;
             if has_locals {
                 let max = options.max_local_step;
                 // `l_j − (grad_l_j + h_j·dg)/d_j`, the product summed in order; four globals
                 // unrolled (the same sums).
                 let local = |j: usize, t: f64| l[j] + (-t / damped[j]).clamp(-max, max);
                 if let Ok(d) = <[f64; 4]>::try_from(dg.as_slice()) {
-                    // The point's values zipped in step (no index, so no bounds test).
+                    // Written in place, every entry (a loop here, not `extend`'s call, so
+                    // that it is compiled with the iterations); the point's values zipped
+                    // in step (no index, so no bounds test).
+                    l_new.resize(n, 0.0);
                     let rows = hgl.chunks_exact(4).zip(grad_l.iter().zip(&damped));
-                    l_new.extend(l.iter().zip(rows).map(|(&lj, (row, (&gl, &dj)))| {
+                    let mut finite = true;
+                    for ((x, &lj), (row, (&gl, &dj))) in l_new.iter_mut().zip(&l).zip(rows) {
                         let t = gl + row[0] * d[0] + row[1] * d[1] + row[2] * d[2] + row[3] * d[3];
-                        lj + (-t / dj).clamp(-max, max)
-                    }));
+                        *x = lj + (-t / dj).clamp(-max, max);
+                        finite &= x.is_finite();
+                    }
+                    locals_finite = Some(finite);
                 } else {
+                    l_new.clear();
                     l_new.extend((0..n).map(|j| {
                         let row = &hgl[j * ng..(j + 1) * ng];
                         let mut t = grad_l[j];
@@ -377,8 +432,11 @@ where
                         local(j, t)
                     }));
                 }
+            } else {
+                l_new.clear();
             }
-            let finite = g_new.iter().chain(l_new.iter()).all(|x| x.is_finite())
+            let finite = g_new.iter().all(|x| x.is_finite())
+                && locals_finite.unwrap_or_else(|| l_new.iter().all(|x| x.is_finite()))
                 && dg.iter().all(|x| x.is_finite());
             let evaluated = finite
                 && eval(
@@ -404,9 +462,14 @@ where
                             + lambda * hgg[p * ng + p].max(1e-300) * dg[p] * dg[p];
                     }
                     if has_locals {
-                        for j in 0..n {
-                            let dl = l_new[j] - l[j];
-                            predicted += -dl * grad_l[j] + (damped[j] - hll[j]) * dl * dl;
+                        // The points' values zipped in step (no index, so no bounds test).
+                        let points = l_new
+                            .iter()
+                            .zip(&l)
+                            .zip(grad_l.iter().zip(&damped).zip(&hll));
+                        for ((&ln, &lj), ((&gl, &dj), &hj)) in points.take(n) {
+                            let dl = ln - lj;
+                            predicted += -dl * gl + (dj - hj) * dl * dl;
                         }
                     }
                     std::mem::swap(&mut g, &mut g_new);
@@ -473,6 +536,7 @@ impl Normal<'_> {
     /// `hgg = Σ_j row_jᵀ·row_j`, `grad_g = Σ_j row_jᵀ·r_j` (points in order; the upper
     /// triangle computed, then copied down) and per point `hgl`, `hll`, `grad_l`, from
     /// zeroed buffers.
+    #[inline(always)]
     fn sum(self, ng: usize, e: &Eval, has_locals: bool) {
         let Normal {
             hgg,
@@ -497,9 +561,8 @@ impl Normal<'_> {
                     e.jl[j],
                     rj,
                     &mut hgl[j * ng..(j + 1) * ng],
-                    j,
-                    hll,
-                    grad_l,
+                    &mut hll[j],
+                    &mut grad_l[j],
                 );
             }
         }
@@ -513,6 +576,7 @@ impl Normal<'_> {
     /// [`Normal::sum`] for `G` globals known at compile time (the untimed fit's four): the
     /// sums held in registers instead of memory, each summed in the same order from the
     /// same zero, so the same bits.
+    #[inline(always)]
     fn sum_fixed<const G: usize>(self, e: &Eval, has_locals: bool) {
         let rows =
             e.jg.chunks_exact(G)
@@ -554,9 +618,8 @@ impl Normal<'_> {
                     e.jl[j],
                     rj,
                     &mut hgl[j * G..(j + 1) * G],
-                    j,
-                    hll,
-                    grad_l,
+                    &mut hll[j],
+                    &mut grad_l[j],
                 );
             }
         }
@@ -590,6 +653,7 @@ impl Normal<'_> {
     ///
     /// The per-point entries (`hgl`, stored, not summed) are made from the rows as
     /// [`Normal::sum_rows`] makes them. Tested against it (`similarity_sums_by_structure`).
+    #[inline(always)]
     fn sum_similarity(self, e: &Eval, has_locals: bool) {
         let Normal {
             hgg,
@@ -601,7 +665,7 @@ impl Normal<'_> {
         let (mut mm, mut mim, mut sre, mut sim) = (0.0, 0.0, 0.0, 0.0);
         let mut gr = [0.0; 4];
         let mut points = 0;
-        for (j, (&m, &rj)) in e.sim.iter().zip(&e.r).enumerate() {
+        let mut add = |m: C64, rj: C64| {
             points += 1;
             let im = C64::new(-m.im, m.re);
             mm += dot(m, m);
@@ -612,16 +676,19 @@ impl Normal<'_> {
             gr[1] += dot(im, rj);
             gr[2] += rj.re;
             gr[3] += rj.im;
-            if has_locals {
-                point_locals(
-                    &similarity_row(m),
-                    e.jl[j],
-                    rj,
-                    &mut hgl[j * 4..(j + 1) * 4],
-                    j,
-                    hll,
-                    grad_l,
-                );
+        };
+        if has_locals {
+            // Each point's own entries zipped in step with it (no index, so no bounds test).
+            let own = hgl
+                .chunks_exact_mut(4)
+                .zip(hll.iter_mut().zip(grad_l.iter_mut()));
+            for (((&m, &rj), &jl), (h, (hl, gl))) in e.sim.iter().zip(&e.r).zip(&e.jl).zip(own) {
+                add(m, rj);
+                point_locals(&similarity_row(m), jl, rj, h, hl, gl);
+            }
+        } else {
+            for (&m, &rj) in e.sim.iter().zip(&e.r) {
+                add(m, rj);
             }
         }
         assert!(!has_locals || points == e.r.len(), "a row per point");
@@ -643,28 +710,21 @@ impl Normal<'_> {
 }
 
 /// Point `j`'s entries of the normal equations that involve its local: `h = rowᵀ·jl`
-/// (row `j` of `hgl`), `hll[j] = |jl|²`, `grad_l[j] = jl·r_j`.
-#[inline]
-fn point_locals(
-    row: &[C64],
-    jl: C64,
-    rj: C64,
-    h: &mut [f64],
-    j: usize,
-    hll: &mut [f64],
-    grad_l: &mut [f64],
-) {
+/// (row `j` of `hgl`), `hll = |jl|²` and `grad_l = jl·r_j` (its entries of those).
+#[inline(always)]
+fn point_locals(row: &[C64], jl: C64, rj: C64, h: &mut [f64], hll: &mut f64, grad_l: &mut f64) {
     for (h, &x) in h.iter_mut().zip(row) {
         *h = dot(x, jl);
     }
-    hll[j] = jl.norm_sqr();
-    grad_l[j] = dot(jl, rj);
+    *hll = jl.norm_sqr();
+    *grad_l = dot(jl, rj);
 }
 
 /// Solves `s·x = rhs` (`s` row-major, symmetric) into `x`: by Cholesky, or by LU where
 /// Cholesky fails; `false` if neither gives a solution. Four unknowns (the untimed fit's
 /// globals) on the stack, others on the heap: nalgebra runs the same generic algorithm
 /// on either, so the same bits (tested).
+#[inline(always)]
 fn solve_small(s: &[f64], rhs: &[f64], x: &mut [f64]) -> bool {
     if rhs.len() == 4 {
         let sm = Matrix4::<f64>::from_row_slice(s);
@@ -704,6 +764,7 @@ fn solve_dynamic(s: &[f64], rhs: &[f64], x: &mut [f64]) -> bool {
 /// `j` of `hgl`, `g_j = grad_l[j]`, `d_j = damped[j]`), points in order. `s` is symmetric
 /// and stays so: only its upper triangle is computed (`h_p·h_q` and `h_q·h_p` are the same
 /// product), then copied down.
+#[inline(always)]
 fn schur(ng: usize, s: &mut [f64], rhs: &mut [f64], hgl: &[f64], grad_l: &[f64], damped: &[f64]) {
     for (j, row) in hgl.chunks_exact(ng).enumerate() {
         let inv = 1.0 / damped[j];
@@ -726,6 +787,7 @@ fn schur(ng: usize, s: &mut [f64], rhs: &mut [f64], hgl: &[f64], grad_l: &[f64],
 
 /// [`schur`] for `G` globals known at compile time (the untimed fit's four), held in
 /// registers: the same sums in the same order.
+#[inline(always)]
 fn schur_fixed<const G: usize>(
     s: &mut [f64],
     rhs: &mut [f64],
@@ -739,10 +801,10 @@ fn schur_fixed<const G: usize>(
         m[p].copy_from_slice(&s[p * G..(p + 1) * G]);
         r[p] = rhs[p];
     }
-    for (j, row) in hgl.chunks_exact(G).enumerate() {
+    // The points' values zipped in step (no index, so no bounds test).
+    for (row, (&gl, &dj)) in hgl.chunks_exact(G).zip(grad_l.iter().zip(damped)) {
         let row: &[f64; G] = row.try_into().expect("rows of G");
-        let inv = 1.0 / damped[j];
-        let gl = grad_l[j];
+        let inv = 1.0 / dj;
         for p in 0..G {
             r[p] += row[p] * gl * inv;
             for q in p..G {
