@@ -1528,10 +1528,7 @@ impl Edge {
         let span = &mut row[from..to];
         let whole = span.len() - span.len() % 4;
         let (body, tail) = span.split_at_mut(whole);
-        // The first pixel inked, and the last group of four that inked and its lanes
-        // (made the span's end once, after the loop).
-        let mut first = usize::MAX;
-        let (mut at, mut lanes) = (0, 0);
+        let mut inked_span = InkedSpan::<4>::new(from);
         for (q, px4) in body.chunks_exact_mut(4).enumerate() {
             let (level, v) = levels(x - ax);
             x += four;
@@ -1550,12 +1547,7 @@ impl Edge {
             }
             // The lanes of level 1 or more.
             let inked = level.simd_ge(f32x4::ONE).to_bitmask();
-            if inked != 0 {
-                if first == usize::MAX {
-                    first = from + 4 * q + inked.trailing_zeros() as usize;
-                }
-                (at, lanes) = (q, inked);
-            }
+            inked_span.note(q, inked);
         }
         if !tail.is_empty() {
             let (level, v) = levels(x - ax);
@@ -1563,16 +1555,9 @@ impl Edge {
                 *px = (*px).max(v as u8);
             }
             let inked = level.simd_ge(f32x4::ONE).to_bitmask() & ((1 << tail.len()) - 1);
-            if inked != 0 {
-                let q = whole / 4;
-                if first == usize::MAX {
-                    first = from + 4 * q + inked.trailing_zeros() as usize;
-                }
-                (at, lanes) = (q, inked);
-            }
+            inked_span.note(whole / 4, inked);
         }
-        let last = from + 4 * at + 32 - lanes.leading_zeros() as usize;
-        (first != usize::MAX).then_some((first as u32, last as u32))
+        inked_span.span()
     }
 
     /// [`Edge::measure`] of a segment within [`MODEST`] coordinates (`FINITE`): eight
@@ -1657,19 +1642,13 @@ impl Edge {
         let span = &mut row[from..to];
         let whole = span.len() - span.len() % 8;
         let (body, tail) = span.split_at_mut(whole);
-        let mut first = usize::MAX;
-        let (mut at, mut lanes) = (0, 0);
+        let mut inked_span = InkedSpan::<8>::new(from);
         for (q, px8) in body.chunks_exact_mut(8).enumerate() {
             let (v, inked) = levels(_mm256_sub_ps(x, ax));
             x = _mm256_add_ps(x, eight);
             let px8: &mut [u8; 8] = px8.try_into().expect("8 pixels");
             *px8 = max8(u64::from_le_bytes(*px8), v).to_le_bytes();
-            if inked != 0 {
-                if first == usize::MAX {
-                    first = from + 8 * q + inked.trailing_zeros() as usize;
-                }
-                (at, lanes) = (q, inked);
-            }
+            inked_span.note(q, inked);
         }
         if !tail.is_empty() {
             let (v, inked) = levels(_mm256_sub_ps(x, ax));
@@ -1677,16 +1656,49 @@ impl Edge {
                 *px = (*px).max(v);
             }
             let inked = inked & ((1 << tail.len()) - 1);
-            if inked != 0 {
-                let q = whole / 8;
-                if first == usize::MAX {
-                    first = from + 8 * q + inked.trailing_zeros() as usize;
-                }
-                (at, lanes) = (q, inked);
-            }
+            inked_span.note(whole / 8, inked);
         }
-        let last = from + 8 * at + 32 - lanes.leading_zeros() as usize;
-        (first != usize::MAX).then_some((first as u32, last as u32))
+        inked_span.span()
+    }
+}
+
+/// The pixels a measured span inked (level 1 or more), kept group by group of `W`
+/// lanes: the first pixel inked, and the last group that inked and its lanes (the
+/// span's end made once, at the end).
+struct InkedSpan<const W: usize> {
+    from: usize,
+    first: usize,
+    at: usize,
+    lanes: u32,
+}
+
+impl<const W: usize> InkedSpan<W> {
+    #[inline(always)]
+    fn new(from: usize) -> Self {
+        Self {
+            from,
+            first: usize::MAX,
+            at: 0,
+            lanes: 0,
+        }
+    }
+
+    /// Group `q` (pixels `from + W·q ..`) inked the lanes set in `inked`.
+    #[inline(always)]
+    fn note(&mut self, q: usize, inked: u32) {
+        if inked != 0 {
+            if self.first == usize::MAX {
+                self.first = self.from + W * q + inked.trailing_zeros() as usize;
+            }
+            (self.at, self.lanes) = (q, inked);
+        }
+    }
+
+    /// The first and one past the last pixel inked, `None` if none was.
+    #[inline(always)]
+    fn span(&self) -> Option<(u32, u32)> {
+        let last = self.from + W * self.at + 32 - self.lanes.leading_zeros() as usize;
+        (self.first != usize::MAX).then_some((self.first as u32, last as u32))
     }
 }
 
