@@ -392,6 +392,28 @@ impl Capsules {
         self.segs = segs;
     }
 
+    /// A thin segment's coverage of row `row` (centre `cy`) within its conservative span
+    /// `[x0, x1)` measured into the row's buffer, and the inked span noted.
+    #[inline(always)]
+    fn measure_row<const X8: bool>(
+        &mut self,
+        s: &Seg,
+        row: usize,
+        cy: f32,
+        r: f32,
+        x0: u32,
+        x1: u32,
+    ) {
+        let (x0, x1) = (x0 as usize, x1 as usize);
+        if x0 < x1 {
+            let slot = &mut self.slots[row % RING];
+            let edge = Edge::new(s, cy, r);
+            if let Some(span) = edge.measure_finite::<X8>(&mut slot.row, x0, x1) {
+                slot.notes.note(span);
+            }
+        }
+    }
+
     /// Makes segment `s`'s (`k`'s) coverage of rows `[j, end)` (`end − j ≤ RING`) in
     /// their row buffers and notes their spans; in [`Mode::Wide`] leaves their edges in
     /// `edges` (see [`seg_row_fill`]).
@@ -411,15 +433,7 @@ impl Capsules {
                     #[allow(unsafe_code)]
                     let [x0, x1] = unsafe { lanes_spans8(s, cy8, reach, w) };
                     for m in 0..(end - i).min(8) as usize {
-                        let (x0, x1) = (x0[m] as usize, x1[m] as usize);
-                        if x0 < x1 {
-                            let at = (i as usize + m) % RING;
-                            let slot = &mut self.slots[at];
-                            let edge = Edge::new(s, cy8[m], r);
-                            if let Some(span) = edge.measure_finite::<X8>(&mut slot.row, x0, x1) {
-                                slot.notes.note(span);
-                            }
-                        }
+                        self.measure_row::<X8>(s, i as usize + m, cy8[m], r, x0[m], x1[m]);
                     }
                 }
             }
@@ -429,15 +443,7 @@ impl Capsules {
                     let cy4 = [0, 1, 2, 3].map(|m| (i + m) as f32 + 0.5);
                     let [x0, x1] = lanes_spans4(s, cy4, reach, w);
                     for m in 0..(end - i).min(4) as usize {
-                        let (x0, x1) = (x0[m] as usize, x1[m] as usize);
-                        if x0 < x1 {
-                            let at = (i as usize + m) % RING;
-                            let slot = &mut self.slots[at];
-                            let edge = Edge::new(s, cy4[m], r);
-                            if let Some(span) = edge.measure_finite::<X8>(&mut slot.row, x0, x1) {
-                                slot.notes.note(span);
-                            }
-                        }
+                        self.measure_row::<X8>(s, i as usize + m, cy4[m], r, x0[m], x1[m]);
                     }
                 }
             }
