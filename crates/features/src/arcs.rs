@@ -93,6 +93,17 @@ fn turn(c: &Samples, i: usize, j: usize, center: [f64; 2], sign: f64, stop_at: f
     total
 }
 
+/// The filter of every window at once ([`Filter`]), all flags set: the tests'
+/// reference for the greedy choice's lazy use of it.
+#[cfg(test)]
+fn filter_windows(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
+    let mut circles = Vec::new();
+    let filter = Filter::new(c, tol, min_steps, &mut circles);
+    for l in min_steps.max(1)..c.n {
+        filter.starts(l, 0, cand.row_mut(l));
+    }
+}
+
 /// The O(1) filter of every window of a closed curve of `n` samples, for every start at
 /// once (structure of arrays, so the compiler vectorises it): Kåsa's sums of the window
 /// `[i, i + l]` about its first sample ([`KasaSums`]: running fit sums, so that a small
@@ -133,34 +144,158 @@ fn turn(c: &Samples, i: usize, j: usize, center: [f64; 2], sign: f64, stop_at: f
 /// being asked, and every lane does the same IEEE-754 operations in the same order, so
 /// every window passes or fails exactly as on the baseline path (the features bench's
 /// fingerprint is the same either way).
-fn filter_windows(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
+///
+/// **In two passes, the second only where it is read.** The first pass
+/// ([`Filter::new`]) grows every start's sums through every length and keeps every
+/// window's circle; the second ([`Filter::starts`]) tests the windows of one length from
+/// a run of starts, and the greedy choice runs it as it reaches each length, only on the
+/// starts whose window shares no step with a window already chosen
+/// ([`Candidates::pick_filtering`]): the others it would skip unread. Each pass does,
+/// window for window, the operations it did when both ran on every window, so every
+/// window tested passes or fails as before and the same windows are chosen.
+struct Filter<'a> {
+    c: &'a Samples,
+    min_steps: usize,
+    /// The circles by length from `min_steps`, then by start (`n` a length): centre
+    /// about the first sample, radius², and the scatter matrix's determinant and trace.
+    ca: &'a [f64],
+    cb: &'a [f64],
+    cr2: &'a [f64],
+    cdet: &'a [f64],
+    cscale: &'a [f64],
+    /// |V|², taken twice round like the samples.
+    speed2: Vec<f64>,
+    /// |M|² of each start: a window more than 1000 radii from the origin is not filtered
+    /// (the direct fit the exact test uses loses digits there: see above).
+    far2: Vec<f64>,
+    lo_f: f64,
+    hi_f: f64,
+}
+
+impl<'a> Filter<'a> {
+    /// The first pass, its circles kept in `buf` (grown as needed; entries not read
+    /// before they are written, so not cleared).
+    fn new(c: &'a Samples, tol: f64, min_steps: usize, buf: &'a mut Vec<f64>) -> Filter<'a> {
+        let n = c.n;
+        let min_steps = min_steps.max(1);
+        let rows = n.saturating_sub(min_steps);
+        if buf.len() < 5 * rows * n {
+            buf.resize(5 * rows * n, 0.0);
+        }
+        let (ca, rest) = buf.split_at_mut(rows * n);
+        let (cb, rest) = rest.split_at_mut(rows * n);
+        let (cr2, rest) = rest.split_at_mut(rows * n);
+        let (cdet, rest) = rest.split_at_mut(rows * n);
+        let cscale = &mut rest[..rows * n];
+        circles(c, min_steps, ca, cb, cr2, cdet, cscale);
+        let speed2: Vec<f64> =
+            c.vx.iter()
+                .zip(&c.vy)
+                .map(|(ux, uy)| ux * ux + uy * uy)
+                .collect();
+        let far2: Vec<f64> = c.x[..n]
+            .iter()
+            .zip(&c.y[..n])
+            .map(|(x, y)| x * x + y * y)
+            .collect();
+        Filter {
+            c,
+            min_steps,
+            ca,
+            cb,
+            cr2,
+            cdet,
+            cscale,
+            speed2,
+            far2,
+            lo_f: (1.0 - 1.001 * tol - 1e-9).max(0.0).powi(2),
+            hi_f: (1.0 + 1.001 * tol + 1e-9).powi(2),
+        }
+    }
+
+    /// The second pass on the windows of `l` steps from starts `lo, lo + 1, …`
+    /// (`l < n`, `lo + pass.len() ≤ n`): whether each passes. Windows shorter than
+    /// `min_steps` are left as they are (not passing: the flags start `false`).
+    fn starts(&self, l: usize, lo: usize, pass: &mut [bool]) {
+        if l < self.min_steps {
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: `starts_avx2` needs AVX2, which the processor was just found to
+            // have; it has no other requirement (the safe `starts_body` compiled for AVX2).
+            #[allow(unsafe_code)]
+            unsafe {
+                starts_avx2(self, l, lo, pass)
+            };
+            return;
+        }
+        starts_body(self, l, lo, pass)
+    }
+}
+
+/// The first pass ([`Filter::new`]): Kåsa's running sums of every start's windows grown
+/// one sample per length, and from `min_steps` on their circles, into `out` (centre x,
+/// y, radius², determinant, trace; by length from `min_steps`, then by start). (Five
+/// slices as five arguments: the compiler then knows they do not overlap.)
+fn circles(
+    c: &Samples,
+    min_steps: usize,
+    ca: &mut [f64],
+    cb: &mut [f64],
+    cr2: &mut [f64],
+    cdet: &mut [f64],
+    cscale: &mut [f64],
+) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: `filter_avx2` needs AVX2, which the processor was just found to have;
-        // it has no other requirement (it is the safe `filter_body` compiled for AVX2).
+        // SAFETY: `circles_avx2` needs AVX2, which the processor was just found to have;
+        // it has no other requirement (it is the safe `circles_body` compiled for AVX2).
         #[allow(unsafe_code)]
         unsafe {
-            filter_avx2(c, tol, min_steps, cand)
+            circles_avx2(c, min_steps, ca, cb, cr2, cdet, cscale)
         };
         return;
     }
-    filter_body(c, tol, min_steps, cand)
+    circles_body(c, min_steps, ca, cb, cr2, cdet, cscale)
 }
 
-/// [`filter_body`] compiled for AVX2 (called only where the processor has it).
+/// [`circles_body`] compiled for AVX2 (called only where the processor has it).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn filter_avx2(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
-    filter_body(c, tol, min_steps, cand)
+fn circles_avx2(
+    c: &Samples,
+    min_steps: usize,
+    ca: &mut [f64],
+    cb: &mut [f64],
+    cr2: &mut [f64],
+    cdet: &mut [f64],
+    cscale: &mut [f64],
+) {
+    circles_body(c, min_steps, ca, cb, cr2, cdet, cscale)
 }
 
-/// The filter itself ([`filter_windows`]); inlined into each of its two callers so that
+/// [`Filter::starts`]'s body compiled for AVX2 (called only where the processor has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn starts_avx2(f: &Filter<'_>, l: usize, lo: usize, pass: &mut [bool]) {
+    starts_body(f, l, lo, pass)
+}
+
+/// The first pass itself ([`circles`]); inlined into each of its two callers so that
 /// each is compiled for its own instruction set.
 #[inline(always)]
-fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
+fn circles_body(
+    c: &Samples,
+    min_steps: usize,
+    ca: &mut [f64],
+    cb: &mut [f64],
+    cr2: &mut [f64],
+    cdet: &mut [f64],
+    cscale: &mut [f64],
+) {
     let n = c.n;
     let (x2, y2) = (&c.x, &c.y);
-    let (vx2, vy2) = (&c.vx, &c.vy);
     let (x0, y0) = (&x2[..n], &y2[..n]);
     let mut sx = vec![0.0; n];
     let mut sy = vec![0.0; n];
@@ -169,21 +304,6 @@ fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
     let mut syy = vec![0.0; n];
     let mut szx = vec![0.0; n];
     let mut szy = vec![0.0; n];
-    // |V|², taken twice round like the samples.
-    let speed2: Vec<f64> = vx2
-        .iter()
-        .zip(vy2)
-        .map(|(ux, uy)| ux * ux + uy * uy)
-        .collect();
-    // The circles of the current length, by start (centre about the first sample, radius²,
-    // determinant and trace of the scatter matrix).
-    let (mut ca, mut cb, mut cr2) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-    let (mut cdet, mut cscale) = (vec![0.0; n], vec![0.0; n]);
-    // |M|² of each start: a window more than 1000 radii from the origin is not filtered
-    // (the direct fit the exact test uses loses digits there: see above).
-    let far2: Vec<f64> = x0.iter().zip(y0).map(|(x, y)| x * x + y * y).collect();
-    let lo_f = (1.0 - 1.001 * tol - 1e-9).max(0.0).powi(2);
-    let hi_f = (1.0 + 1.001 * tol + 1e-9).powi(2);
     for l in 1..n {
         let (xl, yl) = (&x2[l..l + n], &y2[l..l + n]);
         if l < min_steps {
@@ -205,18 +325,13 @@ fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
         }
         let m = (l + 1) as f64;
         let inv_m = 1.0 / m;
-        let h = l / 2;
-        let (xh, yh) = (&x2[h..h + n], &y2[h..h + n]);
-        let (ux0, uy0) = (&vx2[..n], &vy2[..n]);
-        let (uxh, uyh) = (&vx2[h..h + n], &vy2[h..h + n]);
-        let (uxl, uyl) = (&vx2[l..l + n], &vy2[l..l + n]);
-        let (v0, vh, vl) = (&speed2[..n], &speed2[h..h + n], &speed2[l..l + n]);
-        let pass = cand.row_mut(l);
-        // Two short branch-free passes over the starts, each vectorised: the sums grown by
-        // one sample and their circles; then the radial test and the winding at the three
-        // samples, `(round & !(trusted & reverses)) | !fitted`. (One pass doing both, or the
-        // winding only where it decides, measured 5–10 % slower for the arcs: each pass's
-        // chain of dependent operations is shorter, so more starts are in flight at once.)
+        let row = (l - min_steps) * n..(l - min_steps + 1) * n;
+        let (ca, cb, cr2) = (
+            &mut ca[row.clone()],
+            &mut cb[row.clone()],
+            &mut cr2[row.clone()],
+        );
+        let (cdet, cscale) = (&mut cdet[row.clone()], &mut cscale[row]);
         for i in 0..n {
             let mut s = KasaSums {
                 sx: sx[i],
@@ -234,45 +349,79 @@ fn filter_body(c: &Samples, tol: f64, min_steps: usize, cand: &mut Candidates) {
             (ca[i], cb[i], cr2[i]) = (k.a, k.b, k.r2);
             (cdet[i], cscale[i]) = (k.det, k.scale);
         }
-        for i in 0..n {
-            let (a, b, r2, det, scale) = (ca[i], cb[i], cr2[i], cdet[i], cscale[i]);
-            let (lo, hi) = (r2 * lo_f, r2 * hi_f);
-            // The first sample is the origin; then the middle and the last.
-            let d0 = a * a + b * b;
-            let (hx, hy) = (xh[i] - x0[i] - a, yh[i] - y0[i] - b);
-            let dh = hx * hx + hy * hy;
-            let (ex, ey) = (xl[i] - x0[i] - a, yl[i] - y0[i] - b);
-            let de = ex * ex + ey * ey;
-            // Conditions as lane masks (all ones or zero), combined as such and made a
-            // flag once: the compiler keeps them in the vector lanes.
-            let round = mask(lo <= d0)
-                & mask(d0 <= hi)
-                & mask(lo <= dh)
-                & mask(dh <= hi)
-                & mask(lo <= de)
-                & mask(de <= hi);
-            let fitted =
-                mask(det > 1e-9 * scale * scale) & mask(r2 > 0.0) & mask(far2[i] <= 1e6 * r2);
-            let trusted = mask(det > 1e-4 * scale * scale);
-            // Winding at the three samples: (M − c) × V, and (its margin)² over |V|².
-            let w0 = -a * uy0[i] + b * ux0[i];
-            let wh = hx * uyh[i] - hy * uxh[i];
-            let we = ex * uyl[i] - ey * uxl[i];
-            let margin = 4e-12 * r2;
-            let (p0, ph, pe) = (
-                mask(w0 * w0 > margin * v0[i]),
-                mask(wh * wh > margin * vh[i]),
-                mask(we * we > margin * vl[i]),
-            );
-            let (s0, sh, se) = (mask(w0 > 0.0), mask(wh > 0.0), mask(we > 0.0));
-            let reverses = (p0 & ph & (s0 ^ sh)) | (p0 & pe & (s0 ^ se)) | (ph & pe & (sh ^ se));
-            pass[i] = ((round & !(trusted & reverses)) | !fitted) != 0;
-        }
     }
 }
 
+/// The second pass itself ([`Filter::starts`]): the radial test and the winding at the
+/// window's first, middle and last samples, `(round & !(trusted & reverses)) | !fitted`,
+/// branch-free; inlined into each of its two callers.
+#[inline(always)]
+fn starts_body(f: &Filter<'_>, l: usize, lo: usize, pass: &mut [bool]) {
+    let c = f.c;
+    let (n, m) = (c.n, pass.len());
+    let (x2, y2) = (&c.x, &c.y);
+    let (vx2, vy2) = (&c.vx, &c.vy);
+    let at = |k: usize| k + lo..k + lo + m;
+    let h = l / 2;
+    let (x0, y0) = (&x2[at(0)], &y2[at(0)]);
+    let (xh, yh) = (&x2[at(h)], &y2[at(h)]);
+    let (xl, yl) = (&x2[at(l)], &y2[at(l)]);
+    let (ux0, uy0) = (&vx2[at(0)], &vy2[at(0)]);
+    let (uxh, uyh) = (&vx2[at(h)], &vy2[at(h)]);
+    let (uxl, uyl) = (&vx2[at(l)], &vy2[at(l)]);
+    let sp = &f.speed2;
+    let (v0, vh, vl) = (&sp[at(0)], &sp[at(h)], &sp[at(l)]);
+    let far2 = &f.far2[lo..lo + m];
+    let row = (l - f.min_steps) * n + lo..(l - f.min_steps) * n + lo + m;
+    let (ca, cb, cr2) = (&f.ca[row.clone()], &f.cb[row.clone()], &f.cr2[row.clone()]);
+    let (cdet, cscale) = (&f.cdet[row.clone()], &f.cscale[row]);
+    let (lo_f, hi_f) = (f.lo_f, f.hi_f);
+    // (One pass doing the sums and these tests, or the winding only where it decides,
+    // measured 5–10 % slower for the arcs: each pass's chain of dependent operations is
+    // shorter, so more starts are in flight at once.)
+    for i in 0..m {
+        let (a, b, r2, det, scale) = (ca[i], cb[i], cr2[i], cdet[i], cscale[i]);
+        let (lo, hi) = (r2 * lo_f, r2 * hi_f);
+        // The first sample is the origin; then the middle and the last.
+        let d0 = a * a + b * b;
+        let (hx, hy) = (xh[i] - x0[i] - a, yh[i] - y0[i] - b);
+        let dh = hx * hx + hy * hy;
+        let (ex, ey) = (xl[i] - x0[i] - a, yl[i] - y0[i] - b);
+        let de = ex * ex + ey * ey;
+        // Conditions as lane masks (all ones or zero), combined as such and made a
+        // flag once: the compiler keeps them in the vector lanes.
+        let round = mask(lo <= d0)
+            & mask(d0 <= hi)
+            & mask(lo <= dh)
+            & mask(dh <= hi)
+            & mask(lo <= de)
+            & mask(de <= hi);
+        let fitted = mask(det > 1e-9 * scale * scale) & mask(r2 > 0.0) & mask(far2[i] <= 1e6 * r2);
+        let trusted = mask(det > 1e-4 * scale * scale);
+        // Winding at the three samples: (M − c) × V, and (its margin)² over |V|².
+        let w0 = -a * uy0[i] + b * ux0[i];
+        let wh = hx * uyh[i] - hy * uxh[i];
+        let we = ex * uyl[i] - ey * uxl[i];
+        let margin = 4e-12 * r2;
+        let (p0, ph, pe) = (
+            mask(w0 * w0 > margin * v0[i]),
+            mask(wh * wh > margin * vh[i]),
+            mask(we * we > margin * vl[i]),
+        );
+        let (s0, sh, se) = (mask(w0 > 0.0), mask(wh > 0.0), mask(we > 0.0));
+        let reverses = (p0 & ph & (s0 ^ sh)) | (p0 & pe & (s0 ^ se)) | (ph & pe & (sh ^ se));
+        pass[i] = ((round & !(trusted & reverses)) | !fitted) != 0;
+    }
+}
+
+thread_local! {
+    /// Each thread's buffer for the filter's circles ([`Filter::new`]), kept from
+    /// curve to curve: about 200 kB at 72 samples, written, not cleared, per curve.
+    static CIRCLES: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// Kåsa's sums of a window about its first sample (which is the origin of `x`, `y`),
-/// grown one sample at a time: the filter's running fit sums ([`filter_windows`]).
+/// grown one sample at a time: the filter's running fit sums ([`Filter`]).
 #[derive(Clone, Copy, Debug, Default)]
 struct KasaSums {
     sx: f64,
@@ -405,10 +554,13 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
     let samples = Samples::new(c);
     let c = &samples;
     let mut cand = Candidates::new(n, true);
-    filter_windows(c, limit, min_steps, &mut cand);
+    // The filter's circles, in this thread's buffer (kept from curve to curve).
+    let mut buf = CIRCLES.with(|b| b.take());
+    let filter = Filter::new(c, limit, min_steps, &mut buf);
     // The exact test's answers, kept for the windows chosen (the same answers again).
     let mut found: Vec<(usize, usize, Circle, f64, f64)> = Vec::new();
-    let chosen = cand.pick(
+    let chosen = cand.pick_filtering(
+        &mut |l, lo, pass| filter.starts(l, lo, pass),
         |i, j| (j - i) as f64,
         1.0,
         min_steps as f64,
@@ -419,6 +571,8 @@ pub fn pseudo_arcs(c: &Curve, tol: &FeatureTolerances, dash: &DashPattern) -> Ve
             Some(dev / k.radius)
         },
     );
+    drop(filter);
+    CIRCLES.with(|b| b.replace(buf));
     chosen
         .into_iter()
         .filter_map(|w| {
@@ -627,6 +781,52 @@ mod tests {
         let k = kasa_circle(&s.x[..3], &s.y[..3]).unwrap();
         let (ka, kb) = (k.center[0] - s.x[0], k.center[1] - s.y[0]);
         assert!((ka - ux).hypot(kb - uy) > 1e-8, "{ka} {kb} {ux} {uy}");
+    }
+
+    /// The greedy choice filtering each length as it reaches it, only on the windows it
+    /// reads, chooses the windows (and errors) it chooses with every window filtered
+    /// first, on the hard curves (one buffer of circles for all, as a thread's is); and
+    /// it filters fewer windows, so the comparison is not of two runs of one thing.
+    #[test]
+    fn filtering_as_chosen_chooses_the_same_windows() {
+        let tol = FeatureTolerances::DEFAULT;
+        let limit = tol.arc_pct / 100.0;
+        let min_turn = tol.arc_min_turn_deg.to_radians();
+        let min_steps = 6;
+        let (mut chosen, mut filtered, mut all) = (0, 0, 0);
+        let mut buf = Vec::new();
+        for (name, c) in hard_curves() {
+            let n = c.len();
+            let s = Samples::new(&c);
+            let exact = |i: usize, j: usize| {
+                qualifying(&s, i, j, limit, min_turn).map(|(k, _, dev)| dev / k.radius)
+            };
+            let travel = |i: usize, j: usize| (j - i) as f64;
+            let mut every = Candidates::new(n, true);
+            filter_windows(&s, limit, min_steps, &mut every);
+            let want = every.pick(travel, 1.0, min_steps as f64, usize::MAX, exact);
+            let filter = Filter::new(&s, limit, min_steps, &mut buf);
+            let mut lazy = Candidates::new(n, true);
+            let got = lazy.pick_filtering(
+                &mut |l, lo, pass| {
+                    if l >= min_steps {
+                        filtered += pass.len();
+                    }
+                    filter.starts(l, lo, pass)
+                },
+                travel,
+                1.0,
+                min_steps as f64,
+                usize::MAX,
+                exact,
+            );
+            assert_eq!(got, want, "{name}");
+            chosen += want.len();
+            all += n * (n - min_steps);
+        }
+        assert!(chosen > 100, "{chosen}");
+        assert!(filtered < all, "{filtered} of {all}");
+        eprintln!("{chosen} windows chosen; {filtered} of {all} windows filtered");
     }
 
     /// The filter never rejects a window the exact test accepts (the contract's

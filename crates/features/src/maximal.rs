@@ -15,7 +15,9 @@
 //! error of a window is not monotone in its length). The filter rejects most windows in
 //! O(1); the exact test runs on the rest, longest first, and skips windows that overlap
 //! a window already chosen. Cost: O(n²) filter evaluations plus O(w) per window tested
-//! exactly (measured in `docs/benchmarks.md`, "Features").
+//! exactly (measured in `docs/benchmarks.md`, "Features"). A filter may also be run as
+//! the choice reaches each length, on the windows it will read only
+//! ([`Candidates::pick_filtering`]: the pseudo-arcs' second pass).
 
 /// A chosen window: first and last sample (`end` may pass `n` on a periodic track) and
 /// its error (what ties are broken by).
@@ -81,6 +83,54 @@ impl Candidates {
     /// Returns the chosen windows by start.
     pub fn pick(
         &self,
+        travel: impl Fn(usize, usize) -> f64,
+        h_max: f64,
+        min_travel: f64,
+        max_picks: usize,
+        exact: impl FnMut(usize, usize) -> Option<f64>,
+    ) -> Vec<Window> {
+        self.choose(
+            Rows::Filled(&self.pass),
+            travel,
+            h_max,
+            min_travel,
+            max_picks,
+            exact,
+        )
+    }
+
+    /// [`Candidates::pick`] with each length's filter run as the greedy choice reaches
+    /// it, and only on the windows it then reads: `fill(l, lo, flags)` sets the flags of
+    /// the windows of `l` steps from starts `lo, lo + 1, …` (one call per run of starts
+    /// whose window shares no step with a window chosen so far). The windows it skips
+    /// are those the choice would skip unread, so the same windows are chosen as by
+    /// `pick` after the filter has set every window's flag.
+    pub fn pick_filtering(
+        &mut self,
+        fill: &mut dyn FnMut(usize, usize, &mut [bool]),
+        travel: impl Fn(usize, usize) -> f64,
+        h_max: f64,
+        min_travel: f64,
+        max_picks: usize,
+        exact: impl FnMut(usize, usize) -> Option<f64>,
+    ) -> Vec<Window> {
+        let mut pass = std::mem::take(&mut self.pass);
+        let picked = self.choose(
+            Rows::Lazy(&mut pass, fill),
+            travel,
+            h_max,
+            min_travel,
+            max_picks,
+            exact,
+        );
+        self.pass = pass;
+        picked
+    }
+
+    /// The greedy choice of [`Candidates::pick`], its rows of flags as `rows` gives them.
+    fn choose(
+        &self,
+        mut rows: Rows<'_>,
         travel: impl Fn(usize, usize) -> f64,
         h_max: f64,
         min_travel: f64,
@@ -155,7 +205,39 @@ impl Candidates {
             if picked.len() >= max_picks {
                 break;
             }
-            for i in set_bits(&self.pass[l * n..(l + 1) * n]) {
+            let row: &[bool] = match &mut rows {
+                Rows::Filled(pass) => &pass[l * n..(l + 1) * n],
+                Rows::Lazy(pass, fill) => {
+                    let row = &mut pass[l * n..(l + 1) * n];
+                    // The starts whose window may be read below: not past the track's
+                    // end, sharing no step with a chosen window (`overlaps`).
+                    let starts = if self.periodic {
+                        n
+                    } else {
+                        n.saturating_sub(l)
+                    };
+                    if count[count.len() - 1] == 0 {
+                        // (Nothing chosen yet: every start.)
+                        fill(l, 0, &mut row[..starts]);
+                    } else {
+                        let mut i = 0;
+                        while i < starts {
+                            while i < starts && overlaps(&count, i, i + l) {
+                                i += 1;
+                            }
+                            let lo = i;
+                            while i < starts && !overlaps(&count, i, i + l) {
+                                i += 1;
+                            }
+                            if lo < i {
+                                fill(l, lo, &mut row[lo..i]);
+                            }
+                        }
+                    }
+                    row
+                }
+            };
+            for i in set_bits(row) {
                 if l > self.max_steps(i) {
                     continue;
                 }
@@ -182,6 +264,13 @@ impl Candidates {
         picked.sort_by_key(|w| w.start);
         picked
     }
+}
+
+/// Where [`Candidates::choose`] reads each length's flags from: all set beforehand, or
+/// set as it reaches each length (every flag starts `false`), by `fill`.
+enum Rows<'a> {
+    Filled(&'a [bool]),
+    Lazy(&'a mut [bool], &'a mut dyn FnMut(usize, usize, &mut [bool])),
 }
 
 /// The positions of the `true` entries of `flags`, ascending. Read 64 flags at a time
