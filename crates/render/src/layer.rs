@@ -157,22 +157,26 @@ impl GrayLayer {
                 &mut tile.cov[r * TILE..][..TILE][lo..hi],
                 &mut row[x..][lo..hi],
             );
-            #[cfg(target_arch = "x86_64")]
-            if X16 {
+            let s = &mut tile.span[r];
+            if hi <= usize::from(s.0) || usize::from(s.1) <= lo {
+                // Pixels beside the tile row's span (or a row without one) hold no
+                // coverage: merged over 0, the coverage is itself.
+                take(l, c);
+            } else if X16 {
                 // SAFETY: `merge_x16` needs AVX2; `X16` is true only in the scan
                 // converter's twins compiled for AVX2, BMI1 and BMI2, which run only
                 // where the processor was found to have them (`Capsules::stroke`,
                 // `Capsules::ring`).
+                #[cfg(target_arch = "x86_64")]
                 #[allow(unsafe_code)]
                 unsafe {
                     merge_x16(l, c)
                 };
+                #[cfg(not(target_arch = "x86_64"))]
+                merge(l, c);
             } else {
                 merge(l, c);
             }
-            #[cfg(not(target_arch = "x86_64"))]
-            merge(l, c);
-            let s = &mut tile.span[r];
             *s = (s.0.min(lo as u8), s.1.max(hi as u8));
             tile.rows |= 1 << r;
         }
@@ -392,6 +396,32 @@ fn merge_x16(l: &mut [u8], c: &mut [u8]) {
         *c16 = [0; 16];
     }
     merge(&mut l[lanes..n], &mut c[lanes..n]);
+}
+
+/// [`merge`] over a layer that holds no coverage there (`l` all 0): `l ← c`, as
+/// `0 + ((255 − 0)·c + 127) / 255` is `c` for every `c` (`255·c + 127 < 255·(c + 1)`),
+/// sixteen pixels at a time; and clears `c`.
+#[inline(always)]
+fn take(l: &mut [u8], c: &mut [u8]) {
+    let n = l.len().min(c.len());
+    let (l, c) = (&mut l[..n], &mut c[..n]);
+    let mut ls = l.chunks_exact_mut(16);
+    let mut cs = c.chunks_exact_mut(16);
+    for (l16, c16) in (&mut ls).zip(&mut cs) {
+        let c16: &mut [u8; 16] = c16.try_into().expect("16 pixels");
+        l16.copy_from_slice(c16);
+        *c16 = [0; 16];
+    }
+    let (l, c) = (ls.into_remainder(), cs.into_remainder());
+    let eight = l.len() - l.len() % 8;
+    if eight == 8 {
+        let c8: &mut [u8; 8] = (&mut c[..8]).try_into().expect("8 pixels");
+        l[..8].copy_from_slice(c8);
+        *c8 = [0; 8];
+    }
+    for (l, c) in l[eight..].iter_mut().zip(&mut c[eight..]) {
+        *l = std::mem::take(c);
+    }
 }
 
 /// `l ← l + ((255 − l)·c + 127) / 255` over `l` with `c` (the layer's "source over"),
@@ -619,6 +649,22 @@ mod tests {
                 reference.flush(&mut want, 0);
                 assert!(page == want, "{w} round {round}");
             }
+        }
+    }
+
+    /// [`take`] is [`merge`] over a layer of 0: every coverage (a span of all 256),
+    /// spans of every length 0–40 (the ways of sixteen, eight and one pixel).
+    #[test]
+    fn taken_coverage_is_merged_over_nothing() {
+        for n in (0..=40).chain([256]) {
+            let cov: Vec<u8> = (0..n).map(|i| (i * 97 + n) as u8).collect();
+            let (mut want, mut want_cov) = (vec![0u8; n], cov.clone());
+            merge(&mut want, &mut want_cov);
+            let (mut got, mut got_cov) = (vec![0u8; n], cov.clone());
+            take(&mut got, &mut got_cov);
+            assert_eq!(got, want, "{n} pixels");
+            assert_eq!(got, cov, "{n} pixels");
+            assert!(got_cov.iter().all(|&c| c == 0), "{n} pixels cleared");
         }
     }
 
