@@ -878,14 +878,25 @@ fn untimed_eval<'a>(
     move |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let last = l.len() - 1;
-        untimed_residuals(p, mir, a, b, ask, e, |k| {
-            // A whole group's angles as they lie; the last group's repeat its last.
-            let degrees = match l.get(k..k + POINT_LANES) {
-                Some(d) => d.try_into().expect("a whole group"),
-                None => std::array::from_fn(|i| l[(k + i).min(last)]),
-            };
-            lanes.at(&degrees)
-        })
+        untimed_residuals(
+            p,
+            mir,
+            a,
+            b,
+            ask,
+            e,
+            #[inline(always)]
+            |k| {
+                // A whole group's angles as they lie; the last group's repeat its last.
+                // The lanes inlined here (with the closure), so compiled with the
+                // iterations for AVX2.
+                let degrees = match l.get(k..k + POINT_LANES) {
+                    Some(d) => d.try_into().expect("a whole group"),
+                    None => std::array::from_fn(|i| l[(k + i).min(last)]),
+                };
+                lanes.at_inlined(&degrees)
+            },
+        )
     }
 }
 
