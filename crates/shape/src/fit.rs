@@ -297,11 +297,34 @@ fn scan_open_body(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> 
     let window = {
         #[inline(always)]
         |s0: f64, off: &[f64; M], w: &mut [C64; M]| -> bool {
-            for (z, &o) in w.iter_mut().zip(off) {
-                let s = frac(s0 + o) * BIG as f64;
+            // A point's sample and fraction from its position `s`.
+            let split = |s: f64| -> (usize, f64) {
                 let kf = s.max(0.0).min((BIG - 1) as f64).trunc() + 0.0;
-                let k = ((kf + WHOLE).to_bits() & (BIG as u64 - 1)) as usize;
-                let u = s - kf;
+                (((kf + WHOLE).to_bits() & (BIG as u64 - 1)) as usize, s - kf)
+            };
+            // The samples and fractions first, a pass of their own (in vectors): where
+            // every `x = s0 + o` lies in (−1, 2), [`frac`]'s cases as selects, its values;
+            // else [`frac`] itself.
+            let (mut ks, mut us) = ([0usize; M], [0.0f64; M]);
+            let mut inside = true;
+            for ((k, u), &o) in ks.iter_mut().zip(us.iter_mut()).zip(off) {
+                let x = s0 + o;
+                inside &= (x > -1.0) & (x < 2.0);
+                let r = if x >= 1.0 {
+                    x - 1.0
+                } else if x < 0.0 {
+                    x + 1.0
+                } else {
+                    x
+                };
+                (*k, *u) = split(r * BIG as f64);
+            }
+            if !inside {
+                for ((k, u), &o) in ks.iter_mut().zip(us.iter_mut()).zip(off) {
+                    (*k, *u) = split(frac(s0 + o) * BIG as f64);
+                }
+            }
+            for ((z, &k), &u) in w.iter_mut().zip(&ks).zip(&us) {
                 let (a, b) = (ring[k], ring[k + 1]);
                 *z = a + (b - a) * u;
             }
