@@ -234,8 +234,39 @@ fn best_shifts<const L: usize>(cc: &[C64], vs: [&[C64]; L]) -> [(f64, usize); L]
 /// whole loop, centres every `f/3` ([`OPEN_CENTRES`]). Along each length's centres, every local minimum of
 /// the misfit is refined by a parabola through it and its neighbours; the best distinct
 /// ones (per reflection and direction) are polished by a pattern search on `(c, ln f)`.
+///
+/// **Compiled for AVX2 where the processor has it** (checked at run time), as the
+/// curve's point lanes are: the same operations in the same order (never fused), so the
+/// same starts bit for bit.
 pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
-    const M: usize = 24;
+    #[cfg(target_arch = "x86_64")]
+    if crate::has_avx2() {
+        // SAFETY: `scan_open_avx2` needs AVX2, which the processor was just found to have;
+        // it has no other requirement (the safe body compiled for AVX2).
+        #[allow(unsafe_code)]
+        return unsafe { scan_open_avx2(p, traced, allow_mirror) };
+    }
+    scan_open_body(p, traced, allow_mirror)
+}
+
+/// [`scan_open_body`] compiled for AVX2 (called only where the processor has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn scan_open_avx2(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
+    scan_open_body(p, traced, allow_mirror)
+}
+
+/// Points of the open scan's windows and of its resampled target.
+const OPEN_SCAN_POINTS: usize = 24;
+
+/// A target variant's points as the two lane pairs of the open scan's misfit (see
+/// [`scan_open_body`]).
+type ScanLanes = ([[f64; 2]; OPEN_SCAN_POINTS], [[f64; 2]; OPEN_SCAN_POINTS]);
+
+/// [`scan_open`] itself, inlined into each of its two paths (its closures with it).
+#[inline(always)]
+fn scan_open_body(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<Start> {
+    const M: usize = OPEN_SCAN_POINTS;
     const POLISHED: usize = 10;
     const BIG: usize = 512;
     let Some(t) = super::geom::resample(p, false, M) else {
@@ -251,28 +282,61 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     ring[BIG] = ring[0];
     // A window's point offsets from its first point, `f·j/(M − 1)` (the same product and
     // quotient as in the window's sum), made once per length.
-    let offsets = |f: f64| -> [f64; M] { std::array::from_fn(|j| f * j as f64 / (M - 1) as f64) };
+    let offsets = {
+        #[inline(always)]
+        |f: f64| -> [f64; M] { std::array::from_fn(|j| f * j as f64 / (M - 1) as f64) }
+    };
     // The window of first point `s0 = c − f/2` (centre `c`, length `f`, its offsets `off`),
     // centred and scaled to unit norm ([`unit`]'s values, bit for bit) into `w`; `false` if
     // it is a single point. A point's position `s ∈ [0, 512]` (or NaN) splits into its
     // sample `k = ⌊s⌋` (at most 511; 0 for NaN: what the unsigned cast gave) and fraction.
-    let window = |s0: f64, off: &[f64; M], w: &mut [C64; M]| -> bool {
-        for (z, &o) in w.iter_mut().zip(off) {
-            let s = frac(s0 + o) * BIG as f64;
-            let k = (s as i32).clamp(0, BIG as i32 - 1);
-            let u = s - f64::from(k);
-            let k = k as usize;
-            let (a, b) = (ring[k], ring[k + 1]);
-            *z = a + (b - a) * u;
+    // (`k` as the saturating cast `s as i32` clamped to `0..=511` gave, without the cast:
+    // `max` takes 0 for NaN; `+ 0.0` makes a `−0` the cast's `+0`; the whole number
+    // `kf < 2⁵²` is the low bits of `kf + 2⁵²`, and the mask tells the compiler `k ≤ 511`.)
+    const WHOLE: f64 = 4_503_599_627_370_496.0;
+    let window = {
+        #[inline(always)]
+        |s0: f64, off: &[f64; M], w: &mut [C64; M]| -> bool {
+            // A point's sample and fraction from its position `s`.
+            let split = |s: f64| -> (usize, f64) {
+                let kf = s.max(0.0).min((BIG - 1) as f64).trunc() + 0.0;
+                (((kf + WHOLE).to_bits() & (BIG as u64 - 1)) as usize, s - kf)
+            };
+            // The samples and fractions first, a pass of their own (in vectors): where
+            // every `x = s0 + o` lies in (−1, 2), [`frac`]'s cases as selects, its values;
+            // else [`frac`] itself.
+            let (mut ks, mut us) = ([0usize; M], [0.0f64; M]);
+            let mut inside = true;
+            for ((k, u), &o) in ks.iter_mut().zip(us.iter_mut()).zip(off) {
+                let x = s0 + o;
+                inside &= (x > -1.0) & (x < 2.0);
+                let r = if x >= 1.0 {
+                    x - 1.0
+                } else if x < 0.0 {
+                    x + 1.0
+                } else {
+                    x
+                };
+                (*k, *u) = split(r * BIG as f64);
+            }
+            if !inside {
+                for ((k, u), &o) in ks.iter_mut().zip(us.iter_mut()).zip(off) {
+                    (*k, *u) = split(frac(s0 + o) * BIG as f64);
+                }
+            }
+            for ((z, &k), &u) in w.iter_mut().zip(&ks).zip(&us) {
+                let (a, b) = (ring[k], ring[k + 1]);
+                *z = a + (b - a) * u;
+            }
+            unit_in_place(w)
         }
-        unit_in_place(w)
     };
     let vars = target_variants(&t, allow_mirror, false);
     // Each variant's points (`M` of them) as the two lane pairs of `conj(w)·v =
     // w.re·[v.re, v.im] + w.im·[v.im, −v.re]`: the complex product's own products and sums
     // (`(−w.im)·v.im` and `w.im·(−v.re)` are exact negations of `w.im·v.im` and
     // `w.im·v.re`), so the misfit is the same, bit for bit, in two lanes side by side.
-    type Lanes = ([[f64; 2]; M], [[f64; 2]; M]);
+    type Lanes = ScanLanes;
     let lanes: Vec<Lanes> = vars
         .iter()
         .map(|(_, _, v)| {
@@ -283,25 +347,38 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
         })
         .collect();
     // `1 − |Σ conj(w_j)·v_j|²`, summed in order.
-    let score = |w: &[C64; M], v: &Lanes| -> f64 {
-        let mut s = [0.0f64; 2];
-        for ((a, b), c) in w.iter().zip(&v.0).zip(&v.1) {
-            s[0] += a.re * b[0] + a.im * c[0];
-            s[1] += a.re * b[1] + a.im * c[1];
+    let score = {
+        #[inline(always)]
+        |w: &[C64; M], v: &Lanes| -> f64 {
+            let mut s = [0.0f64; 2];
+            for ((a, b), c) in w.iter().zip(&v.0).zip(&v.1) {
+                s[0] += a.re * b[0] + a.im * c[0];
+                s[1] += a.re * b[1] + a.im * c[1];
+            }
+            1.0 - (s[0] * s[0] + s[1] * s[1])
         }
-        1.0 - (s[0] * s[0] + s[1] * s[1])
     };
-    let score_at = |c: f64, f: f64, v: &Lanes| -> Option<f64> {
-        let mut w = [C64::new(0.0, 0.0); M];
-        window(c - 0.5 * f, &offsets(f), &mut w).then(|| score(&w, v))
+    let score_at = {
+        #[inline(always)]
+        |c: f64, f: f64, v: &Lanes| -> Option<f64> {
+            let mut w = [C64::new(0.0, 0.0); M];
+            window(c - 0.5 * f, &offsets(f), &mut w).then(|| score(&w, v))
+        }
     };
     // Refined local minima along the centres of each length: (misfit, variant, c, f).
     let mut minima: Vec<(f64, usize, f64, f64)> = Vec::new();
-    // One length's windows (`None`: a single point), made in place, and one variant's
+    // One length's windows (`None`: a single point), made in place, and each variant's
     // misfits along them.
     let mut wins: Vec<[C64; M]> = Vec::new();
     let mut whole: Vec<bool> = Vec::new();
-    let mut m: Vec<f64> = Vec::new();
+    let mut ms: Vec<Vec<f64>> = vec![Vec::new(); lanes.len()];
+    // The variants' lanes side by side (two or four variants: four or eight lanes), so
+    // that one pass over a window sums every variant's misfit, each in its own lanes.
+    let (side2, side4) = match lanes.len() {
+        2 => (Some(side_by_side::<4>(&lanes)), None),
+        4 => (None, Some(side_by_side::<8>(&lanes))),
+        _ => (None, None),
+    };
     let mut f: f64 = 0.02;
     while f <= 1.0 + 1e-9 {
         let count = ((OPEN_CENTRES / f).ceil() as usize).clamp(
@@ -311,19 +388,27 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
         let h = 1.0 / count as f64;
         let off = offsets(f);
         wins.resize(count, [C64::new(0.0, 0.0); M]);
+        // (A plain loop: an adapter's closure would be compiled apart, without AVX2.)
         whole.clear();
-        whole.extend(
-            wins.iter_mut()
-                .enumerate()
-                .map(|(i, w)| window(i as f64 * h - 0.5 * f, &off, w)),
-        );
-        for (vi, v) in lanes.iter().enumerate() {
-            m.clear();
-            m.extend(wins.iter().zip(&whole).map(
-                |(w, &ok)| {
-                    if ok { score(w, v) } else { f64::INFINITY }
-                },
-            ));
+        for (i, w) in wins.iter_mut().enumerate() {
+            whole.push(window(i as f64 * h - 0.5 * f, &off, w));
+        }
+        if let Some(side) = &side2 {
+            side_misfits(&wins, &whole, side, &mut ms);
+        } else if let Some(side) = &side4 {
+            side_misfits(&wins, &whole, side, &mut ms);
+        } else {
+            for (m, v) in ms.iter_mut().zip(&lanes) {
+                m.clear();
+                m.extend(wins.iter().zip(&whole).map(
+                    #[inline(always)]
+                    |(w, &ok)| {
+                        if ok { score(w, v) } else { f64::INFINITY }
+                    },
+                ));
+            }
+        }
+        for (vi, (v, m)) in lanes.iter().zip(&ms).enumerate() {
             for i in 0..count {
                 let (l, r) = (m[(i + count - 1) % count], m[(i + 1) % count]);
                 if !(m[i] <= l && m[i] < r && m[i].is_finite()) {
@@ -395,16 +480,19 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
                 }
                 let key = (c1.to_bits(), f1.to_bits());
                 let tried = recent.iter().find(|r| (r.0, r.1) == key).map(|r| r.2);
-                let got = tried.unwrap_or_else(|| {
-                    if kept.0 != key.1 {
-                        kept = (key.1, offsets(f1));
-                    }
-                    let mut w = [C64::new(0.0, 0.0); M];
-                    let m1 = window(c1 - 0.5 * f1, &kept.1, &mut w).then(|| score(&w, v));
-                    recent[next] = (key.0, key.1, m1);
-                    next = (next + 1) % RECENT;
-                    m1
-                });
+                let got = tried.unwrap_or_else(
+                    #[inline(always)]
+                    || {
+                        if kept.0 != key.1 {
+                            kept = (key.1, offsets(f1));
+                        }
+                        let mut w = [C64::new(0.0, 0.0); M];
+                        let m1 = window(c1 - 0.5 * f1, &kept.1, &mut w).then(|| score(&w, v));
+                        recent[next] = (key.0, key.1, m1);
+                        next = (next + 1) % RECENT;
+                        m1
+                    },
+                );
                 if let Some(m1) = got {
                     if m1 < m {
                         (m, c, f) = (m1, c1, f1);
@@ -438,6 +526,51 @@ pub(crate) fn scan_open(p: &[C64], traced: &Traced, allow_mirror: bool) -> Vec<S
     out
 }
 
+/// The open scan's variants' lanes side by side: point `j`'s `(b, c)` with variant
+/// `v`'s pair of [`ScanLanes`] at lanes `2v` and `2v + 1` (`W/2` variants).
+fn side_by_side<const W: usize>(lanes: &[ScanLanes]) -> [([f64; W], [f64; W]); OPEN_SCAN_POINTS] {
+    std::array::from_fn(|j| {
+        (
+            std::array::from_fn(|k| lanes[k / 2].0[j][k % 2]),
+            std::array::from_fn(|k| lanes[k / 2].1[j][k % 2]),
+        )
+    })
+}
+
+/// Each variant's misfit `1 − |Σ conj(w_j)·v_j|²` along one length's windows into `ms`
+/// (`+∞` where the window is a single point), the `W/2` variants' sums side by side
+/// ([`side_by_side`]): each lane's products and sums are those of the scan's
+/// one-variant `score`, in the same order, so the same values bit for bit.
+#[inline(always)]
+fn side_misfits<const W: usize>(
+    wins: &[[C64; OPEN_SCAN_POINTS]],
+    whole: &[bool],
+    side: &[([f64; W], [f64; W]); OPEN_SCAN_POINTS],
+    ms: &mut [Vec<f64>],
+) {
+    for m in ms.iter_mut() {
+        m.clear();
+    }
+    for (w, &ok) in wins.iter().zip(whole) {
+        if !ok {
+            for m in ms.iter_mut() {
+                m.push(f64::INFINITY);
+            }
+            continue;
+        }
+        let mut s = [0.0f64; W];
+        for (a, (b, c)) in w.iter().zip(side) {
+            for k in 0..W {
+                s[k] += a.re * b[k] + a.im * c[k];
+            }
+        }
+        for (v, m) in ms.iter_mut().enumerate() {
+            let (x, y) = (s[2 * v], s[2 * v + 1]);
+            m.push(1.0 - (x * x + y * y));
+        }
+    }
+}
+
 /// `x.rem_euclid(1.0)` without the floating-point remainder's call for `x` in
 /// `(−1, 2)`, where the open scan's window positions lie: there the remainder is `x`,
 /// `x − 1` (exact, Sterbenz's lemma, as the remainder is) or `x + 1` (the sum
@@ -458,7 +591,7 @@ fn frac(x: f64) -> f64 {
 /// [`unit`] in place, on a fixed number of points: the same operations in the same order
 /// (the mean summed in order, then the centred norm), so the same bits; `false` (and `w`
 /// left centred) if it is a single point.
-#[inline]
+#[inline(always)]
 fn unit_in_place<const N: usize>(w: &mut [C64; N]) -> bool {
     let m = mean(w);
     let mut n2 = 0.0;
@@ -768,14 +901,25 @@ fn untimed_eval<'a>(
     move |g: &[f64], l: &[f64], ask: Ask, e: &mut Eval| -> Option<()> {
         let (a, b) = (C64::new(g[0], g[1]), C64::new(g[2], g[3]));
         let last = l.len() - 1;
-        untimed_residuals(p, mir, a, b, ask, e, |k| {
-            // A whole group's angles as they lie; the last group's repeat its last.
-            let degrees = match l.get(k..k + POINT_LANES) {
-                Some(d) => d.try_into().expect("a whole group"),
-                None => std::array::from_fn(|i| l[(k + i).min(last)]),
-            };
-            lanes.at(&degrees)
-        })
+        untimed_residuals(
+            p,
+            mir,
+            a,
+            b,
+            ask,
+            e,
+            #[inline(always)]
+            |k| {
+                // A whole group's angles as they lie; the last group's repeat its last.
+                // The lanes inlined here (with the closure), so compiled with the
+                // iterations for AVX2.
+                let degrees = match l.get(k..k + POINT_LANES) {
+                    Some(d) => d.try_into().expect("a whole group"),
+                    None => std::array::from_fn(|i| l[(k + i).min(last)]),
+                };
+                lanes.at_inlined(&degrees)
+            },
+        )
     }
 }
 
@@ -1491,6 +1635,48 @@ mod tests {
         }
         // Not vacuous: the fits exist.
         assert!(fits >= 30, "{fits}");
+    }
+
+    /// The open window scan on the processor's fastest path ([`scan_open`]: compiled for
+    /// AVX2 where it has it) gives the baseline body's starts, bit for bit: three curves,
+    /// open targets with and without reflection (two and four variants side by side).
+    #[test]
+    fn scan_open_is_the_same_on_every_path() {
+        let mut rng = crate::cases::SplitMix64(83);
+        let bits = |v: &[Start]| -> Vec<(bool, u64, Vec<u64>)> {
+            v.iter()
+                .map(|s| {
+                    let theta = s.theta.iter().map(|t| t.to_bits()).collect();
+                    (s.mirrored, s.score.to_bits(), theta)
+                })
+                .collect()
+        };
+        let mut starts = 0;
+        for c in &three_curves() {
+            let traced = Traced::new(c, 720).unwrap();
+            for (span, mirrored, noise) in [
+                (60.0, false, 0.0),
+                (200.0, true, 0.02),
+                (350.0, false, 0.01),
+            ] {
+                let t =
+                    crate::cases::make_target(&mut rng, c, false, 30.0, span, 48, mirrored, noise)
+                        .unwrap();
+                let p = t.complex_points();
+                for allow_mirror in [false, true] {
+                    let fast = scan_open(&p, &traced, allow_mirror);
+                    let base = scan_open_body(&p, &traced, allow_mirror);
+                    assert_eq!(
+                        bits(&fast),
+                        bits(&base),
+                        "span {span}, mirror {allow_mirror}"
+                    );
+                    starts += fast.len();
+                }
+            }
+        }
+        // Not vacuous: the scans found starts.
+        assert!(starts >= 18, "{starts}");
     }
 
     /// `best_shifts` in split form gives the shifts and values of the sums of `C64`

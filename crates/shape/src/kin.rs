@@ -67,8 +67,25 @@ impl CurveLanes {
     }
 }
 
+impl CurveLanes {
+    /// [`CurveLanes::at`] with a four-bar's lanes inlined into the caller, the same values
+    /// bit for bit: for a caller compiled for AVX2 itself (Levenberg–Marquardt's
+    /// iterations, `lm::iterate`), where the call per group and its result's copy go (on
+    /// the baseline path the lanes are compiled for the baseline, as [`CurveLanes::at`]'s
+    /// are there).
+    #[inline(always)]
+    pub fn at_inlined(&self, degrees: &[f64; POINT_LANES]) -> [Option<PointAt>; POINT_LANES] {
+        match self {
+            CurveLanes::FourBar(k) => point_lanes_body(k, degrees),
+            CurveLanes::Other(curve, gaps) => degrees.map(|d| curve.at_with(gaps, d)),
+        }
+    }
+}
+
 /// A four-bar's lanes as [`PointAt`]s: `None` also where a value is not finite. A
-/// function of its own: the lanes vectorize well alone, and worse inlined into a fit.
+/// function of its own: the lanes vectorize well alone, and worse inlined into a fit
+/// compiled for the baseline (the untimed fit's iterations, compiled for AVX2 themselves,
+/// inline them instead: [`CurveLanes::at_inlined`]).
 ///
 /// **Four lanes in one vector where the processor has them**: on x86-64 with AVX2
 /// (checked at run time) the same code compiled for AVX2 runs instead (the four lanes in
