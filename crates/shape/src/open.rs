@@ -209,6 +209,8 @@ struct Kernel {
 struct KernelCell {
     factors: [f64; 16],
     d: usize,
+    /// `6·d`: the cell's grid values as an offset in `f64` ([`Kernel::flat_sums_avx2`]).
+    off: usize,
 }
 
 impl Kernel {
@@ -242,6 +244,7 @@ impl Kernel {
                 KernelCell {
                     factors: [w, w, w, w, a, a, a, a, b, b, b, b, w, w, 0.0, 0.0],
                     d,
+                    off: 6 * d,
                 }
             })
             .collect();
@@ -286,16 +289,30 @@ impl Kernel {
             _mm256_setzero_pd(),
         );
         let mut l3 = _mm_setzero_pd();
-        for c in kernel {
-            let g = &grid[c.d];
+        // The cells are in increasing `d` (made so by `Kernel::new`): every cell's six
+        // grid values lie inside `grid` when the last one's do. Checked once here, so
+        // that the loop reads by offset without a bounds test.
+        let Some(last) = kernel.last() else {
+            return Kernel::lanes_to_pairs([[0.0; 4]; 4]);
+        };
+        assert!(last.d < grid.len() && last.off == 6 * last.d);
+        debug_assert!(
+            kernel.iter().all(|c| c.off == 6 * c.d) && kernel.windows(2).all(|p| p[0].d < p[1].d)
+        );
+        let g0: *const f64 = grid.as_ptr().cast();
+        // One cell's four multiply-adds, lane by lane (a multiply, then an add).
+        let mut cell = |c: &KernelCell| {
             let f = &c.factors;
-            // SAFETY: `g` is six `f64` in a row (`Pa`, `e`, `conj(Pa)·e`), of which the
-            // first four and the last two are read; `f` is sixteen, all read.
+            // SAFETY: `c.off = 6·c.d <= last.off` with `last.d < grid.len()` (the cells
+            // are made sorted with `off = 6·d` by `Kernel::new`; the last checked above), so `g0 + c.off` starts the six `f64` of
+            // `grid[c.d]` (`Pa`, `e`, `conj(Pa)·e`), of which the first four and the last
+            // two are read; `f` is sixteen, all read.
             #[allow(unsafe_code)]
             let (pe, x, f0, f1, f2, f3) = unsafe {
+                let g = g0.add(c.off);
                 (
-                    _mm256_loadu_pd(g.as_ptr().cast()),
-                    _mm_loadu_pd(g[2].as_ptr()),
+                    _mm256_loadu_pd(g),
+                    _mm_loadu_pd(g.add(4)),
                     _mm256_loadu_pd(f.as_ptr()),
                     _mm256_loadu_pd(f[4..].as_ptr()),
                     _mm256_loadu_pd(f[8..].as_ptr()),
@@ -306,6 +323,15 @@ impl Kernel {
             l1 = _mm256_add_pd(l1, _mm256_mul_pd(f1, pe));
             l2 = _mm256_add_pd(l2, _mm256_mul_pd(f2, pe));
             l3 = _mm_add_pd(l3, _mm_mul_pd(f3, x));
+        };
+        // Two cells a round (the same cells in the same order).
+        let mut pairs = kernel.chunks_exact(2);
+        for p in &mut pairs {
+            cell(&p[0]);
+            cell(&p[1]);
+        }
+        for c in pairs.remainder() {
+            cell(c);
         }
         let mut l = [[0.0f64; 4]; 4];
         // SAFETY: each store writes four (the last two) `f64` into its own array.
@@ -417,8 +443,43 @@ fn cell(deg: f64, period: usize) -> (usize, f64) {
 /// [`cell`] with the whole degrees by `floor` (one instruction where SSE4.1 is there, as
 /// on the AVX2 path; a call on the baseline instruction set): the same cell and fraction,
 /// as `floor` is the whole part `cell` finds.
+///
+/// On x86-64 the whole degrees are converted by the processor's truncating conversion,
+/// which gives `i64::MIN` for NaN and for values out of range: the wrap by one period
+/// then leaves the cell out of `0..period` and the general form ([`cell`]) is taken, so
+/// the common case costs no test for NaN or size and no saturation.
 #[inline(always)]
 fn cell_floor(deg: f64, period: usize) -> (usize, f64) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_cvttsd_si64, _mm_set_sd};
+        let whole = deg.floor();
+        // SAFETY: SSE2, which these two need, is part of every x86-64 processor.
+        #[allow(unsafe_code)]
+        let w = unsafe { _mm_cvttsd_si64(_mm_set_sd(whole)) };
+        let p = period as i64;
+        // `w` within a period of `0..p`: the same cell as `rem_euclid` (and as the
+        // general form below), chosen by conditional moves.
+        let k = if w < 0 {
+            w.wrapping_add(p)
+        } else if w >= p {
+            w - p
+        } else {
+            w
+        };
+        if (k as u64) < period as u64 {
+            return (k as usize, deg - whole);
+        }
+        cell(deg, period)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    cell_floor_general(deg, period)
+}
+
+/// [`cell_floor`] in its general form (any finite value, and NaN).
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline(always)]
+fn cell_floor_general(deg: f64, period: usize) -> (usize, f64) {
     if deg.is_nan() || deg.abs() >= 1e15 {
         return cell(deg, period);
     }
@@ -2584,6 +2645,32 @@ mod tests {
             assert_eq!(cell_floor(p, period), (0, 0.0));
             assert_eq!(cell(-1e-12, period).0, period - 1);
             assert_eq!(cell_floor(-1e-12, period).0, period - 1);
+            // Far values, where the conversion saturates or the wrap by one period does
+            // not reach: the general form's answer.
+            for deg in [
+                1e14 + 0.25,
+                -1e14 - 0.75,
+                1e15,
+                -3e15,
+                9.3e18,
+                -9.3e18,
+                1e300,
+                -1e300,
+                -9.223372036854775808e18,
+            ] {
+                let (k, t) = cell_floor(deg, period);
+                assert_eq!((k, t.to_bits()), {
+                    let (k, t) = cell_floor_general(deg, period);
+                    (k, t.to_bits())
+                });
+                assert_eq!((k, t.to_bits()), {
+                    let (k, t) = cell(deg, period);
+                    (k, t.to_bits())
+                });
+            }
+            let (k, t) = cell_floor(f64::NAN, period);
+            assert_eq!(k, cell(f64::NAN, period).0);
+            assert!(t.is_nan());
         }
     }
 }
