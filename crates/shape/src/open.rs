@@ -55,6 +55,10 @@ const PROJECTION_KEEP: usize = 2;
 /// interpolant's slopes, computed once per linkage instead of at every lookup).
 struct Table {
     cells: Vec<TableCell>,
+    /// Empty, or `cells` three times over (`ring[i] = cells[i % n]`,
+    /// [`Table::with_ring`]): the cell of whole degree `w` in `−n..2n` is `ring[w + n]`,
+    /// found without a remainder or a wrap ([`Table::flat_at_with`] on the AVX2 path).
+    ring: Vec<TableCell>,
     /// The period, degrees of input.
     period: f64,
 }
@@ -96,8 +100,26 @@ impl Table {
                 e: e(k),
                 de: e(k + 1) - e(k),
             })
-            .collect();
-        Some(Table { cells, period })
+            .collect::<Vec<_>>();
+        Some(Table {
+            cells,
+            ring: Vec::new(),
+            period,
+        })
+    }
+
+    /// Lays out [`Table::ring`] (stage 1's projection reads it; a table without it
+    /// finds every cell by [`cell_floor`], the same cells).
+    fn with_ring(mut self) -> Table {
+        let n = self.cells.len();
+        let mut ring = Vec::with_capacity(3 * n);
+        for _ in 0..3 {
+            for c in &self.cells {
+                ring.push(*c);
+            }
+        }
+        self.ring = ring;
+        self
     }
 
     /// `(Pa, e)` at `deg` by linear interpolation.
@@ -115,12 +137,12 @@ impl Table {
     /// AVX2 path), else by [`cell`]: the same cell and fraction.
     #[inline(always)]
     fn flat_at_with<const FLOOR: bool>(&self, deg: f64) -> Flat {
-        let (k, t) = if FLOOR {
-            cell_floor(deg, self.cells.len())
+        let (c, t) = if FLOOR {
+            self.ring_at(deg)
         } else {
-            cell(deg, self.cells.len())
+            let (k, t) = cell(deg, self.cells.len());
+            (&self.cells[k], t)
         };
-        let c = &self.cells[k];
         [
             c.pa.re + c.dpa.re * t,
             c.pa.im + c.dpa.im * t,
@@ -131,6 +153,32 @@ impl Table {
             c.de.re,
             c.de.im,
         ]
+    }
+}
+
+impl Table {
+    /// The cell of `deg` and the fraction into it, as [`cell_floor`] finds them (the same
+    /// cell's values, the same fraction): on x86-64 the whole degrees `w` by one
+    /// truncating conversion (`i64::MIN` for NaN and values out of range) and the cell
+    /// `ring[w + n]` when that is inside the ring (`w` in `−n..2n`, where the scan's and
+    /// the projection's angles lie), else by [`cell_floor`].
+    #[inline(always)]
+    fn ring_at(&self, deg: f64) -> (&TableCell, f64) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_cvttsd_si64, _mm_set_sd};
+            let whole = deg.floor();
+            // SAFETY: SSE2, which these two need, is part of every x86-64 processor.
+            #[allow(unsafe_code)]
+            let w = unsafe { _mm_cvttsd_si64(_mm_set_sd(whole)) };
+            // `w + n` below zero wraps to far above the ring's length.
+            let i = w.wrapping_add(self.cells.len() as i64) as usize;
+            if let Some(c) = self.ring.get(i) {
+                return (c, deg - whole);
+            }
+        }
+        let (k, t) = cell_floor(deg, self.cells.len());
+        (&self.cells[k], t)
     }
 }
 
@@ -703,10 +751,7 @@ fn sieve_with<const R0: bool, const R1: bool, const AVX2: bool>(
     let [[a0, b0], [a1, b1]] = sums.r;
     let factors: SieveFactors = (
         [g11, g12.re, g12.im, g22],
-        [
-            [a0.re, a0.im, b0.re, b0.im],
-            [a1.re, a1.im, b1.re, b1.im],
-        ],
+        [[a0.re, a0.im, b0.re, b0.im], [a1.re, a1.im, b1.re, b1.im]],
     );
     for (b, o) in open.iter_mut().enumerate() {
         let (lo, hi) = (64 * b, (64 * b + 64).min(n));
@@ -1996,6 +2041,7 @@ impl Scanner {
         let Some(table) = self.cranks.table(&c.linkage, c.circuit) else {
             return;
         };
+        let table = table.with_ring();
         let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
         if self
             .passes
@@ -2385,7 +2431,7 @@ fn even_starts(period: f64, h: f64) -> (usize, f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::{C64, Sums, cell, cell_floor, cell_floor_general};
+    use super::{C64, Sums, TableCell, cell, cell_floor, cell_floor_general};
     use crate::cases::SplitMix64;
 
     /// The scan skips a point's misfit only when it is surely above the bound: wherever
@@ -2700,6 +2746,59 @@ mod tests {
             assert!(t.is_nan());
         }
     }
+
+    /// [`Table::ring_at`] gives the cell and fraction [`cell_floor`] finds, near the
+    /// ring's ends and far from them.
+    #[test]
+    fn ring_at_is_cell_floor() {
+        for period in [360usize, 720] {
+            let cells: Vec<TableCell> = (0..period)
+                .map(|k| {
+                    let x = k as f64;
+                    TableCell {
+                        pa: C64::new(x, -x),
+                        e: C64::new(x + 0.5, 1.0),
+                        dpa: C64::new(2.0 * x, 3.0),
+                        de: C64::new(-x, 0.25),
+                    }
+                })
+                .collect();
+            let table = super::Table {
+                cells,
+                ring: Vec::new(),
+                period: period as f64,
+            }
+            .with_ring();
+            assert_eq!(table.ring.len(), 3 * period);
+            let p = period as f64;
+            let mut degs = vec![
+                -0.0,
+                1e-300,
+                -1e-12,
+                p,
+                -p,
+                2.0 * p,
+                -p - 1e-9,
+                2.0 * p - 1e-9,
+            ];
+            degs.extend([1e15, -1e15, 1e300, -1e300, 9.3e18, -9.3e18]);
+            let mut deg = -3.5 * p;
+            while deg < 4.5 * p {
+                degs.push(deg);
+                deg += 0.37;
+            }
+            for deg in degs {
+                let (c, t) = table.ring_at(deg);
+                let (k, want) = cell_floor(deg, period);
+                assert_eq!(t.to_bits(), want.to_bits(), "{deg}");
+                assert_eq!(c.pa, table.cells[k].pa, "{deg}");
+                assert_eq!(c.e, table.cells[k].e, "{deg}");
+            }
+            let (c, t) = table.ring_at(f64::NAN);
+            assert_eq!(c.pa, table.cells[cell_floor(f64::NAN, period).0].pa);
+            assert!(t.is_nan());
+        }
+    }
 }
 
 #[cfg(test)]
@@ -2940,7 +3039,8 @@ mod mirror {
             let (mut b1, mut b2) = (Projection::default(), Projection::default());
             for g in &groups {
                 let c = &curves[g.start].curve;
-                let Some(table) = Table::new(&c.linkage, c.circuit) else {
+                // With its ring, as the scan lays it out (the baseline path reads none).
+                let Some(table) = Table::new(&c.linkage, c.circuit).map(Table::with_ring) else {
                     continue;
                 };
                 let pts: Vec<C64> = g.clone().map(|k| w_of(&curves[k])).collect();
