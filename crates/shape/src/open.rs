@@ -2729,7 +2729,7 @@ mod tests {
                 -9.3e18,
                 1e300,
                 -1e300,
-                -9.223372036854775808e18,
+                i64::MIN as f64,
             ] {
                 let (k, t) = cell_floor(deg, period);
                 assert_eq!((k, t.to_bits()), {
