@@ -55,6 +55,10 @@ const PROJECTION_KEEP: usize = 2;
 /// interpolant's slopes, computed once per linkage instead of at every lookup).
 struct Table {
     cells: Vec<TableCell>,
+    /// Empty, or `cells` three times over (`ring[i] = cells[i % n]`,
+    /// [`Table::with_ring`]): the cell of whole degree `w` in `−n..2n` is `ring[w + n]`,
+    /// found without a remainder or a wrap ([`Table::flat_at_with`] on the AVX2 path).
+    ring: Vec<TableCell>,
     /// The period, degrees of input.
     period: f64,
 }
@@ -96,8 +100,26 @@ impl Table {
                 e: e(k),
                 de: e(k + 1) - e(k),
             })
-            .collect();
-        Some(Table { cells, period })
+            .collect::<Vec<_>>();
+        Some(Table {
+            cells,
+            ring: Vec::new(),
+            period,
+        })
+    }
+
+    /// Lays out [`Table::ring`] (stage 1's projection reads it; a table without it
+    /// finds every cell by [`cell_floor`], the same cells).
+    fn with_ring(mut self) -> Table {
+        let n = self.cells.len();
+        let mut ring = Vec::with_capacity(3 * n);
+        for _ in 0..3 {
+            for c in &self.cells {
+                ring.push(*c);
+            }
+        }
+        self.ring = ring;
+        self
     }
 
     /// `(Pa, e)` at `deg` by linear interpolation.
@@ -115,12 +137,12 @@ impl Table {
     /// AVX2 path), else by [`cell`]: the same cell and fraction.
     #[inline(always)]
     fn flat_at_with<const FLOOR: bool>(&self, deg: f64) -> Flat {
-        let (k, t) = if FLOOR {
-            cell_floor(deg, self.cells.len())
+        let (c, t) = if FLOOR {
+            self.ring_at(deg)
         } else {
-            cell(deg, self.cells.len())
+            let (k, t) = cell(deg, self.cells.len());
+            (&self.cells[k], t)
         };
-        let c = &self.cells[k];
         [
             c.pa.re + c.dpa.re * t,
             c.pa.im + c.dpa.im * t,
@@ -131,6 +153,32 @@ impl Table {
             c.de.re,
             c.de.im,
         ]
+    }
+}
+
+impl Table {
+    /// The cell of `deg` and the fraction into it, as [`cell_floor`] finds them (the same
+    /// cell's values, the same fraction): on x86-64 the whole degrees `w` by one
+    /// truncating conversion (`i64::MIN` for NaN and values out of range) and the cell
+    /// `ring[w + n]` when that is inside the ring (`w` in `−n..2n`, where the scan's and
+    /// the projection's angles lie), else by [`cell_floor`].
+    #[inline(always)]
+    fn ring_at(&self, deg: f64) -> (&TableCell, f64) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_cvttsd_si64, _mm_set_sd};
+            let whole = deg.floor();
+            // SAFETY: SSE2, which these two need, is part of every x86-64 processor.
+            #[allow(unsafe_code)]
+            let w = unsafe { _mm_cvttsd_si64(_mm_set_sd(whole)) };
+            // `w + n` below zero wraps to far above the ring's length.
+            let i = w.wrapping_add(self.cells.len() as i64) as usize;
+            if let Some(c) = self.ring.get(i) {
+                return (c, deg - whole);
+            }
+        }
+        let (k, t) = cell_floor(deg, self.cells.len());
+        (&self.cells[k], t)
     }
 }
 
@@ -209,6 +257,8 @@ struct Kernel {
 struct KernelCell {
     factors: [f64; 16],
     d: usize,
+    /// `6·d`: the cell's grid values as an offset in `f64` ([`Kernel::flat_sums_avx2`]).
+    off: usize,
 }
 
 impl Kernel {
@@ -242,6 +292,7 @@ impl Kernel {
                 KernelCell {
                     factors: [w, w, w, w, a, a, a, a, b, b, b, b, w, w, 0.0, 0.0],
                     d,
+                    off: 6 * d,
                 }
             })
             .collect();
@@ -286,16 +337,30 @@ impl Kernel {
             _mm256_setzero_pd(),
         );
         let mut l3 = _mm_setzero_pd();
-        for c in kernel {
-            let g = &grid[c.d];
+        // The cells are in increasing `d` (made so by `Kernel::new`): every cell's six
+        // grid values lie inside `grid` when the last one's do. Checked once here, so
+        // that the loop reads by offset without a bounds test.
+        let Some(last) = kernel.last() else {
+            return Kernel::lanes_to_pairs([[0.0; 4]; 4]);
+        };
+        assert!(last.d < grid.len() && last.off == 6 * last.d);
+        debug_assert!(
+            kernel.iter().all(|c| c.off == 6 * c.d) && kernel.windows(2).all(|p| p[0].d < p[1].d)
+        );
+        let g0: *const f64 = grid.as_ptr().cast();
+        // One cell's four multiply-adds, lane by lane (a multiply, then an add).
+        let mut cell = |c: &KernelCell| {
             let f = &c.factors;
-            // SAFETY: `g` is six `f64` in a row (`Pa`, `e`, `conj(Pa)·e`), of which the
-            // first four and the last two are read; `f` is sixteen, all read.
+            // SAFETY: `c.off = 6·c.d <= last.off` with `last.d < grid.len()` (the cells
+            // are made sorted with `off = 6·d` by `Kernel::new`; the last checked above), so `g0 + c.off` starts the six `f64` of
+            // `grid[c.d]` (`Pa`, `e`, `conj(Pa)·e`), of which the first four and the last
+            // two are read; `f` is sixteen, all read.
             #[allow(unsafe_code)]
             let (pe, x, f0, f1, f2, f3) = unsafe {
+                let g = g0.add(c.off);
                 (
-                    _mm256_loadu_pd(g.as_ptr().cast()),
-                    _mm_loadu_pd(g[2].as_ptr()),
+                    _mm256_loadu_pd(g),
+                    _mm_loadu_pd(g.add(4)),
                     _mm256_loadu_pd(f.as_ptr()),
                     _mm256_loadu_pd(f[4..].as_ptr()),
                     _mm256_loadu_pd(f[8..].as_ptr()),
@@ -306,6 +371,15 @@ impl Kernel {
             l1 = _mm256_add_pd(l1, _mm256_mul_pd(f1, pe));
             l2 = _mm256_add_pd(l2, _mm256_mul_pd(f2, pe));
             l3 = _mm_add_pd(l3, _mm_mul_pd(f3, x));
+        };
+        // Two cells a round (the same cells in the same order).
+        let mut pairs = kernel.chunks_exact(2);
+        for p in &mut pairs {
+            cell(&p[0]);
+            cell(&p[1]);
+        }
+        for c in pairs.remainder() {
+            cell(c);
         }
         let mut l = [[0.0f64; 4]; 4];
         // SAFETY: each store writes four (the last two) `f64` into its own array.
@@ -417,8 +491,43 @@ fn cell(deg: f64, period: usize) -> (usize, f64) {
 /// [`cell`] with the whole degrees by `floor` (one instruction where SSE4.1 is there, as
 /// on the AVX2 path; a call on the baseline instruction set): the same cell and fraction,
 /// as `floor` is the whole part `cell` finds.
+///
+/// On x86-64 the whole degrees are converted by the processor's truncating conversion,
+/// which gives `i64::MIN` for NaN and for values out of range: the wrap by one period
+/// then leaves the cell out of `0..period` and the general form ([`cell`]) is taken, so
+/// the common case costs no test for NaN or size and no saturation.
 #[inline(always)]
 fn cell_floor(deg: f64, period: usize) -> (usize, f64) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_cvttsd_si64, _mm_set_sd};
+        let whole = deg.floor();
+        // SAFETY: SSE2, which these two need, is part of every x86-64 processor.
+        #[allow(unsafe_code)]
+        let w = unsafe { _mm_cvttsd_si64(_mm_set_sd(whole)) };
+        let p = period as i64;
+        // `w` within a period of `0..p`: the same cell as `rem_euclid` (and as the
+        // general form below), chosen by conditional moves.
+        let k = if w < 0 {
+            w.wrapping_add(p)
+        } else if w >= p {
+            w - p
+        } else {
+            w
+        };
+        if (k as u64) < period as u64 {
+            return (k as usize, deg - whole);
+        }
+        cell(deg, period)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    cell_floor_general(deg, period)
+}
+
+/// [`cell_floor`] in its general form (any finite value, and NaN).
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline(always)]
+fn cell_floor_general(deg: f64, period: usize) -> (usize, f64) {
     if deg.is_nan() || deg.abs() >= 1e15 {
         return cell(deg, period);
     }
@@ -593,39 +702,46 @@ impl PointColumns {
     }
 }
 
-/// Bit `v` of `open[k]` set unless reflection `v` is not `live` or the misfit at point
-/// `k` is surely above its bound: the test of [`Sums::surely_above`] with `bar[v][k] =
-/// 1 − bound − 10⁻⁹` (each reflection its own bound), computed with the same operations in the same order (so the same
-/// values, bit for bit: `(w·g12).re` and `conj(w)·r` written out as `num-complex` forms
-/// them), over all points in one branch-free pass the compiler can vectorise.
+/// Bit `k % 64` of `open[k / 64][v]` set unless reflection `v` is not `live` or the
+/// misfit at point `k` is surely above its bound: the test of [`Sums::surely_above`] with
+/// `bar[v][k] = 1 − bound − 10⁻⁹` (each reflection its own bound), computed with the same
+/// operations in the same order (so the same values, bit for bit: `(w·g12).re` and
+/// `conj(w)·r` written out as `num-complex` forms them), over all points in one
+/// branch-free pass; with `AVX2` four points a vector, their four tests gathered into
+/// four bits by one instruction. `open` holds one word pair per 64 points.
 #[inline(always)]
-fn sieve(
+fn sieve<const AVX2: bool>(
     sums: &Sums,
     gram: (f64, C64, f64),
     pts: &PointColumns,
     bar: [&[f64]; 2],
     live: [bool; 2],
-    open: &mut [u8],
+    open: &mut [[u64; 2]],
 ) {
     // Only the live reflections' tests are computed (a query without reflection has one).
     match live {
-        [true, false] => sieve_with::<true, false>(sums, gram, pts, bar, open),
-        [false, true] => sieve_with::<false, true>(sums, gram, pts, bar, open),
-        [true, true] => sieve_with::<true, true>(sums, gram, pts, bar, open),
-        [false, false] => open.fill(0),
+        [true, false] => sieve_with::<true, false, AVX2>(sums, gram, pts, bar, open),
+        [false, true] => sieve_with::<false, true, AVX2>(sums, gram, pts, bar, open),
+        [true, true] => sieve_with::<true, true, AVX2>(sums, gram, pts, bar, open),
+        [false, false] => open.fill([0; 2]),
     }
 }
 
+/// The factors of [`sieve`]'s test that do not depend on the point: `g11`, `Re g12`,
+/// `Im g12`, `g22`, then `Re`, `Im` of `r[v][0]` and `r[v][1]` for each reflection.
+type SieveFactors = ([f64; 4], [[f64; 4]; 2]);
+
 /// [`sieve`] for the live reflections `R0` and `R1`, known at compile time.
 #[inline(always)]
-fn sieve_with<const R0: bool, const R1: bool>(
+fn sieve_with<const R0: bool, const R1: bool, const AVX2: bool>(
     sums: &Sums,
     (g11, g12, g22): (f64, C64, f64),
     pts: &PointColumns,
     [bar0, bar1]: [&[f64]; 2],
-    open: &mut [u8],
+    open: &mut [[u64; 2]],
 ) {
-    let n = open.len();
+    let n = pts.re.len();
+    assert_eq!(open.len(), n.div_ceil(64));
     let (re, im, norm) = (&pts.re[..n], &pts.im[..n], &pts.norm[..n]);
     // A reflection not tested reads no bound (its slice may be empty).
     let (bar0, bar1) = (
@@ -633,96 +749,122 @@ fn sieve_with<const R0: bool, const R1: bool>(
         &bar1[..if R1 { n } else { 0 }],
     );
     let [[a0, b0], [a1, b1]] = sums.r;
-    for k in 0..n {
-        let (wr, wi) = (re[k], im[k]);
-        let mm = g11 + 2.0 * (wr * g12.re - wi * g12.im) + norm[k] * g22;
-        let pos = mm > 0.0;
-        let mut o = 0u8;
-        // `my = r[v][0] + conj(w)·r[v][1]`: `conj(w) = (wr, −wi)`.
-        if R0 {
-            let m0r = a0.re + (wr * b0.re - -wi * b0.im);
-            let m0i = a0.im + (wr * b0.im + -wi * b0.re);
-            let q0 = m0r * m0r + m0i * m0i;
-            o |= u8::from(!(pos & (q0 < bar0[k] * mm)));
-        }
-        if R1 {
-            let m1r = a1.re + (wr * b1.re - -wi * b1.im);
-            let m1i = a1.im + (wr * b1.im + -wi * b1.re);
-            let q1 = m1r * m1r + m1i * m1i;
-            o |= u8::from(!(pos & (q1 < bar1[k] * mm))) << 1;
-        }
-        open[k] = o;
-    }
-}
-
-/// The indices of the nonzero entries of a sieve's `open` flags, in increasing order:
-/// eight flags read as one word, and the word's nonzero bytes gathered into a bit mask
-/// whose set bits are taken in turn, so that the points the sieve closed (most of them)
-/// cost a fraction of an instruction each instead of a test and a branch.
-struct OpenPoints<'a> {
-    chunks: std::slice::ChunksExact<'a, u8>,
-    rest: &'a [u8],
-    /// The index of the current word's first flag, and its nonzero flags as bits.
-    base: usize,
-    bits: u32,
-}
-
-impl<'a> OpenPoints<'a> {
-    fn new(open: &'a [u8]) -> OpenPoints<'a> {
-        let chunks = open.chunks_exact(8);
-        let rest = chunks.remainder();
-        OpenPoints {
-            chunks,
-            rest,
-            // The first word's index is 0: `next` adds 8 before reading it.
-            base: usize::MAX - 7,
-            bits: 0,
-        }
-    }
-
-    /// Bit `i` set when byte `i` of `word` is nonzero.
-    #[inline(always)]
-    fn mask(word: u64) -> u32 {
-        // Each byte's bits folded into its lowest bit, then the eight lowest bits
-        // gathered into the top byte by one multiplication (no carries: each product
-        // term lands on its own bit).
-        let mut x = word;
-        x |= x >> 4;
-        x |= x >> 2;
-        x |= x >> 1;
-        x &= 0x0101_0101_0101_0101;
-        (x.wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
-    }
-}
-
-impl Iterator for OpenPoints<'_> {
-    type Item = usize;
-
-    #[inline(always)]
-    fn next(&mut self) -> Option<usize> {
-        while self.bits == 0 {
-            self.base = self.base.wrapping_add(8);
-            match self.chunks.next() {
-                Some(c) => {
-                    let word = u64::from_le_bytes(c.try_into().expect("eight flags"));
-                    self.bits = OpenPoints::mask(word);
-                }
-                None => {
-                    // The last flags (fewer than eight), once.
-                    let mut word = [0u8; 8];
-                    word[..self.rest.len()].copy_from_slice(self.rest);
-                    self.rest = &[];
-                    self.bits = OpenPoints::mask(u64::from_le_bytes(word));
-                    if self.bits == 0 {
-                        return None;
-                    }
-                }
+    let factors: SieveFactors = (
+        [g11, g12.re, g12.im, g22],
+        [[a0.re, a0.im, b0.re, b0.im], [a1.re, a1.im, b1.re, b1.im]],
+    );
+    for (b, o) in open.iter_mut().enumerate() {
+        let (lo, hi) = (64 * b, (64 * b + 64).min(n));
+        let mut m = [0u64; 2];
+        #[allow(unused_mut)]
+        let mut k = lo;
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            // SAFETY: `AVX2` is set only where the processor was found to have AVX2
+            // ([`linkage_stage1`], and the test that checks it); `sieve_avx2` reads
+            // inside the slices it is given.
+            #[allow(unsafe_code)]
+            {
+                k = unsafe {
+                    sieve_avx2::<R0, R1>(
+                        factors,
+                        [&re[lo..hi], &im[lo..hi], &norm[lo..hi]],
+                        [
+                            &bar0[if R0 { lo..hi } else { 0..0 }],
+                            &bar1[if R1 { lo..hi } else { 0..0 }],
+                        ],
+                        &mut m,
+                    )
+                } + lo;
             }
         }
-        let i = self.bits.trailing_zeros() as usize;
-        self.bits &= self.bits - 1;
-        Some(self.base.wrapping_add(i))
+        while k < hi {
+            let (wr, wi) = (re[k], im[k]);
+            let mm = g11 + 2.0 * (wr * g12.re - wi * g12.im) + norm[k] * g22;
+            let pos = mm > 0.0;
+            // `my = r[v][0] + conj(w)·r[v][1]`: `conj(w) = (wr, −wi)`.
+            if R0 {
+                let m0r = a0.re + (wr * b0.re - -wi * b0.im);
+                let m0i = a0.im + (wr * b0.im + -wi * b0.re);
+                let q0 = m0r * m0r + m0i * m0i;
+                m[0] |= u64::from(!(pos & (q0 < bar0[k] * mm))) << (k - lo);
+            }
+            if R1 {
+                let m1r = a1.re + (wr * b1.re - -wi * b1.im);
+                let m1i = a1.im + (wr * b1.im + -wi * b1.re);
+                let q1 = m1r * m1r + m1i * m1i;
+                m[1] |= u64::from(!(pos & (q1 < bar1[k] * mm))) << (k - lo);
+            }
+            k += 1;
+        }
+        *o = m;
     }
+}
+
+/// [`sieve_with`]'s test at four points a vector (called only where the processor has
+/// AVX2), each lane the same operations in the same order as the scalar form (a
+/// multiply, then an add or a subtraction: never fused; `−wi` a sign flip; the ordered
+/// comparisons, false for NaN): the open bits of the first points of `w` (at most 64,
+/// `[re, im, |w|²]` columns) into `m`, four at a time. Returns how many points it did (a
+/// multiple of four); the caller does the rest.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn sieve_avx2<const R0: bool, const R1: bool>(
+    ([g11, g12r, g12i, g22], r): SieveFactors,
+    [re, im, norm]: [&[f64]; 3],
+    [bar0, bar1]: [&[f64]; 2],
+    m: &mut [u64; 2],
+) -> usize {
+    use std::arch::x86_64::{
+        _CMP_GT_OQ, _CMP_LT_OQ, _mm256_add_pd, _mm256_and_pd, _mm256_cmp_pd, _mm256_loadu_pd,
+        _mm256_movemask_pd, _mm256_mul_pd, _mm256_set1_pd, _mm256_setzero_pd, _mm256_sub_pd,
+        _mm256_xor_pd,
+    };
+    let n = re.len().min(im.len()).min(norm.len()).min(64);
+    let n = if R0 { n.min(bar0.len()) } else { n };
+    let n = if R1 { n.min(bar1.len()) } else { n };
+    let (add, sub, mul, set) = (_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_set1_pd);
+    let (g11, g12r, g12i, g22, two) = (set(g11), set(g12r), set(g12i), set(g22), set(2.0));
+    let (zero, sign) = (_mm256_setzero_pd(), set(-0.0));
+    let rv = r.map(|[ar, ai, br, bi]| [set(ar), set(ai), set(br), set(bi)]);
+    let mut k = 0;
+    while k + 4 <= n {
+        // SAFETY: `k + 4 <= n`, at most every slice's length: four `f64` in a row inside
+        // each slice read (the bounds only of the reflections tested).
+        #[allow(unsafe_code)]
+        let (wr, wi, nm) = unsafe {
+            (
+                _mm256_loadu_pd(re.as_ptr().add(k)),
+                _mm256_loadu_pd(im.as_ptr().add(k)),
+                _mm256_loadu_pd(norm.as_ptr().add(k)),
+            )
+        };
+        // `mm = g11 + 2·(wr·Re g12 − wi·Im g12) + |w|²·g22`, left to right.
+        let mm = add(
+            add(g11, mul(two, sub(mul(wr, g12r), mul(wi, g12i)))),
+            mul(nm, g22),
+        );
+        let pos = _mm256_cmp_pd::<_CMP_GT_OQ>(mm, zero);
+        let nwi = _mm256_xor_pd(wi, sign);
+        for (v, bar) in [(0, bar0), (1, bar1)] {
+            if (v == 0 && !R0) || (v == 1 && !R1) {
+                continue;
+            }
+            let [ar, ai, br, bi] = rv[v];
+            let mr = add(ar, sub(mul(wr, br), mul(nwi, bi)));
+            let mi = add(ai, add(mul(wr, bi), mul(nwi, br)));
+            let q = add(mul(mr, mr), mul(mi, mi));
+            // SAFETY: as above (this reflection is tested, so `bar` has `n` values).
+            #[allow(unsafe_code)]
+            let b = unsafe { _mm256_loadu_pd(bar.as_ptr().add(k)) };
+            let closed = _mm256_and_pd(pos, _mm256_cmp_pd::<_CMP_LT_OQ>(q, mul(b, mm)));
+            let open = !_mm256_movemask_pd(closed) as u64 & 0xF;
+            m[v] |= open << k;
+        }
+        k += 4;
+    }
+    k
 }
 
 /// What a hypothesis's [`Sums::least_misfit`] must exceed a point's bound by before the
@@ -1221,7 +1363,7 @@ impl OpenQuery {
         let mut bar = [vec![f64::NEG_INFINITY; n], vec![f64::NEG_INFINITY; n1]];
         let period = table.period;
         let pts = PointColumns::new(points);
-        let mut open = vec![0u8; n];
+        let mut open = vec![[0u64; 2]; n.div_ceil(64)];
         debug_assert_eq!(passes.period, period);
         let grid = Grid::new(table);
         for pass in &passes.list {
@@ -1249,28 +1391,38 @@ impl OpenQuery {
                 // branch-free pass: bit `v` of `open[k]` is clear when the misfit
                 // at point `k` is surely above its bound for reflection `v` (the
                 // test of [`Sums::surely_above`], the same values bit for bit).
-                sieve(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
+                sieve::<AVX2>(&sums, gram, &pts, [&bar[0], &bar[1]], live, &mut open);
                 // Whether a list whose bound was the greatest (`most`) took a window.
                 let mut offered = [false; 2];
-                // Point by point, each live reflection into its own list. A point
-                // left open is tested again with its bound of the moment.
-                for k in OpenPoints::new(&open) {
-                    let w = points[k];
-                    let mm = Sums::model_norm(gram, w);
-                    for &mirror in mirrors {
-                        let v = usize::from(mirror);
-                        if open[k] & (1 << v) == 0 || sums.surely_above(mm, v, w, worst[v][k]) {
-                            continue;
-                        }
-                        let m = sums.misfit_with(mm, v, w);
-                        // `most` is the greatest of the bounds, which only fall: it
-                        // changes only when the list that held it changes.
-                        offered[v] |= worst[v][k] == most[v];
-                        let list = &mut best[v][k];
-                        offer(list, Window::new(m, mirror, start, span, sense), period);
-                        if list.len() == WINDOWS {
-                            worst[v][k] = list[WINDOWS - 1].misfit;
-                            bar[v][k] = 1.0 - worst[v][k] - 1e-9;
+                // Point by point, each live reflection into its own list: the open
+                // points in increasing order, each word pair's set bits. A point's
+                // bound is the one the sieve tested (only its own list changes it,
+                // and each list is offered at most one window a hypothesis), so the
+                // sieve's answer stands: no second test.
+                for (b, &o) in open.iter().enumerate() {
+                    let mut bits = o[0] | o[1];
+                    while bits != 0 {
+                        let i = bits.trailing_zeros();
+                        bits &= bits - 1;
+                        let k = 64 * b + i as usize;
+                        let w = points[k];
+                        let mm = Sums::model_norm(gram, w);
+                        for &mirror in mirrors {
+                            let v = usize::from(mirror);
+                            if (o[v] >> i) & 1 == 0 {
+                                continue;
+                            }
+                            debug_assert!(!sums.surely_above(mm, v, w, worst[v][k]));
+                            let m = sums.misfit_with(mm, v, w);
+                            // `most` is the greatest of the bounds, which only fall: it
+                            // changes only when the list that held it changes.
+                            offered[v] |= worst[v][k] == most[v];
+                            let list = &mut best[v][k];
+                            offer(list, Window::new(m, mirror, start, span, sense), period);
+                            if list.len() == WINDOWS {
+                                worst[v][k] = list[WINDOWS - 1].misfit;
+                                bar[v][k] = 1.0 - worst[v][k] - 1e-9;
+                            }
                         }
                     }
                 }
@@ -1889,6 +2041,7 @@ impl Scanner {
         let Some(table) = self.cranks.table(&c.linkage, c.circuit) else {
             return;
         };
+        let table = table.with_ring();
         let pts: Vec<C64> = (a..b.min(curves.len())).map(|k| w_of(&curves[k])).collect();
         if self
             .passes
@@ -2278,7 +2431,7 @@ fn even_starts(period: f64, h: f64) -> (usize, f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::{C64, OpenPoints, Sums, cell, cell_floor};
+    use super::{C64, Sums, TableCell, cell, cell_floor, cell_floor_general};
     use crate::cases::SplitMix64;
 
     /// The scan skips a point's misfit only when it is surely above the bound: wherever
@@ -2323,41 +2476,6 @@ mod tests {
             }
         }
         assert!(skipped > 10_000, "the test reaches the skip: {skipped}");
-    }
-
-    /// `OpenPoints` gives the indices of the nonzero flags, in order, for every length
-    /// (whole words and a remainder) and random flags of every value a sieve writes.
-    #[test]
-    fn open_points_are_the_nonzero_flags() {
-        let mut rng = SplitMix64(31);
-        let mut seen = 0;
-        for n in 0..70 {
-            for density in [0.0, 0.1, 0.5, 0.9, 1.0] {
-                let open: Vec<u8> = (0..n)
-                    .map(|_| {
-                        if rng.uniform() < density {
-                            1 + (rng.next_u64() % 3) as u8
-                        } else {
-                            0
-                        }
-                    })
-                    .collect();
-                let want: Vec<usize> = (0..n).filter(|&k| open[k] != 0).collect();
-                let got: Vec<usize> = OpenPoints::new(&open).collect();
-                assert_eq!(got, want, "{open:?}");
-                seen += want.len();
-            }
-        }
-        // Every single byte value, alone in a word, is seen as nonzero exactly when it is.
-        for b in 0..=255u8 {
-            for at in 0..8 {
-                let mut open = [0u8; 8];
-                open[at] = b;
-                let got: Vec<usize> = OpenPoints::new(&open).collect();
-                assert_eq!(got, if b != 0 { vec![at] } else { vec![] });
-            }
-        }
-        assert!(seen > 1000);
     }
 
     /// Random sums as a scan makes them (32 points of a table-like curve, a centred unit
@@ -2439,9 +2557,10 @@ mod tests {
     #[test]
     fn sieve_is_surely_above_point_by_point() {
         let mut rng = SplitMix64(29);
-        for _ in 0..2_000 {
+        for i in 0..2_000 {
             let (s, gram) = random_sums(&mut rng);
-            let pts: Vec<C64> = (0..50)
+            // One word with a remainder, two and three words (one of them whole).
+            let pts: Vec<C64> = (0..[50, 87, 128, 131][i % 4])
                 .map(|_| C64::new(rng.normal(), rng.normal()) * 3.0)
                 .collect();
             // Each reflection its own bounds (shifted by one point against the other's).
@@ -2468,14 +2587,29 @@ mod tests {
                 .collect();
             let cols = super::PointColumns::new(&pts);
             for live in [[true, true], [true, false], [false, true]] {
-                let mut open = vec![0u8; pts.len()];
-                super::sieve(&s, gram, &cols, [&bar[0], &bar[1]], live, &mut open);
+                let mut open = vec![[0u64; 2]; pts.len().div_ceil(64)];
+                super::sieve::<false>(&s, gram, &cols, [&bar[0], &bar[1]], live, &mut open);
                 for (k, &w) in pts.iter().enumerate() {
                     let mm = Sums::model_norm(gram, w);
                     for (v, &l) in live.iter().enumerate() {
                         let want = l && !s.surely_above(mm, v, w, worst[v][k]);
-                        assert_eq!(open[k] & (1 << v) != 0, want, "{k} {v}");
+                        assert_eq!((open[k / 64][v] >> (k % 64)) & 1 != 0, want, "{k} {v}");
                     }
+                }
+                // Every bit past the points is clear.
+                if let Some(last) = open.last() {
+                    let tail = pts.len() % 64;
+                    if tail != 0 {
+                        assert_eq!(last[0] >> tail, 0);
+                        assert_eq!(last[1] >> tail, 0);
+                    }
+                }
+                // The same bits in AVX2 vectors, where the processor has them.
+                #[cfg(target_arch = "x86_64")]
+                if crate::has_avx2() {
+                    let mut fast = vec![[1u64; 2]; open.len()];
+                    super::sieve::<true>(&s, gram, &cols, [&bar[0], &bar[1]], live, &mut fast);
+                    assert_eq!(fast, open);
                 }
             }
         }
@@ -2584,6 +2718,85 @@ mod tests {
             assert_eq!(cell_floor(p, period), (0, 0.0));
             assert_eq!(cell(-1e-12, period).0, period - 1);
             assert_eq!(cell_floor(-1e-12, period).0, period - 1);
+            // Far values, where the conversion saturates or the wrap by one period does
+            // not reach: the general form's answer.
+            for deg in [
+                1e14 + 0.25,
+                -1e14 - 0.75,
+                1e15,
+                -3e15,
+                9.3e18,
+                -9.3e18,
+                1e300,
+                -1e300,
+                i64::MIN as f64,
+            ] {
+                let (k, t) = cell_floor(deg, period);
+                assert_eq!((k, t.to_bits()), {
+                    let (k, t) = cell_floor_general(deg, period);
+                    (k, t.to_bits())
+                });
+                assert_eq!((k, t.to_bits()), {
+                    let (k, t) = cell(deg, period);
+                    (k, t.to_bits())
+                });
+            }
+            let (k, t) = cell_floor(f64::NAN, period);
+            assert_eq!(k, cell(f64::NAN, period).0);
+            assert!(t.is_nan());
+        }
+    }
+
+    /// [`Table::ring_at`] gives the cell and fraction [`cell_floor`] finds, near the
+    /// ring's ends and far from them.
+    #[test]
+    fn ring_at_is_cell_floor() {
+        for period in [360usize, 720] {
+            let cells: Vec<TableCell> = (0..period)
+                .map(|k| {
+                    let x = k as f64;
+                    TableCell {
+                        pa: C64::new(x, -x),
+                        e: C64::new(x + 0.5, 1.0),
+                        dpa: C64::new(2.0 * x, 3.0),
+                        de: C64::new(-x, 0.25),
+                    }
+                })
+                .collect();
+            let table = super::Table {
+                cells,
+                ring: Vec::new(),
+                period: period as f64,
+            }
+            .with_ring();
+            assert_eq!(table.ring.len(), 3 * period);
+            let p = period as f64;
+            let mut degs = vec![
+                -0.0,
+                1e-300,
+                -1e-12,
+                p,
+                -p,
+                2.0 * p,
+                -p - 1e-9,
+                2.0 * p - 1e-9,
+            ];
+            degs.extend([1e15, -1e15, 1e300, -1e300, 9.3e18, -9.3e18]);
+            let mut deg = -3.5 * p;
+            while deg < 4.5 * p {
+                degs.push(deg);
+                deg += 0.37;
+            }
+            for deg in degs {
+                let (c, t) = table.ring_at(deg);
+                let (k, want) = cell_floor(deg, period);
+                assert_eq!(t.to_bits(), want.to_bits(), "{deg}");
+                assert_eq!(c.pa, table.cells[k].pa, "{deg}");
+                assert_eq!(c.e, table.cells[k].e, "{deg}");
+            }
+            let (c, t) = table.ring_at(f64::NAN);
+            assert_eq!(c.pa, table.cells[cell_floor(f64::NAN, period).0].pa);
+            assert!(t.is_nan());
         }
     }
 }
@@ -2826,7 +3039,8 @@ mod mirror {
             let (mut b1, mut b2) = (Projection::default(), Projection::default());
             for g in &groups {
                 let c = &curves[g.start].curve;
-                let Some(table) = Table::new(&c.linkage, c.circuit) else {
+                // With its ring, as the scan lays it out (the baseline path reads none).
+                let Some(table) = Table::new(&c.linkage, c.circuit).map(Table::with_ring) else {
                     continue;
                 };
                 let pts: Vec<C64> = g.clone().map(|k| w_of(&curves[k])).collect();
