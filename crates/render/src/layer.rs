@@ -100,8 +100,10 @@ impl GrayLayer {
     /// layer as [`GrayLayer::add_span`] of each run of set blocks, a tile's blocks at
     /// once (a tile's row is 8 blocks, a byte of the word) from its first set block to
     /// its last. The blocks between two runs of one tile are merged too: `row` holds 0
-    /// there (the caller's promise), which leaves the layer as it is (`l + (127 / 255)`
-    /// is `l`), and the tile row's span is the runs' hull either way. `X16` (only in code
+    /// beside its set blocks (the caller's promise), which leaves the layer as it is
+    /// (`l + (127 / 255)` is `l`), and the tile row's span is the runs' hull either way.
+    /// Into a tile row without a span (all 0) the tile's 64 pixels of `row` are copied
+    /// whole, a merge over 0 being the coverage itself. `X16` (only in code
     /// compiled for AVX2, run where the processor has it): merged sixteen pixels at a
     /// time ([`merge_x16`]).
     #[inline(always)]
@@ -153,11 +155,28 @@ impl GrayLayer {
                 k => k as usize,
             };
             let tile = &mut self.tiles[k];
+            let s = &mut tile.span[r];
+            if s.1 == 0
+                && let Some(c) = row.get_mut(x..x + TILE)
+            {
+                // A tile row without a span holds no coverage, and the row buffer holds
+                // none beside the set blocks (the caller's promise; past the layer's
+                // width cleared above): merged over 0, the tile's 64 pixels of the row
+                // are themselves, copied whole.
+                let l: &mut [u8; TILE] = (&mut tile.cov[r * TILE..][..TILE])
+                    .try_into()
+                    .expect("a tile row");
+                let c: &mut [u8; TILE] = c.try_into().expect("a tile row");
+                *l = *c;
+                *c = [0; TILE];
+                *s = (lo as u8, hi as u8);
+                tile.rows |= 1 << r;
+                continue;
+            }
             let (l, c) = (
                 &mut tile.cov[r * TILE..][..TILE][lo..hi],
                 &mut row[x..][lo..hi],
             );
-            let s = &mut tile.span[r];
             if hi <= usize::from(s.0) || usize::from(s.1) <= lo {
                 // Pixels beside the tile row's span (or a row without one) hold no
                 // coverage: merged over 0, the coverage is itself.
