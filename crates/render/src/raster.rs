@@ -5,7 +5,7 @@ use super::{Canvas, anchored_x};
 use crate::capsule::{Capsules, Target};
 use crate::dirty::Dirty;
 use crate::layer::GrayLayer;
-use crate::pixel::overprint;
+use crate::pixel::{div255, narrow, overprint, widen};
 use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
@@ -14,6 +14,7 @@ use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePo
 use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
+use wide::u16x8;
 
 mod band;
 
@@ -659,6 +660,30 @@ fn composite_row(dst: &mut [u8], cov: &[u8], ink: Ink) {
     }
 }
 
+/// [`composite_row`] of rows of whole groups of [`LANES`] pixels, a group at a time in
+/// 16-bit lanes (the same integer arithmetic: exact).
+#[inline]
+fn composite_groups(dst: &mut [u8], cov: &[u8], ink: Ink) {
+    debug_assert!(dst.len() == cov.len() && dst.len() % LANES == 0);
+    let groups = dst.chunks_exact_mut(LANES).zip(cov.chunks_exact(LANES));
+    let (full, half) = (u16x8::splat(255), u16x8::splat(127));
+    match ink {
+        Ink::Paper => {
+            for (d8, c8) in groups {
+                let d = widen(d8);
+                narrow(d - div255(d * widen(c8) + half), d8);
+            }
+        }
+        Ink::Black => {
+            for (d8, c8) in groups {
+                let d = widen(d8);
+                narrow(d + div255((full - d) * widen(c8) + half), d8);
+            }
+        }
+        ink => crate::layer::overprint_span(dst, cov, ink.level()),
+    }
+}
+
 /// `x ← 255 − x` over a buffer (vectorises).
 fn invert(data: &mut [u8]) {
     for x in data.iter_mut() {
@@ -1059,7 +1084,7 @@ impl RasterPage {
                 let Some(Some(tile)) = self.halos.get(key) else {
                     continue;
                 };
-                for (j, row) in tile.cov.chunks(tile.w).enumerate() {
+                for (j, row) in tile.cov.chunks(tile.stride).enumerate() {
                     let start = (ty - by0) as usize * bw + j * bw + (tx - bx0) as usize;
                     for (m, &c) in merged[start..start + tile.w].iter_mut().zip(row) {
                         *m = (*m).max(c);
@@ -1178,8 +1203,14 @@ struct HaloTile {
     y0: i64,
     w: usize,
     h: usize,
+    /// The rows' distance in `cov`: `w`, or for a glyph's own coverage `w` rounded up
+    /// to whole groups of [`LANES`], the columns past `w` zero ([`RasterPage::draw_glyphs`]).
+    stride: usize,
     cov: Vec<u8>,
 }
+
+/// A glyph's coverage rows are composited in groups of this many pixels.
+const LANES: usize = 8;
 
 /// Scratch of the halos.
 #[derive(Default)]
@@ -1257,6 +1288,7 @@ impl HaloTile {
             y0: y0 as i64,
             w,
             h,
+            stride: w,
             cov,
         }
     }
@@ -1281,14 +1313,23 @@ impl HaloTile {
         let (x0, y0) = (b.min.x as i64, b.min.y as i64);
         let w = (b.max.x as i64 - x0).max(0) as usize;
         let h = (b.max.y as i64 - y0).max(0) as usize;
-        let mut cov = vec![0u8; w * h];
+        // Rows padded with zeros to whole groups of `LANES`.
+        let stride = w.next_multiple_of(LANES);
+        let mut cov = vec![0u8; stride * h];
         outlined.draw(|gx, gy, c| {
             let (x, y) = (gx as usize, gy as usize);
             if x < w && y < h {
-                cov[y * w + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+                cov[y * stride + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
             }
         });
-        HaloTile { x0, y0, w, h, cov }
+        HaloTile {
+            x0,
+            y0,
+            w,
+            h,
+            stride,
+            cov,
+        }
     }
 }
 
@@ -1462,8 +1503,24 @@ impl RasterPage {
             let first = self.first as i64;
             let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             let n = (cx1 - cx0) as usize;
+            let (stride, rows) = (tile.stride, (cy1 - cy0) as usize);
+            let dst0 = ((cy0 - first) * w + cx0) as usize;
+            let src0 = (cy0 - ty) as usize * stride + (cx0 - tx) as usize;
+            // An unclipped row is composited with its padding, whole groups of `LANES`
+            // (coverage 0 leaves a pixel as it is in every ink: the same bytes), where
+            // the last row's groups stay in the buffer.
+            let whole =
+                cx0 == tx && n == tile.w && dst0 + (rows - 1) * w as usize + stride <= data.len();
+            if whole {
+                let src = tile.cov[src0..src0 + rows * stride].chunks_exact(stride);
+                for (j, cov) in src.enumerate() {
+                    let dst = dst0 + j * w as usize;
+                    composite_groups(&mut data[dst..dst + stride], cov, ink);
+                }
+                continue;
+            }
             for y in cy0..cy1 {
-                let src = (y - ty) as usize * tile.w + (cx0 - tx) as usize;
+                let src = (y - ty) as usize * stride + (cx0 - tx) as usize;
                 let dst = ((y - first) * w + cx0) as usize;
                 composite_row(&mut data[dst..dst + n], &tile.cov[src..src + n], ink);
             }
