@@ -14,7 +14,7 @@ use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePo
 use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
-use wide::u16x8;
+use wide::{u8x16, u16x8};
 
 mod band;
 
@@ -1076,7 +1076,11 @@ impl RasterPage {
         let cy0 = by0.max(0).max(self.rows.0 as i64);
         let cy1 = by1.min(ph).min(self.rows.1 as i64);
         if cx0 < cx1 && cy0 < cy1 {
-            let bw = (bx1 - bx0) as usize;
+            // The merged rows `bw` apart, with room for a tile's padding past the box (a
+            // tile's row of `stride < w + LANES` pixels from at most `bw − w` on), so
+            // that each tile's padded rows are merged in whole groups of `LANES` (a zero
+            // changes no maximum).
+            let bw = (bx1 - bx0) as usize + LANES;
             let merged = &mut self.halo_scratch.merged;
             merged.clear();
             merged.resize(bw * (by1 - by0) as usize, 0);
@@ -1084,10 +1088,18 @@ impl RasterPage {
                 let Some(Some(tile)) = self.halos.get(key) else {
                     continue;
                 };
-                for (j, row) in tile.cov.chunks(tile.stride).enumerate() {
-                    let start = (ty - by0) as usize * bw + j * bw + (tx - bx0) as usize;
-                    for (m, &c) in merged[start..start + tile.w].iter_mut().zip(row) {
-                        *m = (*m).max(c);
+                let s = tile.stride;
+                let start = (ty - by0) as usize * bw + (tx - bx0) as usize;
+                for (j, row) in tile.cov.chunks_exact(s).enumerate() {
+                    let m = &mut merged[start + j * bw..start + j * bw + s];
+                    for (m8, c8) in m.chunks_exact_mut(LANES).zip(row.chunks_exact(LANES)) {
+                        let v = |b: &[u8]| {
+                            let mut a = [0u8; 16];
+                            a[..LANES].copy_from_slice(b);
+                            u8x16::new(a)
+                        };
+                        let x = v(m8).max(v(c8)).to_array();
+                        m8.copy_from_slice(&x[..LANES]);
                     }
                 }
             }
@@ -1283,12 +1295,23 @@ impl HaloTile {
                 layer: None,
             },
         );
+        // Rows padded with zeros to whole groups of `LANES` ([`RasterPage::draw_halo`]).
+        let stride = w.next_multiple_of(LANES);
+        let cov = if stride == w {
+            cov
+        } else {
+            let mut padded = vec![0u8; stride * h];
+            for (to, from) in padded.chunks_exact_mut(stride).zip(cov.chunks_exact(w)) {
+                to[..w].copy_from_slice(from);
+            }
+            padded
+        };
         HaloTile {
             x0: x0 as i64,
             y0: y0 as i64,
             w,
             h,
-            stride: w,
+            stride,
             cov,
         }
     }
