@@ -1025,19 +1025,20 @@ impl RasterPage {
             if !(gx.is_finite() && gy.is_finite()) || gx.abs() > 1e7 || gy.abs() > 1e7 {
                 continue;
             }
-            let (qx, qy) = ((gx * 4.0).round(), (gy * 4.0).round());
-            let (ix, iy) = ((qx / 4.0).floor(), (qy / 4.0).floor());
+            // The nearest quarter pixel (`(4·g).round()`, then its whole pixel and
+            // quarters), in integers.
+            let (qx, qy) = (round_half_away(gx * 4.0), round_half_away(gy * 4.0));
+            let (ix, iy) = (qx.div_euclid(4), qy.div_euclid(4));
             let key = HaloKey {
                 glyph: g.id.0,
                 em: em.to_bits(),
                 r: r.to_bits(),
-                sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
+                sub: [qx.rem_euclid(4) as u8, qy.rem_euclid(4) as u8],
             };
-            self.ensure_halo_tile(key);
-            let Some(Some(tile)) = self.halos.get(&key) else {
+            let Some((x0, y0)) = self.halo_tile(key) else {
                 continue;
             };
-            placed.push((ix as i64 + tile.x0, iy as i64 + tile.y0, key));
+            placed.push((ix + x0, iy + y0, key));
         }
     }
 
@@ -1120,9 +1121,11 @@ impl RasterPage {
     /// [`HaloKey`]). A glyph without outline is cached as `None`. The one place that
     /// fills the cache; it is emptied between pages when full ([`RasterPage::trim_tiles`]),
     /// never while a label is placed (its tiles are looked up after all are made).
-    fn ensure_halo_tile(&mut self, key: HaloKey) {
-        if self.halos.contains_key(&key) {
-            return;
+    ///
+    /// Gives the tile's corner (`None` for a glyph without outline).
+    fn halo_tile(&mut self, key: HaloKey) -> Option<(i64, i64)> {
+        if let Some(tile) = self.halos.get(&key) {
+            return tile.as_ref().map(|t| (t.x0, t.y0));
         }
         let font = &self.font;
         let outline = self
@@ -1141,8 +1144,19 @@ impl RasterPage {
                 HaloTile::make(&outline, em / upem, r, sub, &mut self.capsules)
             }
         });
+        let corner = tile.as_ref().map(|t| (t.x0, t.y0));
         self.halos.insert(key, tile);
+        corner
     }
+}
+
+/// `x.round()` (half away from zero) as an integer, for `|x| < 2^31` (no call to the
+/// library's `roundf`): the truncation `t` and the exact remainder `x − t`.
+#[inline]
+fn round_half_away(x: f32) -> i64 {
+    let t = x as i32;
+    let f = x - t as f32;
+    i64::from(t) + i64::from(f >= 0.5) - i64::from(f <= -0.5)
 }
 
 /// Glyphs and glyph halos kept from page to page at most (a few kilobytes each); the
@@ -1981,6 +1995,37 @@ mod halo_tests {
         // Emptied between pages.
         page.clear();
         assert!(page.halos.is_empty());
+    }
+
+    /// A glyph's quarter-pixel position in integers is the float one: every quarter
+    /// and eighth of a pixel near 0 and near the bounds, their neighbours, and a
+    /// sweep of odd values.
+    #[test]
+    fn quarter_pixels_in_integers_are_the_float_ones() {
+        let mut xs = Vec::new();
+        for k in -4000i32..=4000 {
+            for base in [0.0f32, 1.0e6, -1.0e6, 9.99e6, -9.99e6] {
+                let x = base + k as f32 / 8.0;
+                xs.extend([x, x.next_up(), x.next_down()]);
+            }
+        }
+        let mut v = 0.123f32;
+        for _ in 0..200_000 {
+            v = (v * 1.618_034 + 0.377).rem_euclid(2.0e7) - 1.0e7;
+            xs.push(v);
+        }
+        xs.extend([1.0e7, -1.0e7, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, -0.0]);
+        for g in xs.into_iter().filter(|g| g.abs() <= 1e7) {
+            let q = (g * 4.0).round();
+            let i = (q / 4.0).floor();
+            let (qi, ii) = (
+                round_half_away(g * 4.0),
+                round_half_away(g * 4.0).div_euclid(4),
+            );
+            assert_eq!(qi as f32, q, "{g}");
+            assert_eq!(ii as f32, i, "{g}");
+            assert_eq!(qi.rem_euclid(4) as u8, (q - 4.0 * i) as u8, "{g}");
+        }
     }
 
     /// A label's halo, made from cached glyph halos at quarter-pixel positions, is the
