@@ -676,6 +676,12 @@ fn composite_groups(dst: &mut [u8], cov: &[u8], ink: Ink) {
         }
         Ink::Black => {
             for (d8, c8) in groups {
+                if u64::from_ne_bytes(d8.try_into().unwrap_or([1; LANES])) == 0 {
+                    // Paper under all eight (a glyph's, where its halo erased the page):
+                    // `(255·c + 127) / 255` is `c`.
+                    d8.copy_from_slice(c8);
+                    continue;
+                }
                 let d = widen(d8);
                 narrow(d + div255((full - d) * widen(c8) + half), d8);
             }
@@ -1855,6 +1861,36 @@ mod tests {
     }
 
     /// The row compositor is the pixel one, for every ink level, coverage and ink under.
+    #[test]
+    fn composite_groups_is_composite_per_pixel() {
+        // Every level under every coverage, then levels of which about half are 0
+        // (groups of paper, and groups mixing paper and ink), under every coverage.
+        let mut s = 1u64;
+        let mixed = (0..256 * 256).map(|_| {
+            s = s.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            if s >> 63 == 0 { 0 } else { (s >> 40) as u8 }
+        });
+        let unders: [Vec<u8>; 2] = [
+            (0..=255u8).flat_map(|d| [d; 256]).collect(),
+            mixed.collect(),
+        ];
+        let cov: Vec<u8> = (0..256 * 256)
+            .map(|i| (i as u8).wrapping_mul(151))
+            .collect();
+        for under in unders {
+            let inks = (0..=255u8).map(Ink::Gray).chain([Ink::Black, Ink::Paper]);
+            for ink in inks {
+                let mut got = under.clone();
+                for (a, b) in [(0, 8), (8, 304), (304, 65_536)] {
+                    composite_groups(&mut got[a..b], &cov[a..b], ink);
+                }
+                for i in 0..under.len() {
+                    assert_eq!(got[i], composite(under[i], cov[i], ink), "{ink:?} at {i}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn composite_row_is_composite_per_pixel() {
         let under: Vec<u8> = (0..=255u8).flat_map(|d| [d; 256]).collect();
