@@ -5,7 +5,7 @@ use super::{Canvas, anchored_x};
 use crate::capsule::{Capsules, Target};
 use crate::dirty::Dirty;
 use crate::layer::GrayLayer;
-use crate::pixel::overprint;
+use crate::pixel::{div255, narrow, overprint, widen};
 use crate::rowdeflate::RowDeflate;
 use ab_glyph::{
     Font, FontRef, Glyph, GlyphId, Outline, OutlineCurve, OutlinedGlyph, ScaleFont, point,
@@ -14,6 +14,7 @@ use coupler_layout::{self as font, Anchor, DisplayList, Ink, PT_PER_INCH, PagePo
 use std::collections::HashMap;
 use std::io::Write;
 use tiny_skia::{FillRule, Mask, PathBuilder, Transform};
+use wide::{u8x16, u16x8};
 
 mod band;
 
@@ -659,6 +660,36 @@ fn composite_row(dst: &mut [u8], cov: &[u8], ink: Ink) {
     }
 }
 
+/// [`composite_row`] of rows of whole groups of [`LANES`] pixels, a group at a time in
+/// 16-bit lanes (the same integer arithmetic: exact).
+#[inline]
+fn composite_groups(dst: &mut [u8], cov: &[u8], ink: Ink) {
+    debug_assert!(dst.len() == cov.len() && dst.len() % LANES == 0);
+    let groups = dst.chunks_exact_mut(LANES).zip(cov.chunks_exact(LANES));
+    let (full, half) = (u16x8::splat(255), u16x8::splat(127));
+    match ink {
+        Ink::Paper => {
+            for (d8, c8) in groups {
+                let d = widen(d8);
+                narrow(d - div255(d * widen(c8) + half), d8);
+            }
+        }
+        Ink::Black => {
+            for (d8, c8) in groups {
+                if u64::from_ne_bytes(d8.try_into().unwrap_or([1; LANES])) == 0 {
+                    // Paper under all eight (a glyph's, where its halo erased the page):
+                    // `(255·c + 127) / 255` is `c`.
+                    d8.copy_from_slice(c8);
+                    continue;
+                }
+                let d = widen(d8);
+                narrow(d + div255((full - d) * widen(c8) + half), d8);
+            }
+        }
+        ink => crate::layer::overprint_span(dst, cov, ink.level()),
+    }
+}
+
 /// `x ← 255 − x` over a buffer (vectorises).
 fn invert(data: &mut [u8]) {
     for x in data.iter_mut() {
@@ -1000,19 +1031,20 @@ impl RasterPage {
             if !(gx.is_finite() && gy.is_finite()) || gx.abs() > 1e7 || gy.abs() > 1e7 {
                 continue;
             }
-            let (qx, qy) = ((gx * 4.0).round(), (gy * 4.0).round());
-            let (ix, iy) = ((qx / 4.0).floor(), (qy / 4.0).floor());
+            // The nearest quarter pixel (`(4·g).round()`, then its whole pixel and
+            // quarters), in integers.
+            let (qx, qy) = (round_half_away(gx * 4.0), round_half_away(gy * 4.0));
+            let (ix, iy) = (qx.div_euclid(4), qy.div_euclid(4));
             let key = HaloKey {
                 glyph: g.id.0,
                 em: em.to_bits(),
                 r: r.to_bits(),
-                sub: [(qx - 4.0 * ix) as u8, (qy - 4.0 * iy) as u8],
+                sub: [qx.rem_euclid(4) as u8, qy.rem_euclid(4) as u8],
             };
-            self.ensure_halo_tile(key);
-            let Some(Some(tile)) = self.halos.get(&key) else {
+            let Some((x0, y0)) = self.halo_tile(key) else {
                 continue;
             };
-            placed.push((ix as i64 + tile.x0, iy as i64 + tile.y0, key));
+            placed.push((ix + x0, iy + y0, key));
         }
     }
 
@@ -1051,7 +1083,11 @@ impl RasterPage {
         let cy0 = by0.max(0).max(self.rows.0 as i64);
         let cy1 = by1.min(ph).min(self.rows.1 as i64);
         if cx0 < cx1 && cy0 < cy1 {
-            let bw = (bx1 - bx0) as usize;
+            // The merged rows `bw` apart, with room for a tile's padding past the box (a
+            // tile's row of `stride < w + LANES` pixels from at most `bw − w` on), so
+            // that each tile's padded rows are merged in whole groups of `LANES` (a zero
+            // changes no maximum).
+            let bw = (bx1 - bx0) as usize + LANES;
             let merged = &mut self.halo_scratch.merged;
             merged.clear();
             merged.resize(bw * (by1 - by0) as usize, 0);
@@ -1059,10 +1095,18 @@ impl RasterPage {
                 let Some(Some(tile)) = self.halos.get(key) else {
                     continue;
                 };
-                for (j, row) in tile.cov.chunks(tile.w).enumerate() {
-                    let start = (ty - by0) as usize * bw + j * bw + (tx - bx0) as usize;
-                    for (m, &c) in merged[start..start + tile.w].iter_mut().zip(row) {
-                        *m = (*m).max(c);
+                let s = tile.stride;
+                let start = (ty - by0) as usize * bw + (tx - bx0) as usize;
+                for (j, row) in tile.cov.chunks_exact(s).enumerate() {
+                    let m = &mut merged[start + j * bw..start + j * bw + s];
+                    for (m8, c8) in m.chunks_exact_mut(LANES).zip(row.chunks_exact(LANES)) {
+                        let v = |b: &[u8]| {
+                            let mut a = [0u8; 16];
+                            a[..LANES].copy_from_slice(b);
+                            u8x16::new(a)
+                        };
+                        let x = v(m8).max(v(c8)).to_array();
+                        m8.copy_from_slice(&x[..LANES]);
                     }
                 }
             }
@@ -1083,9 +1127,11 @@ impl RasterPage {
     /// [`HaloKey`]). A glyph without outline is cached as `None`. The one place that
     /// fills the cache; it is emptied between pages when full ([`RasterPage::trim_tiles`]),
     /// never while a label is placed (its tiles are looked up after all are made).
-    fn ensure_halo_tile(&mut self, key: HaloKey) {
-        if self.halos.contains_key(&key) {
-            return;
+    ///
+    /// Gives the tile's corner (`None` for a glyph without outline).
+    fn halo_tile(&mut self, key: HaloKey) -> Option<(i64, i64)> {
+        if let Some(tile) = self.halos.get(&key) {
+            return tile.as_ref().map(|t| (t.x0, t.y0));
         }
         let font = &self.font;
         let outline = self
@@ -1104,8 +1150,19 @@ impl RasterPage {
                 HaloTile::make(&outline, em / upem, r, sub, &mut self.capsules)
             }
         });
+        let corner = tile.as_ref().map(|t| (t.x0, t.y0));
         self.halos.insert(key, tile);
+        corner
     }
+}
+
+/// `x.round()` (half away from zero) as an integer, for `|x| < 2^31` (no call to the
+/// library's `roundf`): the truncation `t` and the exact remainder `x − t`.
+#[inline]
+fn round_half_away(x: f32) -> i64 {
+    let t = x as i32;
+    let f = x - t as f32;
+    i64::from(t) + i64::from(f >= 0.5) - i64::from(f <= -0.5)
 }
 
 /// Glyphs and glyph halos kept from page to page at most (a few kilobytes each); the
@@ -1178,8 +1235,14 @@ struct HaloTile {
     y0: i64,
     w: usize,
     h: usize,
+    /// The rows' distance in `cov`: `w`, or for a glyph's own coverage `w` rounded up
+    /// to whole groups of [`LANES`], the columns past `w` zero ([`RasterPage::draw_glyphs`]).
+    stride: usize,
     cov: Vec<u8>,
 }
+
+/// A glyph's coverage rows are composited in groups of this many pixels.
+const LANES: usize = 8;
 
 /// Scratch of the halos.
 #[derive(Default)]
@@ -1252,11 +1315,23 @@ impl HaloTile {
                 layer: None,
             },
         );
+        // Rows padded with zeros to whole groups of `LANES` ([`RasterPage::draw_halo`]).
+        let stride = w.next_multiple_of(LANES);
+        let cov = if stride == w {
+            cov
+        } else {
+            let mut padded = vec![0u8; stride * h];
+            for (to, from) in padded.chunks_exact_mut(stride).zip(cov.chunks_exact(w)) {
+                to[..w].copy_from_slice(from);
+            }
+            padded
+        };
         HaloTile {
             x0: x0 as i64,
             y0: y0 as i64,
             w,
             h,
+            stride,
             cov,
         }
     }
@@ -1281,14 +1356,23 @@ impl HaloTile {
         let (x0, y0) = (b.min.x as i64, b.min.y as i64);
         let w = (b.max.x as i64 - x0).max(0) as usize;
         let h = (b.max.y as i64 - y0).max(0) as usize;
-        let mut cov = vec![0u8; w * h];
+        // Rows padded with zeros to whole groups of `LANES`.
+        let stride = w.next_multiple_of(LANES);
+        let mut cov = vec![0u8; stride * h];
         outlined.draw(|gx, gy, c| {
             let (x, y) = (gx as usize, gy as usize);
             if x < w && y < h {
-                cov[y * w + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+                cov[y * stride + x] = (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
             }
         });
-        HaloTile { x0, y0, w, h, cov }
+        HaloTile {
+            x0,
+            y0,
+            w,
+            h,
+            stride,
+            cov,
+        }
     }
 }
 
@@ -1462,8 +1546,24 @@ impl RasterPage {
             let first = self.first as i64;
             let data = pixels(&mut self.mask, &mut self.band_buf, self.banded);
             let n = (cx1 - cx0) as usize;
+            let (stride, rows) = (tile.stride, (cy1 - cy0) as usize);
+            let dst0 = ((cy0 - first) * w + cx0) as usize;
+            let src0 = (cy0 - ty) as usize * stride + (cx0 - tx) as usize;
+            // An unclipped row is composited with its padding, whole groups of `LANES`
+            // (coverage 0 leaves a pixel as it is in every ink: the same bytes), where
+            // the last row's groups stay in the buffer.
+            let whole =
+                cx0 == tx && n == tile.w && dst0 + (rows - 1) * w as usize + stride <= data.len();
+            if whole {
+                let src = tile.cov[src0..src0 + rows * stride].chunks_exact(stride);
+                for (j, cov) in src.enumerate() {
+                    let dst = dst0 + j * w as usize;
+                    composite_groups(&mut data[dst..dst + stride], cov, ink);
+                }
+                continue;
+            }
             for y in cy0..cy1 {
-                let src = (y - ty) as usize * tile.w + (cx0 - tx) as usize;
+                let src = (y - ty) as usize * stride + (cx0 - tx) as usize;
                 let dst = ((y - first) * w + cx0) as usize;
                 composite_row(&mut data[dst..dst + n], &tile.cov[src..src + n], ink);
             }
@@ -1762,6 +1862,36 @@ mod tests {
 
     /// The row compositor is the pixel one, for every ink level, coverage and ink under.
     #[test]
+    fn composite_groups_is_composite_per_pixel() {
+        // Every level under every coverage, then levels of which about half are 0
+        // (groups of paper, and groups mixing paper and ink), under every coverage.
+        let mut s = 1u64;
+        let mixed = (0..256 * 256).map(|_| {
+            s = s.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            if s >> 63 == 0 { 0 } else { (s >> 40) as u8 }
+        });
+        let unders: [Vec<u8>; 2] = [
+            (0..=255u8).flat_map(|d| [d; 256]).collect(),
+            mixed.collect(),
+        ];
+        let cov: Vec<u8> = (0..256 * 256)
+            .map(|i| (i as u8).wrapping_mul(151))
+            .collect();
+        for under in unders {
+            let inks = (0..=255u8).map(Ink::Gray).chain([Ink::Black, Ink::Paper]);
+            for ink in inks {
+                let mut got = under.clone();
+                for (a, b) in [(0, 8), (8, 304), (304, 65_536)] {
+                    composite_groups(&mut got[a..b], &cov[a..b], ink);
+                }
+                for i in 0..under.len() {
+                    assert_eq!(got[i], composite(under[i], cov[i], ink), "{ink:?} at {i}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn composite_row_is_composite_per_pixel() {
         let under: Vec<u8> = (0..=255u8).flat_map(|d| [d; 256]).collect();
         let cov: Vec<u8> = (0..256 * 256).map(|i| i as u8).collect();
@@ -1901,6 +2031,37 @@ mod halo_tests {
         // Emptied between pages.
         page.clear();
         assert!(page.halos.is_empty());
+    }
+
+    /// A glyph's quarter-pixel position in integers is the float one: every quarter
+    /// and eighth of a pixel near 0 and near the bounds, their neighbours, and a
+    /// sweep of odd values.
+    #[test]
+    fn quarter_pixels_in_integers_are_the_float_ones() {
+        let mut xs = Vec::new();
+        for k in -4000i32..=4000 {
+            for base in [0.0f32, 1.0e6, -1.0e6, 9.99e6, -9.99e6] {
+                let x = base + k as f32 / 8.0;
+                xs.extend([x, x.next_up(), x.next_down()]);
+            }
+        }
+        let mut v = 0.123f32;
+        for _ in 0..200_000 {
+            v = (v * 1.618_034 + 0.377).rem_euclid(2.0e7) - 1.0e7;
+            xs.push(v);
+        }
+        xs.extend([1.0e7, -1.0e7, 0.5, -0.5, 1.5, -1.5, 2.5, -2.5, -0.0]);
+        for g in xs.into_iter().filter(|g| g.abs() <= 1e7) {
+            let q = (g * 4.0).round();
+            let i = (q / 4.0).floor();
+            let (qi, ii) = (
+                round_half_away(g * 4.0),
+                round_half_away(g * 4.0).div_euclid(4),
+            );
+            assert_eq!(qi as f32, q, "{g}");
+            assert_eq!(ii as f32, i, "{g}");
+            assert_eq!(qi.rem_euclid(4) as u8, (q - 4.0 * i) as u8, "{g}");
+        }
     }
 
     /// A label's halo, made from cached glyph halos at quarter-pixel positions, is the
