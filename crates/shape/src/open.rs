@@ -985,16 +985,44 @@ fn lift(list: &mut [Window], i: usize) {
     list[p..=i].rotate_right(1);
 }
 
+/// One step of [`OpenQuery::reproject`]'s dynamic programme: `least[g]` the least of
+/// `cost[..=g]` (a NaN never taken, +∞ before any cost below it) and `next[g] += least[g]`.
+/// The running least alone, one `min` a cell and no index: the cell it came from is found
+/// again on the way back ([`first_of_least`]). The three rows of one length.
+#[inline(always)]
+fn add_running_least(cost: &[f64], next: &mut [f64], least: &mut [f64]) {
+    let mut run = f64::INFINITY;
+    // Zipped slices: no bounds test in the loop.
+    for ((&c, nx), l) in cost.iter().zip(next.iter_mut()).zip(least.iter_mut()) {
+        run = if c < run { c } else { run };
+        *l = run;
+        *nx += run;
+    }
+}
+
+/// The first cell of [`add_running_least`]'s cost whose value `least[g]` is: where the
+/// running least first took it (it falls only at a cost below every earlier one, so it
+/// keeps its value from there to `g`; 0 where it is still +∞). The cell a running least
+/// that kept its index (taking a cost only when below) would give.
+#[inline(always)]
+fn first_of_least(least: &[f64], mut g: usize) -> usize {
+    while g > 0 && least[g - 1] == least[g] {
+        g -= 1;
+    }
+    g
+}
+
 /// The buffers of [`OpenQuery::reproject`]'s dynamic programme, kept between calls: the
 /// fitted curve on the grid (real and imaginary parts), the costs of the current and
-/// next point, and the back pointers of every point (`cells` each).
+/// next point, and for every point the running least of the previous point's costs
+/// (`cells` each; the back pointers are where it falls).
 #[derive(Default)]
 struct Programme {
     re: Vec<f64>,
     im: Vec<f64>,
     cost: Vec<f64>,
     next: Vec<f64>,
-    back: Vec<u32>,
+    least: Vec<f64>,
 }
 
 /// The buffers of [`OpenQuery::project`], kept between windows: the trial angles and the
@@ -1703,7 +1731,7 @@ impl OpenQuery {
             im,
             cost,
             next,
-            back,
+            least,
         } = dp;
         re.clear();
         im.clear();
@@ -1718,7 +1746,8 @@ impl OpenQuery {
             dr * dr + di * di
         };
         // cost[g]: the least Σ|y_i − c(θ_i)|² over points 0..=j with θ_j = cell g and the
-        // cells not decreasing; back[j·cells + g]: the cell of point j − 1 on that path.
+        // cells not decreasing; least[j·cells + g]: the least of point j − 1's costs over
+        // cells 0..=g, whose first cell is that of point j − 1 on that path.
         // (Plain loops over buffers of their length: an adapter's closure would be
         // compiled apart, for the baseline instruction set.)
         let y0 = target(0);
@@ -1731,8 +1760,8 @@ impl OpenQuery {
         next.resize(cells, 0.0);
         // Every entry read below (rows 1 to n − 1) is written first: the buffer is only
         // grown, never cleared.
-        if back.len() < n * cells {
-            back.resize(n * cells, 0);
+        if least.len() < n * cells {
+            least.resize(n * cells, 0.0);
         }
         for j in 1..n {
             let yj = target(j);
@@ -1742,20 +1771,11 @@ impl OpenQuery {
                 let (dr, di) = (r - yj.re, i - yj.im);
                 *nx = dr * dr + di * di;
             }
-            let from_cell = &mut back[j * cells..(j + 1) * cells];
-            let mut run = (f64::INFINITY, 0u32);
-            // The three rows as slices of one length (no bounds test in the loop).
-            let rows = cost[..cells]
-                .iter()
-                .zip(&mut next[..cells])
-                .zip(from_cell.iter_mut());
-            for (g, ((&c, nx), fc)) in rows.enumerate() {
-                if c < run.0 {
-                    run = (c, g as u32);
-                }
-                *fc = run.1;
-                *nx += run.0;
-            }
+            add_running_least(
+                &cost[..cells],
+                &mut next[..cells],
+                &mut least[j * cells..(j + 1) * cells],
+            );
             std::mem::swap(cost, next);
         }
         let mut g = (0..cells)
@@ -1765,7 +1785,7 @@ impl OpenQuery {
         for j in (0..n).rev() {
             cell[j] = g;
             if j > 0 {
-                g = back[j * cells + g] as usize;
+                g = first_of_least(&least[j * cells..(j + 1) * cells], g);
             }
         }
         // Each angle refined by a parabola through its neighbouring cells.
@@ -2431,7 +2451,10 @@ fn even_starts(period: f64, h: f64) -> (usize, f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::{C64, Sums, TableCell, cell, cell_floor, cell_floor_general};
+    use super::{
+        C64, Sums, TableCell, add_running_least, cell, cell_floor, cell_floor_general,
+        first_of_least,
+    };
     use crate::cases::SplitMix64;
 
     /// The scan skips a point's misfit only when it is surely above the bound: wherever
@@ -2611,6 +2634,45 @@ mod tests {
                     super::sieve::<true>(&s, gram, &cols, [&bar[0], &bar[1]], live, &mut fast);
                     assert_eq!(fast, open);
                 }
+            }
+        }
+    }
+
+    /// The programme's running least without an index finds the cells and sums of the
+    /// one with it, bit for bit.
+    #[test]
+    fn running_least_finds_the_indexed_cells() {
+        // Rows with ties, +∞ and NaN among the costs, against the running least that
+        // keeps its index (the programme as first written).
+        let mut rng = SplitMix64(41);
+        let values: [f64; 7] = [0.0, 1.0, 2.0, 2.0, 3.5, f64::INFINITY, f64::NAN];
+        for case in 0..2000 {
+            let cells = 1 + case % 37;
+            let cost: Vec<f64> = (0..cells)
+                .map(|_| {
+                    if rng.uniform() < 0.5 {
+                        values[(rng.next_u64() % values.len() as u64) as usize]
+                    } else {
+                        rng.range(0.0, 4.0)
+                    }
+                })
+                .collect();
+            let dist: Vec<f64> = (0..cells).map(|_| rng.uniform()).collect();
+            let mut next = dist.clone();
+            let mut least = vec![0.0; cells];
+            add_running_least(&cost, &mut next, &mut least);
+            let mut run = (f64::INFINITY, 0usize);
+            for g in 0..cells {
+                if cost[g] < run.0 {
+                    run = (cost[g], g);
+                }
+                assert_eq!(least[g].to_bits(), run.0.to_bits(), "case {case} cell {g}");
+                assert_eq!(
+                    next[g].to_bits(),
+                    (dist[g] + run.0).to_bits(),
+                    "case {case} cell {g}"
+                );
+                assert_eq!(first_of_least(&least, g), run.1, "case {case} cell {g}");
             }
         }
     }
