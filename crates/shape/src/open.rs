@@ -1357,7 +1357,12 @@ impl OpenQuery {
         // once full), the greatest of those (infinite until every list is full), and
         // `1 − worst − 10⁻⁹`, the factor of [`Sums::surely_above`]'s test.
         let n1 = if self.allow_mirror { n } else { 0 };
-        let mut best: [Vec<Vec<Window>>; 2] = [vec![Vec::new(); n], vec![Vec::new(); n1]];
+        // Each list made once at its greatest length (`offer` pushes before it truncates):
+        // no growth while offers fill it.
+        let lists = |n: usize| -> Vec<Vec<Window>> {
+            (0..n).map(|_| Vec::with_capacity(WINDOWS + 1)).collect()
+        };
+        let mut best: [Vec<Vec<Window>>; 2] = [lists(n), lists(n1)];
         let mut worst = [vec![f64::INFINITY; n], vec![f64::INFINITY; n1]];
         let mut most = [f64::INFINITY; 2];
         let mut bar = [vec![f64::NEG_INFINITY; n], vec![f64::NEG_INFINITY; n1]];
