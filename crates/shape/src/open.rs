@@ -1385,7 +1385,12 @@ impl OpenQuery {
         // once full), the greatest of those (infinite until every list is full), and
         // `1 − worst − 10⁻⁹`, the factor of [`Sums::surely_above`]'s test.
         let n1 = if self.allow_mirror { n } else { 0 };
-        let mut best: [Vec<Vec<Window>>; 2] = [vec![Vec::new(); n], vec![Vec::new(); n1]];
+        // Each list made once at its greatest length (`offer` pushes before it truncates):
+        // no growth while offers fill it.
+        let lists = |n: usize| -> Vec<Vec<Window>> {
+            (0..n).map(|_| Vec::with_capacity(WINDOWS + 1)).collect()
+        };
+        let mut best: [Vec<Vec<Window>>; 2] = [lists(n), lists(n1)];
         let mut worst = [vec![f64::INFINITY; n], vec![f64::INFINITY; n1]];
         let mut most = [f64::INFINITY; 2];
         let mut bar = [vec![f64::NEG_INFINITY; n], vec![f64::NEG_INFINITY; n1]];
@@ -1534,8 +1539,11 @@ impl OpenQuery {
         let limit = (hyp.span / 8.0).max(2.0);
         let mut theta = std::mem::take(&mut hyp.theta);
         let Projection { next, at, trial_at } = buf;
-        next.clear();
-        next.extend_from_slice(&theta);
+        // Every one of `next` and `trial_at` is written in each step before it is read
+        // (one angle and one lookup a target point, as many as `theta` has): sized only,
+        // not filled (what a former window left there is never read).
+        debug_assert_eq!(theta.len(), self.y.len());
+        next.resize(theta.len(), 0.0);
         // The table at `theta` (each step's trial lookups become the next step's), and
         // the sums from it: every angle is looked up once ([`Table::flat_at_with`] gives the
         // same `Pa` and `e` as [`Table::at`], so the same sums as [`Sums::of`]).
@@ -1543,8 +1551,7 @@ impl OpenQuery {
         for (a, &t) in at.iter_mut().zip(&theta) {
             *a = table.flat_at_with::<AVX2>(t);
         }
-        trial_at.clear();
-        trial_at.extend_from_slice(at);
+        trial_at.resize(theta.len(), [0.0; 8]);
         let y = &self.y;
         let mut s = Sums::accumulate::<MIRROR>(at.iter().map(pa_e), y);
         let n = theta.len().min(y.len());
