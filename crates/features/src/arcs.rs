@@ -221,7 +221,7 @@ impl<'a> Filter<'a> {
             return;
         }
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::has_avx2() {
             // SAFETY: `starts_avx2` needs AVX2, which the processor was just found to
             // have; it has no other requirement (the safe `starts_body` compiled for AVX2).
             #[allow(unsafe_code)]
@@ -248,7 +248,7 @@ fn circles(
     cscale: &mut [f64],
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if crate::has_avx2() {
         // SAFETY: `circles_avx2` needs AVX2, which the processor was just found to have;
         // it has no other requirement (it is the safe `circles_body` compiled for AVX2).
         #[allow(unsafe_code)]

@@ -42,6 +42,16 @@ pub use window::{
     WindowSamples, arc_deviation_pct,
 };
 
+/// Whether the processor has AVX2, the one run-time check the crate's AVX2 paths (the
+/// pseudo-arcs' two filter passes, the straight segments' window filter) dispatch on;
+/// the standard library caches the answer after the first call. Each such path is a
+/// safe body compiled a second time for AVX2, so the results are the same either way.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
 use coupler_kinematics::{
     AngleTables, Circuit, Cognate, CouplerPoint, CrankTable, Curve, DashPattern, Linkage,
     Mechanism, PoseTable, divides_turn,

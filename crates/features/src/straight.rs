@@ -353,7 +353,7 @@ impl Track<'_> {
         cand: &mut Candidates,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::has_avx2() {
             // SAFETY: `filter_avx2` needs AVX2, which the processor was just found to
             // have; it has no other requirement (it is the safe `filter_body` compiled
             // for AVX2).

@@ -352,7 +352,8 @@ impl Kernel {
         let mut cell = |c: &KernelCell| {
             let f = &c.factors;
             // SAFETY: `c.off = 6·c.d <= last.off` with `last.d < grid.len()` (the cells
-            // are made sorted with `off = 6·d` by `Kernel::new`; the last checked above), so `g0 + c.off` starts the six `f64` of
+            // are made sorted with `off = 6·d` by `Kernel::new`, the only place they are
+            // made; the last checked above), so `g0 + c.off` starts the six `f64` of
             // `grid[c.d]` (`Pa`, `e`, `conj(Pa)·e`), of which the first four and the last
             // two are read; `f` is sixteen, all read.
             #[allow(unsafe_code)]
