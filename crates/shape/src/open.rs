@@ -1033,6 +1033,9 @@ struct Projection {
     next: Vec<f64>,
     at: Vec<Flat>,
     trial_at: Vec<Flat>,
+    /// Angle vectors of former windows, handed to the next ones (stage 1 lays each
+    /// window's angles out in one of these rather than in a new vector).
+    spare: Vec<Vec<f64>>,
 }
 
 /// [`Table::flat_at_with`]'s values: `Pa`, `e`, `dPa/dθ`, `de/dθ`, each real then imaginary
@@ -1324,16 +1327,26 @@ impl OpenQuery {
             // SAFETY: `scan_avx2` needs AVX2, which the processor was just found to have;
             // it has no other requirement (the safe body compiled for AVX2).
             #[allow(unsafe_code)]
-            return unsafe { self.scan_avx2(&passes, table, points) };
+            return self.hypotheses(unsafe { self.scan_avx2(&passes, table, points) });
         }
-        self.scan_with::<false>(&passes, table, points)
+        let windows = self.scan_with::<false>(&passes, table, points);
+        self.hypotheses(windows)
+    }
+
+    /// The scan's windows as hypotheses, each with its own angles.
+    #[cfg(test)]
+    fn hypotheses(&self, windows: Vec<Vec<Window>>) -> Vec<Vec<Hypothesis>> {
+        windows
+            .iter()
+            .map(|ws| ws.iter().map(|b| self.hypothesis(b, Vec::new())).collect())
+            .collect()
     }
 
     /// [`OpenQuery::scan_with`] compiled for AVX2 (called only where the processor has
     /// it).
     #[cfg(all(test, target_arch = "x86_64"))]
     #[target_feature(enable = "avx2")]
-    fn scan_avx2(&self, passes: &Passes, table: &Table, points: &[C64]) -> Vec<Vec<Hypothesis>> {
+    fn scan_avx2(&self, passes: &Passes, table: &Table, points: &[C64]) -> Vec<Vec<Window>> {
         self.scan_with::<true>(passes, table, points)
     }
 
@@ -1375,7 +1388,7 @@ impl OpenQuery {
         passes: &Passes,
         table: &Table,
         points: &[C64],
-    ) -> Vec<Vec<Hypothesis>> {
+    ) -> Vec<Vec<Window>> {
         let mirrors: &[bool] = if self.allow_mirror {
             &[false, true]
         } else {
@@ -1475,20 +1488,27 @@ impl OpenQuery {
                     .into_iter()
                     .chain(std::iter::repeat_with(Vec::new)),
             )
-            .map(|(a, b)| {
-                a.into_iter()
-                    .chain(b)
-                    .map(|b| Hypothesis {
-                        misfit: b.misfit,
-                        mirror: b.mirror,
-                        start: b.start,
-                        span: b.span,
-                        sense: b.sense,
-                        theta: self.thetas(b.start, b.span, b.sense).collect(),
-                    })
-                    .collect()
+            .map(|(mut a, b)| {
+                a.extend(b);
+                a
             })
             .collect()
+    }
+
+    /// The hypothesis of a scan window, its angles laid out (evenly along its span) in
+    /// `theta`, whose former contents are dropped (a vector reused between windows
+    /// keeps its storage: no allocation a window).
+    fn hypothesis(&self, b: &Window, mut theta: Vec<f64>) -> Hypothesis {
+        theta.clear();
+        theta.extend(self.thetas(b.start, b.span, b.sense));
+        Hypothesis {
+            misfit: b.misfit,
+            mirror: b.mirror,
+            start: b.start,
+            span: b.span,
+            sense: b.sense,
+            theta,
+        }
     }
 
     /// Stage 1b for one coupler point `w` (untimed): each point's crank angle slides
@@ -1539,7 +1559,9 @@ impl OpenQuery {
         let mut settled = false;
         let limit = (hyp.span / 8.0).max(2.0);
         let mut theta = std::mem::take(&mut hyp.theta);
-        let Projection { next, at, trial_at } = buf;
+        let Projection {
+            next, at, trial_at, ..
+        } = buf;
         // Every one of `next` and `trial_at` is written in each step before it is read
         // (one angle and one lookup a target point, as many as `theta` has): sized only,
         // not filled (what a former window left there is never read).
@@ -2314,7 +2336,8 @@ fn linkage_stage1_body<const AVX2: bool>(
     buf: &mut Projection,
     out: &mut Vec<Stage1>,
 ) {
-    for (k, hs) in query
+    let mut hs: Vec<Hypothesis> = Vec::new();
+    for (k, ws) in query
         .scan_with::<AVX2>(passes, table, pts)
         .into_iter()
         .enumerate()
@@ -2329,7 +2352,12 @@ fn linkage_stage1_body<const AVX2: bool>(
         // the same angles; tested by `a_resumed_projection_is_one_run`).
         // (Plain loops: a closure passed to a generic adapter is compiled apart from
         // this body, for the baseline instruction set.)
-        let mut hs = hs;
+        // The windows' angles laid out in vectors of former windows (returned below).
+        hs.clear();
+        for b in &ws {
+            let theta = buf.spare.pop().unwrap_or_default();
+            hs.push(query.hypothesis(b, theta));
+        }
         let mut settled = Vec::with_capacity(hs.len());
         for h in hs.iter_mut() {
             settled.push(query.project::<AVX2>(table, pts[k], h, buf, PROJECTION_HEAT));
@@ -2363,6 +2391,7 @@ fn linkage_stage1_body<const AVX2: bool>(
                 });
             }
         }
+        buf.spare.extend(hs.drain(..).map(|h| h.theta));
     }
 }
 
