@@ -114,9 +114,14 @@ impl RasterPage {
             Err(e) => return Some(Err(e)),
         };
         let (h, stride) = (h as usize, w as usize);
-        // The band's buffer: blank, the band's rows and the row above it.
-        self.band_buf.clear();
-        self.band_buf.resize((BAND_ROWS + 1) * stride, 0);
+        // The band's buffer: blank, the band's rows and the row above it. The last page's
+        // left it blank (the encoder clears each row as it reads it), so it is zeroed only
+        // when its size changes.
+        let len = (BAND_ROWS + 1) * stride;
+        if self.band_buf.len() != len {
+            self.band_buf.clear();
+            self.band_buf.resize(len, 0);
+        }
         self.banded = true;
         for (b, steps) in bands.steps.iter().enumerate() {
             let (y0, y1) = (b * BAND_ROWS, ((b + 1) * BAND_ROWS).min(h));
@@ -124,11 +129,15 @@ impl RasterPage {
                 // The last row of the band before (encoded, not yet cleared: the
                 // encoder reads it above this band's first row) moves to the buffer's
                 // first row; the rest of the buffer is blank (the encoder cleared it).
+                // Its ink is in its marked blocks: only those are zeroed.
                 let last = y0 - 1 - self.first;
                 if last > 0 {
                     self.band_buf
                         .copy_within(last * stride..(last + 1) * stride, 0);
-                    self.band_buf[last * stride..(last + 1) * stride].fill(0);
+                    self.dirty.clear_row(
+                        y0 - 1,
+                        &mut self.band_buf[last * stride..(last + 1) * stride],
+                    );
                 }
                 self.first = y0 - 1;
             }
@@ -722,6 +731,8 @@ mod tests {
                 let (got, _) = banded.render_png(&dl, PngCompression::Fast).unwrap();
                 assert!(got == want, "dpi {dpi}, round {round}: bytes differ");
                 assert!(banded.ink().iter().all(|&x| x == 0), "left blank");
+                // The next page's bands are drawn into it without zeroing it first.
+                assert!(banded.band_buf.iter().all(|&x| x == 0), "band buffer blank");
             }
             // Best compression: drawn whole, the same bytes as before.
             draw(&dl, &mut whole);
